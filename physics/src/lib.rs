@@ -1,0 +1,21 @@
+//! Pure physics of a Shoal swarm: poses, legged motion models, the arena,
+//! scenarios, formation control and the simulated body. No I/O lives here,
+//! so every rule can be tested directly.
+
+pub mod arena;
+pub mod body;
+pub mod formation;
+pub mod legged;
+pub mod metrics;
+pub mod mixture;
+pub mod planner;
+pub mod pose;
+pub mod scenario;
+
+pub use arena::{Arena, Obstacle, Surface, Wall};
+pub use body::{Body, StepOutcome};
+pub use formation::{FormationParams, ForceLaw, Neighbour};
+pub use legged::{Command, MotionModel, MotionSample};
+pub use mixture::Mixture2;
+pub use pose::{Pose, wrap_angle};
+pub use scenario::{Scenario, ScenarioError};

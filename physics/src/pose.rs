@@ -1,0 +1,61 @@
+use glam::DVec2;
+use serde::{Deserialize, Serialize};
+
+/// A planar pose: position in metres, heading in radians.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Pose {
+    pub x: f64,
+    pub y: f64,
+    pub theta: f64,
+}
+
+impl Pose {
+    pub const fn new(x: f64, y: f64, theta: f64) -> Self {
+        Self { x, y, theta }
+    }
+
+    pub fn position(&self) -> DVec2 {
+        DVec2::new(self.x, self.y)
+    }
+
+    /// Applies one motion step in the thesis's parameterisation: `along` the
+    /// heading, `across` it (to the left) and a `turn`.
+    pub fn advanced(&self, along: f64, across: f64, turn: f64) -> Self {
+        let (sin, cos) = self.theta.sin_cos();
+        Self {
+            x: self.x + along * cos - across * sin,
+            y: self.y + along * sin + across * cos,
+            theta: wrap_angle(self.theta + turn),
+        }
+    }
+
+    pub fn is_finite(&self) -> bool {
+        self.x.is_finite() && self.y.is_finite() && self.theta.is_finite()
+    }
+}
+
+/// Wraps an angle into (-pi, pi].
+pub fn wrap_angle(angle: f64) -> f64 {
+    let wrapped = angle.rem_euclid(std::f64::consts::TAU);
+    if wrapped > std::f64::consts::PI { wrapped - std::f64::consts::TAU } else { wrapped }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::{FRAC_PI_2, PI};
+
+    #[test]
+    fn advancing_along_and_across_follows_the_heading() {
+        let pose = Pose::new(1.0, 2.0, FRAC_PI_2).advanced(1.0, 0.5, 0.0);
+        assert!((pose.x - 0.5).abs() < 1e-12);
+        assert!((pose.y - 3.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn angles_wrap_into_half_open_interval() {
+        assert!((wrap_angle(3.0 * PI) - PI).abs() < 1e-12);
+        assert!((wrap_angle(-PI) - PI).abs() < 1e-12);
+        assert!((wrap_angle(0.25)).abs() - 0.25 < 1e-12);
+    }
+}
