@@ -1,1 +1,21 @@
+//! The Shoal bus over iceoryx2 shared memory: the wire types, the service
+//! names, the spatial-cell neighbour exchange, the roster that observers read,
+//! the lockstep clock, and liveness. Every process links this crate; no
+//! process is a central broker.
 
+pub mod bus;
+pub mod cells;
+pub mod check;
+pub mod clock;
+pub mod liveness;
+pub mod names;
+pub mod roster;
+pub mod wire;
+
+pub use bus::{Bus, BusError, BusLimits};
+pub use cells::{CellExchange, CellKey};
+pub use check::{SampleCheck, Rejection};
+pub use clock::{ClockListener, ClockSource};
+pub use liveness::{SwarmNode, SwarmNodeState};
+pub use roster::{RosterPublisher, RosterReader};
+pub use wire::{ClockTick, Health, PoseSample, MAX_NEIGHBOURS};

@@ -1,0 +1,119 @@
+use core::fmt::Debug;
+
+use iceoryx2::prelude::*;
+use iceoryx2::service::port_factory::{event as event_factory, publish_subscribe as pubsub_factory};
+
+use crate::names;
+
+#[derive(Debug, thiserror::Error)]
+pub enum BusError {
+    #[error("invalid swarm name `{0}`: use letters, digits, `-` and `_` (at most 32)")]
+    InvalidSwarm(String),
+    #[error("bus: {what}: {detail}")]
+    Iceoryx { what: String, detail: String },
+}
+
+impl BusError {
+    pub fn iceoryx(what: impl Into<String>, detail: impl Debug) -> Self {
+        Self::Iceoryx { what: what.into(), detail: format!("{detail:?}") }
+    }
+}
+
+/// Sizes of the swarm's services. iceoryx2's defaults (2 publishers, 8
+/// subscribers, 20 nodes per service) are far too small for a swarm, and every
+/// process must open a service with the same limits, so they live in one place.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BusLimits {
+    /// Robots that may publish into one spatial cell.
+    pub max_per_cell: usize,
+    /// Rings of cells a robot may listen to around its own.
+    pub max_ring: u32,
+    /// Robots in the whole swarm.
+    pub max_agents: usize,
+    /// Observers (status, recorder, SLAM, clock) that read the whole swarm.
+    pub max_observers: usize,
+}
+
+impl Default for BusLimits {
+    fn default() -> Self {
+        Self { max_per_cell: 32, max_ring: 3, max_agents: 2048, max_observers: 32 }
+    }
+}
+
+impl BusLimits {
+    /// Robots within `max_ring` cells listen to a cell, plus the observers.
+    pub fn cell_subscribers(&self) -> usize {
+        let side = 2 * self.max_ring as usize + 1;
+        (side * side * self.max_per_cell).min(self.max_agents) + self.max_observers
+    }
+}
+
+/// One process's connection to one swarm.
+pub struct Bus {
+    pub node: Node<ipc::Service>,
+    pub swarm: String,
+    pub limits: BusLimits,
+}
+
+impl Bus {
+    /// Joins swarm `swarm` as a node called `node_name`.
+    pub fn join(swarm: &str, node_name: &str, limits: BusLimits) -> Result<Self, BusError> {
+        names::validate_swarm(swarm)?;
+        let name = NodeName::new(node_name).map_err(|e| BusError::iceoryx(format!("node name {node_name}"), e))?;
+        let node = NodeBuilder::new()
+            .name(&name)
+            .create::<ipc::Service>()
+            .map_err(|e| BusError::iceoryx(format!("create node {node_name}"), e))?;
+        Ok(Self { node, swarm: swarm.to_owned(), limits })
+    }
+
+    pub fn service_name(name: &str) -> Result<ServiceName, BusError> {
+        ServiceName::new(name).map_err(|e| BusError::iceoryx(format!("service name {name}"), e))
+    }
+
+    pub(crate) fn publish_subscribe<T: Debug + ZeroCopySend + 'static>(
+        &self,
+        name: &str,
+        publishers: usize,
+        subscribers: usize,
+        buffer: usize,
+        history: usize,
+    ) -> Result<pubsub_factory::PortFactory<ipc::Service, T, ()>, BusError> {
+        self.node
+            .service_builder(&Self::service_name(name)?)
+            .publish_subscribe::<T>()
+            .max_publishers(publishers)
+            .max_subscribers(subscribers)
+            .max_nodes(publishers + subscribers)
+            .subscriber_max_buffer_size(buffer)
+            .history_size(history)
+            .enable_safe_overflow(true)
+            .open_or_create()
+            .map_err(|e| BusError::iceoryx(format!("open {name}"), e))
+    }
+
+    pub(crate) fn event(
+        &self,
+        name: &str,
+        notifiers: usize,
+        listeners: usize,
+    ) -> Result<event_factory::PortFactory<ipc::Service>, BusError> {
+        self.node
+            .service_builder(&Self::service_name(name)?)
+            .event()
+            .max_notifiers(notifiers)
+            .max_listeners(listeners)
+            .max_nodes(notifiers + listeners)
+            .open_or_create()
+            .map_err(|e| BusError::iceoryx(format!("open {name}"), e))
+    }
+
+    /// Whether a termination signal (SIGTERM, SIGINT) arrived.
+    pub fn termination_requested(&self) -> bool {
+        self.node.wait(core::time::Duration::ZERO).is_err()
+    }
+
+    pub fn prefix(&self) -> String {
+        names::prefix(&self.swarm)
+    }
+}

@@ -1,0 +1,113 @@
+//! Neighbour discovery by spatial cells: a robot publishes its pose into the
+//! service of the grid cell it stands in and listens to the cells around it.
+//! What it costs depends on how many robots stand nearby, not on swarm size.
+
+use std::collections::HashMap;
+
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::*;
+
+use crate::bus::{Bus, BusError};
+use crate::names;
+use crate::wire::PoseSample;
+
+pub type CellKey = (i32, i32);
+
+/// Subscribers hold at most this many unread samples per publisher; the
+/// exchange only needs the newest one or two.
+const CELL_BUFFER: usize = 2;
+
+pub struct CellExchange {
+    cell_size: f64,
+    publisher: Option<(CellKey, Publisher<ipc::Service, PoseSample, ()>)>,
+    subscribers: HashMap<CellKey, Subscriber<ipc::Service, PoseSample, ()>>,
+    /// Cells this robot could not join (full, or the bus refused); retried next period.
+    pub failures: u64,
+}
+
+impl CellExchange {
+    pub fn new(cell_size: f64) -> Self {
+        Self { cell_size, publisher: None, subscribers: HashMap::new(), failures: 0 }
+    }
+
+    pub fn cell_of(&self, x: f64, y: f64) -> CellKey {
+        ((x / self.cell_size).floor() as i32, (y / self.cell_size).floor() as i32)
+    }
+
+    fn open(bus: &Bus, key: CellKey) -> Result<iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, PoseSample, ()>, BusError> {
+        let limits = bus.limits;
+        bus.publish_subscribe::<PoseSample>(
+            &names::cell(&bus.swarm, key.0, key.1),
+            limits.max_per_cell,
+            limits.cell_subscribers(),
+            CELL_BUFFER,
+            0,
+        )
+    }
+
+    /// Publishes into the cell under the sample's pose, moving to a new cell's
+    /// service when the robot crossed a border.
+    pub fn publish(&mut self, bus: &Bus, sample: &PoseSample) -> Result<(), BusError> {
+        let key = self.cell_of(sample.x, sample.y);
+        if self.publisher.as_ref().map(|(k, _)| *k) != Some(key) {
+            self.publisher = None;
+            let service = Self::open(bus, key).inspect_err(|_| self.failures += 1)?;
+            let publisher = service.publisher_builder().create().map_err(|e| {
+                self.failures += 1;
+                BusError::iceoryx(format!("publish into cell {key:?}"), e)
+            })?;
+            self.publisher = Some((key, publisher));
+        }
+        if let Some((_, publisher)) = &self.publisher {
+            publisher.send_copy(*sample).map_err(|e| BusError::iceoryx("send pose", e))?;
+        }
+        Ok(())
+    }
+
+    /// Listens to every cell within `ring` cells of `center` and to no other.
+    pub fn listen(&mut self, bus: &Bus, center: CellKey, ring: u32) -> Result<(), BusError> {
+        let ring = ring as i32;
+        let wanted = |k: &CellKey| (k.0 - center.0).abs() <= ring && (k.1 - center.1).abs() <= ring;
+        self.subscribers.retain(|k, _| wanted(k));
+        let mut first_error = None;
+        for dx in -ring..=ring {
+            for dy in -ring..=ring {
+                let key = (center.0 + dx, center.1 + dy);
+                if self.subscribers.contains_key(&key) {
+                    continue;
+                }
+                let subscriber = Self::open(bus, key).and_then(|service| {
+                    service
+                        .subscriber_builder()
+                        .create()
+                        .map_err(|e| BusError::iceoryx(format!("listen to cell {key:?}"), e))
+                });
+                match subscriber {
+                    Ok(subscriber) => {
+                        self.subscribers.insert(key, subscriber);
+                    }
+                    Err(e) => {
+                        self.failures += 1;
+                        first_error.get_or_insert(e);
+                    }
+                }
+            }
+        }
+        first_error.map_or(Ok(()), Err)
+    }
+
+    /// Hands every sample waiting in the listened cells to `on_sample`.
+    pub fn receive(&self, mut on_sample: impl FnMut(PoseSample)) -> Result<(), BusError> {
+        for subscriber in self.subscribers.values() {
+            while let Some(sample) = subscriber.receive().map_err(|e| BusError::iceoryx("receive pose", e))? {
+                on_sample(*sample);
+            }
+        }
+        Ok(())
+    }
+
+    pub fn listened_cells(&self) -> usize {
+        self.subscribers.len()
+    }
+}

@@ -1,0 +1,96 @@
+//! Lockstep: a clock publishes ticks; each robot steps once per tick and
+//! acknowledges by publishing its pose to the roster and notifying the clock.
+//! The clock waits for every live robot (or a timeout) before the next tick,
+//! so a run is deterministic for a seed and as fast as the robots compute.
+
+use core::time::Duration;
+
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::*;
+
+use crate::bus::{Bus, BusError};
+use crate::names;
+use crate::wire::ClockTick;
+
+fn open_ticks(bus: &Bus) -> Result<iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, ClockTick, ()>, BusError> {
+    let limits = bus.limits;
+    bus.publish_subscribe::<ClockTick>(&names::clock(&bus.swarm), 2, limits.max_agents + limits.max_observers, 2, 1)
+}
+
+fn open_clock_event(bus: &Bus) -> Result<iceoryx2::service::port_factory::event::PortFactory<ipc::Service>, BusError> {
+    let limits = bus.limits;
+    bus.event(&names::clock_event(&bus.swarm), 2, limits.max_agents + limits.max_observers)
+}
+
+fn open_ack_event(bus: &Bus) -> Result<iceoryx2::service::port_factory::event::PortFactory<ipc::Service>, BusError> {
+    let limits = bus.limits;
+    bus.event(&names::ack_event(&bus.swarm), limits.max_agents + limits.max_observers, 2)
+}
+
+/// The clock's side.
+pub struct ClockSource {
+    publisher: Publisher<ipc::Service, ClockTick, ()>,
+    notifier: Notifier<ipc::Service>,
+    acks: Listener<ipc::Service>,
+}
+
+impl ClockSource {
+    pub fn new(bus: &Bus) -> Result<Self, BusError> {
+        let publisher = open_ticks(bus)?.publisher_builder().create().map_err(|e| BusError::iceoryx("publish clock", e))?;
+        let notifier = open_clock_event(bus)?.notifier_builder().create().map_err(|e| BusError::iceoryx("notify clock", e))?;
+        let acks = open_ack_event(bus)?.listener_builder().create().map_err(|e| BusError::iceoryx("listen for acks", e))?;
+        Ok(Self { publisher, notifier, acks })
+    }
+
+    pub fn tick(&self, tick: ClockTick) -> Result<(), BusError> {
+        self.publisher.send_copy(tick).map_err(|e| BusError::iceoryx("send tick", e))?;
+        self.notifier.notify().map_err(|e| BusError::iceoryx("notify tick", e))?;
+        Ok(())
+    }
+
+    /// Blocks until some robot acknowledged or `timeout` passed.
+    pub fn wait_for_acks(&self, timeout: Duration) -> Result<(), BusError> {
+        self.acks.timed_wait(|_| {}, timeout).map(|_| ()).map_err(|e| BusError::iceoryx("wait for acks", e))
+    }
+}
+
+/// A robot's side.
+pub struct ClockListener {
+    subscriber: Subscriber<ipc::Service, ClockTick, ()>,
+    listener: Listener<ipc::Service>,
+    ack: Notifier<ipc::Service>,
+}
+
+impl ClockListener {
+    pub fn new(bus: &Bus) -> Result<Self, BusError> {
+        let subscriber = open_ticks(bus)?.subscriber_builder().create().map_err(|e| BusError::iceoryx("follow clock", e))?;
+        let listener = open_clock_event(bus)?.listener_builder().create().map_err(|e| BusError::iceoryx("listen to clock", e))?;
+        let ack = open_ack_event(bus)?.notifier_builder().create().map_err(|e| BusError::iceoryx("acknowledge clock", e))?;
+        Ok(Self { subscriber, listener, ack })
+    }
+
+    /// The newest tick already published, without waiting.
+    pub fn latest(&self) -> Result<Option<ClockTick>, BusError> {
+        let mut latest = None;
+        while let Some(sample) = self.subscriber.receive().map_err(|e| BusError::iceoryx("receive tick", e))? {
+            latest = Some(*sample);
+        }
+        Ok(latest)
+    }
+
+    /// Waits up to `timeout` for a notification, then returns the newest tick.
+    pub fn wait(&self, timeout: Duration) -> Result<Option<ClockTick>, BusError> {
+        if let Some(tick) = self.latest()? {
+            return Ok(Some(tick));
+        }
+        self.listener.timed_wait(|_| {}, timeout).map_err(|e| BusError::iceoryx("wait for tick", e))?;
+        self.latest()
+    }
+
+    pub fn acknowledge(&self) -> Result<(), BusError> {
+        self.ack.notify().map(|_| ()).map_err(|e| BusError::iceoryx("acknowledge tick", e))
+    }
+}

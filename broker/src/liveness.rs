@@ -1,0 +1,74 @@
+//! Who is on the bus: iceoryx2 marks a killed process's node `Dead`; any
+//! process of the swarm may then remove its stale resources so a restarted
+//! robot with the same id can rejoin at once.
+
+use iceoryx2::node::NodeView;
+use iceoryx2::prelude::*;
+
+use crate::bus::BusError;
+use crate::names;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SwarmNodeState {
+    Alive,
+    Dead,
+}
+
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct SwarmNode {
+    pub name: String,
+    /// The robot id, for robot nodes.
+    pub agent_id: Option<u32>,
+    pub pid: i32,
+    pub state: SwarmNodeState,
+}
+
+/// Every node of `swarm` on this machine, alive or dead.
+pub fn swarm_nodes(swarm: &str) -> Result<Vec<SwarmNode>, BusError> {
+    let prefix = names::prefix(swarm);
+    let mut nodes = Vec::new();
+    Node::<ipc::Service>::list(Config::global_config(), |state| {
+        let (view_details, alive) = match &state {
+            NodeState::Alive(view) => (view.details().clone(), true),
+            NodeState::Dead(view) => (view.details().clone(), false),
+            _ => (None, false),
+        };
+        if let Some(details) = view_details {
+            let name = details.name().as_str().to_owned();
+            if name.starts_with(&prefix) {
+                nodes.push(SwarmNode {
+                    agent_id: names::agent_id_of_node(swarm, &name),
+                    pid: details.process_id().value(),
+                    state: if alive { SwarmNodeState::Alive } else { SwarmNodeState::Dead },
+                    name,
+                });
+            }
+        }
+        CallbackProgression::Continue
+    })
+    .map_err(|e| BusError::iceoryx("list nodes", e))?;
+    Ok(nodes)
+}
+
+/// Removes the stale resources of every dead node of `swarm`; returns how many it cleaned.
+pub fn remove_dead_nodes(swarm: &str) -> Result<usize, BusError> {
+    let prefix = names::prefix(swarm);
+    let mut dead = Vec::new();
+    Node::<ipc::Service>::list(Config::global_config(), |state| {
+        if let NodeState::Dead(view) = state {
+            let ours = view.details().as_ref().is_some_and(|d| d.name().as_str().starts_with(&prefix));
+            if ours {
+                dead.push(view);
+            }
+        }
+        CallbackProgression::Continue
+    })
+    .map_err(|e| BusError::iceoryx("list nodes", e))?;
+    let mut cleaned = 0;
+    for view in dead {
+        if view.try_remove_stale_resources().is_ok() {
+            cleaned += 1;
+        }
+    }
+    Ok(cleaned)
+}

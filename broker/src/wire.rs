@@ -1,0 +1,83 @@
+//! What crosses shared memory. Every type is `#[repr(C)]` with an explicit
+//! type name, so the Python `iceoryx2` client can read it with a ctypes
+//! structure of the same name and layout (see `python/shoal_wire.py`).
+
+use iceoryx2::prelude::ZeroCopySend;
+
+/// The most neighbours a pose sample lists.
+pub const MAX_NEIGHBOURS: usize = 16;
+
+/// One robot's state after one control period.
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("shoal.Pose")]
+#[repr(C)]
+pub struct PoseSample {
+    pub agent_id: u32,
+    pub pid: u32,
+    /// The control period this pose ends.
+    pub tick: u64,
+    pub sim_time: f64,
+    /// True pose, as the body's localisation reports it.
+    pub x: f64,
+    pub y: f64,
+    pub theta: f64,
+    /// What the robot believes from its own motion model (dead reckoning,
+    /// corrected by SLAM when it is followed).
+    pub believed_x: f64,
+    pub believed_y: f64,
+    pub believed_theta: f64,
+    /// Velocity over the last period, m/s.
+    pub vx: f64,
+    pub vy: f64,
+    /// Index of the command executed in this period (`shoal_physics::Command::ALL`).
+    pub command: u32,
+    /// Bit set of [`Health`] flags.
+    pub health: u32,
+    /// How many robots it could see this period.
+    pub visible: u32,
+    pub neighbour_count: u32,
+    pub neighbours: [u32; MAX_NEIGHBOURS],
+}
+
+impl PoseSample {
+    pub fn neighbour_ids(&self) -> &[u32] {
+        &self.neighbours[..(self.neighbour_count as usize).min(MAX_NEIGHBOURS)]
+    }
+}
+
+/// Flags in [`PoseSample::health`].
+pub struct Health;
+
+impl Health {
+    /// A wall, obstacle or robot stopped the last step.
+    pub const BUMPED: u32 = 1;
+    /// The robot sees no other robot.
+    pub const ISOLATED: u32 = 2;
+    /// The robot could not publish into its cell last period (cell full).
+    pub const CELL_FULL: u32 = 4;
+    /// The robot rejected malformed samples since it started.
+    pub const REJECTED_INPUT: u32 = 8;
+}
+
+/// One beat of the lockstep clock.
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("shoal.ClockTick")]
+#[repr(C)]
+pub struct ClockTick {
+    pub tick: u64,
+    pub sim_time: f64,
+    pub period_s: f64,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn layouts_match_the_python_mirror() {
+        // python/shoal_wire.py declares the same fields; these sizes pin the layout.
+        assert_eq!(core::mem::size_of::<PoseSample>(), 168);
+        assert_eq!(core::mem::size_of::<ClockTick>(), 24);
+        assert_eq!(unsafe { <PoseSample as ZeroCopySend>::type_name() }, "shoal.Pose");
+    }
+}
