@@ -81,13 +81,13 @@ impl ClockListener {
         Ok(latest)
     }
 
-    /// Waits up to `timeout` for a notification, then returns the newest tick.
-    pub fn wait(&self, timeout: Duration) -> Result<Option<ClockTick>, BusError> {
-        if let Some(tick) = self.latest()? {
+    /// The newest tick later than `after`, waiting up to `timeout` for one.
+    pub fn wait_after(&self, after: u64, timeout: Duration) -> Result<Option<ClockTick>, BusError> {
+        if let Some(tick) = self.latest()?.filter(|t| t.tick > after) {
             return Ok(Some(tick));
         }
         self.listener.timed_wait(|_| {}, timeout).map_err(|e| BusError::iceoryx("wait for tick", e))?;
-        self.latest()
+        Ok(self.latest()?.filter(|t| t.tick > after))
     }
 
     pub fn acknowledge(&self) -> Result<(), BusError> {

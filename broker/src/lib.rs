@@ -10,6 +10,7 @@ pub mod clock;
 pub mod liveness;
 pub mod names;
 pub mod roster;
+pub mod runtime;
 pub mod wire;
 
 pub use bus::{Bus, BusError, BusLimits};
@@ -18,4 +19,5 @@ pub use check::{SampleCheck, Rejection};
 pub use clock::{ClockListener, ClockSource};
 pub use liveness::{SwarmNode, SwarmNodeState};
 pub use roster::{RosterPublisher, RosterReader};
+pub use runtime::{SwarmMeta, SwarmRuntime};
 pub use wire::{ClockTick, Health, PoseSample, MAX_NEIGHBOURS};

@@ -25,6 +25,11 @@ pub struct FormationParams {
     pub neighbours: usize,
     /// Pick the nearest agent in each of N sectors instead of the N nearest.
     pub sectors: bool,
+    /// Fill sectors that hold no agent with the next nearest agents, as the
+    /// thesis does. Off by default: the fill-ins are second-ring agents whose
+    /// pull compresses the formation (see EXPERIMENTS.md), and they add no
+    /// connectivity, since every non-empty sector is already tracked.
+    pub fill_empty_sectors: bool,
     pub law: ForceLaw,
     /// The force coefficient k (or c for Sugawara's law).
     pub gain: f64,
@@ -42,6 +47,7 @@ impl Default for FormationParams {
         Self {
             neighbours: 4,
             sectors: true,
+            fill_empty_sectors: false,
             law: ForceLaw::Thesis,
             gain: 1.0,
             spread: 1.0,
@@ -91,8 +97,8 @@ pub struct Neighbour {
 }
 
 /// Picks up to `params.neighbours` agents: with sectors, the nearest in each of
-/// N equal sectors around `me`, then the nearest of the rest for empty
-/// sectors; without, simply the N nearest. Ties break by id, so the choice is
+/// N equal sectors around `me` (and, if asked, the nearest of the rest for
+/// empty sectors); without, simply the N nearest. Ties break by id, so the choice is
 /// deterministic.
 pub fn choose_neighbours(me: DVec2, others: &[Neighbour], params: &FormationParams) -> Vec<Neighbour> {
     let n = params.neighbours;
@@ -102,8 +108,12 @@ pub fn choose_neighbours(me: DVec2, others: &[Neighbour], params: &FormationPara
     if !params.sectors {
         return by_distance.into_iter().take(n).map(|(_, o)| o).collect();
     }
+    // Sectors start at the nearest agent's bearing, so the split does not
+    // depend on how the world's axes happen to lie.
+    let origin = by_distance.first().map_or(0.0, |(_, o)| (o.position - me).to_angle());
+    let half_sector = TAU / n as f64 / 2.0;
     let sector_of = |p: DVec2| {
-        let angle = (p - me).to_angle().rem_euclid(TAU);
+        let angle = ((p - me).to_angle() - origin + half_sector).rem_euclid(TAU);
         ((angle / TAU * n as f64) as usize).min(n - 1)
     };
     let mut filled = vec![false; n];
@@ -118,7 +128,7 @@ pub fn choose_neighbours(me: DVec2, others: &[Neighbour], params: &FormationPara
         }
     }
     for (i, (_, other)) in by_distance.iter().enumerate() {
-        if chosen.len() >= n {
+        if chosen.len() >= n || !params.fill_empty_sectors {
             break;
         }
         if !taken[i] {
@@ -182,8 +192,10 @@ mod tests {
     #[test]
     fn empty_sectors_are_filled_with_the_next_nearest() {
         let others = [agent(1, 1.0, 0.0), agent(2, 2.0, 0.0), agent(3, 3.0, 0.0)];
-        let params = FormationParams { neighbours: 4, ..Default::default() };
+        let params = FormationParams { neighbours: 4, fill_empty_sectors: true, ..Default::default() };
         assert_eq!(choose_neighbours(DVec2::ZERO, &others, &params).len(), 3);
+        let params = FormationParams { neighbours: 4, fill_empty_sectors: false, ..Default::default() };
+        assert_eq!(choose_neighbours(DVec2::ZERO, &others, &params).len(), 1);
     }
 
     #[test]

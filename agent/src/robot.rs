@@ -1,0 +1,99 @@
+//! One period of one robot, free of I/O: choose neighbours, sum forces, plan
+//! a command with the robot's own model, let the body execute it.
+
+use glam::DVec2;
+use rand::SeedableRng;
+use rand::rngs::StdRng;
+use shoal_physics::formation::{choose_neighbours, net_force};
+use shoal_physics::planner::plan_command;
+use shoal_physics::{Body, Command, MotionModel, Neighbour, Pose, Scenario, StepOutcome};
+
+/// Metres of desired motion per unit of net force.
+const STEP_PER_UNIT_FORCE: f64 = 0.1;
+
+pub struct Robot {
+    pub id: u32,
+    pub body: Body,
+    /// The model the robot believes it moves by: it plans and dead-reckons with it.
+    pub belief: MotionModel,
+    pub believed: Pose,
+    rng: StdRng,
+}
+
+/// What the robot did in one period.
+#[derive(Clone, Debug)]
+pub struct Decision {
+    pub tracked: Vec<Neighbour>,
+    pub force: DVec2,
+    pub command: Command,
+    pub outcome: StepOutcome,
+}
+
+impl Robot {
+    /// Robot `id` of a swarm seeded with `seed`; each robot draws its own noise.
+    pub fn new(id: u32, start: Pose, scenario: &Scenario) -> Self {
+        let seed = scenario.agents.seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(u64::from(id));
+        Self {
+            id,
+            body: Body { pose: start, radius: scenario.agents.radius, model: scenario.motion.clone() },
+            belief: scenario.motion.clone(),
+            believed: start,
+            rng: StdRng::seed_from_u64(seed),
+        }
+    }
+
+    /// One control period against the robots it senses.
+    pub fn step(&mut self, sensed: &[Neighbour], scenario: &Scenario) -> Decision {
+        let me = self.body.pose.position();
+        let tracked = choose_neighbours(me, sensed, &scenario.formation);
+        let force = net_force(me, &tracked, &scenario.formation);
+        let max_step = self.belief.mean(Command::Walk(3)).along;
+        let displacement = if force == DVec2::ZERO {
+            DVec2::ZERO
+        } else {
+            force.normalize() * (force.length() * STEP_PER_UNIT_FORCE).min(max_step)
+        };
+        let command = plan_command(&self.body.pose, displacement, &self.belief);
+        let nearby: Vec<DVec2> = sensed
+            .iter()
+            .map(|n| n.position)
+            .filter(|p| p.distance(me) < 4.0 * self.body.radius + 0.5)
+            .collect();
+        let outcome = self.body.step(command, &scenario.arena, &nearby, &mut self.rng);
+        let expected = self.belief.mean(command);
+        self.believed = self.believed.advanced(expected.along, expected.across, expected.turn);
+        Decision { tracked, force, command, outcome }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use shoal_physics::metrics::formation_metrics;
+
+    /// Many robots stepping against each other's previous poses, as lockstep
+    /// does, but in one process: the controller alone must form a lattice.
+    #[test]
+    fn a_dozen_robots_form_one_evenly_spaced_group() {
+        let mut scenario = Scenario::default_arena();
+        scenario.agents.count = 12;
+        let starts = scenario.start_poses(0, 12);
+        let mut robots: Vec<Robot> = starts.iter().enumerate().map(|(i, p)| Robot::new(i as u32, *p, &scenario)).collect();
+        for _ in 0..600 {
+            let poses: Vec<Neighbour> =
+                robots.iter().map(|r| Neighbour { id: r.id, position: r.body.pose.position() }).collect();
+            for robot in &mut robots {
+                let others: Vec<Neighbour> = poses
+                    .iter()
+                    .filter(|n| n.id != robot.id && n.position.distance(robot.body.pose.position()) < 5.0)
+                    .copied()
+                    .collect();
+                robot.step(&others, &scenario);
+            }
+        }
+        let positions: Vec<DVec2> = robots.iter().map(|r| r.body.pose.position()).collect();
+        let metrics = formation_metrics(&positions, scenario.formation.spread);
+        assert_eq!(metrics.components, 1, "{metrics:?}");
+        assert!((metrics.spacing_ratio - 1.0).abs() < 0.15, "{metrics:?}");
+    }
+}
