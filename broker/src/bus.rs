@@ -48,6 +48,12 @@ impl BusLimits {
     }
 }
 
+/// iceoryx2 warns on stdout that it found no config file; its defaults are
+/// what we want, so only its errors are shown (`IOX2_LOG_LEVEL` overrides).
+pub fn quiet_iceoryx() {
+    set_log_level_from_env_or(LogLevel::Error);
+}
+
 /// One process's connection to one swarm.
 pub struct Bus {
     pub node: Node<ipc::Service>,
@@ -59,6 +65,7 @@ impl Bus {
     /// Joins swarm `swarm` as a node called `node_name`.
     pub fn join(swarm: &str, node_name: &str, limits: BusLimits) -> Result<Self, BusError> {
         names::validate_swarm(swarm)?;
+        quiet_iceoryx();
         let name = NodeName::new(node_name).map_err(|e| BusError::iceoryx(format!("node name {node_name}"), e))?;
         let node = NodeBuilder::new()
             .name(&name)

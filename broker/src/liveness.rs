@@ -25,6 +25,7 @@ pub struct SwarmNode {
 
 /// Every node of `swarm` on this machine, alive or dead.
 pub fn swarm_nodes(swarm: &str) -> Result<Vec<SwarmNode>, BusError> {
+    crate::bus::quiet_iceoryx();
     let prefix = names::prefix(swarm);
     let mut nodes = Vec::new();
     Node::<ipc::Service>::list(Config::global_config(), |state| {
@@ -52,6 +53,7 @@ pub fn swarm_nodes(swarm: &str) -> Result<Vec<SwarmNode>, BusError> {
 
 /// Removes the stale resources of every dead node of `swarm`; returns how many it cleaned.
 pub fn remove_dead_nodes(swarm: &str) -> Result<usize, BusError> {
+    crate::bus::quiet_iceoryx();
     let prefix = names::prefix(swarm);
     let mut dead = Vec::new();
     Node::<ipc::Service>::list(Config::global_config(), |state| {

@@ -1,0 +1,92 @@
+//! `shoal status`: who is in a swarm, read from the bus.
+
+use std::collections::BTreeMap;
+use std::time::{Duration, Instant};
+
+use anyhow::Result;
+use serde::Serialize;
+use shoal_broker::liveness::{SwarmNodeState, swarm_nodes};
+use shoal_broker::{Bus, BusLimits, PoseSample, RosterReader, SwarmRuntime, names};
+
+#[derive(Debug, Serialize)]
+pub struct AgentStatus {
+    pub id: u32,
+    pub pid: i32,
+    pub state: &'static str,
+    pub x: Option<f64>,
+    pub y: Option<f64>,
+    pub theta: Option<f64>,
+    pub tick: Option<u64>,
+    pub health: Option<u32>,
+    pub neighbours: Vec<u32>,
+}
+
+#[derive(Debug, Serialize)]
+pub struct StatusReport {
+    pub swarm: String,
+    pub agents: Vec<AgentStatus>,
+    /// Dead nodes of this swarm whose resources nobody has removed yet.
+    pub stale_nodes: usize,
+}
+
+/// Listens to the roster for a few periods and lists every node of the swarm.
+pub fn gather(swarm: &str) -> Result<StatusReport> {
+    names::validate_swarm(swarm)?;
+    let period = SwarmRuntime::locate(swarm).read_meta().map_or(0.2, |m| m.period_s);
+    let listen = Duration::from_secs_f64((3.0 * period).clamp(0.3, 3.0));
+    let node_name = names::tool_node(swarm, &format!("status-{}", std::process::id()));
+    let bus = Bus::join(swarm, &node_name, BusLimits::default())?;
+    let roster = RosterReader::new(&bus)?;
+    let mut latest: BTreeMap<u32, PoseSample> = BTreeMap::new();
+    let started = Instant::now();
+    while started.elapsed() < listen {
+        roster.receive(|s| {
+            if s.x.is_finite() && s.y.is_finite() && s.theta.is_finite() {
+                latest.insert(s.agent_id, s);
+            }
+        })?;
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let mut agents = Vec::new();
+    let mut stale_nodes = 0;
+    for node in swarm_nodes(swarm)? {
+        if node.state == SwarmNodeState::Dead {
+            stale_nodes += 1;
+        }
+        let Some(id) = node.agent_id else { continue };
+        let sample = latest.get(&id).filter(|s| s.pid as i32 == node.pid && node.state == SwarmNodeState::Alive);
+        agents.push(AgentStatus {
+            id,
+            pid: node.pid,
+            state: if node.state == SwarmNodeState::Alive { "alive" } else { "dead" },
+            x: sample.map(|s| s.x),
+            y: sample.map(|s| s.y),
+            theta: sample.map(|s| s.theta),
+            tick: sample.map(|s| s.tick),
+            health: sample.map(|s| s.health),
+            neighbours: sample.map(|s| s.neighbour_ids().to_vec()).unwrap_or_default(),
+        });
+    }
+    agents.sort_by_key(|a| (a.id, a.state));
+    Ok(StatusReport { swarm: swarm.to_owned(), agents, stale_nodes })
+}
+
+pub fn print_table(report: &StatusReport) {
+    let alive = report.agents.iter().filter(|a| a.state == "alive").count();
+    println!("swarm `{}`: {alive} alive, {} stale nodes", report.swarm, report.stale_nodes);
+    println!("{:>5} {:>8} {:>6} {:>8} {:>8} {:>7}  neighbours", "id", "pid", "state", "x", "y", "theta");
+    for a in &report.agents {
+        let num = |v: Option<f64>| v.map_or_else(|| "-".to_owned(), |v| format!("{v:.2}"));
+        let neighbours: Vec<String> = a.neighbours.iter().map(u32::to_string).collect();
+        println!(
+            "{:>5} {:>8} {:>6} {:>8} {:>8} {:>7}  {}",
+            a.id,
+            a.pid,
+            a.state,
+            num(a.x),
+            num(a.y),
+            num(a.theta),
+            neighbours.join(",")
+        );
+    }
+}

@@ -1,0 +1,148 @@
+//! `shoal up`: start a swarm and watch it until Ctrl-C or the duration ends.
+
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use anyhow::Result;
+use indicatif::{ProgressBar, ProgressStyle};
+use serde::Serialize;
+use shoal_physics::Scenario;
+use shoal_physics::metrics::FormationMetrics;
+
+use crate::swarm::RunningSwarm;
+
+/// A formation counts as formed when it is one group with mean spacing within
+/// this fraction of the desired spread.
+pub const SPACING_TOLERANCE: f64 = 0.15;
+
+pub struct UpOptions {
+    pub swarm: String,
+    pub scenario: Option<PathBuf>,
+    pub agents: Option<usize>,
+    pub seed: Option<u64>,
+    pub lockstep: bool,
+    pub duration_s: Option<f64>,
+    pub json: bool,
+}
+
+#[derive(Debug, Serialize)]
+pub struct UpSummary {
+    pub swarm: String,
+    pub lockstep: bool,
+    pub ticks: u64,
+    pub sim_time_s: f64,
+    pub agents: usize,
+    pub components: usize,
+    pub spacing_ratio: f64,
+    pub spacing_cv: f64,
+    /// When the formation last became (and stayed) formed, in simulated seconds.
+    pub converge_s: Option<f64>,
+    pub rejected_samples: u64,
+}
+
+pub fn load_scenario(path: Option<&PathBuf>) -> Result<Scenario> {
+    Ok(match path {
+        Some(path) => Scenario::from_file(path)?,
+        None => Scenario::default_arena(),
+    })
+}
+
+pub fn is_formed(metrics: &FormationMetrics) -> bool {
+    metrics.components == 1 && (metrics.spacing_ratio - 1.0).abs() <= SPACING_TOLERANCE
+}
+
+pub fn up(options: UpOptions) -> Result<UpSummary> {
+    let mut scenario = load_scenario(options.scenario.as_ref())?;
+    if let Some(count) = options.agents {
+        scenario.agents.count = count;
+    }
+    if let Some(seed) = options.seed {
+        scenario.agents.seed = seed;
+    }
+    let spread = scenario.formation.spread;
+    let mut swarm = RunningSwarm::launch(&options.swarm, scenario, options.lockstep)?;
+    let progress = if std::io::stderr().is_terminal() {
+        let bar = ProgressBar::new_spinner();
+        bar.set_style(ProgressStyle::with_template("{spinner} {elapsed} {msg}").unwrap_or_else(|_| ProgressStyle::default_spinner()));
+        bar.enable_steady_tick(Duration::from_millis(200));
+        Some(bar)
+    } else {
+        None
+    };
+    eprintln!(
+        "shoal: swarm `{}` up with {} robots ({}); Ctrl-C stops it",
+        swarm.name,
+        swarm.scenario.agents.count,
+        if swarm.lockstep() { "lockstep" } else { "real time" }
+    );
+    let mut converged_since: Option<f64> = None;
+    let mut last_report = Instant::now();
+    let mut last_line = Instant::now();
+    loop {
+        if swarm.termination_requested() {
+            break;
+        }
+        if options.duration_s.is_some_and(|d| swarm.sim_time() >= d) {
+            break;
+        }
+        swarm.advance()?;
+        let metrics = swarm.observer.metrics(spread);
+        match (is_formed(&metrics), converged_since) {
+            (true, None) => converged_since = Some(swarm.sim_time()),
+            (false, Some(_)) => converged_since = None,
+            _ => {}
+        }
+        if last_report.elapsed() >= Duration::from_millis(250) {
+            last_report = Instant::now();
+            let message = format!(
+                "robots {} | tick {} | t {:.1} s | groups {} | spacing {:.2} s | cv {:.2}",
+                swarm.observer.len(),
+                swarm.observer.newest_tick,
+                swarm.sim_time(),
+                metrics.components,
+                metrics.spacing_ratio,
+                metrics.spacing_cv
+            );
+            match &progress {
+                Some(bar) => bar.set_message(message),
+                None if last_line.elapsed() >= Duration::from_secs(5) => {
+                    last_line = Instant::now();
+                    eprintln!("shoal: {message}");
+                }
+                None => {}
+            }
+        }
+    }
+    if let Some(bar) = progress {
+        bar.finish_and_clear();
+    }
+    let metrics = swarm.observer.metrics(spread);
+    let summary = UpSummary {
+        swarm: swarm.name.clone(),
+        lockstep: swarm.lockstep(),
+        ticks: swarm.clock.as_ref().map_or(swarm.observer.newest_tick, |c| c.tick),
+        sim_time_s: swarm.sim_time(),
+        agents: metrics.agents,
+        components: metrics.components,
+        spacing_ratio: metrics.spacing_ratio,
+        spacing_cv: metrics.spacing_cv,
+        converge_s: converged_since,
+        rejected_samples: swarm.observer.rejected(),
+    };
+    eprintln!("shoal: stopping swarm `{}`", swarm.name);
+    swarm.shutdown()?;
+    if options.json {
+        println!("{}", serde_json::to_string(&summary)?);
+    } else {
+        eprintln!(
+            "shoal: {} robots, {} group(s), spacing {:.2} x spread (cv {:.2}), formed since {}",
+            summary.agents,
+            summary.components,
+            summary.spacing_ratio,
+            summary.spacing_cv,
+            summary.converge_s.map_or_else(|| "never".to_owned(), |t| format!("{t:.1} s"))
+        );
+    }
+    Ok(summary)
+}
