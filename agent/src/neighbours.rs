@@ -32,6 +32,8 @@ impl NeighbourTable {
         match self.entries.get_mut(&sample.agent_id) {
             // A restarted robot (new pid) starts a fresh history.
             Some(entry) if entry.latest.pid == sample.pid => {
+                // Samples from one robot can arrive out of order: after it
+                // crosses into another cell they come through two publishers.
                 if sample.tick > entry.latest.tick {
                     entry.previous = Some(entry.latest);
                     entry.latest = sample;
@@ -39,6 +41,8 @@ impl NeighbourTable {
                 } else if sample.tick == entry.latest.tick {
                     entry.latest = sample;
                     entry.heard = now;
+                } else if entry.previous.is_none_or(|p| sample.tick >= p.tick) {
+                    entry.previous = Some(sample);
                 }
             }
             _ => {
@@ -131,6 +135,17 @@ mod tests {
         let (view, dropped) = table.lockstep_view(5);
         assert_eq!(view.iter().map(|s| (s.agent_id, s.tick)).collect::<Vec<_>>(), vec![(1, 4), (2, 4)]);
         assert!(dropped.is_empty());
+    }
+
+    #[test]
+    fn out_of_order_samples_keep_the_two_newest() {
+        let now = Instant::now();
+        let mut table = NeighbourTable::new(0);
+        table.insert(sample(1, 10, 3), now);
+        table.insert(sample(1, 10, 5), now);
+        table.insert(sample(1, 10, 4), now);
+        let (view, _) = table.lockstep_view(5);
+        assert_eq!(view[0].tick, 4);
     }
 
     #[test]

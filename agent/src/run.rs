@@ -75,6 +75,10 @@ pub fn run(options: AgentOptions) -> Result<()> {
         clock.acknowledge()?;
     }
 
+    // In lockstep a robot's first tick only republishes where it stands: robots
+    // that announced themselves before it subscribed were not heard, but every
+    // robot hears everyone's first-tick pose, so all views agree from then on.
+    let mut settled = clock.is_none();
     let mut last_housekeeping = Instant::now();
     let mut dead_suspected = false;
     while !bus.termination_requested() {
@@ -88,6 +92,16 @@ pub fn run(options: AgentOptions) -> Result<()> {
                 (tick, sim_time)
             }
         };
+        if !settled {
+            settled = true;
+            last.tick = tick;
+            last.sim_time = sim_time;
+            publish(&bus, &mut cells, &roster, &mut last)?;
+            if let Some(clock) = &clock {
+                clock.acknowledge()?;
+            }
+            continue;
+        }
         let now = Instant::now();
         cells.receive(|sample| {
             if check.accept(&sample) {

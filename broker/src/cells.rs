@@ -18,9 +18,15 @@ pub type CellKey = (i32, i32);
 /// exchange only needs the newest one or two.
 const CELL_BUFFER: usize = 2;
 
+/// Publishers of the cells a robot stood in most recently. A robot on a
+/// border crosses back and forth; keeping its last few publishers avoids
+/// re-creating one each time.
+const KEPT_PUBLISHERS: usize = 4;
+
 pub struct CellExchange {
     cell_size: f64,
-    publisher: Option<(CellKey, Publisher<ipc::Service, PoseSample, ()>)>,
+    /// Most recent first; the first is the cell the robot stands in.
+    publishers: Vec<(CellKey, Publisher<ipc::Service, PoseSample, ()>)>,
     subscribers: HashMap<CellKey, Subscriber<ipc::Service, PoseSample, ()>>,
     /// Cells this robot could not join (full, or the bus refused); retried next period.
     pub failures: u64,
@@ -28,7 +34,7 @@ pub struct CellExchange {
 
 impl CellExchange {
     pub fn new(cell_size: f64) -> Self {
-        Self { cell_size, publisher: None, subscribers: HashMap::new(), failures: 0 }
+        Self { cell_size, publishers: Vec::new(), subscribers: HashMap::new(), failures: 0 }
     }
 
     pub fn cell_of(&self, x: f64, y: f64) -> CellKey {
@@ -50,18 +56,23 @@ impl CellExchange {
     /// service when the robot crossed a border.
     pub fn publish(&mut self, bus: &Bus, sample: &PoseSample) -> Result<(), BusError> {
         let key = self.cell_of(sample.x, sample.y);
-        if self.publisher.as_ref().map(|(k, _)| *k) != Some(key) {
-            self.publisher = None;
-            let service = Self::open(bus, key).inspect_err(|_| self.failures += 1)?;
-            let publisher = service.publisher_builder().create().map_err(|e| {
-                self.failures += 1;
-                BusError::iceoryx(format!("publish into cell {key:?}"), e)
-            })?;
-            self.publisher = Some((key, publisher));
+        match self.publishers.iter().position(|(k, _)| *k == key) {
+            Some(0) => {}
+            Some(index) => {
+                let entry = self.publishers.remove(index);
+                self.publishers.insert(0, entry);
+            }
+            None => {
+                let service = Self::open(bus, key).inspect_err(|_| self.failures += 1)?;
+                let publisher = service.publisher_builder().create().map_err(|e| {
+                    self.failures += 1;
+                    BusError::iceoryx(format!("publish into cell {key:?}"), e)
+                })?;
+                self.publishers.insert(0, (key, publisher));
+                self.publishers.truncate(KEPT_PUBLISHERS);
+            }
         }
-        if let Some((_, publisher)) = &self.publisher {
-            publisher.send_copy(*sample).map_err(|e| BusError::iceoryx("send pose", e))?;
-        }
+        self.publishers[0].1.send_copy(*sample).map_err(|e| BusError::iceoryx("send pose", e))?;
         Ok(())
     }
 

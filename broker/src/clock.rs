@@ -11,7 +11,18 @@ use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 
+use iceoryx2::port::listener::ListenerWaitError;
+
 use crate::bus::{Bus, BusError};
+
+/// A signal that interrupts a wait is not an error: the caller's loop checks
+/// for termination next.
+fn waited(result: Result<u64, ListenerWaitError>, what: &str) -> Result<(), BusError> {
+    match result {
+        Ok(_) | Err(ListenerWaitError::InterruptSignal) => Ok(()),
+        Err(e) => Err(BusError::iceoryx(what, e)),
+    }
+}
 use crate::names;
 use crate::wire::ClockTick;
 
@@ -53,7 +64,7 @@ impl ClockSource {
 
     /// Blocks until some robot acknowledged or `timeout` passed.
     pub fn wait_for_acks(&self, timeout: Duration) -> Result<(), BusError> {
-        self.acks.timed_wait(|_| {}, timeout).map(|_| ()).map_err(|e| BusError::iceoryx("wait for acks", e))
+        waited(self.acks.timed_wait(|_| {}, timeout), "wait for acks")
     }
 }
 
@@ -86,7 +97,7 @@ impl ClockListener {
         if let Some(tick) = self.latest()?.filter(|t| t.tick > after) {
             return Ok(Some(tick));
         }
-        self.listener.timed_wait(|_| {}, timeout).map_err(|e| BusError::iceoryx("wait for tick", e))?;
+        waited(self.listener.timed_wait(|_| {}, timeout), "wait for tick")?;
         Ok(self.latest()?.filter(|t| t.tick > after))
     }
 

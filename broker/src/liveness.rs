@@ -74,3 +74,20 @@ pub fn remove_dead_nodes(swarm: &str) -> Result<usize, BusError> {
     }
     Ok(cleaned)
 }
+
+/// Names of every service of `swarm` that still exists on this machine.
+pub fn swarm_services(swarm: &str) -> Result<Vec<String>, BusError> {
+    use iceoryx2::service::Service;
+    crate::bus::quiet_iceoryx();
+    let prefix = names::prefix(swarm);
+    let mut services = Vec::new();
+    ipc::Service::list(Config::global_config(), |details| {
+        let name = details.static_details.name().as_str().to_owned();
+        if name.starts_with(&prefix) {
+            services.push(name);
+        }
+        CallbackProgression::Continue
+    })
+    .map_err(|e| BusError::iceoryx("list services", e))?;
+    Ok(services)
+}
