@@ -53,12 +53,12 @@ impl NeighbourTable {
 
     /// Lockstep: every robot's pose at the end of tick `tick - 1`; robots
     /// without one are dead or gone and are forgotten. Returns the view and the
-    /// ids forgotten.
-    pub fn lockstep_view(&mut self, tick: u64) -> (Vec<PoseSample>, Vec<u32>) {
+    /// last samples of the robots forgotten.
+    pub fn lockstep_view(&mut self, tick: u64) -> (Vec<PoseSample>, Vec<PoseSample>) {
         let wanted = tick.saturating_sub(1);
         let mut view = Vec::new();
         let mut dropped = Vec::new();
-        self.entries.retain(|id, entry| {
+        self.entries.retain(|_, entry| {
             let at = if entry.latest.tick == wanted {
                 Some(entry.latest)
             } else {
@@ -71,30 +71,30 @@ impl NeighbourTable {
                 }
                 None if entry.latest.tick > wanted => true,
                 None => {
-                    dropped.push(*id);
+                    dropped.push(entry.latest);
                     false
                 }
             }
         });
         view.sort_by_key(|s| s.agent_id);
-        dropped.sort_unstable();
+        dropped.sort_by_key(|s| s.agent_id);
         (view, dropped)
     }
 
     /// Real time: the newest pose of every robot heard within `max_age`;
     /// robots silent for longer are forgotten.
-    pub fn realtime_view(&mut self, now: Instant, max_age: Duration) -> (Vec<PoseSample>, Vec<u32>) {
+    pub fn realtime_view(&mut self, now: Instant, max_age: Duration) -> (Vec<PoseSample>, Vec<PoseSample>) {
         let mut dropped = Vec::new();
-        self.entries.retain(|id, entry| {
+        self.entries.retain(|_, entry| {
             let fresh = now.saturating_duration_since(entry.heard) <= max_age;
             if !fresh {
-                dropped.push(*id);
+                dropped.push(entry.latest);
             }
             fresh
         });
         let mut view: Vec<PoseSample> = self.entries.values().map(|e| e.latest).collect();
         view.sort_by_key(|s| s.agent_id);
-        dropped.sort_unstable();
+        dropped.sort_by_key(|s| s.agent_id);
         (view, dropped)
     }
 }
@@ -157,7 +157,7 @@ mod tests {
         table.insert(sample(2, 20, 5), now);
         let (view, dropped) = table.lockstep_view(6);
         assert_eq!(view.len(), 1);
-        assert_eq!(dropped, vec![1]);
+        assert_eq!(dropped.iter().map(|s| s.agent_id).collect::<Vec<_>>(), vec![1]);
     }
 
     #[test]
@@ -168,7 +168,7 @@ mod tests {
         table.insert(sample(2, 20, 1), start + Duration::from_millis(300));
         let (view, dropped) = table.realtime_view(start + Duration::from_millis(450), Duration::from_millis(400));
         assert_eq!(view.len(), 1);
-        assert_eq!(dropped, vec![1]);
+        assert_eq!(dropped.iter().map(|s| s.agent_id).collect::<Vec<_>>(), vec![1]);
     }
 
     #[test]

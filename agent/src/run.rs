@@ -19,6 +19,8 @@ const MAP_MARGIN_M: f64 = 1.0;
 /// How often a robot notes its last pose for `shoal restart`, and at most how
 /// often it sweeps the bus for dead nodes.
 const HOUSEKEEPING_PERIOD: Duration = Duration::from_secs(1);
+/// A robot sensing fewer robots than this listens further.
+const WIDEN_BELOW: usize = 3;
 
 pub struct AgentOptions {
     pub swarm: String,
@@ -30,7 +32,11 @@ pub fn run(options: AgentOptions) -> Result<()> {
     let runtime = SwarmRuntime::locate(&options.swarm);
     let scenario = Scenario::from_file(&runtime.scenario_path())?;
     let meta = runtime.read_meta()?;
-    let limits = BusLimits { max_per_cell: scenario.bus.max_per_cell, max_ring: scenario.bus.max_ring, ..BusLimits::default() };
+    let limits = BusLimits {
+        max_per_cell: scenario.bus.max_per_cell,
+        max_listeners_per_cell: scenario.bus.max_listeners_per_cell,
+        ..BusLimits::default()
+    };
     let bus = Bus::join(&options.swarm, &names::agent_node(&options.swarm, options.id), limits)?;
     let mut cells = CellExchange::new(scenario.bus.cell_size);
     let roster = RosterPublisher::new(&bus)?;
@@ -110,18 +116,25 @@ pub fn run(options: AgentOptions) -> Result<()> {
         })?;
         let (heard, dropped) =
             if clock.is_some() { table.lockstep_view(tick) } else { table.realtime_view(now, stale_after) };
-        if !dropped.is_empty() {
-            tracing::info!(?dropped, "dropped silent robots");
-            dead_suspected = true;
-        }
         let me = robot.body.pose.position();
         let radius = range.sense_radius(scenario.bus.cell_size);
+        // A robot that fell silent nearby probably died; one that walked out
+        // of earshot did not. Only the first is worth sweeping the bus for.
+        let died_nearby: Vec<u32> = dropped
+            .iter()
+            .filter(|s| glam::DVec2::new(s.x, s.y).distance(me) <= radius)
+            .map(|s| s.agent_id)
+            .collect();
+        if !died_nearby.is_empty() {
+            tracing::info!(?died_nearby, "dropped robots that fell silent nearby");
+            dead_suspected = true;
+        }
         let sensed: Vec<Neighbour> = heard
             .iter()
             .map(|s| Neighbour { id: s.agent_id, position: glam::DVec2::new(s.x, s.y) })
             .filter(|n| n.position.distance(me) <= radius)
             .collect();
-        let inner_radius = radius - scenario.bus.cell_size;
+        let inner_radius = SensingRange::radius(range.sense_ring.saturating_sub(1), scenario.bus.cell_size);
         let within_inner = sensed.iter().filter(|n| n.position.distance(me) <= inner_radius).count();
 
         let before = robot.body.pose;
@@ -165,7 +178,9 @@ pub fn run(options: AgentOptions) -> Result<()> {
             clock.acknowledge()?;
         }
 
-        range.update(tick, sensed.len(), within_inner, scenario.formation.neighbours);
+        // Widen only when nearly alone: a robot on the edge of a formation
+        // legitimately sees fewer than it tracks.
+        range.update(tick, sensed.len(), within_inner, scenario.formation.neighbours.min(WIDEN_BELOW));
         let center = cells.cell_of(after.x, after.y);
         if let Err(e) = cells.listen(&bus, center, range.listen_ring) {
             tracing::warn!("{e}");

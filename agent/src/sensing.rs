@@ -1,45 +1,55 @@
-//! How far a robot listens. It listens one ring of cells further than it
-//! senses, and widens its sensing only two periods after it widened its
-//! listening: robots entering its sensing range were then already heard, which
-//! keeps lockstep runs deterministic.
+//! How far a robot listens and senses. It listens to the cells within
+//! `listen_ring` of its own and senses robots up to a margin short of what
+//! that listening is sure to cover. When it widens its listening, it widens
+//! its sensing only two periods later: robots entering its sensing range were
+//! then already heard, which keeps lockstep runs deterministic.
 
 /// Ticks between widening the listening and widening the sensing.
 const WIDEN_DELAY_TICKS: u64 = 2;
+/// How far inside the surely-covered square the sensing stops: more than two
+/// periods of two robots' motion towards each other.
+pub const SENSE_MARGIN_M: f64 = 1.0;
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct SensingRange {
-    pub sense_ring: u32,
     pub listen_ring: u32,
-    max_sense_ring: u32,
+    /// The ring whose radius the robot senses with.
+    pub sense_ring: u32,
+    max_ring: u32,
     widen_at: Option<u64>,
 }
 
 impl SensingRange {
     pub fn new(max_ring: u32) -> Self {
-        let max_sense_ring = max_ring.saturating_sub(1).max(1);
-        Self { sense_ring: 1, listen_ring: 2, max_sense_ring, widen_at: None }
+        Self { listen_ring: 1, sense_ring: 1, max_ring: max_ring.max(1), widen_at: None }
+    }
+
+    /// Listening to `ring` rings of `cell_size` cells covers at least `ring *
+    /// cell_size` around any point of the centre cell.
+    pub fn radius(ring: u32, cell_size: f64) -> f64 {
+        (f64::from(ring) * cell_size - SENSE_MARGIN_M).max(0.0)
     }
 
     pub fn sense_radius(&self, cell_size: f64) -> f64 {
-        f64::from(self.sense_ring) * cell_size
+        Self::radius(self.sense_ring, cell_size)
     }
 
     /// Updates the rings after a period in which the robot sensed `sensed`
-    /// robots and wanted `wanted`; `within_inner` counts those inside one ring less.
+    /// robots, `within_inner` of them within one ring less, and wants at least `wanted`.
     pub fn update(&mut self, tick: u64, sensed: usize, within_inner: usize, wanted: usize) {
         if let Some(at) = self.widen_at {
             if tick >= at {
-                self.sense_ring = self.listen_ring - 1;
+                self.sense_ring = self.listen_ring;
                 self.widen_at = None;
             }
             return;
         }
-        if sensed < wanted && self.sense_ring < self.max_sense_ring {
-            self.listen_ring = self.sense_ring + 2;
+        if sensed < wanted && self.listen_ring < self.max_ring {
+            self.listen_ring += 1;
             self.widen_at = Some(tick + WIDEN_DELAY_TICKS);
         } else if self.sense_ring > 1 && within_inner >= wanted {
             self.sense_ring -= 1;
-            self.listen_ring = self.sense_ring + 1;
+            self.listen_ring = self.sense_ring;
         }
     }
 }
@@ -51,15 +61,24 @@ mod tests {
     #[test]
     fn sensing_widens_only_after_listening_did() {
         let mut range = SensingRange::new(3);
-        range.update(10, 1, 0, 4);
-        assert_eq!((range.sense_ring, range.listen_ring), (1, 3));
-        range.update(11, 1, 0, 4);
-        assert_eq!(range.sense_ring, 1);
-        range.update(12, 1, 0, 4);
-        assert_eq!((range.sense_ring, range.listen_ring), (2, 3));
-        range.update(13, 1, 0, 4);
-        assert_eq!(range.sense_ring, 2, "already at the widest ring");
-        range.update(14, 6, 5, 4);
+        range.update(10, 1, 0, 2);
         assert_eq!((range.sense_ring, range.listen_ring), (1, 2));
+        range.update(11, 1, 0, 2);
+        assert_eq!(range.sense_ring, 1);
+        range.update(12, 1, 0, 2);
+        assert_eq!((range.sense_ring, range.listen_ring), (2, 2));
+        range.update(13, 1, 0, 2);
+        range.update(15, 1, 0, 2);
+        assert_eq!((range.sense_ring, range.listen_ring), (3, 3));
+        range.update(16, 1, 0, 2);
+        assert_eq!(range.listen_ring, 3, "already at the widest ring");
+        range.update(17, 6, 5, 2);
+        assert_eq!((range.sense_ring, range.listen_ring), (2, 2));
+    }
+
+    #[test]
+    fn the_sense_radius_keeps_a_margin_inside_the_listened_cells() {
+        assert!((SensingRange::radius(1, 3.0) - 2.0).abs() < 1e-12);
+        assert!((SensingRange::radius(2, 3.0) - 5.0).abs() < 1e-12);
     }
 }

@@ -26,8 +26,9 @@ impl BusError {
 pub struct BusLimits {
     /// Robots that may publish into one spatial cell.
     pub max_per_cell: usize,
-    /// Rings of cells a robot may listen to around its own.
-    pub max_ring: u32,
+    /// Robots that may listen to one spatial cell. Every send visits every
+    /// listener slot, so this bounds what a robot's pose costs to publish.
+    pub max_listeners_per_cell: usize,
     /// Robots in the whole swarm.
     pub max_agents: usize,
     /// Observers (status, recorder, SLAM, clock) that read the whole swarm.
@@ -36,15 +37,13 @@ pub struct BusLimits {
 
 impl Default for BusLimits {
     fn default() -> Self {
-        Self { max_per_cell: 32, max_ring: 3, max_agents: 2048, max_observers: 32 }
+        Self { max_per_cell: 16, max_listeners_per_cell: 160, max_agents: 2048, max_observers: 16 }
     }
 }
 
 impl BusLimits {
-    /// Robots within `max_ring` cells listen to a cell, plus the observers.
     pub fn cell_subscribers(&self) -> usize {
-        let side = 2 * self.max_ring as usize + 1;
-        (side * side * self.max_per_cell).min(self.max_agents) + self.max_observers
+        self.max_listeners_per_cell + self.max_observers
     }
 }
 

@@ -35,10 +35,6 @@ impl LockstepClock {
         })
     }
 
-    pub fn expected(&self) -> usize {
-        self.expected.len()
-    }
-
     pub fn sim_time(&self) -> f64 {
         self.tick as f64 * self.period_s
     }

@@ -2,6 +2,7 @@
 
 mod clock;
 mod control;
+mod experiment;
 mod observer;
 mod process;
 mod status;
@@ -70,6 +71,14 @@ enum Commands {
         #[arg(long, value_parser = parse_point)]
         at: Option<[f64; 2]>,
     },
+    /// Reproduce the thesis's results with real processes in lockstep.
+    Experiment {
+        #[command(subcommand)]
+        which: ExperimentKind,
+        /// Print JSON instead of a Markdown table.
+        #[arg(long, global = true)]
+        json: bool,
+    },
     /// Add new robots to a running swarm.
     Spawn {
         #[arg(long, default_value_t = 1)]
@@ -79,6 +88,70 @@ enum Commands {
         #[arg(long, value_parser = parse_point)]
         at: Option<[f64; 2]>,
     },
+}
+
+#[derive(Subcommand)]
+enum ExperimentKind {
+    /// Tracked neighbours 1..10, with and without sectors.
+    Formation {
+        #[arg(long, default_value_t = 20)]
+        agents: usize,
+        #[arg(long, default_value_t = 1)]
+        seeds: u64,
+        /// Simulated seconds per run.
+        #[arg(long, default_value_t = 60.0)]
+        max_seconds: f64,
+    },
+    /// 20 robots among 400 random obstacles, and in a clear arena.
+    Obstacles {
+        #[arg(long, default_value_t = 20)]
+        agents: usize,
+        #[arg(long, default_value_t = 3)]
+        seeds: u64,
+        #[arg(long, default_value_t = 120.0)]
+        max_seconds: f64,
+    },
+    /// Remove the 4 central robots of 20; add 6 at the edge of 19.
+    Healing {
+        #[arg(long, default_value_t = 3)]
+        seeds: u64,
+        #[arg(long, default_value_t = 90.0)]
+        max_seconds: f64,
+    },
+    /// From 3 to hundreds of robot processes.
+    Scale {
+        #[arg(long, value_delimiter = ',', default_value = "3,10,25,50,100,200")]
+        sizes: Vec<usize>,
+        #[arg(long, default_value_t = 60.0)]
+        max_seconds: f64,
+    },
+}
+
+/// Prints `report` as JSON, or its one list of records as a Markdown table.
+fn print_report(report: &impl serde::Serialize, json: bool) -> Result<()> {
+    let value = serde_json::to_value(report)?;
+    if json {
+        println!("{value}");
+        return Ok(());
+    }
+    let records = value.as_object().and_then(|o| o.values().find_map(|v| v.as_array())).cloned().unwrap_or_default();
+    let Some(first) = records.first().and_then(|r| r.as_object()) else { return Ok(()) };
+    let columns: Vec<&String> = first.keys().collect();
+    let cell = |v: &serde_json::Value| match v {
+        serde_json::Value::Number(n) => n.as_f64().map_or_else(|| n.to_string(), |f| {
+            if f.fract() == 0.0 { format!("{f}") } else { format!("{f:.3}") }
+        }),
+        serde_json::Value::Null => "-".to_owned(),
+        serde_json::Value::String(s) => s.clone(),
+        other => other.to_string(),
+    };
+    println!("| {} |", columns.iter().map(|c| c.as_str()).collect::<Vec<_>>().join(" | "));
+    println!("|{}", "---|".repeat(columns.len()));
+    for record in &records {
+        let cells: Vec<String> = columns.iter().map(|c| cell(&record[c.as_str()])).collect();
+        println!("| {} |", cells.join(" | "));
+    }
+    Ok(())
 }
 
 fn parse_point(text: &str) -> Result<[f64; 2], String> {
@@ -103,6 +176,20 @@ fn run(cli: Cli) -> Result<()> {
                 status::print_table(&report);
             }
         }
+        Commands::Experiment { which, json } => match which {
+            ExperimentKind::Formation { agents, seeds, max_seconds } => {
+                print_report(&experiment::formation::run(agents, seeds, max_seconds)?, json)?
+            }
+            ExperimentKind::Obstacles { agents, seeds, max_seconds } => {
+                print_report(&experiment::obstacles::run(agents, seeds, max_seconds)?, json)?
+            }
+            ExperimentKind::Healing { seeds, max_seconds } => {
+                print_report(&experiment::healing::run(seeds, max_seconds)?, json)?
+            }
+            ExperimentKind::Scale { sizes, max_seconds } => {
+                print_report(&experiment::scale::run(&sizes, max_seconds)?, json)?
+            }
+        },
         Commands::Kill { ids, swarm, graceful } => control::kill(&swarm, &ids, graceful)?,
         Commands::Restart { ids, swarm, at } => control::restart(&swarm, &ids, at)?,
         Commands::Spawn { count, swarm, at } => {

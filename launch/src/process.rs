@@ -56,3 +56,40 @@ pub fn signal(pid: i32, signal: i32) -> Result<()> {
     }
     Ok(())
 }
+
+/// CPU time and memory of one process, from `/proc`.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ProcessUsage {
+    pub cpu_s: f64,
+    pub rss_mb: f64,
+    pub private_mb: f64,
+}
+
+impl std::iter::Sum for ProcessUsage {
+    fn sum<I: Iterator<Item = Self>>(iter: I) -> Self {
+        iter.fold(Self::default(), |a, b| Self {
+            cpu_s: a.cpu_s + b.cpu_s,
+            rss_mb: a.rss_mb + b.rss_mb,
+            private_mb: a.private_mb + b.private_mb,
+        })
+    }
+}
+
+pub fn usage(pid: i32) -> Option<ProcessUsage> {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
+    // Fields after the command name: state is 3rd, utime 14th, stime 15th.
+    let fields: Vec<&str> = stat.rsplit_once(')')?.1.split_whitespace().collect();
+    let ticks: f64 = fields.get(11)?.parse::<f64>().ok()? + fields.get(12)?.parse::<f64>().ok()?;
+    // SAFETY: sysconf has no preconditions.
+    let per_second = unsafe { libc::sysconf(libc::_SC_CLK_TCK) }.max(1) as f64;
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    let kb = |key: &str| {
+        status
+            .lines()
+            .find(|l| l.starts_with(key))
+            .and_then(|l| l.split_whitespace().nth(1))
+            .and_then(|v| v.parse::<f64>().ok())
+            .unwrap_or(0.0)
+    };
+    Some(ProcessUsage { cpu_s: ticks / per_second, rss_mb: kb("VmRSS:") / 1024.0, private_mb: kb("RssAnon:") / 1024.0 })
+}

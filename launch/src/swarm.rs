@@ -20,7 +20,11 @@ const SHUTDOWN_GRACE: Duration = Duration::from_secs(5);
 const STARTUP_TIMEOUT: Duration = Duration::from_secs(30);
 
 pub fn bus_limits(scenario: &Scenario) -> BusLimits {
-    BusLimits { max_per_cell: scenario.bus.max_per_cell, max_ring: scenario.bus.max_ring, ..BusLimits::default() }
+    BusLimits {
+        max_per_cell: scenario.bus.max_per_cell,
+        max_listeners_per_cell: scenario.bus.max_listeners_per_cell,
+        ..BusLimits::default()
+    }
 }
 
 pub fn check_for(scenario: &Scenario) -> SampleCheck {
@@ -92,6 +96,11 @@ impl RunningSwarm {
         let child = start_agent(&self.name, id, pose, &self.runtime.log_path(id), false)?;
         self.children.insert(id, child);
         Ok(())
+    }
+
+    /// Pids of the robots this process started and that still run.
+    pub fn agent_pids(&self) -> Vec<i32> {
+        self.children.values().map(|c| c.id() as i32).collect()
     }
 
     pub fn lockstep(&self) -> bool {

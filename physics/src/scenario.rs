@@ -79,11 +79,13 @@ pub struct BusSection {
     pub max_ring: u32,
     /// The most robots that may publish in one cell at once.
     pub max_per_cell: usize,
+    /// The most robots that may listen to one cell at once.
+    pub max_listeners_per_cell: usize,
 }
 
 impl Default for BusSection {
     fn default() -> Self {
-        Self { cell_size: 2.5, max_ring: 3, max_per_cell: 48 }
+        Self { cell_size: 3.0, max_ring: 3, max_per_cell: 16, max_listeners_per_cell: 160 }
     }
 }
 
@@ -205,6 +207,9 @@ impl Scenario {
         positive("bus.cell_size", self.bus.cell_size)?;
         if self.bus.max_per_cell == 0 {
             return Err(("bus.max_per_cell".into(), "must be at least 1".into()));
+        }
+        if self.bus.max_listeners_per_cell < self.bus.max_per_cell {
+            return Err(("bus.max_listeners_per_cell".into(), "must be at least bus.max_per_cell".into()));
         }
         let [x0, y0, x1, y1] = self.agents.start_region;
         if !(x0 < x1 && y0 < y1 && x0 >= 0.0 && y0 >= 0.0 && x1 <= self.arena.width && y1 <= self.arena.height) {

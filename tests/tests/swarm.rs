@@ -153,13 +153,12 @@ fn malformed_bus_samples_are_rejected_and_counted() {
 
     // A rogue publisher writes NaN and far-away poses into the cells where the
     // robots stand and into the roster.
-    let bus = Bus::join(&swarm.name, &names::tool_node(&swarm.name, "rogue"), BusLimits { max_per_cell: 48, ..BusLimits::default() })
-        .expect("join");
+    let bus = Bus::join(&swarm.name, &names::tool_node(&swarm.name, "rogue"), BusLimits::default()).expect("join");
     let roster = RosterPublisher::new(&bus).expect("roster");
     let s = status(&swarm.name);
     let target = alive_agents(&s)[0].clone();
     let (x, y) = (target["x"].as_f64().expect("x"), target["y"].as_f64().expect("y"));
-    let mut cells = CellExchange::new(2.5);
+    let mut cells = CellExchange::new(shoal_physics::Scenario::default_arena().bus.cell_size);
     let mut bad = PoseSample {
         agent_id: 999,
         pid: std::process::id(),

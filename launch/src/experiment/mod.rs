@@ -1,0 +1,68 @@
+//! `shoal experiment`: the thesis's results as numbers, with real robot
+//! processes in lockstep.
+
+pub mod formation;
+pub mod healing;
+pub mod obstacles;
+pub mod scale;
+
+use anyhow::Result;
+use shoal_physics::metrics::FormationMetrics;
+
+use crate::observer::Observer;
+use crate::swarm::RunningSwarm;
+use crate::up::is_formed;
+
+/// How a run ended.
+#[derive(Clone, Copy, Debug)]
+pub struct Outcome {
+    pub metrics: FormationMetrics,
+    /// Seconds from the start of the run until the formation was formed for good.
+    pub converge_s: Option<f64>,
+    pub ticks: u64,
+}
+
+/// Runs `swarm` for up to `max_s` simulated seconds; stops early once the
+/// formation has stayed formed for `settle_s`.
+pub fn run_until_settled(swarm: &mut RunningSwarm, max_s: f64, settle_s: f64) -> Result<Outcome> {
+    run_until(swarm, max_s, settle_s, |_| true)
+}
+
+/// Like [`run_until_settled`], with `also` as a further condition of being formed.
+pub fn run_until(
+    swarm: &mut RunningSwarm,
+    max_s: f64,
+    settle_s: f64,
+    also: impl Fn(&Observer) -> bool,
+) -> Result<Outcome> {
+    let spread = swarm.scenario.formation.spread;
+    let start = swarm.sim_time();
+    let start_tick = swarm.clock.as_ref().map_or(0, |c| c.tick);
+    let mut formed_since: Option<f64> = None;
+    while swarm.sim_time() - start < max_s {
+        swarm.advance()?;
+        let now = swarm.sim_time() - start;
+        let formed = is_formed(&swarm.observer.metrics(spread)) && also(&swarm.observer);
+        match (formed, formed_since) {
+            (true, None) => formed_since = Some(now),
+            (false, Some(_)) => formed_since = None,
+            (true, Some(since)) if now - since >= settle_s => break,
+            _ => {}
+        }
+    }
+    Ok(Outcome {
+        metrics: swarm.observer.metrics(spread),
+        converge_s: formed_since,
+        ticks: swarm.clock.as_ref().map_or(0, |c| c.tick) - start_tick,
+    })
+}
+
+/// A swarm name no other run uses.
+pub fn swarm_name(experiment: &str, index: usize) -> String {
+    format!("x{}-{experiment}-{index}", std::process::id())
+}
+
+fn mean(values: impl Iterator<Item = f64>) -> f64 {
+    let values: Vec<f64> = values.collect();
+    if values.is_empty() { f64::NAN } else { values.iter().sum::<f64>() / values.len() as f64 }
+}

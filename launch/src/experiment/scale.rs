@@ -1,0 +1,86 @@
+//! From 3 to hundreds of robot processes (thesis III.C: 3 to 200 agents).
+
+use std::time::Instant;
+
+use anyhow::Result;
+use serde::Serialize;
+use shoal_physics::{Arena, Scenario};
+
+use super::{run_until_settled, swarm_name};
+use crate::process::{ProcessUsage, usage};
+use crate::swarm::RunningSwarm;
+
+#[derive(Debug, Serialize)]
+pub struct Row {
+    pub agents: usize,
+    pub components: usize,
+    pub spacing_ratio: f64,
+    pub converge_s: Option<f64>,
+    pub ticks: u64,
+    /// CPU time of all robot processes divided by robots and ticks.
+    pub cpu_ms_per_agent_tick: f64,
+    /// Resident memory per robot process, shared-memory pages included.
+    pub rss_mb_per_agent: f64,
+    /// Of which private to the process.
+    pub private_mb_per_agent: f64,
+    /// Simulated seconds per wall-clock second.
+    pub speedup: f64,
+}
+
+#[derive(Debug, Serialize)]
+pub struct Report {
+    pub rows: Vec<Row>,
+}
+
+/// An open square arena big enough for `agents` at the default spacing,
+/// starting them sparser than their lattice, so they must gather.
+pub fn open_arena(agents: usize) -> Scenario {
+    let mut scenario = Scenario::default_arena();
+    let spread = scenario.formation.spread;
+    let start_side = (agents as f64).sqrt() * spread * 1.8;
+    let side = (start_side * 2.0 + 10.0).max(20.0);
+    scenario.arena = Arena { width: side, height: side, walls: vec![], obstacles: vec![], surfaces: vec![] };
+    let (lo, hi) = ((side - start_side) / 2.0, (side + start_side) / 2.0);
+    scenario.agents.start_region = [lo, lo, hi, hi];
+    scenario.agents.count = agents;
+    // Robots sense only a few metres; a weak goal at the centre (the
+    // thesis's goal swarming) draws separate groups together.
+    scenario.formation.goal = Some([side / 2.0, side / 2.0]);
+    scenario.formation.goal_gain = 0.05;
+    scenario
+}
+
+pub fn run(sizes: &[usize], max_s: f64) -> Result<Report> {
+    let mut rows = Vec::new();
+    for (index, &agents) in sizes.iter().enumerate() {
+        let mut swarm = RunningSwarm::launch(&swarm_name("scale", index), open_arena(agents), true)?;
+        let pids = swarm.agent_pids();
+        let before: ProcessUsage = pids.iter().filter_map(|p| usage(*p)).sum();
+        let wall = Instant::now();
+        // A fixed run, long enough that CPU time (counted in 10 ms steps) is measurable.
+        let outcome = run_until_settled(&mut swarm, max_s, f64::INFINITY)?;
+        let wall_s = wall.elapsed().as_secs_f64();
+        let after: Vec<ProcessUsage> = pids.iter().filter_map(|p| usage(*p)).collect();
+        let measured = after.len().max(1) as f64;
+        let after_total: ProcessUsage = after.iter().copied().sum();
+        swarm.shutdown()?;
+        let ticks = outcome.ticks.max(1) as f64;
+        let row = Row {
+            agents,
+            components: outcome.metrics.components,
+            spacing_ratio: outcome.metrics.spacing_ratio,
+            converge_s: outcome.converge_s,
+            ticks: outcome.ticks,
+            cpu_ms_per_agent_tick: (after_total.cpu_s - before.cpu_s) * 1000.0 / (agents as f64 * ticks),
+            rss_mb_per_agent: after_total.rss_mb / measured,
+            private_mb_per_agent: after_total.private_mb / measured,
+            speedup: outcome.ticks as f64 * swarm.scenario.timing.period_s / wall_s,
+        };
+        eprintln!(
+            "scale: {agents} robots: groups {}, spacing {:.2}, formed after {:?} s, {:.3} ms CPU per robot per tick, {:.1} MB RSS per robot, {:.1}x real time",
+            row.components, row.spacing_ratio, row.converge_s, row.cpu_ms_per_agent_tick, row.rss_mb_per_agent, row.speedup
+        );
+        rows.push(row);
+    }
+    Ok(Report { rows })
+}
