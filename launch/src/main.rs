@@ -1,13 +1,6 @@
 //! `shoal`: the command line of the Shoal swarm runtime.
 
-mod clock;
-mod control;
-mod experiment;
-mod observer;
-mod process;
-mod status;
-mod swarm;
-mod up;
+use shoal::{control, experiment, status, up};
 
 use std::path::PathBuf;
 use std::process::ExitCode;

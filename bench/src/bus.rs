@@ -1,0 +1,313 @@
+//! Pose latency from one robot process to a neighbour process: over the
+//! iceoryx2 cell exchange (woken by an iceoryx2 event, or polling) and over a
+//! Unix datagram socket, in the same run, inside swarms of real robots.
+
+use std::os::unix::net::UnixDatagram;
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result, bail};
+use serde::{Deserialize, Serialize};
+use shoal::experiment::scale::open_arena;
+use shoal::process::{ProcessUsage, usage};
+use shoal::swarm::RunningSwarm;
+use shoal_broker::{Bus, BusLimits, CellExchange, MAX_NEIGHBOURS, PoseSample, names};
+
+/// Samples go out in blocks that alternate between transports, so that
+/// drifting background load touches all of them alike.
+const BLOCK: usize = 50;
+/// Gap between the receiver's acknowledgement and the next send: the
+/// receiver is asleep again by then.
+const GAP: Duration = Duration::from_micros(200);
+/// The shortest window over which the robots' CPU time is measured.
+const CPU_WINDOW: Duration = Duration::from_secs(15);
+const TRANSPORTS: [Transport; 3] = [Transport::IceoryxEvent, Transport::IceoryxPoll, Transport::UnixSocket];
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+pub enum Role {
+    Send,
+    Receive,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+enum Transport {
+    /// Cell publish, then an iceoryx2 event wakes the receiver.
+    IceoryxEvent,
+    /// Cell publish; the receiver spins on its subscriber.
+    IceoryxPoll,
+    /// A datagram on a Unix domain socket; the receiver blocks in recv.
+    UnixSocket,
+}
+
+fn schedule(samples: usize) -> impl Iterator<Item = Transport> {
+    (0..samples * TRANSPORTS.len()).map(|i| TRANSPORTS[(i / BLOCK) % TRANSPORTS.len()])
+}
+
+fn monotonic_ns() -> u64 {
+    let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
+    // SAFETY: clock_gettime writes into the timespec we own.
+    unsafe { libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts) };
+    ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
+}
+
+/// Where both probe ends meet: the middle of the arena, among the robots.
+fn probe_sample(sequence: u64, x: f64) -> PoseSample {
+    PoseSample {
+        agent_id: u32::MAX - 1,
+        pid: std::process::id(),
+        tick: sequence,
+        sim_time: 0.0,
+        x,
+        y: x,
+        theta: 0.0,
+        believed_x: x,
+        believed_y: x,
+        believed_theta: 0.0,
+        vx: 0.0,
+        vy: 0.0,
+        command: 0,
+        health: 0,
+        visible: 0,
+        neighbour_count: 0,
+        neighbours: [0; MAX_NEIGHBOURS],
+    }
+}
+
+fn as_bytes(sample: &PoseSample) -> &[u8] {
+    // SAFETY: PoseSample is repr(C), plain old data, without padding bytes.
+    unsafe { std::slice::from_raw_parts((sample as *const PoseSample).cast::<u8>(), size_of::<PoseSample>()) }
+}
+
+#[derive(Debug, Default, Serialize, Deserialize)]
+struct ProbeResult {
+    /// Nanoseconds, per transport in `TRANSPORTS` order.
+    latencies: Vec<Vec<u64>>,
+    lost: Vec<usize>,
+}
+
+pub fn probe(role: Role, swarm: &str, samples: usize, socket: &Path) -> Result<()> {
+    let bus = Bus::join(swarm, &names::tool_node(swarm, &format!("probe-{role:?}")), BusLimits::default())?;
+    let centre = std::env::var("SHOAL_PROBE_AT").ok().and_then(|v| v.parse().ok()).unwrap_or(10.0);
+    let event_name = format!("{}probe-event", names::prefix(swarm));
+    let event = bus
+        .node
+        .service_builder(&Bus::service_name(&event_name)?)
+        .event()
+        .open_or_create()
+        .map_err(|e| anyhow::anyhow!("probe event: {e:?}"))?;
+    let mut cells = CellExchange::new(shoal_physics::Scenario::default_arena().bus.cell_size);
+    match role {
+        Role::Receive => {
+            let listener = event.listener_builder().create().map_err(|e| anyhow::anyhow!("{e:?}"))?;
+            let key = cells.cell_of(centre, centre);
+            cells.listen(&bus, key, 0)?;
+            let datagram = UnixDatagram::bind(socket).with_context(|| format!("binding {}", socket.display()))?;
+            datagram.set_read_timeout(Some(Duration::from_secs(1)))?;
+            // The sender waits for this acknowledgement before its next sample,
+            // so a slow receiver never finds a queue of stale samples.
+            let acks = UnixDatagram::unbound()?;
+            let ack_path = socket.with_extension("ack");
+            let mut result = ProbeResult { latencies: vec![Vec::new(); 3], lost: vec![0; 3] };
+            let mut buffer = [0u8; 512];
+            for (sequence, transport) in schedule(samples).enumerate() {
+                let index = TRANSPORTS.iter().position(|t| *t == transport).unwrap_or(0);
+                let sent = match transport {
+                    Transport::IceoryxEvent => {
+                        let mut sent = None;
+                        let deadline = Instant::now() + Duration::from_secs(1);
+                        while sent.is_none() && Instant::now() < deadline {
+                            let _ = listener.timed_wait(|_| {}, Duration::from_secs(1));
+                            cells.receive(|s| {
+                                if s.tick == sequence as u64 && s.agent_id == u32::MAX - 1 {
+                                    sent = Some(s.sim_time.to_bits());
+                                }
+                            })?;
+                        }
+                        sent
+                    }
+                    Transport::IceoryxPoll => {
+                        let mut sent = None;
+                        let deadline = Instant::now() + Duration::from_secs(1);
+                        while sent.is_none() && Instant::now() < deadline {
+                            cells.receive(|s| {
+                                if s.tick == sequence as u64 && s.agent_id == u32::MAX - 1 {
+                                    sent = Some(s.sim_time.to_bits());
+                                }
+                            })?;
+                        }
+                        sent
+                    }
+                    Transport::UnixSocket => match datagram.recv(&mut buffer) {
+                        Ok(n) if n == size_of::<PoseSample>() => {
+                            // SAFETY: n bytes of a PoseSample the sender wrote; read unaligned.
+                            let s: PoseSample = unsafe { std::ptr::read_unaligned(buffer.as_ptr().cast()) };
+                            (s.tick == sequence as u64).then_some(s.sim_time.to_bits())
+                        }
+                        _ => None,
+                    },
+                };
+                let now = monotonic_ns();
+                match sent {
+                    Some(sent) => result.latencies[index].push(now.saturating_sub(sent)),
+                    None => result.lost[index] += 1,
+                }
+                let _ = acks.send_to(&(sequence as u64).to_le_bytes(), &ack_path);
+            }
+            println!("{}", serde_json::to_string(&result)?);
+        }
+        Role::Send => {
+            let notifier = event.notifier_builder().create().map_err(|e| anyhow::anyhow!("{e:?}"))?;
+            let deadline = Instant::now() + Duration::from_secs(10);
+            while !socket.exists() && Instant::now() < deadline {
+                std::thread::sleep(Duration::from_millis(10));
+            }
+            let datagram = UnixDatagram::unbound()?;
+            datagram.connect(socket).with_context(|| format!("connecting {}", socket.display()))?;
+            let acks = UnixDatagram::bind(socket.with_extension("ack"))?;
+            acks.set_read_timeout(Some(Duration::from_secs(2)))?;
+            let mut ack = [0u8; 8];
+            // Let the receiver's subscriber settle before the first sample.
+            cells.publish(&bus, &probe_sample(u64::MAX, centre))?;
+            std::thread::sleep(Duration::from_millis(300));
+            for (sequence, transport) in schedule(samples).enumerate() {
+                std::thread::sleep(GAP);
+                let mut sample = probe_sample(sequence as u64, centre);
+                sample.sim_time = f64::from_bits(monotonic_ns());
+                match transport {
+                    Transport::IceoryxEvent => {
+                        cells.publish(&bus, &sample)?;
+                        notifier.notify().map_err(|e| anyhow::anyhow!("{e:?}"))?;
+                    }
+                    Transport::IceoryxPoll => cells.publish(&bus, &sample)?,
+                    Transport::UnixSocket => {
+                        datagram.send(as_bytes(&sample))?;
+                    }
+                }
+                // Wait for the receiver (a lost sample times out there first).
+                while let Ok(8) = acks.recv(&mut ack) {
+                    if u64::from_le_bytes(ack) >= sequence as u64 {
+                        break;
+                    }
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+#[derive(Debug, Serialize)]
+struct Row {
+    agents: usize,
+    transport: Transport,
+    p50_us: f64,
+    p99_us: f64,
+    max_us: f64,
+    lost: usize,
+    /// This transport's p50 divided by the Unix socket's p50 in the same run.
+    p50_vs_unix_socket: f64,
+    p99_vs_unix_socket: f64,
+    /// CPU time of the swarm's robot processes per robot per control period.
+    robot_cpu_ms_per_period: Option<f64>,
+}
+
+fn percentile(sorted: &[u64], q: f64) -> f64 {
+    if sorted.is_empty() {
+        return f64::NAN;
+    }
+    let index = ((sorted.len() - 1) as f64 * q).round() as usize;
+    sorted[index] as f64 / 1000.0
+}
+
+pub fn run(sizes: &[usize], samples: usize, json: bool) -> Result<()> {
+    let me = std::env::current_exe()?;
+    let mut rows = Vec::new();
+    for &agents in sizes {
+        if agents < 2 {
+            bail!("a swarm for the probe needs at least 2 robots");
+        }
+        let swarm_name = format!("bench{}-{agents}", std::process::id());
+        let robots = agents - 2;
+        let scenario = open_arena(robots.max(1));
+        let centre = scenario.arena.width / 2.0;
+        let swarm = if robots > 0 { Some(RunningSwarm::launch(&swarm_name, open_arena(robots), false)?) } else { None };
+        if swarm.is_some() {
+            std::thread::sleep(Duration::from_secs(3));
+        }
+        let pids = swarm.as_ref().map(|s| s.agent_pids()).unwrap_or_default();
+        let cpu_before: ProcessUsage = pids.iter().filter_map(|p| usage(*p)).sum();
+        let started = Instant::now();
+        let socket = std::env::temp_dir().join(format!("shoal-bench-{}-{agents}.sock", std::process::id()));
+        let _ = std::fs::remove_file(&socket);
+        let _ = std::fs::remove_file(socket.with_extension("ack"));
+        let spawn = |role: &str| {
+            Command::new(&me)
+                .args(["probe", "--role", role, "--swarm", &swarm_name, "--samples", &samples.to_string()])
+                .arg("--socket")
+                .arg(&socket)
+                .env("SHOAL_PROBE_AT", centre.to_string())
+                .stdout(Stdio::piped())
+                .spawn()
+        };
+        let receiver = spawn("receive")?;
+        let sender = spawn("send")?;
+        let sent = sender.wait_with_output()?;
+        let received = receiver.wait_with_output()?;
+        // CPU time is counted in 10 ms steps per process: measure long enough.
+        if let Some(rest) = CPU_WINDOW.checked_sub(started.elapsed()) {
+            std::thread::sleep(rest);
+        }
+        let elapsed = started.elapsed().as_secs_f64();
+        let cpu_after: ProcessUsage = pids.iter().filter_map(|p| usage(*p)).sum();
+        drop(swarm);
+        let _ = std::fs::remove_file(&socket);
+        let _ = std::fs::remove_file(socket.with_extension("ack"));
+        if !sent.status.success() || !received.status.success() {
+            bail!("the probe failed for {agents} robots");
+        }
+        let result: ProbeResult = serde_json::from_slice(&received.stdout).context("probe output")?;
+        let period = scenario.timing.period_s;
+        let robot_cpu = (robots > 0)
+            .then(|| (cpu_after.cpu_s - cpu_before.cpu_s) * 1000.0 / (robots as f64 * elapsed / period));
+        let mut sorted: Vec<Vec<u64>> = result.latencies.clone();
+        sorted.iter_mut().for_each(|l| l.sort_unstable());
+        let socket_index = TRANSPORTS.iter().position(|t| *t == Transport::UnixSocket).unwrap_or(2);
+        let (base50, base99) = (percentile(&sorted[socket_index], 0.5), percentile(&sorted[socket_index], 0.99));
+        for (index, transport) in TRANSPORTS.iter().enumerate() {
+            let (p50, p99) = (percentile(&sorted[index], 0.5), percentile(&sorted[index], 0.99));
+            rows.push(Row {
+                agents,
+                transport: *transport,
+                p50_us: p50,
+                p99_us: p99,
+                max_us: sorted[index].last().map_or(f64::NAN, |v| *v as f64 / 1000.0),
+                lost: result.lost[index],
+                p50_vs_unix_socket: p50 / base50,
+                p99_vs_unix_socket: p99 / base99,
+                robot_cpu_ms_per_period: robot_cpu,
+            });
+        }
+    }
+    if json {
+        println!("{}", serde_json::to_string(&serde_json::json!({ "rows": rows }))?);
+    } else {
+        println!("| robots | transport | p50 µs | p99 µs | max µs | lost | p50 / socket | p99 / socket | robot CPU ms per period |");
+        println!("|---|---|---|---|---|---|---|---|---|");
+        for r in &rows {
+            println!(
+                "| {} | {:?} | {:.1} | {:.1} | {:.1} | {} | {:.2} | {:.2} | {} |",
+                r.agents,
+                r.transport,
+                r.p50_us,
+                r.p99_us,
+                r.max_us,
+                r.lost,
+                r.p50_vs_unix_socket,
+                r.p99_vs_unix_socket,
+                r.robot_cpu_ms_per_period.map_or_else(|| "-".to_owned(), |c| format!("{c:.3}"))
+            );
+        }
+    }
+    Ok(())
+}

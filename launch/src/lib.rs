@@ -1,0 +1,11 @@
+//! The pieces behind the `shoal` command line: starting and watching swarms,
+//! the lockstep clock driver, status, control and the experiments.
+
+pub mod clock;
+pub mod control;
+pub mod experiment;
+pub mod observer;
+pub mod process;
+pub mod status;
+pub mod swarm;
+pub mod up;
