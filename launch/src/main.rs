@@ -40,6 +40,24 @@ enum Commands {
         /// Print a JSON summary when the swarm stops.
         #[arg(long)]
         json: bool,
+        /// Record the run into this Rerun file (.rrd).
+        #[arg(long)]
+        record: Option<PathBuf>,
+        /// With --record: also write each robot's true and believed trajectory as TUM files here.
+        #[arg(long, requires = "record")]
+        tum: Option<PathBuf>,
+    },
+    /// Record a running swarm into a Rerun file (.rrd) until Ctrl-C.
+    Record {
+        out: PathBuf,
+        #[arg(long, default_value = "default")]
+        swarm: String,
+        /// Also write each robot's true and believed trajectory as TUM files here.
+        #[arg(long)]
+        tum: Option<PathBuf>,
+        /// Stop after this many seconds.
+        #[arg(long)]
+        duration: Option<f64>,
     },
     /// List every robot on the bus: id, pid, state, pose, neighbours.
     Status {
@@ -158,8 +176,22 @@ fn parse_point(text: &str) -> Result<[f64; 2], String> {
 
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
-        Commands::Up { agents, scenario, swarm, duration, lockstep, seed, json } => {
-            up::up(up::UpOptions { swarm, scenario, agents, seed, lockstep, duration_s: duration, json })?;
+        Commands::Up { agents, scenario, swarm, duration, lockstep, seed, json, record, tum } => {
+            up::up(up::UpOptions { swarm, scenario, agents, seed, lockstep, duration_s: duration, json, record, tum })?;
+        }
+        Commands::Record { out, swarm, tum, duration } => {
+            let mut command = std::process::Command::new(shoal::process::sibling_binary("shoal-viewer-log")?);
+            command.arg(&out).args(["--swarm", &swarm]);
+            if let Some(tum) = tum {
+                command.arg("--tum").arg(tum);
+            }
+            if let Some(duration) = duration {
+                command.args(["--duration", &duration.to_string()]);
+            }
+            let status = command.status()?;
+            if !status.success() {
+                anyhow::bail!("the recorder failed ({status})");
+            }
         }
         Commands::Status { swarm, json } => {
             let report = status::gather(&swarm)?;

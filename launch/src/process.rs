@@ -6,14 +6,14 @@ use std::process::{Child, Command, Stdio};
 use anyhow::{Context, Result, bail};
 use shoal_physics::Pose;
 
-/// The `shoal-agent` binary beside this executable.
-pub fn agent_binary() -> Result<PathBuf> {
+/// A workspace binary beside this executable.
+pub fn sibling_binary(name: &str) -> Result<PathBuf> {
     let me = std::env::current_exe().context("locating the shoal executable")?;
-    let agent = me.with_file_name("shoal-agent");
-    if !agent.exists() {
-        bail!("{} not found: build the whole workspace (cargo build --release)", agent.display());
+    let path = me.with_file_name(name);
+    if !path.exists() {
+        bail!("{} not found: build the whole workspace (cargo build --release --workspace)", path.display());
     }
-    Ok(agent)
+    Ok(path)
 }
 
 /// Starts robot `id` at `pose`, its log going to `log`. A `detached` robot
@@ -21,7 +21,7 @@ pub fn agent_binary() -> Result<PathBuf> {
 /// a Ctrl-C in that terminal does not reach it.
 pub fn start_agent(swarm: &str, id: u32, pose: Pose, log: &std::path::Path, detached: bool) -> Result<Child> {
     let log_file = std::fs::File::create(log).with_context(|| format!("creating {}", log.display()))?;
-    let mut command = Command::new(agent_binary()?);
+    let mut command = Command::new(sibling_binary("shoal-agent")?);
     command
         .args(["--swarm", swarm, "--id", &id.to_string(), "--at", &format!("{},{},{}", pose.x, pose.y, pose.theta)])
         .stdin(Stdio::null())

@@ -2,7 +2,8 @@
 //! an observer of the roster. `shoal up` and the experiments drive it.
 
 use std::collections::BTreeMap;
-use std::process::Child;
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::{Context, Result, bail};
@@ -12,7 +13,7 @@ use shoal_physics::{Pose, Scenario};
 
 use crate::clock::LockstepClock;
 use crate::observer::Observer;
-use crate::process::{pid_alive, signal, start_agent};
+use crate::process::{pid_alive, sibling_binary, signal, start_agent};
 
 /// How long robots get to leave cleanly before they are killed.
 const SHUTDOWN_GRACE: Duration = Duration::from_secs(5);
@@ -40,6 +41,7 @@ pub struct RunningSwarm {
     bus: Bus,
     roster: RosterReader,
     children: BTreeMap<u32, Child>,
+    recorder: Option<Child>,
     started: Instant,
     stopped: bool,
 }
@@ -73,6 +75,7 @@ impl RunningSwarm {
             bus,
             roster,
             children: BTreeMap::new(),
+            recorder: None,
             started: Instant::now(),
             stopped: false,
         };
@@ -95,6 +98,18 @@ impl RunningSwarm {
     pub fn start(&mut self, id: u32, pose: Pose) -> Result<()> {
         let child = start_agent(&self.name, id, pose, &self.runtime.log_path(id), false)?;
         self.children.insert(id, child);
+        Ok(())
+    }
+
+    /// Starts the recorder process, writing `out` (and TUM files into `tum`).
+    pub fn record(&mut self, out: &Path, tum: Option<&Path>) -> Result<()> {
+        let log = std::fs::File::create(self.runtime.dir.join("recorder.log"))?;
+        let mut command = Command::new(sibling_binary("shoal-viewer-log")?);
+        command.arg(out).args(["--swarm", &self.name]).stdin(Stdio::null()).stdout(log.try_clone()?).stderr(log);
+        if let Some(tum) = tum {
+            command.arg("--tum").arg(tum);
+        }
+        self.recorder = Some(command.spawn().context("starting the recorder")?);
         Ok(())
     }
 
@@ -168,6 +183,17 @@ impl RunningSwarm {
             return Ok(());
         }
         self.stopped = true;
+        // The recorder goes first, so it does not log every robot leaving,
+        // and it gets time to write the recording's footer.
+        if let Some(mut recorder) = self.recorder.take() {
+            let _ = signal(recorder.id() as i32, libc::SIGTERM);
+            let deadline = Instant::now() + Duration::from_secs(10);
+            while matches!(recorder.try_wait(), Ok(None)) && Instant::now() < deadline {
+                std::thread::sleep(Duration::from_millis(20));
+            }
+            let _ = recorder.kill();
+            let _ = recorder.wait();
+        }
         let mut pids: Vec<i32> = self.children.values().map(|c| c.id() as i32).collect();
         for node in swarm_nodes(&self.name)? {
             if node.agent_id.is_some() && node.state == SwarmNodeState::Alive && !pids.contains(&node.pid) {

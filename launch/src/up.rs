@@ -24,6 +24,8 @@ pub struct UpOptions {
     pub lockstep: bool,
     pub duration_s: Option<f64>,
     pub json: bool,
+    pub record: Option<PathBuf>,
+    pub tum: Option<PathBuf>,
 }
 
 #[derive(Debug, Serialize)]
@@ -62,6 +64,9 @@ pub fn up(options: UpOptions) -> Result<UpSummary> {
     }
     let spread = scenario.formation.spread;
     let mut swarm = RunningSwarm::launch(&options.swarm, scenario, options.lockstep)?;
+    if let Some(out) = &options.record {
+        swarm.record(out, options.tum.as_deref())?;
+    }
     let progress = if std::io::stderr().is_terminal() {
         let bar = ProgressBar::new_spinner();
         bar.set_style(ProgressStyle::with_template("{spinner} {elapsed} {msg}").unwrap_or_else(|_| ProgressStyle::default_spinner()));
@@ -132,6 +137,9 @@ pub fn up(options: UpOptions) -> Result<UpSummary> {
     };
     eprintln!("shoal: stopping swarm `{}`", swarm.name);
     swarm.shutdown()?;
+    if let Some(out) = &options.record {
+        eprintln!("shoal: recording in {}; to watch it: pip install rerun-sdk, then rerun {}", out.display(), out.display());
+    }
     if options.json {
         println!("{}", serde_json::to_string(&summary)?);
     } else {

@@ -1,0 +1,60 @@
+"""Reads a Shoal recording with the official Rerun reader and prints what it holds as JSON.
+
+Usage: check_recording.py RECORDING.rrd
+
+Prints {"entities": [...], "ticks": N, "max_sim_time": S, "robots": [...],
+"poses": {"<id>@<tick>": [x, y], ...}, "events": [...]}.
+"""
+
+import json
+import sys
+
+import rerun.experimental as rrx
+
+
+def main(path: str) -> None:
+    entities = set()
+    ticks = set()
+    robots = set()
+    poses = {}
+    events = []
+    max_sim_time = 0.0
+    for chunk in rrx.RrdReader(path).stream().to_chunks():
+        entities.add(chunk.entity_path)
+        batch = chunk.to_record_batch()
+        names = batch.schema.names
+        if chunk.entity_path == "/world/robots/true":
+            tick_column = batch.column(names.index("tick")).to_pylist()
+            sim_times = batch.column(names.index("sim_time")).to_pylist()
+            positions = batch.column(names.index("Points2D:positions")).to_pylist()
+            labels = batch.column(names.index("Points2D:labels")).to_pylist()
+            for tick, sim_time, row_positions, row_labels in zip(tick_column, sim_times, positions, labels):
+                ticks.add(tick)
+                if sim_time is not None:
+                    # Durations come back as timedelta-like or nanoseconds depending on pyarrow.
+                    seconds = sim_time.total_seconds() if hasattr(sim_time, "total_seconds") else sim_time / 1e9
+                    max_sim_time = max(max_sim_time, seconds)
+                for position, label in zip(row_positions, row_labels):
+                    robots.add(int(label))
+                    poses[f"{label}@{tick}"] = position
+        if chunk.entity_path == "/events":
+            texts = [n for n in names if n.endswith(":text")]
+            if texts:
+                for row in batch.column(names.index(texts[0])).to_pylist():
+                    events.extend(row if isinstance(row, list) else [row])
+    print(
+        json.dumps(
+            {
+                "entities": sorted(entities),
+                "ticks": len(ticks),
+                "max_sim_time": max_sim_time,
+                "robots": sorted(robots),
+                "poses": poses,
+                "events": [e for e in events if e is not None],
+            }
+        )
+    )
+
+
+if __name__ == "__main__":
+    main(sys.argv[1])

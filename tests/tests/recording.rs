@@ -1,0 +1,141 @@
+//! Recordings, read back with the official Rerun tools (`pip install rerun-sdk`) and evo.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+use serde_json::Value;
+use shoal_broker::{Bus, BusLimits, RosterReader, names};
+use shoal_e2e::*;
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("shoal-e2e-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("scratch dir");
+    dir
+}
+
+/// What `tests/python/check_recording.py` finds in a recording.
+fn inspect(recording: &Path) -> Value {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("python/check_recording.py");
+    let output = Command::new("python3").arg(script).arg(recording).output().expect("python3");
+    assert!(output.status.success(), "the Rerun reader failed: {}", String::from_utf8_lossy(&output.stderr));
+    serde_json::from_slice(&output.stdout).expect("JSON from the reader")
+}
+
+fn rerun_cli(args: &[&str]) -> std::process::Output {
+    Command::new("rerun").args(args).output().expect("the rerun CLI (pip install rerun-sdk)")
+}
+
+#[test]
+fn a_recording_holds_the_swarm_as_the_robots_published_it() {
+    let _turn = serial();
+    let dir = scratch("record");
+    let recording = dir.join("run.rrd");
+    let tum = dir.join("tum");
+    let swarm_name = "e2e-record";
+    let mut swarm = BackgroundSwarm::start(
+        swarm_name,
+        &["--agents", "12", "--record", recording.to_str().expect("utf-8"), "--tum", tum.to_str().expect("utf-8")],
+    );
+    // Listen to the roster ourselves, as one more observer, to know what the robots published.
+    assert!(wait_until(Duration::from_secs(30), || alive_ids(&status(swarm_name)).len() == 12));
+    let bus = Bus::join(swarm_name, &names::tool_node(swarm_name, "e2e-observer"), BusLimits::default()).expect("join");
+    let roster = RosterReader::new(&bus).expect("roster");
+    let mut published: HashMap<String, [f64; 2]> = HashMap::new();
+    let started = Instant::now();
+    while started.elapsed() < Duration::from_secs(6) {
+        roster
+            .receive(|s| {
+                published.insert(format!("{}@{}", s.agent_id, s.tick), [s.x, s.y]);
+            })
+            .expect("receive");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    drop(roster);
+    drop(bus);
+    let output = swarm.interrupt();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+
+    let verify = rerun_cli(&["rrd", "verify", recording.to_str().expect("utf-8")]);
+    assert!(verify.status.success(), "rerun rrd verify: {}", String::from_utf8_lossy(&verify.stderr));
+    let stats = rerun_cli(&["rrd", "stats", recording.to_str().expect("utf-8")]);
+    assert!(stats.status.success(), "rerun rrd stats: {}", String::from_utf8_lossy(&stats.stderr));
+
+    let found = inspect(&recording);
+    let entities: Vec<&str> = found["entities"].as_array().expect("entities").iter().filter_map(Value::as_str).collect();
+    for expected in [
+        "/world/arena/walls",
+        "/world/arena/obstacles/discs",
+        "/world/arena/surfaces",
+        "/world/arena/map",
+        "/world/robots/true",
+        "/world/robots/believed",
+        "/world/robots/heading",
+        "/world/robots/trails",
+        "/world/links",
+        "/robots/0/health",
+        "/swarm/components",
+        "/events",
+    ] {
+        assert!(entities.contains(&expected), "{expected} missing from {entities:?}");
+    }
+    assert_eq!(found["robots"].as_array().map(Vec::len), Some(12), "{}", found["robots"]);
+    assert!(found["ticks"].as_u64().expect("ticks") >= 25, "only {} ticks recorded", found["ticks"]);
+    // Every pose we saw on the bus that the recording also holds is identical (to f32).
+    let recorded = found["poses"].as_object().expect("poses");
+    let mut compared = 0;
+    for (key, [x, y]) in &published {
+        if let Some(position) = recorded.get(key) {
+            let rx = position[0].as_f64().expect("x");
+            let ry = position[1].as_f64().expect("y");
+            assert!((rx - x).abs() < 1e-4 && (ry - y).abs() < 1e-4, "{key}: recorded ({rx}, {ry}), published ({x}, {y})");
+            compared += 1;
+        }
+    }
+    assert!(compared >= 100, "only {compared} poses could be compared");
+    let events = found["events"].to_string();
+    assert!(events.contains("joined"), "{events}");
+
+    // The trajectories open in evo.
+    let truth = tum.join("robot-0-true.tum");
+    let estimate = tum.join("robot-0-estimated.tum");
+    let evo = Command::new("evo_traj")
+        .args(["tum", truth.to_str().expect("utf-8"), estimate.to_str().expect("utf-8")])
+        .output()
+        .expect("evo_traj (pip install evo)");
+    assert!(evo.status.success(), "evo_traj: {}", String::from_utf8_lossy(&evo.stderr));
+    let ape = Command::new("evo_ape")
+        .args(["tum", truth.to_str().expect("utf-8"), estimate.to_str().expect("utf-8")])
+        .output()
+        .expect("evo_ape");
+    assert!(ape.status.success(), "evo_ape: {}", String::from_utf8_lossy(&ape.stderr));
+    assert!(String::from_utf8_lossy(&ape.stdout).contains("rmse"));
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+#[test]
+fn a_recorder_killed_with_sigkill_leaves_a_readable_file() {
+    let _turn = serial();
+    let dir = scratch("sigkill");
+    let recording = dir.join("killed.rrd");
+    let swarm = BackgroundSwarm::start("e2e-sigkill", &["--agents", "6"]);
+    assert!(wait_until(Duration::from_secs(30), || alive_ids(&status(&swarm.name)).len() == 6));
+    let mut recorder = Command::new(bin("shoal-viewer-log"))
+        .arg(&recording)
+        .args(["--swarm", &swarm.name])
+        .spawn()
+        .expect("start the recorder");
+    std::thread::sleep(Duration::from_millis(4500));
+    recorder.kill().expect("SIGKILL");
+    let _ = recorder.wait();
+    drop(swarm);
+
+    let found = inspect(&recording);
+    // Flushed at least every second: of 4.5 s, at least the first 3 s survive.
+    let ticks = found["ticks"].as_u64().expect("ticks");
+    assert!(ticks >= 15, "only {ticks} ticks survived the SIGKILL: {found}");
+    assert_eq!(found["robots"].as_array().map(Vec::len), Some(6));
+    let _ = std::fs::remove_dir_all(dir);
+}

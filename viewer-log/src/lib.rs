@@ -1,0 +1,5 @@
+//! Recordings of a swarm as Rerun `.rrd` files. The only crate that depends on `rerun`.
+
+pub mod arena;
+pub mod recorder;
+pub mod tum;

@@ -1,0 +1,266 @@
+//! Turns what the bus carries into a Rerun recording, tick by tick.
+
+use std::collections::{BTreeMap, HashMap, VecDeque};
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+use glam::DVec2;
+use rerun::RecordingStream;
+use shoal_broker::{Health, PoseSample};
+use shoal_physics::Scenario;
+use shoal_physics::metrics::formation_metrics;
+
+/// Positions kept for each robot's trail.
+const TRAIL_LENGTH: usize = 50;
+/// Trails are logged every this many ticks; positions every tick.
+const TRAIL_EVERY_TICKS: u64 = 5;
+
+struct Robot {
+    pid: u32,
+    last_tick: u64,
+    latest: PoseSample,
+    trail: VecDeque<[f32; 2]>,
+}
+
+/// Counts of what the recorder saw, also written into the recording.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RecorderStats {
+    pub frames: u64,
+    pub samples: u64,
+    /// Samples the bus overwrote before the recorder read them (it fell behind).
+    pub dropped: u64,
+    /// Samples rejected as malformed.
+    pub rejected: u64,
+}
+
+pub struct Recorder {
+    rec: RecordingStream,
+    spread: f64,
+    robots: BTreeMap<u32, Robot>,
+    pending: BTreeMap<u64, Vec<PoseSample>>,
+    last_health: HashMap<u32, u32>,
+    tum: Option<TumWriter>,
+    pub stats: RecorderStats,
+}
+
+impl Recorder {
+    pub fn new(rec: RecordingStream, scenario: &Scenario, tum_dir: Option<&Path>) -> anyhow::Result<Self> {
+        crate::arena::log_arena(&rec, &scenario.arena)?;
+        let tum = tum_dir.map(TumWriter::new).transpose()?;
+        Ok(Self {
+            rec,
+            spread: scenario.formation.spread,
+            robots: BTreeMap::new(),
+            pending: BTreeMap::new(),
+            last_health: HashMap::new(),
+            tum,
+            stats: RecorderStats::default(),
+        })
+    }
+
+    pub fn stream(&self) -> &RecordingStream {
+        &self.rec
+    }
+
+    /// Takes one sample that passed the bus checks.
+    pub fn add(&mut self, sample: PoseSample) {
+        self.stats.samples += 1;
+        self.pending.entry(sample.tick).or_default().push(sample);
+    }
+
+    pub fn count_rejected(&mut self) {
+        self.stats.rejected += 1;
+    }
+
+    /// Logs every tick older than the newest one seen (those are complete).
+    pub fn log_complete(&mut self) -> anyhow::Result<()> {
+        let Some(&newest) = self.pending.keys().next_back() else { return Ok(()) };
+        let complete: Vec<u64> = self.pending.keys().copied().filter(|t| *t < newest).collect();
+        for tick in complete {
+            if let Some(samples) = self.pending.remove(&tick) {
+                self.log_frame(tick, samples)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Logs everything still pending (on the way out).
+    pub fn log_all(&mut self) -> anyhow::Result<()> {
+        let pending = std::mem::take(&mut self.pending);
+        for (tick, samples) in pending {
+            self.log_frame(tick, samples)?;
+        }
+        Ok(())
+    }
+
+    /// Robots not heard of for `silent_ticks` ticks are logged as gone.
+    pub fn forget_silent(&mut self, now_tick: u64, silent_ticks: u64) -> anyhow::Result<()> {
+        let gone: Vec<u32> =
+            self.robots.iter().filter(|(_, r)| r.last_tick + silent_ticks < now_tick).map(|(id, _)| *id).collect();
+        for id in gone {
+            if let Some(robot) = self.robots.remove(&id) {
+                self.event(&format!("robot {id} (pid {}) fell silent after tick {}", robot.pid, robot.last_tick))?;
+            }
+        }
+        Ok(())
+    }
+
+    pub fn event(&self, text: &str) -> anyhow::Result<()> {
+        self.rec.log("events", &rerun::TextLog::new(text).with_level(rerun::TextLogLevel::INFO))?;
+        Ok(())
+    }
+
+    fn log_frame(&mut self, tick: u64, samples: Vec<PoseSample>) -> anyhow::Result<()> {
+        let Some(first) = samples.first() else { return Ok(()) };
+        self.rec.set_time_sequence("tick", tick as i64);
+        self.rec.set_duration_secs("sim_time", first.sim_time);
+        for sample in &samples {
+            self.track(sample)?;
+        }
+        self.stats.frames += 1;
+        let robots: Vec<&PoseSample> = samples.iter().collect();
+        let true_positions: Vec<[f32; 2]> = robots.iter().map(|s| [s.x as f32, s.y as f32]).collect();
+        let labels: Vec<String> = robots.iter().map(|s| s.agent_id.to_string()).collect();
+        let colors: Vec<rerun::Color> = robots.iter().map(|s| health_color(s.health)).collect();
+        self.rec.log(
+            "world/robots/true",
+            &rerun::Points2D::new(true_positions.clone())
+                .with_radii(robots.iter().map(|_| 0.15f32))
+                .with_colors(colors)
+                .with_labels(labels)
+                .with_show_labels(true),
+        )?;
+        self.rec.log(
+            "world/robots/believed",
+            &rerun::Points2D::new(robots.iter().map(|s| [s.believed_x as f32, s.believed_y as f32]))
+                .with_radii(robots.iter().map(|_| 0.05f32))
+                .with_colors([rerun::Color::from_rgb(255, 170, 0)]),
+        )?;
+        self.rec.log(
+            "world/robots/heading",
+            &rerun::Arrows2D::from_vectors(robots.iter().map(|s| [0.3 * s.theta.cos() as f32, 0.3 * s.theta.sin() as f32]))
+                .with_origins(true_positions.clone()),
+        )?;
+        let by_id: HashMap<u32, [f32; 2]> = robots.iter().map(|s| (s.agent_id, [s.x as f32, s.y as f32])).collect();
+        let mut links: Vec<Vec<[f32; 2]>> = Vec::new();
+        for s in &robots {
+            let from = [s.x as f32, s.y as f32];
+            links.extend(s.neighbour_ids().iter().filter_map(|n| by_id.get(n).map(|to| vec![from, *to])));
+        }
+        self.rec.log("world/links", &rerun::LineStrips2D::new(links).with_colors([rerun::Color::from_rgb(90, 160, 255)]))?;
+        if tick % TRAIL_EVERY_TICKS == 0 {
+            let trails: Vec<Vec<[f32; 2]>> = self.robots.values().map(|r| r.trail.iter().copied().collect()).collect();
+            self.rec.log("world/robots/trails", &rerun::LineStrips2D::new(trails))?;
+        }
+        for s in &robots {
+            // Health rarely changes; logging it only then keeps the file small.
+            if self.last_health.insert(s.agent_id, s.health) != Some(s.health) {
+                self.rec.log(format!("robots/{}/health", s.agent_id), &rerun::Scalars::new([f64::from(s.health)]))?;
+            }
+        }
+        let positions: Vec<DVec2> = robots.iter().map(|s| DVec2::new(s.x, s.y)).collect();
+        let metrics = formation_metrics(&positions, self.spread);
+        self.rec.log("swarm/agents", &rerun::Scalars::new([metrics.agents as f64]))?;
+        self.rec.log("swarm/components", &rerun::Scalars::new([metrics.components as f64]))?;
+        self.rec.log("swarm/spacing_ratio", &rerun::Scalars::new([metrics.spacing_ratio]))?;
+        self.rec.log("recorder/dropped_samples", &rerun::Scalars::new([self.stats.dropped as f64]))?;
+        self.rec.log("recorder/rejected_samples", &rerun::Scalars::new([self.stats.rejected as f64]))?;
+        if let Some(tum) = &mut self.tum {
+            for s in &robots {
+                tum.write(s)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Notes joins, restarts and samples the bus dropped.
+    fn track(&mut self, sample: &PoseSample) -> anyhow::Result<()> {
+        let point = [sample.x as f32, sample.y as f32];
+        let event = match self.robots.get_mut(&sample.agent_id) {
+            Some(robot) if robot.pid == sample.pid => {
+                if sample.tick > robot.last_tick + 1 {
+                    self.stats.dropped += sample.tick - robot.last_tick - 1;
+                }
+                robot.last_tick = robot.last_tick.max(sample.tick);
+                robot.latest = *sample;
+                robot.trail.push_back(point);
+                if robot.trail.len() > TRAIL_LENGTH {
+                    robot.trail.pop_front();
+                }
+                None
+            }
+            Some(robot) => Some(format!("robot {} restarted (pid {} -> {})", sample.agent_id, robot.pid, sample.pid)),
+            None => Some(format!("robot {} (pid {}) joined at ({:.2}, {:.2})", sample.agent_id, sample.pid, sample.x, sample.y)),
+        };
+        if let Some(text) = event {
+            self.robots.insert(
+                sample.agent_id,
+                Robot { pid: sample.pid, last_tick: sample.tick, latest: *sample, trail: VecDeque::from([point]) },
+            );
+            self.event(&text)?;
+        }
+        Ok(())
+    }
+
+    pub fn flush(&mut self) -> anyhow::Result<()> {
+        if let Some(tum) = &mut self.tum {
+            tum.flush()?;
+        }
+        self.rec.flush_blocking()?;
+        Ok(())
+    }
+
+    pub fn robots(&self) -> impl Iterator<Item = &PoseSample> {
+        self.robots.values().map(|r| &r.latest)
+    }
+}
+
+fn health_color(health: u32) -> rerun::Color {
+    if health & Health::REJECTED_INPUT != 0 || health & Health::CELL_FULL != 0 {
+        rerun::Color::from_rgb(230, 60, 60)
+    } else if health & Health::ISOLATED != 0 {
+        rerun::Color::from_rgb(160, 160, 160)
+    } else if health & Health::BUMPED != 0 {
+        rerun::Color::from_rgb(240, 200, 40)
+    } else {
+        rerun::Color::from_rgb(60, 200, 120)
+    }
+}
+
+/// Each robot's true and believed trajectory, one TUM file each.
+struct TumWriter {
+    dir: PathBuf,
+    files: HashMap<(u32, &'static str), BufWriter<File>>,
+}
+
+impl TumWriter {
+    fn new(dir: &Path) -> anyhow::Result<Self> {
+        std::fs::create_dir_all(dir).map_err(|e| anyhow::anyhow!("creating {}: {e}", dir.display()))?;
+        Ok(Self { dir: dir.to_owned(), files: HashMap::new() })
+    }
+
+    fn write(&mut self, s: &PoseSample) -> anyhow::Result<()> {
+        for (kind, x, y, theta) in
+            [("true", s.x, s.y, s.theta), ("estimated", s.believed_x, s.believed_y, s.believed_theta)]
+        {
+            let file = match self.files.entry((s.agent_id, kind)) {
+                std::collections::hash_map::Entry::Occupied(e) => e.into_mut(),
+                std::collections::hash_map::Entry::Vacant(e) => {
+                    let path = self.dir.join(format!("robot-{}-{kind}.tum", s.agent_id));
+                    let file = File::create(&path).map_err(|err| anyhow::anyhow!("creating {}: {err}", path.display()))?;
+                    e.insert(BufWriter::new(file))
+                }
+            };
+            file.write_all(crate::tum::line(s.sim_time, x, y, theta).as_bytes())?;
+        }
+        Ok(())
+    }
+
+    fn flush(&mut self) -> anyhow::Result<()> {
+        for file in self.files.values_mut() {
+            file.flush()?;
+        }
+        Ok(())
+    }
+}
