@@ -49,6 +49,10 @@ impl Observer {
         self.latest.len()
     }
 
+    pub fn is_empty(&self) -> bool {
+        self.latest.is_empty()
+    }
+
     pub fn rejected(&self) -> u64 {
         self.check.rejected
     }

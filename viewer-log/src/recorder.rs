@@ -149,7 +149,7 @@ impl Recorder {
             links.extend(s.neighbour_ids().iter().filter_map(|n| by_id.get(n).map(|to| vec![from, *to])));
         }
         self.rec.log("world/links", &rerun::LineStrips2D::new(links).with_colors([rerun::Color::from_rgb(90, 160, 255)]))?;
-        if tick % TRAIL_EVERY_TICKS == 0 {
+        if tick.is_multiple_of(TRAIL_EVERY_TICKS) {
             let trails: Vec<Vec<[f32; 2]>> = self.robots.values().map(|r| r.trail.iter().copied().collect()).collect();
             self.rec.log("world/robots/trails", &rerun::LineStrips2D::new(trails))?;
         }
