@@ -37,7 +37,7 @@ pub struct BusLimits {
 
 impl Default for BusLimits {
     fn default() -> Self {
-        Self { max_per_cell: 16, max_listeners_per_cell: 160, max_agents: 2048, max_observers: 16 }
+        Self { max_per_cell: 24, max_listeners_per_cell: 216, max_agents: 2048, max_observers: 16 }
     }
 }
 

@@ -3,6 +3,7 @@
 //! What it costs depends on how many robots stand nearby, not on swarm size.
 
 use std::collections::HashMap;
+use std::time::{Duration, Instant};
 
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
@@ -17,6 +18,7 @@ pub type CellKey = (i32, i32);
 /// Subscribers hold at most this many unread samples per publisher; the
 /// exchange only needs the newest one or two.
 const CELL_BUFFER: usize = 2;
+const RETRY_AFTER: Duration = Duration::from_secs(1);
 
 /// Publishers of the cells a robot stood in most recently. A robot on a
 /// border crosses back and forth; keeping its last few publishers avoids
@@ -28,13 +30,16 @@ pub struct CellExchange {
     /// Most recent first; the first is the cell the robot stands in.
     publishers: Vec<(CellKey, Publisher<ipc::Service, PoseSample, ()>)>,
     subscribers: HashMap<CellKey, Subscriber<ipc::Service, PoseSample, ()>>,
+    /// Cells whose subscription failed (full), and when: they are retried
+    /// only after [`RETRY_AFTER`], since opening a service is costly.
+    failed: HashMap<CellKey, Instant>,
     /// Cells this robot could not join (full, or the bus refused); retried next period.
     pub failures: u64,
 }
 
 impl CellExchange {
     pub fn new(cell_size: f64) -> Self {
-        Self { cell_size, publishers: Vec::new(), subscribers: HashMap::new(), failures: 0 }
+        Self { cell_size, publishers: Vec::new(), subscribers: HashMap::new(), failed: HashMap::new(), failures: 0 }
     }
 
     pub fn cell_of(&self, x: f64, y: f64) -> CellKey {
@@ -88,6 +93,9 @@ impl CellExchange {
                 if self.subscribers.contains_key(&key) {
                     continue;
                 }
+                if self.failed.get(&key).is_some_and(|at| at.elapsed() < RETRY_AFTER) {
+                    continue;
+                }
                 let subscriber = Self::open(bus, key).and_then(|service| {
                     service
                         .subscriber_builder()
@@ -96,9 +104,11 @@ impl CellExchange {
                 });
                 match subscriber {
                     Ok(subscriber) => {
+                        self.failed.remove(&key);
                         self.subscribers.insert(key, subscriber);
                     }
                     Err(e) => {
+                        self.failed.insert(key, Instant::now());
                         self.failures += 1;
                         first_error.get_or_insert(e);
                     }

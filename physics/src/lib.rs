@@ -10,6 +10,7 @@ pub mod metrics;
 pub mod mixture;
 pub mod planner;
 pub mod pose;
+pub mod range;
 pub mod scenario;
 
 pub use arena::{Arena, Obstacle, Surface, Wall};

@@ -85,7 +85,7 @@ pub struct BusSection {
 
 impl Default for BusSection {
     fn default() -> Self {
-        Self { cell_size: 3.5, max_ring: 3, max_per_cell: 16, max_listeners_per_cell: 160 }
+        Self { cell_size: 3.5, max_ring: 3, max_per_cell: 24, max_listeners_per_cell: 216 }
     }
 }
 

@@ -200,3 +200,26 @@ fn malformed_bus_samples_are_rejected_and_counted() {
     drop(roster);
     drop(bus);
 }
+
+#[test]
+fn a_real_time_swarm_keeps_going_when_shoal_up_is_killed() {
+    let _turn = serial();
+    let swarm = BackgroundSwarm::start("e2e-orphans", &["--agents", "6"]);
+    assert!(wait_until(Duration::from_secs(30), || alive_ids(&status(&swarm.name)).len() == 6));
+    // SAFETY: plain kill(2) on our child.
+    unsafe { libc::kill(swarm.pid(), libc::SIGKILL) };
+    let ticks = |s: &Value| -> Vec<u64> { alive_agents(s).iter().filter_map(|a| a["tick"].as_u64()).collect() };
+    let before = ticks(&status(&swarm.name));
+    std::thread::sleep(Duration::from_secs(2));
+    let after_status = status(&swarm.name);
+    let after = ticks(&after_status);
+    assert_eq!(after.len(), 6, "robots died with the launcher: {after_status}");
+    assert!(after.iter().min() > before.iter().max(), "robots stopped stepping: {before:?} then {after:?}");
+    let ids: Vec<String> = alive_ids(&after_status).iter().map(u64::to_string).collect();
+    let mut args = vec!["kill", "--graceful", "--swarm", "e2e-orphans"];
+    args.extend(ids.iter().map(String::as_str));
+    assert!(shoal(&args).status.success());
+    assert!(wait_until(Duration::from_secs(10), || alive_ids(&status("e2e-orphans")).is_empty()));
+    let _ = std::fs::remove_dir_all(shoal_broker::SwarmRuntime::locate("e2e-orphans").dir);
+    drop(swarm);
+}

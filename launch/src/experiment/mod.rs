@@ -40,6 +40,9 @@ pub fn run_until(
     let start_tick = swarm.clock.as_ref().map_or(0, |c| c.tick);
     let mut formed_since: Option<f64> = None;
     while swarm.sim_time() - start < max_s {
+        if swarm.termination_requested() {
+            anyhow::bail!("interrupted");
+        }
         swarm.advance()?;
         let now = swarm.sim_time() - start;
         let formed = is_formed(&swarm.observer.metrics(spread)) && also(&swarm.observer);

@@ -33,20 +33,16 @@ pub struct Report {
 }
 
 /// An open square arena big enough for `agents` at the default spacing,
-/// starting them sparser than their lattice, so they must gather.
+/// starting them a little sparser than their lattice, at random.
 pub fn open_arena(agents: usize) -> Scenario {
     let mut scenario = Scenario::default_arena();
     let spread = scenario.formation.spread;
-    let start_side = (agents as f64).sqrt() * spread * 1.8;
+    let start_side = (agents as f64).sqrt() * spread * 1.3;
     let side = (start_side * 2.0 + 10.0).max(20.0);
     scenario.arena = Arena { width: side, height: side, walls: vec![], obstacles: vec![], surfaces: vec![] };
     let (lo, hi) = ((side - start_side) / 2.0, (side + start_side) / 2.0);
     scenario.agents.start_region = [lo, lo, hi, hi];
     scenario.agents.count = agents;
-    // Robots sense only a few metres; a weak goal at the centre (the
-    // thesis's goal swarming) draws separate groups together.
-    scenario.formation.goal = Some([side / 2.0, side / 2.0]);
-    scenario.formation.goal_gain = 0.05;
     scenario
 }
 

@@ -1,0 +1,181 @@
+//! The thesis's learning rule (IV, "Learning the Model"): per command and per
+//! motion parameter, a two-Gaussian mixture is moved towards the
+//! quality-weighted statistics of the particles that used it, with a gain of
+//! this step's weight over the weight of the last k steps.
+
+use std::collections::VecDeque;
+
+use shoal_physics::Mixture2;
+
+/// One particle's draw of a motion parameter and how well its scan fit the map.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Draw {
+    pub value: f64,
+    pub quality: f64,
+}
+
+/// Learns one mixture (one command, one parameter).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MixtureLearner {
+    pub mixture: Mixture2,
+    /// The window k of the windowed exponential estimator (5 <= k <= 10).
+    window: usize,
+    /// The per-component weights g_j of the last `window` steps.
+    history: VecDeque<[f64; 2]>,
+    /// Variances never shrink below this, so a component cannot collapse onto one draw.
+    pub min_variance: f64,
+}
+
+/// What one step changed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Update {
+    /// g_j: the weight each component received this step.
+    pub weights: [f64; 2],
+    /// g_j / G_j: how far each component moved towards this step's statistics.
+    pub gains: [f64; 2],
+}
+
+impl MixtureLearner {
+    pub fn new(mixture: Mixture2, window: usize) -> Self {
+        Self { mixture, window: window.clamp(1, 64), history: VecDeque::new(), min_variance: 1e-8 }
+    }
+
+    /// One SLAM step: O(particles), one pass for weights and means, one for variances.
+    pub fn update(&mut self, draws: &[Draw]) -> Update {
+        let mut g = [0.0; 2];
+        let mut weighted_sum = [0.0; 2];
+        let responsibilities: Vec<[f64; 2]> = draws
+            .iter()
+            .map(|d| responsibilities_of(&self.mixture, d.value))
+            .collect();
+        for (d, r) in draws.iter().zip(&responsibilities) {
+            for j in 0..2 {
+                let w = d.quality * r[j];
+                g[j] += w;
+                weighted_sum[j] += w * d.value;
+            }
+        }
+        self.history.push_back(g);
+        while self.history.len() > self.window {
+            self.history.pop_front();
+        }
+        let mut gains = [0.0; 2];
+        let total_g = g[0] + g[1];
+        for j in 0..2 {
+            let window_total: f64 = self.history.iter().map(|h| h[j]).sum();
+            if g[j] <= 0.0 || window_total <= 0.0 {
+                continue;
+            }
+            let gain = g[j] / window_total;
+            gains[j] = gain;
+            let mean = weighted_sum[j] / g[j];
+            let variance = draws
+                .iter()
+                .zip(&responsibilities)
+                .map(|(d, r)| d.quality * r[j] * (d.value - mean).powi(2))
+                .sum::<f64>()
+                / g[j];
+            let share = g[j] / total_g;
+            let m = &mut self.mixture;
+            m.weights[j] += gain * (share - m.weights[j]);
+            m.means[j] += gain * (mean - m.means[j]);
+            m.variances[j] = (m.variances[j] + gain * (variance - m.variances[j])).max(self.min_variance);
+        }
+        let total_weight = self.mixture.weights[0] + self.mixture.weights[1];
+        if total_weight > 0.0 {
+            self.mixture.weights = self.mixture.weights.map(|w| w / total_weight);
+        }
+        Update { weights: g, gains }
+    }
+}
+
+/// p_j(x) / (p_1(x) + p_2(x)), computed from log densities so that draws far
+/// in the tails do not underflow to 0/0.
+fn responsibilities_of(mixture: &Mixture2, value: f64) -> [f64; 2] {
+    let log_pdf = |j: usize| {
+        let variance = mixture.variances[j].max(1e-300);
+        -0.5 * (value - mixture.means[j]).powi(2) / variance - 0.5 * (std::f64::consts::TAU * variance).ln()
+    };
+    let (a, b) = (log_pdf(0), log_pdf(1));
+    let top = a.max(b);
+    if !top.is_finite() {
+        return [0.5, 0.5];
+    }
+    let (ea, eb) = ((a - top).exp(), (b - top).exp());
+    [ea / (ea + eb), eb / (ea + eb)]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn learner(window: usize) -> MixtureLearner {
+        MixtureLearner::new(
+            Mixture2 { weights: [0.5, 0.5], means: [0.0, 1.0], variances: [0.01, 0.01] },
+            window,
+        )
+    }
+
+    /// Hand-computed: draws far apart are each owned by one component, so
+    /// g = (q0, q1), and on the first step each gain is 1.
+    #[test]
+    fn the_first_step_moves_each_component_to_its_draws_statistics() {
+        let mut learner = learner(5);
+        let draws = [
+            Draw { value: 0.1, quality: 1.0 },
+            Draw { value: -0.1, quality: 1.0 },
+            Draw { value: 1.2, quality: 2.0 },
+        ];
+        let update = learner.update(&draws);
+        assert!((update.weights[0] - 2.0).abs() < 1e-9 && (update.weights[1] - 2.0).abs() < 1e-9);
+        assert_eq!(update.gains, [1.0, 1.0]);
+        let m = learner.mixture;
+        assert!((m.means[0] - 0.0).abs() < 1e-9, "{m:?}");
+        assert!((m.means[1] - 1.2).abs() < 1e-9, "{m:?}");
+        assert!((m.variances[0] - 0.01).abs() < 1e-9, "(0.1^2 + 0.1^2) / 2 = 0.01: {m:?}");
+        assert!(m.variances[1] <= 1e-8 + 1e-12, "a single draw has no spread: {m:?}");
+        assert!((m.weights[0] - 0.5).abs() < 1e-9, "{m:?}");
+    }
+
+    /// Two draws around each component, 0.05 either side of its centre.
+    fn pairs(low: f64, high: f64) -> Vec<Draw> {
+        [low - 0.05, low + 0.05, high - 0.05, high + 0.05].map(|value| Draw { value, quality: 1.0 }).to_vec()
+    }
+
+    /// Hand-computed: after two steps of equal weight, the gain is 1/2, so the
+    /// mean moves half way from the first step's mean (0) to the second's (0.2).
+    #[test]
+    fn later_steps_move_by_their_share_of_the_window() {
+        let mut learner = learner(5);
+        learner.update(&pairs(0.0, 1.0));
+        assert!((learner.mixture.variances[0] - 0.0025).abs() < 1e-9, "{:?}", learner.mixture);
+        let update = learner.update(&pairs(0.2, 1.0));
+        assert!((update.gains[0] - 0.5).abs() < 1e-6, "{update:?}");
+        assert!((learner.mixture.means[0] - 0.1).abs() < 1e-6, "{:?}", learner.mixture);
+    }
+
+    #[test]
+    fn a_step_with_little_information_barely_moves_the_model() {
+        let mut learner = learner(5);
+        for _ in 0..5 {
+            learner.update(&pairs(0.0, 1.0));
+        }
+        let before = learner.mixture;
+        let faint: Vec<Draw> = pairs(0.2, 1.0).into_iter().map(|d| Draw { quality: 0.0005, ..d }).collect();
+        let update = learner.update(&faint);
+        assert!(update.gains[0] < 0.001);
+        assert!((learner.mixture.means[0] - before.means[0]).abs() < 1e-3);
+    }
+
+    #[test]
+    fn the_window_forgets_old_steps_so_a_change_is_tracked() {
+        let mut learner = learner(5);
+        for _ in 0..20 {
+            learner.update(&pairs(0.0, 1.0));
+        }
+        for _ in 0..20 {
+            learner.update(&pairs(0.3, 1.0));
+        }
+        assert!((learner.mixture.means[0] - 0.3).abs() < 0.01, "{:?}", learner.mixture);
+    }
+}

@@ -1,0 +1,4 @@
+//! Online motion-model learning and particle-filter SLAM (thesis chapter IV).
+//! Pure logic: the SLAM process feeds it from the bus.
+
+pub mod learning;
