@@ -6,7 +6,10 @@ use shoal_agent::run::{AgentOptions, run};
 use shoal_physics::Pose;
 
 #[derive(Parser)]
-#[command(version, about = "One robot of a Shoal swarm (started by `shoal up`, `spawn` or `restart`)")]
+#[command(
+    version,
+    about = "One robot of a Shoal swarm (started by `shoal up`, `spawn` or `restart`)"
+)]
 struct Args {
     /// The swarm to join.
     #[arg(long, default_value = "default")]
@@ -29,7 +32,13 @@ fn parse_pose(text: &str) -> Result<Pose, String> {
         [x, y, theta] => Ok(Pose::new(x, y, theta)),
         _ => Err("expected X,Y or X,Y,THETA".to_owned()),
     }
-    .and_then(|p| if p.is_finite() { Ok(p) } else { Err("pose must be finite".to_owned()) })
+    .and_then(|p| {
+        if p.is_finite() {
+            Ok(p)
+        } else {
+            Err("pose must be finite".to_owned())
+        }
+    })
 }
 
 fn main() -> std::process::ExitCode {
@@ -40,7 +49,11 @@ fn main() -> std::process::ExitCode {
         .with_writer(std::io::stderr)
         .init();
     let args = Args::parse();
-    match run(AgentOptions { swarm: args.swarm, id: args.id, start: args.at }) {
+    match run(AgentOptions {
+        swarm: args.swarm,
+        id: args.id,
+        start: args.at,
+    }) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("shoal-agent {}: error: {e:#}", args.id);

@@ -22,7 +22,10 @@ pub struct NeighbourTable {
 
 impl NeighbourTable {
     pub fn new(own_id: u32) -> Self {
-        Self { own_id, entries: HashMap::new() }
+        Self {
+            own_id,
+            entries: HashMap::new(),
+        }
     }
 
     pub fn insert(&mut self, sample: PoseSample, now: Instant) {
@@ -46,7 +49,14 @@ impl NeighbourTable {
                 }
             }
             _ => {
-                self.entries.insert(sample.agent_id, Entry { latest: sample, previous: None, heard: now });
+                self.entries.insert(
+                    sample.agent_id,
+                    Entry {
+                        latest: sample,
+                        previous: None,
+                        heard: now,
+                    },
+                );
             }
         }
     }
@@ -62,7 +72,9 @@ impl NeighbourTable {
             let at = if entry.latest.tick == wanted {
                 Some(entry.latest)
             } else {
-                entry.previous.filter(|p| p.tick == wanted && entry.latest.tick > wanted)
+                entry
+                    .previous
+                    .filter(|p| p.tick == wanted && entry.latest.tick > wanted)
             };
             match at {
                 Some(sample) => {
@@ -83,7 +95,11 @@ impl NeighbourTable {
 
     /// Real time: the newest pose of every robot heard within `max_age`;
     /// robots silent for longer are forgotten.
-    pub fn realtime_view(&mut self, now: Instant, max_age: Duration) -> (Vec<PoseSample>, Vec<PoseSample>) {
+    pub fn realtime_view(
+        &mut self,
+        now: Instant,
+        max_age: Duration,
+    ) -> (Vec<PoseSample>, Vec<PoseSample>) {
         let mut dropped = Vec::new();
         self.entries.retain(|_, entry| {
             let fresh = now.saturating_duration_since(entry.heard) <= max_age;
@@ -104,25 +120,7 @@ mod tests {
     use super::*;
 
     fn sample(id: u32, pid: u32, tick: u64) -> PoseSample {
-        PoseSample {
-            agent_id: id,
-            pid,
-            tick,
-            sim_time: 0.0,
-            x: tick as f64,
-            y: 0.0,
-            theta: 0.0,
-            believed_x: 0.0,
-            believed_y: 0.0,
-            believed_theta: 0.0,
-            vx: 0.0,
-            vy: 0.0,
-            command: 0,
-            health: 0,
-            visible: 0,
-            neighbour_count: 0,
-            neighbours: [0; shoal_broker::MAX_NEIGHBOURS],
-        }
+        PoseSample::standing(id, pid, tick, tick as f64, 0.0, 0.0)
     }
 
     #[test]
@@ -133,7 +131,12 @@ mod tests {
         table.insert(sample(1, 10, 5), now);
         table.insert(sample(2, 20, 4), now);
         let (view, dropped) = table.lockstep_view(5);
-        assert_eq!(view.iter().map(|s| (s.agent_id, s.tick)).collect::<Vec<_>>(), vec![(1, 4), (2, 4)]);
+        assert_eq!(
+            view.iter()
+                .map(|s| (s.agent_id, s.tick))
+                .collect::<Vec<_>>(),
+            vec![(1, 4), (2, 4)]
+        );
         assert!(dropped.is_empty());
     }
 
@@ -157,7 +160,10 @@ mod tests {
         table.insert(sample(2, 20, 5), now);
         let (view, dropped) = table.lockstep_view(6);
         assert_eq!(view.len(), 1);
-        assert_eq!(dropped.iter().map(|s| s.agent_id).collect::<Vec<_>>(), vec![1]);
+        assert_eq!(
+            dropped.iter().map(|s| s.agent_id).collect::<Vec<_>>(),
+            vec![1]
+        );
     }
 
     #[test]
@@ -166,9 +172,15 @@ mod tests {
         let mut table = NeighbourTable::new(0);
         table.insert(sample(1, 10, 1), start);
         table.insert(sample(2, 20, 1), start + Duration::from_millis(300));
-        let (view, dropped) = table.realtime_view(start + Duration::from_millis(450), Duration::from_millis(400));
+        let (view, dropped) = table.realtime_view(
+            start + Duration::from_millis(450),
+            Duration::from_millis(400),
+        );
         assert_eq!(view.len(), 1);
-        assert_eq!(dropped.iter().map(|s| s.agent_id).collect::<Vec<_>>(), vec![1]);
+        assert_eq!(
+            dropped.iter().map(|s| s.agent_id).collect::<Vec<_>>(),
+            vec![1]
+        );
     }
 
     #[test]

@@ -32,10 +32,18 @@ pub struct Decision {
 impl Robot {
     /// Robot `id` of a swarm seeded with `seed`; each robot draws its own noise.
     pub fn new(id: u32, start: Pose, scenario: &Scenario) -> Self {
-        let seed = scenario.agents.seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(u64::from(id));
+        let seed = scenario
+            .agents
+            .seed
+            .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+            .wrapping_add(u64::from(id));
         Self {
             id,
-            body: Body { pose: start, radius: scenario.agents.radius, model: scenario.motion.clone() },
+            body: Body {
+                pose: start,
+                radius: scenario.agents.radius,
+                model: scenario.motion.clone(),
+            },
             belief: scenario.motion.clone(),
             believed: start,
             rng: StdRng::seed_from_u64(seed),
@@ -59,10 +67,19 @@ impl Robot {
             .map(|n| n.position)
             .filter(|p| p.distance(me) < 4.0 * self.body.radius + 0.5)
             .collect();
-        let outcome = self.body.step(command, &scenario.arena, &nearby, &mut self.rng);
+        let outcome = self
+            .body
+            .step(command, &scenario.arena, &nearby, &mut self.rng);
         let expected = self.belief.mean(command);
-        self.believed = self.believed.advanced(expected.along, expected.across, expected.turn);
-        Decision { tracked, force, command, outcome }
+        self.believed = self
+            .believed
+            .advanced(expected.along, expected.across, expected.turn);
+        Decision {
+            tracked,
+            force,
+            command,
+            outcome,
+        }
     }
 }
 
@@ -78,14 +95,25 @@ mod tests {
         let mut scenario = Scenario::default_arena();
         scenario.agents.count = 12;
         let starts = scenario.start_poses(0, 12);
-        let mut robots: Vec<Robot> = starts.iter().enumerate().map(|(i, p)| Robot::new(i as u32, *p, &scenario)).collect();
+        let mut robots: Vec<Robot> = starts
+            .iter()
+            .enumerate()
+            .map(|(i, p)| Robot::new(i as u32, *p, &scenario))
+            .collect();
         for _ in 0..600 {
-            let poses: Vec<Neighbour> =
-                robots.iter().map(|r| Neighbour { id: r.id, position: r.body.pose.position() }).collect();
+            let poses: Vec<Neighbour> = robots
+                .iter()
+                .map(|r| Neighbour {
+                    id: r.id,
+                    position: r.body.pose.position(),
+                })
+                .collect();
             for robot in &mut robots {
                 let others: Vec<Neighbour> = poses
                     .iter()
-                    .filter(|n| n.id != robot.id && n.position.distance(robot.body.pose.position()) < 5.0)
+                    .filter(|n| {
+                        n.id != robot.id && n.position.distance(robot.body.pose.position()) < 5.0
+                    })
                     .copied()
                     .collect();
                 robot.step(&others, &scenario);

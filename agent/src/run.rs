@@ -5,8 +5,8 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 use anyhow::{Context, Result};
 use shoal_broker::liveness::remove_dead_nodes;
 use shoal_broker::{
-    Bus, BusLimits, CellExchange, ClockListener, Health, MAX_NEIGHBOURS, PoseSample, RosterPublisher, SampleCheck,
-    SwarmRuntime, names,
+    Bus, BusLimits, CellExchange, ClockListener, Health, MAX_NEIGHBOURS, PoseSample,
+    RosterPublisher, SampleCheck, SwarmRuntime, names,
 };
 use shoal_physics::{Neighbour, Pose, Scenario};
 
@@ -37,10 +37,18 @@ pub fn run(options: AgentOptions) -> Result<()> {
         max_listeners_per_cell: scenario.bus.max_listeners_per_cell,
         ..BusLimits::default()
     };
-    let bus = Bus::join(&options.swarm, &names::agent_node(&options.swarm, options.id), limits)?;
+    let bus = Bus::join(
+        &options.swarm,
+        &names::agent_node(&options.swarm, options.id),
+        limits,
+    )?;
     let mut cells = CellExchange::new(scenario.bus.cell_size);
     let roster = RosterPublisher::new(&bus)?;
-    let clock = if meta.lockstep { Some(ClockListener::new(&bus)?) } else { None };
+    let clock = if meta.lockstep {
+        Some(ClockListener::new(&bus)?)
+    } else {
+        None
+    };
     let mut check = SampleCheck::for_map(scenario.arena.width, scenario.arena.height, MAP_MARGIN_M);
     let mut robot = Robot::new(options.id, options.start, &scenario);
     let mut table = NeighbourTable::new(options.id);
@@ -48,27 +56,22 @@ pub fn run(options: AgentOptions) -> Result<()> {
     let period = Duration::from_secs_f64(scenario.timing.period_s);
     let stale_after = period.mul_f64(scenario.timing.stale_periods);
     let pid = std::process::id();
-    tracing::info!(id = options.id, pid, lockstep = meta.lockstep, "robot joined swarm {}", options.swarm);
-
-    let mut last = PoseSample {
-        agent_id: options.id,
+    tracing::info!(
+        id = options.id,
         pid,
-        tick: 0,
-        sim_time: 0.0,
-        x: options.start.x,
-        y: options.start.y,
-        theta: options.start.theta,
-        believed_x: options.start.x,
-        believed_y: options.start.y,
-        believed_theta: options.start.theta,
-        vx: 0.0,
-        vy: 0.0,
-        command: 0,
-        health: 0,
-        visible: 0,
-        neighbour_count: 0,
-        neighbours: [0; MAX_NEIGHBOURS],
-    };
+        lockstep = meta.lockstep,
+        "robot joined swarm {}",
+        options.swarm
+    );
+
+    let mut last = PoseSample::standing(
+        options.id,
+        pid,
+        0,
+        options.start.x,
+        options.start.y,
+        options.start.theta,
+    );
     let center = cells.cell_of(last.x, last.y);
     if let Err(e) = cells.listen(&bus, center, range.listen_ring) {
         tracing::warn!("{e}");
@@ -94,7 +97,8 @@ pub fn run(options: AgentOptions) -> Result<()> {
                 None => continue,
             },
             None => {
-                let (tick, sim_time) = wait_for_next_period(meta.epoch_unix_ms, scenario.timing.period_s, last.tick);
+                let (tick, sim_time) =
+                    wait_for_next_period(meta.epoch_unix_ms, scenario.timing.period_s, last.tick);
                 (tick, sim_time)
             }
         };
@@ -114,8 +118,11 @@ pub fn run(options: AgentOptions) -> Result<()> {
                 table.insert(sample, now);
             }
         })?;
-        let (heard, dropped) =
-            if clock.is_some() { table.lockstep_view(tick) } else { table.realtime_view(now, stale_after) };
+        let (heard, dropped) = if clock.is_some() {
+            table.lockstep_view(tick)
+        } else {
+            table.realtime_view(now, stale_after)
+        };
         let me = robot.body.pose.position();
         let radius = range.sense_radius(scenario.bus.cell_size);
         // A robot that fell silent nearby probably died; one that walked out
@@ -131,11 +138,18 @@ pub fn run(options: AgentOptions) -> Result<()> {
         }
         let sensed: Vec<Neighbour> = heard
             .iter()
-            .map(|s| Neighbour { id: s.agent_id, position: glam::DVec2::new(s.x, s.y) })
+            .map(|s| Neighbour {
+                id: s.agent_id,
+                position: glam::DVec2::new(s.x, s.y),
+            })
             .filter(|n| n.position.distance(me) <= radius)
             .collect();
-        let inner_radius = SensingRange::radius(range.sense_ring.saturating_sub(1), scenario.bus.cell_size);
-        let within_inner = sensed.iter().filter(|n| n.position.distance(me) <= inner_radius).count();
+        let inner_radius =
+            SensingRange::radius(range.sense_ring.saturating_sub(1), scenario.bus.cell_size);
+        let within_inner = sensed
+            .iter()
+            .filter(|n| n.position.distance(me) <= inner_radius)
+            .count();
 
         let before = robot.body.pose;
         let decision = robot.step(&sensed, &scenario);
@@ -180,7 +194,12 @@ pub fn run(options: AgentOptions) -> Result<()> {
 
         // Widen only when nearly alone: a robot on the edge of a formation
         // legitimately sees fewer than it tracks.
-        range.update(tick, sensed.len(), within_inner, scenario.formation.neighbours.min(WIDEN_BELOW));
+        range.update(
+            tick,
+            sensed.len(),
+            within_inner,
+            scenario.formation.neighbours.min(WIDEN_BELOW),
+        );
         let center = cells.cell_of(after.x, after.y);
         if let Err(e) = cells.listen(&bus, center, range.listen_ring) {
             tracing::warn!("{e}");
@@ -207,7 +226,12 @@ pub fn run(options: AgentOptions) -> Result<()> {
     Ok(())
 }
 
-fn publish(bus: &Bus, cells: &mut CellExchange, roster: &RosterPublisher, sample: &mut PoseSample) -> Result<()> {
+fn publish(
+    bus: &Bus,
+    cells: &mut CellExchange,
+    roster: &RosterPublisher,
+    sample: &mut PoseSample,
+) -> Result<()> {
     if let Err(e) = cells.publish(bus, sample) {
         // A full cell hides this robot from its neighbours this period; it
         // says so in its health and tries again next period.
@@ -222,7 +246,9 @@ fn publish(bus: &Bus, cells: &mut CellExchange, roster: &RosterPublisher, sample
 /// returns its tick number and time.
 fn wait_for_next_period(epoch_unix_ms: u64, period_s: f64, last_tick: u64) -> (u64, f64) {
     let elapsed = || {
-        let now_ms = SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_millis() as u64);
+        let now_ms = SystemTime::now()
+            .duration_since(UNIX_EPOCH)
+            .map_or(0, |d| d.as_millis() as u64);
         now_ms.saturating_sub(epoch_unix_ms) as f64 / 1000.0
     };
     let next_tick = ((elapsed() / period_s).floor() as u64 + 1).max(last_tick + 1);

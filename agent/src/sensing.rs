@@ -21,7 +21,12 @@ pub struct SensingRange {
 
 impl SensingRange {
     pub fn new(max_ring: u32) -> Self {
-        Self { listen_ring: 1, sense_ring: 1, max_ring: max_ring.max(1), widen_at: None }
+        Self {
+            listen_ring: 1,
+            sense_ring: 1,
+            max_ring: max_ring.max(1),
+            widen_at: None,
+        }
     }
 
     /// Listening to `ring` rings of `cell_size` cells covers at least `ring *

@@ -12,7 +12,7 @@ use serde::{Deserialize, Serialize};
 use shoal::experiment::scale::open_arena;
 use shoal::process::{ProcessUsage, usage};
 use shoal::swarm::RunningSwarm;
-use shoal_broker::{Bus, BusLimits, CellExchange, MAX_NEIGHBOURS, PoseSample, names};
+use shoal_broker::{Bus, BusLimits, CellExchange, PoseSample, names};
 
 /// Samples go out in blocks that alternate between transports, so that
 /// drifting background load touches all of them alike.
@@ -22,7 +22,11 @@ const BLOCK: usize = 50;
 const GAP: Duration = Duration::from_micros(200);
 /// The shortest window over which the robots' CPU time is measured.
 const CPU_WINDOW: Duration = Duration::from_secs(15);
-const TRANSPORTS: [Transport; 3] = [Transport::IceoryxEvent, Transport::IceoryxPoll, Transport::UnixSocket];
+const TRANSPORTS: [Transport; 3] = [
+    Transport::IceoryxEvent,
+    Transport::IceoryxPoll,
+    Transport::UnixSocket,
+];
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 pub enum Role {
@@ -46,7 +50,10 @@ fn schedule(samples: usize) -> impl Iterator<Item = Transport> {
 }
 
 fn monotonic_ns() -> u64 {
-    let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
     // SAFETY: clock_gettime writes into the timespec we own.
     unsafe { libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts) };
     ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
@@ -54,30 +61,17 @@ fn monotonic_ns() -> u64 {
 
 /// Where both probe ends meet: the middle of the arena, among the robots.
 fn probe_sample(sequence: u64, x: f64) -> PoseSample {
-    PoseSample {
-        agent_id: u32::MAX - 1,
-        pid: std::process::id(),
-        tick: sequence,
-        sim_time: 0.0,
-        x,
-        y: x,
-        theta: 0.0,
-        believed_x: x,
-        believed_y: x,
-        believed_theta: 0.0,
-        vx: 0.0,
-        vy: 0.0,
-        command: 0,
-        health: 0,
-        visible: 0,
-        neighbour_count: 0,
-        neighbours: [0; MAX_NEIGHBOURS],
-    }
+    PoseSample::standing(u32::MAX - 1, std::process::id(), sequence, x, x, 0.0)
 }
 
 fn as_bytes(sample: &PoseSample) -> &[u8] {
     // SAFETY: PoseSample is repr(C), plain old data, without padding bytes.
-    unsafe { std::slice::from_raw_parts((sample as *const PoseSample).cast::<u8>(), size_of::<PoseSample>()) }
+    unsafe {
+        std::slice::from_raw_parts(
+            (sample as *const PoseSample).cast::<u8>(),
+            size_of::<PoseSample>(),
+        )
+    }
 }
 
 #[derive(Debug, Default, Serialize, Deserialize)]
@@ -88,8 +82,15 @@ struct ProbeResult {
 }
 
 pub fn probe(role: Role, swarm: &str, samples: usize, socket: &Path) -> Result<()> {
-    let bus = Bus::join(swarm, &names::tool_node(swarm, &format!("probe-{role:?}")), BusLimits::default())?;
-    let centre = std::env::var("SHOAL_PROBE_AT").ok().and_then(|v| v.parse().ok()).unwrap_or(10.0);
+    let bus = Bus::join(
+        swarm,
+        &names::tool_node(swarm, &format!("probe-{role:?}")),
+        BusLimits::default(),
+    )?;
+    let centre = std::env::var("SHOAL_PROBE_AT")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(10.0);
     let event_name = format!("{}probe-event", names::prefix(swarm));
     let event = bus
         .node
@@ -100,16 +101,23 @@ pub fn probe(role: Role, swarm: &str, samples: usize, socket: &Path) -> Result<(
     let mut cells = CellExchange::new(shoal_physics::Scenario::default_arena().bus.cell_size);
     match role {
         Role::Receive => {
-            let listener = event.listener_builder().create().map_err(|e| anyhow::anyhow!("{e:?}"))?;
+            let listener = event
+                .listener_builder()
+                .create()
+                .map_err(|e| anyhow::anyhow!("{e:?}"))?;
             let key = cells.cell_of(centre, centre);
             cells.listen(&bus, key, 0)?;
-            let datagram = UnixDatagram::bind(socket).with_context(|| format!("binding {}", socket.display()))?;
+            let datagram = UnixDatagram::bind(socket)
+                .with_context(|| format!("binding {}", socket.display()))?;
             datagram.set_read_timeout(Some(Duration::from_secs(1)))?;
             // The sender waits for this acknowledgement before its next sample,
             // so a slow receiver never finds a queue of stale samples.
             let acks = UnixDatagram::unbound()?;
             let ack_path = socket.with_extension("ack");
-            let mut result = ProbeResult { latencies: vec![Vec::new(); 3], lost: vec![0; 3] };
+            let mut result = ProbeResult {
+                latencies: vec![Vec::new(); 3],
+                lost: vec![0; 3],
+            };
             let mut buffer = [0u8; 512];
             for (sequence, transport) in schedule(samples).enumerate() {
                 let index = TRANSPORTS.iter().position(|t| *t == transport).unwrap_or(0);
@@ -142,7 +150,8 @@ pub fn probe(role: Role, swarm: &str, samples: usize, socket: &Path) -> Result<(
                     Transport::UnixSocket => match datagram.recv(&mut buffer) {
                         Ok(n) if n == size_of::<PoseSample>() => {
                             // SAFETY: n bytes of a PoseSample the sender wrote; read unaligned.
-                            let s: PoseSample = unsafe { std::ptr::read_unaligned(buffer.as_ptr().cast()) };
+                            let s: PoseSample =
+                                unsafe { std::ptr::read_unaligned(buffer.as_ptr().cast()) };
                             (s.tick == sequence as u64).then_some(s.sim_time.to_bits())
                         }
                         _ => None,
@@ -158,13 +167,18 @@ pub fn probe(role: Role, swarm: &str, samples: usize, socket: &Path) -> Result<(
             println!("{}", serde_json::to_string(&result)?);
         }
         Role::Send => {
-            let notifier = event.notifier_builder().create().map_err(|e| anyhow::anyhow!("{e:?}"))?;
+            let notifier = event
+                .notifier_builder()
+                .create()
+                .map_err(|e| anyhow::anyhow!("{e:?}"))?;
             let deadline = Instant::now() + Duration::from_secs(10);
             while !socket.exists() && Instant::now() < deadline {
                 std::thread::sleep(Duration::from_millis(10));
             }
             let datagram = UnixDatagram::unbound()?;
-            datagram.connect(socket).with_context(|| format!("connecting {}", socket.display()))?;
+            datagram
+                .connect(socket)
+                .with_context(|| format!("connecting {}", socket.display()))?;
             let acks = UnixDatagram::bind(socket.with_extension("ack"))?;
             acks.set_read_timeout(Some(Duration::from_secs(2)))?;
             let mut ack = [0u8; 8];
@@ -231,19 +245,36 @@ pub fn run(sizes: &[usize], samples: usize, json: bool) -> Result<()> {
         let robots = agents - 2;
         let scenario = open_arena(robots.max(1));
         let centre = scenario.arena.width / 2.0;
-        let swarm = if robots > 0 { Some(RunningSwarm::launch(&swarm_name, open_arena(robots), false)?) } else { None };
+        let swarm = if robots > 0 {
+            Some(RunningSwarm::launch(
+                &swarm_name,
+                open_arena(robots),
+                false,
+            )?)
+        } else {
+            None
+        };
         if swarm.is_some() {
             std::thread::sleep(Duration::from_secs(3));
         }
         let pids = swarm.as_ref().map(|s| s.agent_pids()).unwrap_or_default();
         let cpu_before: ProcessUsage = pids.iter().filter_map(|p| usage(*p)).sum();
         let started = Instant::now();
-        let socket = std::env::temp_dir().join(format!("shoal-bench-{}-{agents}.sock", std::process::id()));
+        let socket =
+            std::env::temp_dir().join(format!("shoal-bench-{}-{agents}.sock", std::process::id()));
         let _ = std::fs::remove_file(&socket);
         let _ = std::fs::remove_file(socket.with_extension("ack"));
         let spawn = |role: &str| {
             Command::new(&me)
-                .args(["probe", "--role", role, "--swarm", &swarm_name, "--samples", &samples.to_string()])
+                .args([
+                    "probe",
+                    "--role",
+                    role,
+                    "--swarm",
+                    &swarm_name,
+                    "--samples",
+                    &samples.to_string(),
+                ])
                 .arg("--socket")
                 .arg(&socket)
                 .env("SHOAL_PROBE_AT", centre.to_string())
@@ -266,22 +297,35 @@ pub fn run(sizes: &[usize], samples: usize, json: bool) -> Result<()> {
         if !sent.status.success() || !received.status.success() {
             bail!("the probe failed for {agents} robots");
         }
-        let result: ProbeResult = serde_json::from_slice(&received.stdout).context("probe output")?;
+        let result: ProbeResult =
+            serde_json::from_slice(&received.stdout).context("probe output")?;
         let period = scenario.timing.period_s;
-        let robot_cpu = (robots > 0)
-            .then(|| (cpu_after.cpu_s - cpu_before.cpu_s) * 1000.0 / (robots as f64 * elapsed / period));
+        let robot_cpu = (robots > 0).then(|| {
+            (cpu_after.cpu_s - cpu_before.cpu_s) * 1000.0 / (robots as f64 * elapsed / period)
+        });
         let mut sorted: Vec<Vec<u64>> = result.latencies.clone();
         sorted.iter_mut().for_each(|l| l.sort_unstable());
-        let socket_index = TRANSPORTS.iter().position(|t| *t == Transport::UnixSocket).unwrap_or(2);
-        let (base50, base99) = (percentile(&sorted[socket_index], 0.5), percentile(&sorted[socket_index], 0.99));
+        let socket_index = TRANSPORTS
+            .iter()
+            .position(|t| *t == Transport::UnixSocket)
+            .unwrap_or(2);
+        let (base50, base99) = (
+            percentile(&sorted[socket_index], 0.5),
+            percentile(&sorted[socket_index], 0.99),
+        );
         for (index, transport) in TRANSPORTS.iter().enumerate() {
-            let (p50, p99) = (percentile(&sorted[index], 0.5), percentile(&sorted[index], 0.99));
+            let (p50, p99) = (
+                percentile(&sorted[index], 0.5),
+                percentile(&sorted[index], 0.99),
+            );
             rows.push(Row {
                 agents,
                 transport: *transport,
                 p50_us: p50,
                 p99_us: p99,
-                max_us: sorted[index].last().map_or(f64::NAN, |v| *v as f64 / 1000.0),
+                max_us: sorted[index]
+                    .last()
+                    .map_or(f64::NAN, |v| *v as f64 / 1000.0),
                 lost: result.lost[index],
                 p50_vs_unix_socket: p50 / base50,
                 p99_vs_unix_socket: p99 / base99,
@@ -290,9 +334,14 @@ pub fn run(sizes: &[usize], samples: usize, json: bool) -> Result<()> {
         }
     }
     if json {
-        println!("{}", serde_json::to_string(&serde_json::json!({ "rows": rows }))?);
+        println!(
+            "{}",
+            serde_json::to_string(&serde_json::json!({ "rows": rows }))?
+        );
     } else {
-        println!("| robots | transport | p50 µs | p99 µs | max µs | lost | p50 / socket | p99 / socket | robot CPU ms per period |");
+        println!(
+            "| robots | transport | p50 µs | p99 µs | max µs | lost | p50 / socket | p99 / socket | robot CPU ms per period |"
+        );
         println!("|---|---|---|---|---|---|---|---|---|");
         for r in &rows {
             println!(
@@ -305,7 +354,8 @@ pub fn run(sizes: &[usize], samples: usize, json: bool) -> Result<()> {
                 r.lost,
                 r.p50_vs_unix_socket,
                 r.p99_vs_unix_socket,
-                r.robot_cpu_ms_per_period.map_or_else(|| "-".to_owned(), |c| format!("{c:.3}"))
+                r.robot_cpu_ms_per_period
+                    .map_or_else(|| "-".to_owned(), |c| format!("{c:.3}"))
             );
         }
     }

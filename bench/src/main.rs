@@ -1,12 +1,15 @@
 //! `shoal-bench`: what the bus costs, measured against a baseline in the same run.
 
 mod bus;
+mod record;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
-#[command(about = "Shoal benchmarks: each prints ratios against a baseline measured in the same run")]
+#[command(
+    about = "Shoal benchmarks: each prints ratios against a baseline measured in the same run"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Commands,
@@ -22,6 +25,16 @@ enum Commands {
         /// Poses sent per transport and swarm size.
         #[arg(long, default_value_t = 2000)]
         samples: usize,
+        #[arg(long)]
+        json: bool,
+    },
+    /// What recording costs: bytes per robot per second and recorder CPU,
+    /// against the robots' CPU, for real-time swarms of the given sizes.
+    Record {
+        #[arg(long, value_delimiter = ',', default_value = "20,100")]
+        agents: Vec<usize>,
+        #[arg(long, default_value_t = 60.0)]
+        seconds: f64,
         #[arg(long)]
         json: bool,
     },
@@ -41,7 +54,21 @@ enum Commands {
 
 fn main() -> Result<()> {
     match Cli::parse().command {
-        Commands::Bus { agents, samples, json } => bus::run(&agents, samples, json),
-        Commands::Probe { role, swarm, samples, socket } => bus::probe(role, &swarm, samples, &socket),
+        Commands::Bus {
+            agents,
+            samples,
+            json,
+        } => bus::run(&agents, samples, json),
+        Commands::Record {
+            agents,
+            seconds,
+            json,
+        } => record::run(&agents, seconds, json),
+        Commands::Probe {
+            role,
+            swarm,
+            samples,
+            socket,
+        } => bus::probe(role, &swarm, samples, &socket),
     }
 }

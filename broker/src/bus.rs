@@ -1,7 +1,9 @@
 use core::fmt::Debug;
 
 use iceoryx2::prelude::*;
-use iceoryx2::service::port_factory::{event as event_factory, publish_subscribe as pubsub_factory};
+use iceoryx2::service::port_factory::{
+    event as event_factory, publish_subscribe as pubsub_factory,
+};
 
 use crate::names;
 
@@ -15,7 +17,10 @@ pub enum BusError {
 
 impl BusError {
     pub fn iceoryx(what: impl Into<String>, detail: impl Debug) -> Self {
-        Self::Iceoryx { what: what.into(), detail: format!("{detail:?}") }
+        Self::Iceoryx {
+            what: what.into(),
+            detail: format!("{detail:?}"),
+        }
     }
 }
 
@@ -37,7 +42,12 @@ pub struct BusLimits {
 
 impl Default for BusLimits {
     fn default() -> Self {
-        Self { max_per_cell: 24, max_listeners_per_cell: 216, max_agents: 2048, max_observers: 16 }
+        Self {
+            max_per_cell: 24,
+            max_listeners_per_cell: 216,
+            max_agents: 2048,
+            max_observers: 16,
+        }
     }
 }
 
@@ -65,12 +75,17 @@ impl Bus {
     pub fn join(swarm: &str, node_name: &str, limits: BusLimits) -> Result<Self, BusError> {
         names::validate_swarm(swarm)?;
         quiet_iceoryx();
-        let name = NodeName::new(node_name).map_err(|e| BusError::iceoryx(format!("node name {node_name}"), e))?;
+        let name = NodeName::new(node_name)
+            .map_err(|e| BusError::iceoryx(format!("node name {node_name}"), e))?;
         let node = NodeBuilder::new()
             .name(&name)
             .create::<ipc::Service>()
             .map_err(|e| BusError::iceoryx(format!("create node {node_name}"), e))?;
-        Ok(Self { node, swarm: swarm.to_owned(), limits })
+        Ok(Self {
+            node,
+            swarm: swarm.to_owned(),
+            limits,
+        })
     }
 
     pub fn service_name(name: &str) -> Result<ServiceName, BusError> {

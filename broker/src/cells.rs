@@ -39,14 +39,33 @@ pub struct CellExchange {
 
 impl CellExchange {
     pub fn new(cell_size: f64) -> Self {
-        Self { cell_size, publishers: Vec::new(), subscribers: HashMap::new(), failed: HashMap::new(), failures: 0 }
+        Self {
+            cell_size,
+            publishers: Vec::new(),
+            subscribers: HashMap::new(),
+            failed: HashMap::new(),
+            failures: 0,
+        }
     }
 
     pub fn cell_of(&self, x: f64, y: f64) -> CellKey {
-        ((x / self.cell_size).floor() as i32, (y / self.cell_size).floor() as i32)
+        (
+            (x / self.cell_size).floor() as i32,
+            (y / self.cell_size).floor() as i32,
+        )
     }
 
-    fn open(bus: &Bus, key: CellKey) -> Result<iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, PoseSample, ()>, BusError> {
+    fn open(
+        bus: &Bus,
+        key: CellKey,
+    ) -> Result<
+        iceoryx2::service::port_factory::publish_subscribe::PortFactory<
+            ipc::Service,
+            PoseSample,
+            (),
+        >,
+        BusError,
+    > {
         let limits = bus.limits;
         bus.publish_subscribe::<PoseSample>(
             &names::cell(&bus.swarm, key.0, key.1),
@@ -77,7 +96,10 @@ impl CellExchange {
                 self.publishers.truncate(KEPT_PUBLISHERS);
             }
         }
-        self.publishers[0].1.send_copy(*sample).map_err(|e| BusError::iceoryx("send pose", e))?;
+        self.publishers[0]
+            .1
+            .send_copy(*sample)
+            .map_err(|e| BusError::iceoryx("send pose", e))?;
         Ok(())
     }
 
@@ -93,7 +115,11 @@ impl CellExchange {
                 if self.subscribers.contains_key(&key) {
                     continue;
                 }
-                if self.failed.get(&key).is_some_and(|at| at.elapsed() < RETRY_AFTER) {
+                if self
+                    .failed
+                    .get(&key)
+                    .is_some_and(|at| at.elapsed() < RETRY_AFTER)
+                {
                     continue;
                 }
                 let subscriber = Self::open(bus, key).and_then(|service| {
@@ -121,7 +147,10 @@ impl CellExchange {
     /// Hands every sample waiting in the listened cells to `on_sample`.
     pub fn receive(&self, mut on_sample: impl FnMut(PoseSample)) -> Result<(), BusError> {
         for subscriber in self.subscribers.values() {
-            while let Some(sample) = subscriber.receive().map_err(|e| BusError::iceoryx("receive pose", e))? {
+            while let Some(sample) = subscriber
+                .receive()
+                .map_err(|e| BusError::iceoryx("receive pose", e))?
+            {
                 on_sample(*sample);
             }
         }

@@ -21,7 +21,10 @@ pub struct SampleCheck {
 impl SampleCheck {
     /// Poses more than `margin` metres outside a `width` x `height` map are implausible.
     pub fn for_map(width: f64, height: f64, margin: f64) -> Self {
-        Self { bounds: [-margin, -margin, width + margin, height + margin], rejected: 0 }
+        Self {
+            bounds: [-margin, -margin, width + margin, height + margin],
+            rejected: 0,
+        }
     }
 
     pub fn inspect(&self, sample: &PoseSample) -> Result<(), Rejection> {
@@ -55,7 +58,11 @@ impl SampleCheck {
             Ok(()) => true,
             Err(rejection) => {
                 self.rejected += 1;
-                tracing::warn!(agent = sample.agent_id, ?rejection, "rejected a malformed pose sample");
+                tracing::warn!(
+                    agent = sample.agent_id,
+                    ?rejection,
+                    "rejected a malformed pose sample"
+                );
                 false
             }
         }
@@ -67,25 +74,7 @@ mod tests {
     use super::*;
 
     fn sample(x: f64, y: f64) -> PoseSample {
-        PoseSample {
-            agent_id: 1,
-            pid: 1,
-            tick: 0,
-            sim_time: 0.0,
-            x,
-            y,
-            theta: 0.0,
-            believed_x: x,
-            believed_y: y,
-            believed_theta: 0.0,
-            vx: 0.0,
-            vy: 0.0,
-            command: 0,
-            health: 0,
-            visible: 0,
-            neighbour_count: 0,
-            neighbours: [0; crate::wire::MAX_NEIGHBOURS],
-        }
+        PoseSample::standing(1, 1, 0, x, y, 0.0)
     }
 
     #[test]

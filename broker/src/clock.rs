@@ -26,19 +26,42 @@ fn waited(result: Result<u64, ListenerWaitError>, what: &str) -> Result<(), BusE
 use crate::names;
 use crate::wire::ClockTick;
 
-fn open_ticks(bus: &Bus) -> Result<iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, ClockTick, ()>, BusError> {
+fn open_ticks(
+    bus: &Bus,
+) -> Result<
+    iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, ClockTick, ()>,
+    BusError,
+> {
     let limits = bus.limits;
-    bus.publish_subscribe::<ClockTick>(&names::clock(&bus.swarm), 2, limits.max_agents + limits.max_observers, 2, 1)
+    bus.publish_subscribe::<ClockTick>(
+        &names::clock(&bus.swarm),
+        2,
+        limits.max_agents + limits.max_observers,
+        2,
+        1,
+    )
 }
 
-fn open_clock_event(bus: &Bus) -> Result<iceoryx2::service::port_factory::event::PortFactory<ipc::Service>, BusError> {
+fn open_clock_event(
+    bus: &Bus,
+) -> Result<iceoryx2::service::port_factory::event::PortFactory<ipc::Service>, BusError> {
     let limits = bus.limits;
-    bus.event(&names::clock_event(&bus.swarm), 2, limits.max_agents + limits.max_observers)
+    bus.event(
+        &names::clock_event(&bus.swarm),
+        2,
+        limits.max_agents + limits.max_observers,
+    )
 }
 
-fn open_ack_event(bus: &Bus) -> Result<iceoryx2::service::port_factory::event::PortFactory<ipc::Service>, BusError> {
+fn open_ack_event(
+    bus: &Bus,
+) -> Result<iceoryx2::service::port_factory::event::PortFactory<ipc::Service>, BusError> {
     let limits = bus.limits;
-    bus.event(&names::ack_event(&bus.swarm), limits.max_agents + limits.max_observers, 2)
+    bus.event(
+        &names::ack_event(&bus.swarm),
+        limits.max_agents + limits.max_observers,
+        2,
+    )
 }
 
 /// The clock's side.
@@ -50,15 +73,32 @@ pub struct ClockSource {
 
 impl ClockSource {
     pub fn new(bus: &Bus) -> Result<Self, BusError> {
-        let publisher = open_ticks(bus)?.publisher_builder().create().map_err(|e| BusError::iceoryx("publish clock", e))?;
-        let notifier = open_clock_event(bus)?.notifier_builder().create().map_err(|e| BusError::iceoryx("notify clock", e))?;
-        let acks = open_ack_event(bus)?.listener_builder().create().map_err(|e| BusError::iceoryx("listen for acks", e))?;
-        Ok(Self { publisher, notifier, acks })
+        let publisher = open_ticks(bus)?
+            .publisher_builder()
+            .create()
+            .map_err(|e| BusError::iceoryx("publish clock", e))?;
+        let notifier = open_clock_event(bus)?
+            .notifier_builder()
+            .create()
+            .map_err(|e| BusError::iceoryx("notify clock", e))?;
+        let acks = open_ack_event(bus)?
+            .listener_builder()
+            .create()
+            .map_err(|e| BusError::iceoryx("listen for acks", e))?;
+        Ok(Self {
+            publisher,
+            notifier,
+            acks,
+        })
     }
 
     pub fn tick(&self, tick: ClockTick) -> Result<(), BusError> {
-        self.publisher.send_copy(tick).map_err(|e| BusError::iceoryx("send tick", e))?;
-        self.notifier.notify().map_err(|e| BusError::iceoryx("notify tick", e))?;
+        self.publisher
+            .send_copy(tick)
+            .map_err(|e| BusError::iceoryx("send tick", e))?;
+        self.notifier
+            .notify()
+            .map_err(|e| BusError::iceoryx("notify tick", e))?;
         Ok(())
     }
 
@@ -77,16 +117,33 @@ pub struct ClockListener {
 
 impl ClockListener {
     pub fn new(bus: &Bus) -> Result<Self, BusError> {
-        let subscriber = open_ticks(bus)?.subscriber_builder().create().map_err(|e| BusError::iceoryx("follow clock", e))?;
-        let listener = open_clock_event(bus)?.listener_builder().create().map_err(|e| BusError::iceoryx("listen to clock", e))?;
-        let ack = open_ack_event(bus)?.notifier_builder().create().map_err(|e| BusError::iceoryx("acknowledge clock", e))?;
-        Ok(Self { subscriber, listener, ack })
+        let subscriber = open_ticks(bus)?
+            .subscriber_builder()
+            .create()
+            .map_err(|e| BusError::iceoryx("follow clock", e))?;
+        let listener = open_clock_event(bus)?
+            .listener_builder()
+            .create()
+            .map_err(|e| BusError::iceoryx("listen to clock", e))?;
+        let ack = open_ack_event(bus)?
+            .notifier_builder()
+            .create()
+            .map_err(|e| BusError::iceoryx("acknowledge clock", e))?;
+        Ok(Self {
+            subscriber,
+            listener,
+            ack,
+        })
     }
 
     /// The newest tick already published, without waiting.
     pub fn latest(&self) -> Result<Option<ClockTick>, BusError> {
         let mut latest = None;
-        while let Some(sample) = self.subscriber.receive().map_err(|e| BusError::iceoryx("receive tick", e))? {
+        while let Some(sample) = self
+            .subscriber
+            .receive()
+            .map_err(|e| BusError::iceoryx("receive tick", e))?
+        {
             latest = Some(*sample);
         }
         Ok(latest)
@@ -102,6 +159,9 @@ impl ClockListener {
     }
 
     pub fn acknowledge(&self) -> Result<(), BusError> {
-        self.ack.notify().map(|_| ()).map_err(|e| BusError::iceoryx("acknowledge tick", e))
+        self.ack
+            .notify()
+            .map(|_| ())
+            .map_err(|e| BusError::iceoryx("acknowledge tick", e))
     }
 }

@@ -15,9 +15,9 @@ pub mod wire;
 
 pub use bus::{Bus, BusError, BusLimits};
 pub use cells::{CellExchange, CellKey};
-pub use check::{SampleCheck, Rejection};
+pub use check::{Rejection, SampleCheck};
 pub use clock::{ClockListener, ClockSource};
 pub use liveness::{SwarmNode, SwarmNodeState};
 pub use roster::{RosterPublisher, RosterReader};
 pub use runtime::{SwarmMeta, SwarmRuntime};
-pub use wire::{ClockTick, Health, PoseSample, MAX_NEIGHBOURS};
+pub use wire::{ClockTick, Health, MAX_NEIGHBOURS, PoseSample};

@@ -40,7 +40,11 @@ pub fn swarm_nodes(swarm: &str) -> Result<Vec<SwarmNode>, BusError> {
                 nodes.push(SwarmNode {
                     agent_id: names::agent_id_of_node(swarm, &name),
                     pid: details.process_id().value(),
-                    state: if alive { SwarmNodeState::Alive } else { SwarmNodeState::Dead },
+                    state: if alive {
+                        SwarmNodeState::Alive
+                    } else {
+                        SwarmNodeState::Dead
+                    },
                     name,
                 });
             }
@@ -58,7 +62,10 @@ pub fn remove_dead_nodes(swarm: &str) -> Result<usize, BusError> {
     let mut dead = Vec::new();
     Node::<ipc::Service>::list(Config::global_config(), |state| {
         if let NodeState::Dead(view) = state {
-            let ours = view.details().as_ref().is_some_and(|d| d.name().as_str().starts_with(&prefix));
+            let ours = view
+                .details()
+                .as_ref()
+                .is_some_and(|d| d.name().as_str().starts_with(&prefix));
             if ours {
                 dead.push(view);
             }

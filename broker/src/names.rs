@@ -7,7 +7,9 @@ use crate::bus::BusError;
 pub fn validate_swarm(swarm: &str) -> Result<(), BusError> {
     let valid = !swarm.is_empty()
         && swarm.len() <= 32
-        && swarm.chars().all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
+        && swarm
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
     if valid {
         Ok(())
     } else {
@@ -45,7 +47,10 @@ pub fn agent_node(swarm: &str, id: u32) -> String {
 
 /// The agent id in a node name of this swarm, if it is an agent's.
 pub fn agent_id_of_node(swarm: &str, node_name: &str) -> Option<u32> {
-    node_name.strip_prefix(&format!("shoal/{swarm}/agent/"))?.parse().ok()
+    node_name
+        .strip_prefix(&format!("shoal/{swarm}/agent/"))?
+        .parse()
+        .ok()
 }
 
 pub fn tool_node(swarm: &str, role: &str) -> String {

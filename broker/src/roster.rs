@@ -12,9 +12,20 @@ use crate::wire::PoseSample;
 
 const ROSTER_BUFFER: usize = 8;
 
-fn open(bus: &Bus) -> Result<iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, PoseSample, ()>, BusError> {
+fn open(
+    bus: &Bus,
+) -> Result<
+    iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, PoseSample, ()>,
+    BusError,
+> {
     let limits = bus.limits;
-    bus.publish_subscribe::<PoseSample>(&names::roster(&bus.swarm), limits.max_agents, limits.max_observers, ROSTER_BUFFER, 1)
+    bus.publish_subscribe::<PoseSample>(
+        &names::roster(&bus.swarm),
+        limits.max_agents,
+        limits.max_observers,
+        ROSTER_BUFFER,
+        1,
+    )
 }
 
 pub struct RosterPublisher {
@@ -23,12 +34,18 @@ pub struct RosterPublisher {
 
 impl RosterPublisher {
     pub fn new(bus: &Bus) -> Result<Self, BusError> {
-        let publisher = open(bus)?.publisher_builder().create().map_err(|e| BusError::iceoryx("publish into roster", e))?;
+        let publisher = open(bus)?
+            .publisher_builder()
+            .create()
+            .map_err(|e| BusError::iceoryx("publish into roster", e))?;
         Ok(Self { publisher })
     }
 
     pub fn publish(&self, sample: &PoseSample) -> Result<(), BusError> {
-        self.publisher.send_copy(*sample).map(|_| ()).map_err(|e| BusError::iceoryx("send roster pose", e))
+        self.publisher
+            .send_copy(*sample)
+            .map(|_| ())
+            .map_err(|e| BusError::iceoryx("send roster pose", e))
     }
 }
 
@@ -38,12 +55,19 @@ pub struct RosterReader {
 
 impl RosterReader {
     pub fn new(bus: &Bus) -> Result<Self, BusError> {
-        let subscriber = open(bus)?.subscriber_builder().create().map_err(|e| BusError::iceoryx("read roster", e))?;
+        let subscriber = open(bus)?
+            .subscriber_builder()
+            .create()
+            .map_err(|e| BusError::iceoryx("read roster", e))?;
         Ok(Self { subscriber })
     }
 
     pub fn receive(&self, mut on_sample: impl FnMut(PoseSample)) -> Result<(), BusError> {
-        while let Some(sample) = self.subscriber.receive().map_err(|e| BusError::iceoryx("receive roster", e))? {
+        while let Some(sample) = self
+            .subscriber
+            .receive()
+            .map_err(|e| BusError::iceoryx("receive roster", e))?
+        {
             on_sample(*sample);
         }
         Ok(())

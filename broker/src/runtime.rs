@@ -27,12 +27,16 @@ pub struct SwarmRuntime {
 impl SwarmRuntime {
     /// `$SHOAL_RUNTIME_DIR/<swarm>`, or `<tmp>/shoal-<uid>/<swarm>`.
     pub fn locate(swarm: &str) -> Self {
-        let base = std::env::var_os("SHOAL_RUNTIME_DIR").map(PathBuf::from).unwrap_or_else(|| {
-            // SAFETY: getuid has no preconditions and cannot fail.
-            let uid = unsafe { libc::getuid() };
-            std::env::temp_dir().join(format!("shoal-{uid}"))
-        });
-        Self { dir: base.join(swarm) }
+        let base = std::env::var_os("SHOAL_RUNTIME_DIR")
+            .map(PathBuf::from)
+            .unwrap_or_else(|| {
+                // SAFETY: getuid has no preconditions and cannot fail.
+                let uid = unsafe { libc::getuid() };
+                std::env::temp_dir().join(format!("shoal-{uid}"))
+            });
+        Self {
+            dir: base.join(swarm),
+        }
     }
 
     pub fn scenario_path(&self) -> PathBuf {
@@ -60,18 +64,33 @@ impl SwarmRuntime {
 
     pub fn read_meta(&self) -> io::Result<SwarmMeta> {
         let path = self.meta_path();
-        let text = std::fs::read_to_string(&path)
-            .map_err(|e| io::Error::new(e.kind(), format!("{}: {e} (is the swarm running?)", path.display())))?;
-        toml::from_str(&text).map_err(|e| io::Error::new(io::ErrorKind::InvalidData, format!("{}: {e}", path.display())))
+        let text = std::fs::read_to_string(&path).map_err(|e| {
+            io::Error::new(
+                e.kind(),
+                format!("{}: {e} (is the swarm running?)", path.display()),
+            )
+        })?;
+        toml::from_str(&text).map_err(|e| {
+            io::Error::new(
+                io::ErrorKind::InvalidData,
+                format!("{}: {e}", path.display()),
+            )
+        })
     }
 
     pub fn write_last_pose(&self, id: u32, pose: [f64; 3]) -> io::Result<()> {
-        write_atomically(&self.pose_path(id), &format!("{} {} {}\n", pose[0], pose[1], pose[2]))
+        write_atomically(
+            &self.pose_path(id),
+            &format!("{} {} {}\n", pose[0], pose[1], pose[2]),
+        )
     }
 
     pub fn read_last_pose(&self, id: u32) -> Option<[f64; 3]> {
         let text = std::fs::read_to_string(self.pose_path(id)).ok()?;
-        let values: Vec<f64> = text.split_whitespace().filter_map(|v| v.parse().ok()).collect();
+        let values: Vec<f64> = text
+            .split_whitespace()
+            .filter_map(|v| v.parse().ok())
+            .collect();
         match values[..] {
             [x, y, theta] if values.iter().all(|v| v.is_finite()) => Some([x, y, theta]),
             _ => None,
@@ -80,12 +99,17 @@ impl SwarmRuntime {
 
     /// Ids of every robot that ever wrote a pose in this swarm.
     pub fn known_agent_ids(&self) -> Vec<u32> {
-        let Ok(entries) = std::fs::read_dir(&self.dir) else { return Vec::new() };
+        let Ok(entries) = std::fs::read_dir(&self.dir) else {
+            return Vec::new();
+        };
         entries
             .filter_map(|e| e.ok())
             .filter_map(|e| {
                 let name = e.file_name().into_string().ok()?;
-                name.strip_prefix("agent-")?.strip_suffix(".pose")?.parse().ok()
+                name.strip_prefix("agent-")?
+                    .strip_suffix(".pose")?
+                    .parse()
+                    .ok()
             })
             .collect()
     }

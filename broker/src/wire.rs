@@ -40,6 +40,29 @@ pub struct PoseSample {
 }
 
 impl PoseSample {
+    /// A robot standing still at `(x, y, theta)`, believing it is exactly there.
+    pub fn standing(agent_id: u32, pid: u32, tick: u64, x: f64, y: f64, theta: f64) -> Self {
+        Self {
+            agent_id,
+            pid,
+            tick,
+            sim_time: 0.0,
+            x,
+            y,
+            theta,
+            believed_x: x,
+            believed_y: y,
+            believed_theta: theta,
+            vx: 0.0,
+            vy: 0.0,
+            command: 0,
+            health: 0,
+            visible: 0,
+            neighbour_count: 0,
+            neighbours: [0; MAX_NEIGHBOURS],
+        }
+    }
+
     pub fn neighbour_ids(&self) -> &[u32] {
         &self.neighbours[..(self.neighbour_count as usize).min(MAX_NEIGHBOURS)]
     }
@@ -78,6 +101,9 @@ mod tests {
         // python/shoal_wire.py declares the same fields; these sizes pin the layout.
         assert_eq!(core::mem::size_of::<PoseSample>(), 168);
         assert_eq!(core::mem::size_of::<ClockTick>(), 24);
-        assert_eq!(unsafe { <PoseSample as ZeroCopySend>::type_name() }, "shoal.Pose");
+        assert_eq!(
+            unsafe { <PoseSample as ZeroCopySend>::type_name() },
+            "shoal.Pose"
+        );
     }
 }

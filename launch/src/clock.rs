@@ -75,7 +75,11 @@ impl LockstepClock {
         self.expected.extend(self.joining.drain());
         self.tick += 1;
         let tick = self.tick;
-        self.source.tick(ClockTick { tick, sim_time: self.sim_time(), period_s: self.period_s })?;
+        self.source.tick(ClockTick {
+            tick,
+            sim_time: self.sim_time(),
+            period_s: self.period_s,
+        })?;
         let started = Instant::now();
         let mut last_liveness_check = started;
         let mut done: HashSet<u32> = HashSet::new();
@@ -111,7 +115,11 @@ impl LockstepClock {
                 .collect();
             for id in gone {
                 if hung {
-                    tracing::warn!(id, tick, "robot did not step for {HUNG_AFTER:?}; no longer waiting for it");
+                    tracing::warn!(
+                        id,
+                        tick,
+                        "robot did not step for {HUNG_AFTER:?}; no longer waiting for it"
+                    );
                 }
                 self.expected.remove(&id);
                 self.deaths.push(id);

@@ -10,19 +10,29 @@ use shoal_physics::{Pose, Scenario};
 use crate::process::{pid_alive, signal, start_agent};
 
 fn alive_robot(nodes: &[SwarmNode], id: u32) -> Option<&SwarmNode> {
-    nodes.iter().find(|n| n.agent_id == Some(id) && n.state == SwarmNodeState::Alive)
+    nodes
+        .iter()
+        .find(|n| n.agent_id == Some(id) && n.state == SwarmNodeState::Alive)
 }
 
 /// Signals robots by id: SIGKILL, or SIGTERM when `graceful`.
 pub fn kill(swarm: &str, ids: &[u32], graceful: bool) -> Result<()> {
     let nodes = swarm_nodes(swarm)?;
-    let sig = if graceful { libc::SIGTERM } else { libc::SIGKILL };
+    let sig = if graceful {
+        libc::SIGTERM
+    } else {
+        libc::SIGKILL
+    };
     let mut missing = Vec::new();
     for &id in ids {
         match alive_robot(&nodes, id) {
             Some(node) => {
                 signal(node.pid, sig)?;
-                println!("killed robot {id} (pid {}){}", node.pid, if graceful { " gracefully" } else { "" });
+                println!(
+                    "killed robot {id} (pid {}){}",
+                    node.pid,
+                    if graceful { " gracefully" } else { "" }
+                );
             }
             None => missing.push(id),
         }
@@ -35,7 +45,9 @@ pub fn kill(swarm: &str, ids: &[u32], graceful: bool) -> Result<()> {
 
 fn open_swarm(swarm: &str) -> Result<(SwarmRuntime, Scenario)> {
     let runtime = SwarmRuntime::locate(swarm);
-    runtime.read_meta().with_context(|| format!("swarm `{swarm}` was not started with `shoal up`"))?;
+    runtime
+        .read_meta()
+        .with_context(|| format!("swarm `{swarm}` was not started with `shoal up`"))?;
     let scenario = Scenario::from_file(&runtime.scenario_path())?;
     Ok((runtime, scenario))
 }
@@ -66,7 +78,12 @@ pub fn restart(swarm: &str, ids: &[u32], at: Option<[f64; 2]>) -> Result<()> {
             ),
         };
         let child = start_agent(swarm, id, pose, &runtime.log_path(id), true)?;
-        println!("restarted robot {id} (pid {}) at ({:.2}, {:.2})", child.id(), pose.x, pose.y);
+        println!(
+            "restarted robot {id} (pid {}) at ({:.2}, {:.2})",
+            child.id(),
+            pose.x,
+            pose.y
+        );
     }
     Ok(())
 }
@@ -76,7 +93,10 @@ pub fn spawn(swarm: &str, count: usize, at: Option<[f64; 2]>) -> Result<Vec<u32>
     let (runtime, scenario) = open_swarm(swarm)?;
     let highest_node = swarm_nodes(swarm)?.iter().filter_map(|n| n.agent_id).max();
     let highest_file = runtime.known_agent_ids().into_iter().max();
-    let first = highest_node.max(highest_file).map_or(0, |h| h + 1).max(scenario.agents.count as u32);
+    let first = highest_node
+        .max(highest_file)
+        .map_or(0, |h| h + 1)
+        .max(scenario.agents.count as u32);
     let mut ids = Vec::new();
     for k in 0..count {
         let id = first + k as u32;
@@ -84,13 +104,22 @@ pub fn spawn(swarm: &str, count: usize, at: Option<[f64; 2]>) -> Result<Vec<u32>
             Some([x, y]) => {
                 // Several robots at one place stand on a small ring around it.
                 let angle = std::f64::consts::TAU * k as f64 / count as f64;
-                let r = if count > 1 { scenario.formation.spread / 2.0 } else { 0.0 };
+                let r = if count > 1 {
+                    scenario.formation.spread / 2.0
+                } else {
+                    0.0
+                };
                 Pose::new(x + r * angle.cos(), y + r * angle.sin(), angle)
             }
             None => scenario.start_poses(id, 1)[0],
         };
         let child = start_agent(swarm, id, pose, &runtime.log_path(id), true)?;
-        println!("spawned robot {id} (pid {}) at ({:.2}, {:.2})", child.id(), pose.x, pose.y);
+        println!(
+            "spawned robot {id} (pid {}) at ({:.2}, {:.2})",
+            child.id(),
+            pose.x,
+            pose.y
+        );
         ids.push(id);
     }
     Ok(ids)

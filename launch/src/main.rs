@@ -9,7 +9,10 @@ use anyhow::Result;
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
-#[command(version, about = "Shoal: a runtime for robot swarms, one process per robot over iceoryx2")]
+#[command(
+    version,
+    about = "Shoal: a runtime for robot swarms, one process per robot over iceoryx2"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Commands,
@@ -145,18 +148,38 @@ fn print_report(report: &impl serde::Serialize, json: bool) -> Result<()> {
         println!("{value}");
         return Ok(());
     }
-    let records = value.as_object().and_then(|o| o.values().find_map(|v| v.as_array())).cloned().unwrap_or_default();
-    let Some(first) = records.first().and_then(|r| r.as_object()) else { return Ok(()) };
+    let records = value
+        .as_object()
+        .and_then(|o| o.values().find_map(|v| v.as_array()))
+        .cloned()
+        .unwrap_or_default();
+    let Some(first) = records.first().and_then(|r| r.as_object()) else {
+        return Ok(());
+    };
     let columns: Vec<&String> = first.keys().collect();
     let cell = |v: &serde_json::Value| match v {
-        serde_json::Value::Number(n) => n.as_f64().map_or_else(|| n.to_string(), |f| {
-            if f.fract() == 0.0 { format!("{f}") } else { format!("{f:.3}") }
-        }),
+        serde_json::Value::Number(n) => n.as_f64().map_or_else(
+            || n.to_string(),
+            |f| {
+                if f.fract() == 0.0 {
+                    format!("{f}")
+                } else {
+                    format!("{f:.3}")
+                }
+            },
+        ),
         serde_json::Value::Null => "-".to_owned(),
         serde_json::Value::String(s) => s.clone(),
         other => other.to_string(),
     };
-    println!("| {} |", columns.iter().map(|c| c.as_str()).collect::<Vec<_>>().join(" | "));
+    println!(
+        "| {} |",
+        columns
+            .iter()
+            .map(|c| c.as_str())
+            .collect::<Vec<_>>()
+            .join(" | ")
+    );
     println!("|{}", "---|".repeat(columns.len()));
     for record in &records {
         let cells: Vec<String> = columns.iter().map(|c| cell(&record[c.as_str()])).collect();
@@ -167,20 +190,57 @@ fn print_report(report: &impl serde::Serialize, json: bool) -> Result<()> {
 
 fn parse_point(text: &str) -> Result<[f64; 2], String> {
     let parts: Vec<&str> = text.split(',').collect();
-    let [x, y] = parts[..] else { return Err("expected X,Y".to_owned()) };
-    let parse = |v: &str| v.trim().parse::<f64>().map_err(|e| format!("`{v}`: {e}")).and_then(|v| {
-        if v.is_finite() { Ok(v) } else { Err(format!("`{v}` is not finite")) }
-    });
+    let [x, y] = parts[..] else {
+        return Err("expected X,Y".to_owned());
+    };
+    let parse = |v: &str| {
+        v.trim()
+            .parse::<f64>()
+            .map_err(|e| format!("`{v}`: {e}"))
+            .and_then(|v| {
+                if v.is_finite() {
+                    Ok(v)
+                } else {
+                    Err(format!("`{v}` is not finite"))
+                }
+            })
+    };
     Ok([parse(x)?, parse(y)?])
 }
 
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
-        Commands::Up { agents, scenario, swarm, duration, lockstep, seed, json, record, tum } => {
-            up::up(up::UpOptions { swarm, scenario, agents, seed, lockstep, duration_s: duration, json, record, tum })?;
+        Commands::Up {
+            agents,
+            scenario,
+            swarm,
+            duration,
+            lockstep,
+            seed,
+            json,
+            record,
+            tum,
+        } => {
+            up::up(up::UpOptions {
+                swarm,
+                scenario,
+                agents,
+                seed,
+                lockstep,
+                duration_s: duration,
+                json,
+                record,
+                tum,
+            })?;
         }
-        Commands::Record { out, swarm, tum, duration } => {
-            let mut command = std::process::Command::new(shoal::process::sibling_binary("shoal-viewer-log")?);
+        Commands::Record {
+            out,
+            swarm,
+            tum,
+            duration,
+        } => {
+            let mut command =
+                std::process::Command::new(shoal::process::sibling_binary("shoal-viewer-log")?);
             command.arg(&out).args(["--swarm", &swarm]);
             if let Some(tum) = tum {
                 command.arg("--tum").arg(tum);
@@ -202,12 +262,22 @@ fn run(cli: Cli) -> Result<()> {
             }
         }
         Commands::Experiment { which, json } => match which {
-            ExperimentKind::Formation { agents, seeds, max_seconds } => {
-                print_report(&experiment::formation::run(agents, seeds, max_seconds)?, json)?
-            }
-            ExperimentKind::Obstacles { agents, seeds, max_seconds } => {
-                print_report(&experiment::obstacles::run(agents, seeds, max_seconds)?, json)?
-            }
+            ExperimentKind::Formation {
+                agents,
+                seeds,
+                max_seconds,
+            } => print_report(
+                &experiment::formation::run(agents, seeds, max_seconds)?,
+                json,
+            )?,
+            ExperimentKind::Obstacles {
+                agents,
+                seeds,
+                max_seconds,
+            } => print_report(
+                &experiment::obstacles::run(agents, seeds, max_seconds)?,
+                json,
+            )?,
             ExperimentKind::Healing { seeds, max_seconds } => {
                 print_report(&experiment::healing::run(seeds, max_seconds)?, json)?
             }
@@ -215,7 +285,11 @@ fn run(cli: Cli) -> Result<()> {
                 print_report(&experiment::scale::run(&sizes, max_seconds)?, json)?
             }
         },
-        Commands::Kill { ids, swarm, graceful } => control::kill(&swarm, &ids, graceful)?,
+        Commands::Kill {
+            ids,
+            swarm,
+            graceful,
+        } => control::kill(&swarm, &ids, graceful)?,
         Commands::Restart { ids, swarm, at } => control::restart(&swarm, &ids, at)?,
         Commands::Spawn { count, swarm, at } => {
             control::spawn(&swarm, count, at)?;
@@ -226,7 +300,9 @@ fn run(cli: Cli) -> Result<()> {
 
 fn main() -> ExitCode {
     tracing_subscriber::fmt()
-        .with_env_filter(tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()))
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()),
+        )
         .with_writer(std::io::stderr)
         .init();
     match run(Cli::parse()) {

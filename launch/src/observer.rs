@@ -16,7 +16,12 @@ pub struct Observer {
 
 impl Observer {
     pub fn new(check: SampleCheck) -> Self {
-        Self { latest: BTreeMap::new(), check, newest_tick: 0, newest_time: 0.0 }
+        Self {
+            latest: BTreeMap::new(),
+            check,
+            newest_tick: 0,
+            newest_time: 0.0,
+        }
     }
 
     pub fn record(&mut self, sample: PoseSample) {
@@ -25,7 +30,8 @@ impl Observer {
         }
         self.newest_tick = self.newest_tick.max(sample.tick);
         self.newest_time = self.newest_time.max(sample.sim_time);
-        self.latest.insert(sample.agent_id, (sample, Instant::now()));
+        self.latest
+            .insert(sample.agent_id, (sample, Instant::now()));
     }
 
     pub fn forget(&mut self, id: u32) {
@@ -34,7 +40,8 @@ impl Observer {
 
     /// Forgets robots silent for longer than `max_age`.
     pub fn expire(&mut self, max_age: Duration) {
-        self.latest.retain(|_, (_, heard)| heard.elapsed() <= max_age);
+        self.latest
+            .retain(|_, (_, heard)| heard.elapsed() <= max_age);
     }
 
     pub fn samples(&self) -> impl Iterator<Item = &PoseSample> {

@@ -11,7 +11,10 @@ pub fn sibling_binary(name: &str) -> Result<PathBuf> {
     let me = std::env::current_exe().context("locating the shoal executable")?;
     let path = me.with_file_name(name);
     if !path.exists() {
-        bail!("{} not found: build the whole workspace (cargo build --release --workspace)", path.display());
+        bail!(
+            "{} not found: build the whole workspace (cargo build --release --workspace)",
+            path.display()
+        );
     }
     Ok(path)
 }
@@ -19,11 +22,25 @@ pub fn sibling_binary(name: &str) -> Result<PathBuf> {
 /// Starts robot `id` at `pose`, its log going to `log`. A `detached` robot
 /// gets a session of its own, so it outlives the command that started it and
 /// a Ctrl-C in that terminal does not reach it.
-pub fn start_agent(swarm: &str, id: u32, pose: Pose, log: &std::path::Path, detached: bool) -> Result<Child> {
-    let log_file = std::fs::File::create(log).with_context(|| format!("creating {}", log.display()))?;
+pub fn start_agent(
+    swarm: &str,
+    id: u32,
+    pose: Pose,
+    log: &std::path::Path,
+    detached: bool,
+) -> Result<Child> {
+    let log_file =
+        std::fs::File::create(log).with_context(|| format!("creating {}", log.display()))?;
     let mut command = Command::new(sibling_binary("shoal-agent")?);
     command
-        .args(["--swarm", swarm, "--id", &id.to_string(), "--at", &format!("{},{},{}", pose.x, pose.y, pose.theta)])
+        .args([
+            "--swarm",
+            swarm,
+            "--id",
+            &id.to_string(),
+            "--at",
+            &format!("{},{},{}", pose.x, pose.y, pose.theta),
+        ])
         .stdin(Stdio::null())
         .stdout(log_file.try_clone()?)
         .stderr(log_file);
@@ -37,14 +54,19 @@ pub fn start_agent(swarm: &str, id: u32, pose: Pose, log: &std::path::Path, deta
             });
         }
     }
-    command.spawn().with_context(|| format!("starting robot {id}"))
+    command
+        .spawn()
+        .with_context(|| format!("starting robot {id}"))
 }
 
 /// Whether `pid` is a running (not zombie) process.
 pub fn pid_alive(pid: i32) -> bool {
     match std::fs::read_to_string(format!("/proc/{pid}/stat")) {
         // The state letter follows the parenthesised command name.
-        Ok(stat) => stat.rsplit_once(')').and_then(|(_, rest)| rest.trim_start().chars().next()).is_some_and(|s| s != 'Z' && s != 'X'),
+        Ok(stat) => stat
+            .rsplit_once(')')
+            .and_then(|(_, rest)| rest.trim_start().chars().next())
+            .is_some_and(|s| s != 'Z' && s != 'X'),
         Err(_) => false,
     }
 }
@@ -52,7 +74,10 @@ pub fn pid_alive(pid: i32) -> bool {
 pub fn signal(pid: i32, signal: i32) -> Result<()> {
     // SAFETY: kill has no memory-safety preconditions.
     if unsafe { libc::kill(pid, signal) } != 0 {
-        bail!("cannot signal pid {pid}: {}", std::io::Error::last_os_error());
+        bail!(
+            "cannot signal pid {pid}: {}",
+            std::io::Error::last_os_error()
+        );
     }
     Ok(())
 }
@@ -91,5 +116,9 @@ pub fn usage(pid: i32) -> Option<ProcessUsage> {
             .and_then(|v| v.parse::<f64>().ok())
             .unwrap_or(0.0)
     };
-    Some(ProcessUsage { cpu_s: ticks / per_second, rss_mb: kb("VmRSS:") / 1024.0, private_mb: kb("RssAnon:") / 1024.0 })
+    Some(ProcessUsage {
+        cpu_s: ticks / per_second,
+        rss_mb: kb("VmRSS:") / 1024.0,
+        private_mb: kb("RssAnon:") / 1024.0,
+    })
 }

@@ -32,7 +32,9 @@ pub struct StatusReport {
 /// Listens to the roster for a few periods and lists every node of the swarm.
 pub fn gather(swarm: &str) -> Result<StatusReport> {
     names::validate_swarm(swarm)?;
-    let period = SwarmRuntime::locate(swarm).read_meta().map_or(0.2, |m| m.period_s);
+    let period = SwarmRuntime::locate(swarm)
+        .read_meta()
+        .map_or(0.2, |m| m.period_s);
     let listen = Duration::from_secs_f64((3.0 * period).clamp(0.3, 3.0));
     let node_name = names::tool_node(swarm, &format!("status-{}", std::process::id()));
     let bus = Bus::join(swarm, &node_name, BusLimits::default())?;
@@ -54,27 +56,45 @@ pub fn gather(swarm: &str) -> Result<StatusReport> {
             stale_nodes += 1;
         }
         let Some(id) = node.agent_id else { continue };
-        let sample = latest.get(&id).filter(|s| s.pid as i32 == node.pid && node.state == SwarmNodeState::Alive);
+        let sample = latest
+            .get(&id)
+            .filter(|s| s.pid as i32 == node.pid && node.state == SwarmNodeState::Alive);
         agents.push(AgentStatus {
             id,
             pid: node.pid,
-            state: if node.state == SwarmNodeState::Alive { "alive" } else { "dead" },
+            state: if node.state == SwarmNodeState::Alive {
+                "alive"
+            } else {
+                "dead"
+            },
             x: sample.map(|s| s.x),
             y: sample.map(|s| s.y),
             theta: sample.map(|s| s.theta),
             tick: sample.map(|s| s.tick),
             health: sample.map(|s| s.health),
-            neighbours: sample.map(|s| s.neighbour_ids().to_vec()).unwrap_or_default(),
+            neighbours: sample
+                .map(|s| s.neighbour_ids().to_vec())
+                .unwrap_or_default(),
         });
     }
     agents.sort_by_key(|a| (a.id, a.state));
-    Ok(StatusReport { swarm: swarm.to_owned(), agents, stale_nodes })
+    Ok(StatusReport {
+        swarm: swarm.to_owned(),
+        agents,
+        stale_nodes,
+    })
 }
 
 pub fn print_table(report: &StatusReport) {
     let alive = report.agents.iter().filter(|a| a.state == "alive").count();
-    println!("swarm `{}`: {alive} alive, {} stale nodes", report.swarm, report.stale_nodes);
-    println!("{:>5} {:>8} {:>6} {:>8} {:>8} {:>7}  neighbours", "id", "pid", "state", "x", "y", "theta");
+    println!(
+        "swarm `{}`: {alive} alive, {} stale nodes",
+        report.swarm, report.stale_nodes
+    );
+    println!(
+        "{:>5} {:>8} {:>6} {:>8} {:>8} {:>7}  neighbours",
+        "id", "pid", "state", "x", "y", "theta"
+    );
     for a in &report.agents {
         let num = |v: Option<f64>| v.map_or_else(|| "-".to_owned(), |v| format!("{v:.2}"));
         let neighbours: Vec<String> = a.neighbours.iter().map(u32::to_string).collect();

@@ -50,22 +50,44 @@ impl RunningSwarm {
     /// Starts `scenario.agents.count` robots in swarm `name`.
     pub fn launch(name: &str, scenario: Scenario, lockstep: bool) -> Result<Self> {
         names::validate_swarm(name)?;
-        let alive: Vec<i32> =
-            swarm_nodes(name)?.iter().filter(|n| n.state == SwarmNodeState::Alive).map(|n| n.pid).collect();
+        let alive: Vec<i32> = swarm_nodes(name)?
+            .iter()
+            .filter(|n| n.state == SwarmNodeState::Alive)
+            .map(|n| n.pid)
+            .collect();
         if !alive.is_empty() {
-            bail!("swarm `{name}` is already running (pids {alive:?}); stop it first or pick another --swarm");
+            bail!(
+                "swarm `{name}` is already running (pids {alive:?}); stop it first or pick another --swarm"
+            );
         }
         remove_dead_nodes(name)?;
         let runtime = SwarmRuntime::locate(name);
-        runtime.remove().with_context(|| format!("clearing {}", runtime.dir.display()))?;
-        let epoch_unix_ms = SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_millis() as u64);
-        let meta = SwarmMeta { lockstep, epoch_unix_ms, period_s: scenario.timing.period_s, launcher_pid: std::process::id() };
+        runtime
+            .remove()
+            .with_context(|| format!("clearing {}", runtime.dir.display()))?;
+        let epoch_unix_ms = SystemTime::now()
+            .duration_since(UNIX_EPOCH)
+            .map_or(0, |d| d.as_millis() as u64);
+        let meta = SwarmMeta {
+            lockstep,
+            epoch_unix_ms,
+            period_s: scenario.timing.period_s,
+            launcher_pid: std::process::id(),
+        };
         runtime
             .create(&scenario.to_toml(), &meta)
             .with_context(|| format!("writing the swarm's files in {}", runtime.dir.display()))?;
-        let bus = Bus::join(name, &names::tool_node(name, "launcher"), bus_limits(&scenario))?;
+        let bus = Bus::join(
+            name,
+            &names::tool_node(name, "launcher"),
+            bus_limits(&scenario),
+        )?;
         let roster = RosterReader::new(&bus)?;
-        let clock = if lockstep { Some(LockstepClock::new(&bus, scenario.timing.period_s)?) } else { None };
+        let clock = if lockstep {
+            Some(LockstepClock::new(&bus, scenario.timing.period_s)?)
+        } else {
+            None
+        };
         let mut swarm = Self {
             name: name.to_owned(),
             observer: Observer::new(check_for(&scenario)),
@@ -86,9 +108,14 @@ impl RunningSwarm {
         }
         if let Some(clock) = &mut swarm.clock {
             let observer = &mut swarm.observer;
-            let joined = clock.await_robots(&swarm.roster, count, STARTUP_TIMEOUT, |s| observer.record(s))?;
+            let joined = clock.await_robots(&swarm.roster, count, STARTUP_TIMEOUT, |s| {
+                observer.record(s)
+            })?;
             if joined < count {
-                bail!("only {joined} of {count} robots started; see the logs in {}", swarm.runtime.dir.display());
+                bail!(
+                    "only {joined} of {count} robots started; see the logs in {}",
+                    swarm.runtime.dir.display()
+                );
             }
         }
         Ok(swarm)
@@ -105,12 +132,21 @@ impl RunningSwarm {
     pub fn record(&mut self, out: &Path, tum: Option<&Path>) -> Result<()> {
         let log = std::fs::File::create(self.runtime.dir.join("recorder.log"))?;
         let mut command = Command::new(sibling_binary("shoal-viewer-log")?);
-        command.arg(out).args(["--swarm", &self.name]).stdin(Stdio::null()).stdout(log.try_clone()?).stderr(log);
+        command
+            .arg(out)
+            .args(["--swarm", &self.name])
+            .stdin(Stdio::null())
+            .stdout(log.try_clone()?)
+            .stderr(log);
         if let Some(tum) = tum {
             command.arg("--tum").arg(tum);
         }
         self.recorder = Some(command.spawn().context("starting the recorder")?);
         Ok(())
+    }
+
+    pub fn recorder_pid(&self) -> Option<i32> {
+        self.recorder.as_ref().map(|r| r.id() as i32)
     }
 
     /// Pids of the robots this process started and that still run.
@@ -154,7 +190,9 @@ impl RunningSwarm {
                 self.roster.receive(|s| observer.record(s))?;
                 reap(children);
                 let period = self.scenario.timing.period_s;
-                observer.expire(Duration::from_secs_f64(period * self.scenario.timing.stale_periods.max(2.0)));
+                observer.expire(Duration::from_secs_f64(
+                    period * self.scenario.timing.stale_periods.max(2.0),
+                ));
             }
         }
         Ok(())
@@ -196,7 +234,10 @@ impl RunningSwarm {
         }
         let mut pids: Vec<i32> = self.children.values().map(|c| c.id() as i32).collect();
         for node in swarm_nodes(&self.name)? {
-            if node.agent_id.is_some() && node.state == SwarmNodeState::Alive && !pids.contains(&node.pid) {
+            if node.agent_id.is_some()
+                && node.state == SwarmNodeState::Alive
+                && !pids.contains(&node.pid)
+            {
                 pids.push(node.pid);
             }
         }
@@ -220,7 +261,9 @@ impl RunningSwarm {
         }
         self.children.clear();
         remove_dead_nodes(&self.name)?;
-        self.runtime.remove().with_context(|| format!("removing {}", self.runtime.dir.display()))?;
+        self.runtime
+            .remove()
+            .with_context(|| format!("removing {}", self.runtime.dir.display()))?;
         Ok(())
     }
 }

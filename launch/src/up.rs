@@ -69,7 +69,10 @@ pub fn up(options: UpOptions) -> Result<UpSummary> {
     }
     let progress = if std::io::stderr().is_terminal() {
         let bar = ProgressBar::new_spinner();
-        bar.set_style(ProgressStyle::with_template("{spinner} {elapsed} {msg}").unwrap_or_else(|_| ProgressStyle::default_spinner()));
+        bar.set_style(
+            ProgressStyle::with_template("{spinner} {elapsed} {msg}")
+                .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+        );
         bar.enable_steady_tick(Duration::from_millis(200));
         Some(bar)
     } else {
@@ -79,7 +82,11 @@ pub fn up(options: UpOptions) -> Result<UpSummary> {
         "shoal: swarm `{}` up with {} robots ({}); Ctrl-C stops it",
         swarm.name,
         swarm.scenario.agents.count,
-        if swarm.lockstep() { "lockstep" } else { "real time" }
+        if swarm.lockstep() {
+            "lockstep"
+        } else {
+            "real time"
+        }
     );
     let mut converged_since: Option<f64> = None;
     let mut last_report = Instant::now();
@@ -126,7 +133,10 @@ pub fn up(options: UpOptions) -> Result<UpSummary> {
     let summary = UpSummary {
         swarm: swarm.name.clone(),
         lockstep: swarm.lockstep(),
-        ticks: swarm.clock.as_ref().map_or(swarm.observer.newest_tick, |c| c.tick),
+        ticks: swarm
+            .clock
+            .as_ref()
+            .map_or(swarm.observer.newest_tick, |c| c.tick),
         sim_time_s: swarm.sim_time(),
         agents: metrics.agents,
         components: metrics.components,
@@ -138,7 +148,11 @@ pub fn up(options: UpOptions) -> Result<UpSummary> {
     eprintln!("shoal: stopping swarm `{}`", swarm.name);
     swarm.shutdown()?;
     if let Some(out) = &options.record {
-        eprintln!("shoal: recording in {}; to watch it: pip install rerun-sdk, then rerun {}", out.display(), out.display());
+        eprintln!(
+            "shoal: recording in {}; to watch it: pip install rerun-sdk, then rerun {}",
+            out.display(),
+            out.display()
+        );
     }
     if options.json {
         println!("{}", serde_json::to_string(&summary)?);
@@ -149,7 +163,9 @@ pub fn up(options: UpOptions) -> Result<UpSummary> {
             summary.components,
             summary.spacing_ratio,
             summary.spacing_cv,
-            summary.converge_s.map_or_else(|| "never".to_owned(), |t| format!("{t:.1} s"))
+            summary
+                .converge_s
+                .map_or_else(|| "never".to_owned(), |t| format!("{t:.1} s"))
         );
     }
     Ok(summary)

@@ -75,10 +75,22 @@ impl Arena {
     pub fn all_walls(&self) -> impl Iterator<Item = Wall> + '_ {
         let (w, h) = (self.width, self.height);
         let boundary = [
-            Wall { from: [0.0, 0.0], to: [w, 0.0] },
-            Wall { from: [w, 0.0], to: [w, h] },
-            Wall { from: [w, h], to: [0.0, h] },
-            Wall { from: [0.0, h], to: [0.0, 0.0] },
+            Wall {
+                from: [0.0, 0.0],
+                to: [w, 0.0],
+            },
+            Wall {
+                from: [w, 0.0],
+                to: [w, h],
+            },
+            Wall {
+                from: [w, h],
+                to: [0.0, h],
+            },
+            Wall {
+                from: [0.0, h],
+                to: [0.0, 0.0],
+            },
         ];
         boundary.into_iter().chain(self.walls.iter().copied())
     }
@@ -97,9 +109,10 @@ impl Arena {
         if p.x < radius || p.y < radius || p.x > self.width - radius || p.y > self.height - radius {
             return true;
         }
-        let hits_wall = self.walls.iter().any(|w| {
-            distance_to_segment(p, DVec2::from(w.from), DVec2::from(w.to)) < radius
-        });
+        let hits_wall = self
+            .walls
+            .iter()
+            .any(|w| distance_to_segment(p, DVec2::from(w.from), DVec2::from(w.to)) < radius);
         hits_wall || self.obstacles.iter().any(|o| o.distance(p) < radius)
     }
 }
@@ -120,7 +133,11 @@ impl Obstacle {
 pub fn distance_to_segment(p: DVec2, a: DVec2, b: DVec2) -> f64 {
     let ab = b - a;
     let length_sq = ab.length_squared();
-    let t = if length_sq > 0.0 { ((p - a).dot(ab) / length_sq).clamp(0.0, 1.0) } else { 0.0 };
+    let t = if length_sq > 0.0 {
+        ((p - a).dot(ab) / length_sq).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
     p.distance(a + ab * t)
 }
 
@@ -132,10 +149,19 @@ mod tests {
         Arena {
             width: 4.0,
             height: 3.0,
-            walls: vec![Wall { from: [2.0, 0.0], to: [2.0, 2.0] }],
+            walls: vec![Wall {
+                from: [2.0, 0.0],
+                to: [2.0, 2.0],
+            }],
             obstacles: vec![
-                Obstacle::Disc { center: [1.0, 2.0], radius: 0.2 },
-                Obstacle::Box { min: [3.0, 2.0], max: [3.5, 2.5] },
+                Obstacle::Disc {
+                    center: [1.0, 2.0],
+                    radius: 0.2,
+                },
+                Obstacle::Box {
+                    min: [3.0, 2.0],
+                    max: [3.5, 2.5],
+                },
             ],
             surfaces: vec![Surface {
                 name: "tile".into(),
@@ -155,14 +181,22 @@ mod tests {
         assert!(arena.blocks(DVec2::new(1.0, 1.7), 0.15), "disc");
         assert!(arena.blocks(DVec2::new(3.2, 1.9), 0.15), "box");
         assert!(arena.blocks(DVec2::new(0.1, 1.0), 0.15), "boundary");
-        assert!(!arena.blocks(DVec2::new(2.3, 2.5), 0.15), "past the wall's end");
+        assert!(
+            !arena.blocks(DVec2::new(2.3, 2.5), 0.15),
+            "past the wall's end"
+        );
     }
 
     #[test]
     fn surfaces_scale_steps_where_they_lie() {
         let arena = room();
         let surface = arena.surface_at(DVec2::new(0.5, 0.5)).expect("tile");
-        let step = MotionSample { command: crate::Command::Walk(1), along: 0.1, across: 0.0, turn: 0.5 };
+        let step = MotionSample {
+            command: crate::Command::Walk(1),
+            along: 0.1,
+            across: 0.0,
+            turn: 0.5,
+        };
         let scaled = surface.apply(step);
         assert!((scaled.along - 0.13).abs() < 1e-12 && (scaled.turn - 0.4).abs() < 1e-12);
         assert!(arena.surface_at(DVec2::new(3.0, 1.0)).is_none());

@@ -26,7 +26,13 @@ impl Body {
     /// Executes `command`: draws the motion from the true distributions,
     /// applies the surface underfoot, and refuses translations into walls,
     /// obstacles or robots at `others` (the turn still happens).
-    pub fn step(&mut self, command: Command, arena: &Arena, others: &[DVec2], rng: &mut impl Rng) -> StepOutcome {
+    pub fn step(
+        &mut self,
+        command: Command,
+        arena: &Arena,
+        others: &[DVec2],
+        rng: &mut impl Rng,
+    ) -> StepOutcome {
         let mut motion = self.model.sample(command, rng);
         if let Some(surface) = arena.surface_at(self.pose.position()) {
             motion = surface.apply(motion);
@@ -37,9 +43,19 @@ impl Body {
         let midpoint = (from + to) / 2.0;
         let contact = 2.0 * self.radius;
         // Moving apart is always allowed, so robots that start overlapping can separate.
-        let hits_robot = others.iter().any(|o| o.distance(to) < contact && o.distance(to) < o.distance(from));
-        let bumped = arena.blocks(to, self.radius) || arena.blocks(midpoint, self.radius) || hits_robot;
-        self.pose = if bumped { Pose { theta: candidate.theta, ..self.pose } } else { candidate };
+        let hits_robot = others
+            .iter()
+            .any(|o| o.distance(to) < contact && o.distance(to) < o.distance(from));
+        let bumped =
+            arena.blocks(to, self.radius) || arena.blocks(midpoint, self.radius) || hits_robot;
+        self.pose = if bumped {
+            Pose {
+                theta: candidate.theta,
+                ..self.pose
+            }
+        } else {
+            candidate
+        };
         StepOutcome { motion, bumped }
     }
 }
@@ -50,12 +66,22 @@ mod tests {
     use rand::SeedableRng;
 
     fn open_floor() -> Arena {
-        Arena { width: 10.0, height: 10.0, walls: vec![], obstacles: vec![], surfaces: vec![] }
+        Arena {
+            width: 10.0,
+            height: 10.0,
+            walls: vec![],
+            obstacles: vec![],
+            surfaces: vec![],
+        }
     }
 
     #[test]
     fn a_body_walks_along_its_heading() {
-        let mut body = Body { pose: Pose::new(5.0, 5.0, 0.0), radius: 0.15, model: MotionModel::legged_default() };
+        let mut body = Body {
+            pose: Pose::new(5.0, 5.0, 0.0),
+            radius: 0.15,
+            model: MotionModel::legged_default(),
+        };
         let mut rng = rand::rngs::StdRng::seed_from_u64(1);
         let outcome = body.step(Command::Walk(2), &open_floor(), &[], &mut rng);
         assert!(!outcome.bumped);
@@ -65,13 +91,27 @@ mod tests {
     #[test]
     fn walls_and_robots_stop_translation_but_not_turning() {
         let mut rng = rand::rngs::StdRng::seed_from_u64(2);
-        let mut body = Body { pose: Pose::new(9.8, 5.0, 0.0), radius: 0.15, model: MotionModel::legged_default() };
-        assert!(body.step(Command::Walk(3), &open_floor(), &[], &mut rng).bumped);
+        let mut body = Body {
+            pose: Pose::new(9.8, 5.0, 0.0),
+            radius: 0.15,
+            model: MotionModel::legged_default(),
+        };
+        assert!(
+            body.step(Command::Walk(3), &open_floor(), &[], &mut rng)
+                .bumped
+        );
         assert!((body.pose.x - 9.8).abs() < 1e-12);
 
-        let mut body = Body { pose: Pose::new(5.0, 5.0, 0.0), radius: 0.15, model: MotionModel::legged_default() };
+        let mut body = Body {
+            pose: Pose::new(5.0, 5.0, 0.0),
+            radius: 0.15,
+            model: MotionModel::legged_default(),
+        };
         let other = [DVec2::new(5.35, 5.0)];
-        assert!(body.step(Command::Walk(2), &open_floor(), &other, &mut rng).bumped);
+        assert!(
+            body.step(Command::Walk(2), &open_floor(), &other, &mut rng)
+                .bumped
+        );
         assert!((body.pose.x - 5.0).abs() < 1e-12);
     }
 }

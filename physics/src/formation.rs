@@ -61,19 +61,31 @@ impl Default for FormationParams {
 impl FormationParams {
     pub fn validate(&self) -> Result<(), (&'static str, String)> {
         if self.neighbours == 0 || self.neighbours > 16 {
-            return Err(("neighbours", format!("{} is outside 1..=16", self.neighbours)));
+            return Err((
+                "neighbours",
+                format!("{} is outside 1..=16", self.neighbours),
+            ));
         }
         if !(self.spread.is_finite() && self.spread > 0.0) {
-            return Err(("spread", format!("{} must be a positive number of metres", self.spread)));
+            return Err((
+                "spread",
+                format!("{} must be a positive number of metres", self.spread),
+            ));
         }
         if !(self.gain.is_finite() && self.gain > 0.0) {
             return Err(("gain", format!("{} must be positive", self.gain)));
         }
         if !(self.dead_band.is_finite() && self.dead_band >= 0.0) {
-            return Err(("dead_band", format!("{} must be zero or positive", self.dead_band)));
+            return Err((
+                "dead_band",
+                format!("{} must be zero or positive", self.dead_band),
+            ));
         }
         if !(self.goal_gain.is_finite() && self.goal_gain >= 0.0) {
-            return Err(("goal_gain", format!("{} must be zero or positive", self.goal_gain)));
+            return Err((
+                "goal_gain",
+                format!("{} must be zero or positive", self.goal_gain),
+            ));
         }
         Ok(())
     }
@@ -100,17 +112,25 @@ pub struct Neighbour {
 /// N equal sectors around `me` (and, if asked, the nearest of the rest for
 /// empty sectors); without, simply the N nearest. Ties break by id, so the choice is
 /// deterministic.
-pub fn choose_neighbours(me: DVec2, others: &[Neighbour], params: &FormationParams) -> Vec<Neighbour> {
+pub fn choose_neighbours(
+    me: DVec2,
+    others: &[Neighbour],
+    params: &FormationParams,
+) -> Vec<Neighbour> {
     let n = params.neighbours;
-    let mut by_distance: Vec<(f64, Neighbour)> =
-        others.iter().map(|o| (o.position.distance_squared(me), *o)).collect();
+    let mut by_distance: Vec<(f64, Neighbour)> = others
+        .iter()
+        .map(|o| (o.position.distance_squared(me), *o))
+        .collect();
     by_distance.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.id.cmp(&b.1.id)));
     if !params.sectors {
         return by_distance.into_iter().take(n).map(|(_, o)| o).collect();
     }
     // Sectors start at the nearest agent's bearing, so the split does not
     // depend on how the world's axes happen to lie.
-    let origin = by_distance.first().map_or(0.0, |(_, o)| (o.position - me).to_angle());
+    let origin = by_distance
+        .first()
+        .map_or(0.0, |(_, o)| (o.position - me).to_angle());
     let half_sector = TAU / n as f64 / 2.0;
     let sector_of = |p: DVec2| {
         let angle = ((p - me).to_angle() - origin + half_sector).rem_euclid(TAU);
@@ -146,7 +166,11 @@ pub fn net_force(me: DVec2, neighbours: &[Neighbour], params: &FormationParams) 
         .map(|n| {
             let offset = n.position - me;
             let distance = offset.length();
-            if distance < 1e-9 { DVec2::ZERO } else { offset / distance * params.pair_force(distance) }
+            if distance < 1e-9 {
+                DVec2::ZERO
+            } else {
+                offset / distance * params.pair_force(distance)
+            }
         })
         .sum();
     if let Some(goal) = params.goal {
@@ -154,7 +178,11 @@ pub fn net_force(me: DVec2, neighbours: &[Neighbour], params: &FormationParams) 
         let offset = DVec2::from(goal) - me;
         force += offset * params.goal_gain;
     }
-    if force.length() < params.dead_band { DVec2::ZERO } else { force }
+    if force.length() < params.dead_band {
+        DVec2::ZERO
+    } else {
+        force
+    }
 }
 
 #[cfg(test)]
@@ -162,45 +190,88 @@ mod tests {
     use super::*;
 
     fn agent(id: u32, x: f64, y: f64) -> Neighbour {
-        Neighbour { id, position: DVec2::new(x, y) }
+        Neighbour {
+            id,
+            position: DVec2::new(x, y),
+        }
     }
 
     #[test]
     fn both_laws_balance_at_the_desired_spread() {
         for law in [ForceLaw::Thesis, ForceLaw::Sugawara] {
-            let params = FormationParams { law, spread: 1.5, ..Default::default() };
+            let params = FormationParams {
+                law,
+                spread: 1.5,
+                ..Default::default()
+            };
             assert!(params.pair_force(1.5).abs() < 1e-12);
             assert!(params.pair_force(2.0) > 0.0, "{law:?} pulls when far");
             assert!(params.pair_force(1.0) < 0.0, "{law:?} pushes when near");
         }
         let thesis = FormationParams::default();
-        assert!(thesis.pair_force(0.01) < -1e3, "the thesis law pushes without bound");
+        assert!(
+            thesis.pair_force(0.01) < -1e3,
+            "the thesis law pushes without bound"
+        );
     }
 
     #[test]
     fn sectors_pick_a_far_agent_on_the_empty_side() {
         // Three close agents in the upper half-plane, one far agent below.
-        let others = [agent(1, 1.0, 0.1), agent(2, 1.1, 0.2), agent(3, 0.9, 0.3), agent(4, 0.0, -5.0)];
-        let naive = FormationParams { neighbours: 2, sectors: false, ..Default::default() };
-        let ids: Vec<u32> = choose_neighbours(DVec2::ZERO, &others, &naive).iter().map(|n| n.id).collect();
+        let others = [
+            agent(1, 1.0, 0.1),
+            agent(2, 1.1, 0.2),
+            agent(3, 0.9, 0.3),
+            agent(4, 0.0, -5.0),
+        ];
+        let naive = FormationParams {
+            neighbours: 2,
+            sectors: false,
+            ..Default::default()
+        };
+        let ids: Vec<u32> = choose_neighbours(DVec2::ZERO, &others, &naive)
+            .iter()
+            .map(|n| n.id)
+            .collect();
         assert_eq!(ids, vec![3, 1]);
-        let sectors = FormationParams { neighbours: 2, sectors: true, ..Default::default() };
-        let ids: Vec<u32> = choose_neighbours(DVec2::ZERO, &others, &sectors).iter().map(|n| n.id).collect();
-        assert!(ids.contains(&4), "the lower half-plane's only agent is tracked: {ids:?}");
+        let sectors = FormationParams {
+            neighbours: 2,
+            sectors: true,
+            ..Default::default()
+        };
+        let ids: Vec<u32> = choose_neighbours(DVec2::ZERO, &others, &sectors)
+            .iter()
+            .map(|n| n.id)
+            .collect();
+        assert!(
+            ids.contains(&4),
+            "the lower half-plane's only agent is tracked: {ids:?}"
+        );
     }
 
     #[test]
     fn empty_sectors_are_filled_with_the_next_nearest() {
         let others = [agent(1, 1.0, 0.0), agent(2, 2.0, 0.0), agent(3, 3.0, 0.0)];
-        let params = FormationParams { neighbours: 4, fill_empty_sectors: true, ..Default::default() };
+        let params = FormationParams {
+            neighbours: 4,
+            fill_empty_sectors: true,
+            ..Default::default()
+        };
         assert_eq!(choose_neighbours(DVec2::ZERO, &others, &params).len(), 3);
-        let params = FormationParams { neighbours: 4, fill_empty_sectors: false, ..Default::default() };
+        let params = FormationParams {
+            neighbours: 4,
+            fill_empty_sectors: false,
+            ..Default::default()
+        };
         assert_eq!(choose_neighbours(DVec2::ZERO, &others, &params).len(), 1);
     }
 
     #[test]
     fn small_net_forces_fall_in_the_dead_band() {
-        let params = FormationParams { dead_band: 0.5, ..Default::default() };
+        let params = FormationParams {
+            dead_band: 0.5,
+            ..Default::default()
+        };
         let near_balance = [agent(1, 1.05, 0.0)];
         assert_eq!(net_force(DVec2::ZERO, &near_balance, &params), DVec2::ZERO);
         let far = [agent(1, 3.0, 0.0)];
@@ -209,7 +280,11 @@ mod tests {
 
     #[test]
     fn the_goal_pulls_harder_from_farther_away() {
-        let params = FormationParams { goal: Some([10.0, 0.0]), dead_band: 0.0, ..Default::default() };
+        let params = FormationParams {
+            goal: Some([10.0, 0.0]),
+            dead_band: 0.0,
+            ..Default::default()
+        };
         let near = net_force(DVec2::new(9.0, 0.0), &[], &params).length();
         let far = net_force(DVec2::new(0.0, 0.0), &[], &params).length();
         assert!(far > near && near > 0.0);

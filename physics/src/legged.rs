@@ -47,7 +47,10 @@ impl Command {
     }
 
     pub fn parse(text: &str) -> Option<Self> {
-        Self::ALL.iter().copied().find(|c| c.to_string() == text.trim())
+        Self::ALL
+            .iter()
+            .copied()
+            .find(|c| c.to_string() == text.trim())
     }
 }
 
@@ -112,7 +115,10 @@ pub struct MotionSample {
 
 /// A legged robot's motion model: per command, per parameter, a two-Gaussian mixture.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(try_from = "BTreeMap<String, CommandModel>", into = "BTreeMap<String, CommandModel>")]
+#[serde(
+    try_from = "BTreeMap<String, CommandModel>",
+    into = "BTreeMap<String, CommandModel>"
+)]
 pub struct MotionModel {
     commands: Vec<CommandModel>,
 }
@@ -181,16 +187,20 @@ impl MotionModel {
     /// The expected step of `command`, used for planning and dead reckoning.
     pub fn mean(&self, command: Command) -> MotionSample {
         let model = self.command(command);
-        MotionSample { command, along: model.d.mean(), across: model.c.mean(), turn: model.t.mean() }
+        MotionSample {
+            command,
+            along: model.d.mean(),
+            across: model.c.mean(),
+            turn: model.t.mean(),
+        }
     }
 
     pub fn validate(&self) -> Result<(), String> {
         for command in Command::ALL {
             for param in Param::ALL {
-                self.command(command)
-                    .param(param)
-                    .validate()
-                    .map_err(|e| format!("{command}.{}: {e}", format!("{param:?}").to_lowercase()))?;
+                self.command(command).param(param).validate().map_err(|e| {
+                    format!("{command}.{}: {e}", format!("{param:?}").to_lowercase())
+                })?;
             }
         }
         Ok(())
@@ -217,7 +227,10 @@ impl TryFrom<BTreeMap<String, CommandModel>> for MotionModel {
 
 impl From<MotionModel> for BTreeMap<String, CommandModel> {
     fn from(model: MotionModel) -> Self {
-        Command::ALL.iter().map(|c| (c.to_string(), *model.command(*c))).collect()
+        Command::ALL
+            .iter()
+            .map(|c| (c.to_string(), *model.command(*c)))
+            .collect()
     }
 }
 
@@ -251,7 +264,10 @@ mod tests {
         "#;
         let model: MotionModel = toml::from_str(text).expect("valid model");
         assert!((model.mean(Command::Turn(1)).turn - 1.0).abs() < 1e-12);
-        assert_eq!(model.command(Command::Walk(2)), MotionModel::legged_default().command(Command::Walk(2)));
+        assert_eq!(
+            model.command(Command::Walk(2)),
+            MotionModel::legged_default().command(Command::Walk(2))
+        );
     }
 
     #[test]

@@ -15,7 +15,7 @@ pub mod scenario;
 
 pub use arena::{Arena, Obstacle, Surface, Wall};
 pub use body::{Body, StepOutcome};
-pub use formation::{FormationParams, ForceLaw, Neighbour};
+pub use formation::{ForceLaw, FormationParams, Neighbour};
 pub use legged::{Command, MotionModel, MotionSample};
 pub use mixture::Mixture2;
 pub use pose::{Pose, wrap_angle};

@@ -35,10 +35,23 @@ pub fn formation_metrics(positions: &[DVec2], spread: f64) -> FormationMetrics {
         (0.0, 0.0)
     } else {
         let mean = nearest.iter().sum::<f64>() / nearest.len() as f64;
-        let variance = nearest.iter().map(|d| (d - mean).powi(2)).sum::<f64>() / nearest.len() as f64;
-        (mean / spread, if mean > 0.0 { variance.sqrt() / mean } else { 0.0 })
+        let variance =
+            nearest.iter().map(|d| (d - mean).powi(2)).sum::<f64>() / nearest.len() as f64;
+        (
+            mean / spread,
+            if mean > 0.0 {
+                variance.sqrt() / mean
+            } else {
+                0.0
+            },
+        )
     };
-    FormationMetrics { agents: n, components: components(positions, LINK_FACTOR * spread), spacing_ratio, spacing_cv }
+    FormationMetrics {
+        agents: n,
+        components: components(positions, LINK_FACTOR * spread),
+        spacing_ratio,
+        spacing_cv,
+    }
 }
 
 fn components(positions: &[DVec2], link: f64) -> usize {
@@ -68,8 +81,9 @@ mod tests {
 
     #[test]
     fn a_square_lattice_is_one_evenly_spaced_group() {
-        let lattice: Vec<DVec2> =
-            (0..16).map(|i| DVec2::new(f64::from(i % 4), f64::from(i / 4))).collect();
+        let lattice: Vec<DVec2> = (0..16)
+            .map(|i| DVec2::new(f64::from(i % 4), f64::from(i / 4)))
+            .collect();
         let metrics = formation_metrics(&lattice, 1.0);
         assert_eq!(metrics.components, 1);
         assert!((metrics.spacing_ratio - 1.0).abs() < 1e-12 && metrics.spacing_cv < 1e-12);
@@ -77,7 +91,12 @@ mod tests {
 
     #[test]
     fn distant_clusters_count_as_separate_groups() {
-        let clusters = [DVec2::new(0.0, 0.0), DVec2::new(1.0, 0.0), DVec2::new(10.0, 0.0), DVec2::new(11.0, 0.0)];
+        let clusters = [
+            DVec2::new(0.0, 0.0),
+            DVec2::new(1.0, 0.0),
+            DVec2::new(10.0, 0.0),
+            DVec2::new(11.0, 0.0),
+        ];
         assert_eq!(formation_metrics(&clusters, 1.0).components, 2);
     }
 }

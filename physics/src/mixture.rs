@@ -17,7 +17,11 @@ impl Mixture2 {
     /// A single Gaussian written as a mixture of two equal halves.
     pub fn gaussian(mean: f64, std_dev: f64) -> Self {
         let variance = std_dev * std_dev;
-        Self { weights: [0.5, 0.5], means: [mean, mean], variances: [variance, variance] }
+        Self {
+            weights: [0.5, 0.5],
+            means: [mean, mean],
+            variances: [variance, variance],
+        }
     }
 
     /// Two modes at `mean - gap/2` and `mean + gap/2`.
@@ -60,7 +64,9 @@ impl Mixture2 {
     }
 
     pub fn pdf(&self, value: f64) -> f64 {
-        (0..2).map(|j| self.weights[j] * self.component_pdf(j, value)).sum()
+        (0..2)
+            .map(|j| self.weights[j] * self.component_pdf(j, value))
+            .sum()
     }
 
     pub fn sample(&self, rng: &mut impl Rng) -> f64 {
@@ -115,9 +121,13 @@ mod tests {
         let mut rng = rand::rngs::StdRng::seed_from_u64(7);
         let samples: Vec<f64> = (0..20_000).map(|_| mixture.sample(&mut rng)).collect();
         let mean = samples.iter().sum::<f64>() / samples.len() as f64;
-        let variance = samples.iter().map(|s| (s - mean).powi(2)).sum::<f64>() / samples.len() as f64;
+        let variance =
+            samples.iter().map(|s| (s - mean).powi(2)).sum::<f64>() / samples.len() as f64;
         assert!((mean - mixture.mean()).abs() < 0.002, "mean {mean}");
-        assert!((variance - mixture.variance()).abs() < 0.1 * mixture.variance(), "variance {variance}");
+        assert!(
+            (variance - mixture.variance()).abs() < 0.1 * mixture.variance(),
+            "variance {variance}"
+        );
         // Bimodal: the trough at the mean is rarer than the modes.
         assert!(mixture.pdf(0.146) < 0.5 * mixture.pdf(0.116));
     }

@@ -56,13 +56,22 @@ mod tests {
     fn turns_towards_a_target_behind() {
         let model = MotionModel::legged_default();
         let command = plan_command(&Pose::new(0.0, 0.0, 0.0), DVec2::new(-0.2, 0.0), &model);
-        assert!(matches!(command, Command::Turn(3) | Command::Turn(-3)), "{command}");
+        assert!(
+            matches!(command, Command::Turn(3) | Command::Turn(-3)),
+            "{command}"
+        );
     }
 
     #[test]
     fn stands_when_there_is_nowhere_to_go() {
         let model = MotionModel::legged_default();
-        assert_eq!(plan_command(&Pose::default(), DVec2::ZERO, &model), Command::Stand);
-        assert_eq!(plan_command(&Pose::default(), DVec2::new(0.005, 0.0), &model), Command::Stand);
+        assert_eq!(
+            plan_command(&Pose::default(), DVec2::ZERO, &model),
+            Command::Stand
+        );
+        assert_eq!(
+            plan_command(&Pose::default(), DVec2::new(0.005, 0.0), &model),
+            Command::Stand
+        );
     }
 }

@@ -37,7 +37,11 @@ impl Pose {
 /// Wraps an angle into (-pi, pi].
 pub fn wrap_angle(angle: f64) -> f64 {
     let wrapped = angle.rem_euclid(std::f64::consts::TAU);
-    if wrapped > std::f64::consts::PI { wrapped - std::f64::consts::TAU } else { wrapped }
+    if wrapped > std::f64::consts::PI {
+        wrapped - std::f64::consts::TAU
+    } else {
+        wrapped
+    }
 }
 
 #[cfg(test)]

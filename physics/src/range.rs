@@ -24,7 +24,13 @@ pub struct RangeSensor {
 
 impl Default for RangeSensor {
     fn default() -> Self {
-        Self { beams: 181, field_of_view: std::f64::consts::PI, max_range: 4.0, noise_per_m: 0.01, dropout: 0.01 }
+        Self {
+            beams: 181,
+            field_of_view: std::f64::consts::PI,
+            max_range: 4.0,
+            noise_per_m: 0.01,
+            dropout: 0.01,
+        }
     }
 }
 
@@ -38,7 +44,13 @@ impl RangeSensor {
     }
 
     /// Noise-free ranges from `pose`; `robots` are other bodies of `radius`.
-    pub fn cast_exact(&self, arena: &Arena, pose: &Pose, robots: &[DVec2], radius: f64) -> Vec<f64> {
+    pub fn cast_exact(
+        &self,
+        arena: &Arena,
+        pose: &Pose,
+        robots: &[DVec2],
+        radius: f64,
+    ) -> Vec<f64> {
         let origin = pose.position();
         (0..self.beams)
             .map(|i| {
@@ -49,14 +61,22 @@ impl RangeSensor {
     }
 
     /// What the sensor reads: exact ranges with distance-proportional noise and dropouts.
-    pub fn read(&self, arena: &Arena, pose: &Pose, robots: &[DVec2], radius: f64, rng: &mut impl Rng) -> Vec<f64> {
+    pub fn read(
+        &self,
+        arena: &Arena,
+        pose: &Pose,
+        robots: &[DVec2],
+        radius: f64,
+        rng: &mut impl Rng,
+    ) -> Vec<f64> {
         self.cast_exact(arena, pose, robots, radius)
             .into_iter()
             .map(|range| {
                 if range >= self.max_range || rng.random::<f64>() < self.dropout {
                     return self.max_range;
                 }
-                let noise = Normal::new(0.0, self.noise_per_m * range.max(0.1)).map_or(0.0, |n| n.sample(rng));
+                let noise = Normal::new(0.0, self.noise_per_m * range.max(0.1))
+                    .map_or(0.0, |n| n.sample(rng));
                 (range + noise).clamp(0.0, self.max_range)
             })
             .collect()
@@ -65,8 +85,16 @@ impl RangeSensor {
 
 /// Distance along a unit `direction` from `origin` to the first wall,
 /// obstacle or robot; infinite if none.
-pub fn ray_distance(arena: &Arena, origin: DVec2, direction: DVec2, robots: &[DVec2], radius: f64) -> f64 {
-    let walls = arena.all_walls().map(|w| ray_segment(origin, direction, w.from.into(), w.to.into()));
+pub fn ray_distance(
+    arena: &Arena,
+    origin: DVec2,
+    direction: DVec2,
+    robots: &[DVec2],
+    radius: f64,
+) -> f64 {
+    let walls = arena
+        .all_walls()
+        .map(|w| ray_segment(origin, direction, w.from.into(), w.to.into()));
     let obstacles = arena.obstacles.iter().map(|o| match *o {
         Obstacle::Disc { center, radius } => ray_circle(origin, direction, center.into(), radius),
         Obstacle::Box { min, max } => {
@@ -76,11 +104,18 @@ pub fn ray_distance(arena: &Arena, origin: DVec2, direction: DVec2, robots: &[DV
                 DVec2::new(max[0], max[1]),
                 DVec2::new(min[0], max[1]),
             ];
-            (0..4).map(|k| ray_segment(origin, direction, corners[k], corners[(k + 1) % 4])).fold(f64::INFINITY, f64::min)
+            (0..4)
+                .map(|k| ray_segment(origin, direction, corners[k], corners[(k + 1) % 4]))
+                .fold(f64::INFINITY, f64::min)
         }
     });
-    let bodies = robots.iter().map(|c| ray_circle(origin, direction, *c, radius));
-    walls.chain(obstacles).chain(bodies).fold(f64::INFINITY, f64::min)
+    let bodies = robots
+        .iter()
+        .map(|c| ray_circle(origin, direction, *c, radius));
+    walls
+        .chain(obstacles)
+        .chain(bodies)
+        .fold(f64::INFINITY, f64::min)
 }
 
 fn ray_segment(origin: DVec2, direction: DVec2, a: DVec2, b: DVec2) -> f64 {
@@ -92,7 +127,11 @@ fn ray_segment(origin: DVec2, direction: DVec2, a: DVec2, b: DVec2) -> f64 {
     let offset = a - origin;
     let t = offset.perp_dot(edge) / denominator;
     let u = offset.perp_dot(direction) / denominator;
-    if t >= 0.0 && (0.0..=1.0).contains(&u) { t } else { f64::INFINITY }
+    if t >= 0.0 && (0.0..=1.0).contains(&u) {
+        t
+    } else {
+        f64::INFINITY
+    }
 }
 
 fn ray_circle(origin: DVec2, direction: DVec2, center: DVec2, radius: f64) -> f64 {
@@ -126,7 +165,10 @@ mod tests {
             width: 4.0,
             height: 3.0,
             walls: vec![],
-            obstacles: vec![Obstacle::Disc { center: [3.0, 1.5], radius: 0.25 }],
+            obstacles: vec![Obstacle::Disc {
+                center: [3.0, 1.5],
+                radius: 0.25,
+            }],
             surfaces: vec![],
         }
     }
@@ -135,32 +177,59 @@ mod tests {
     fn beams_hit_walls_obstacles_and_robots_at_the_right_distance() {
         let arena = room();
         let origin = DVec2::new(1.0, 1.5);
-        assert!((ray_distance(&arena, origin, DVec2::X, &[], 0.15) - 1.75).abs() < 1e-9, "disc");
-        assert!((ray_distance(&arena, origin, -DVec2::X, &[], 0.15) - 1.0).abs() < 1e-9, "left wall");
-        assert!((ray_distance(&arena, origin, DVec2::Y, &[], 0.15) - 1.5).abs() < 1e-9, "top wall");
+        assert!(
+            (ray_distance(&arena, origin, DVec2::X, &[], 0.15) - 1.75).abs() < 1e-9,
+            "disc"
+        );
+        assert!(
+            (ray_distance(&arena, origin, -DVec2::X, &[], 0.15) - 1.0).abs() < 1e-9,
+            "left wall"
+        );
+        assert!(
+            (ray_distance(&arena, origin, DVec2::Y, &[], 0.15) - 1.5).abs() < 1e-9,
+            "top wall"
+        );
         let robot = [DVec2::new(2.0, 1.5)];
-        assert!((ray_distance(&arena, origin, DVec2::X, &robot, 0.15) - 0.85).abs() < 1e-9, "robot");
+        assert!(
+            (ray_distance(&arena, origin, DVec2::X, &robot, 0.15) - 0.85).abs() < 1e-9,
+            "robot"
+        );
     }
 
     #[test]
     fn a_scan_spans_the_field_of_view_and_respects_max_range() {
-        let sensor = RangeSensor { beams: 181, max_range: 1.2, ..Default::default() };
+        let sensor = RangeSensor {
+            beams: 181,
+            max_range: 1.2,
+            ..Default::default()
+        };
         let ranges = sensor.cast_exact(&room(), &Pose::new(1.0, 1.5, 0.0), &[], 0.15);
         assert_eq!(ranges.len(), 181);
         assert!((sensor.bearing(0) + std::f64::consts::FRAC_PI_2).abs() < 1e-12);
         assert!((sensor.bearing(90)).abs() < 1e-12);
         assert!(ranges.iter().all(|r| *r <= 1.2));
-        assert!((ranges[90] - 1.2).abs() < 1e-12, "the disc at 1.75 m is out of range");
+        assert!(
+            (ranges[90] - 1.2).abs() < 1e-12,
+            "the disc at 1.75 m is out of range"
+        );
     }
 
     #[test]
     fn noisy_reads_stay_close_to_the_truth() {
-        let sensor = RangeSensor { dropout: 0.0, ..Default::default() };
+        let sensor = RangeSensor {
+            dropout: 0.0,
+            ..Default::default()
+        };
         let mut rng = rand::rngs::StdRng::seed_from_u64(3);
         let pose = Pose::new(1.0, 1.5, 0.0);
         let exact = sensor.cast_exact(&room(), &pose, &[], 0.15);
         let noisy = sensor.read(&room(), &pose, &[], 0.15, &mut rng);
-        let mean_error = exact.iter().zip(&noisy).map(|(a, b)| (a - b).abs()).sum::<f64>() / exact.len() as f64;
+        let mean_error = exact
+            .iter()
+            .zip(&noisy)
+            .map(|(a, b)| (a - b).abs())
+            .sum::<f64>()
+            / exact.len() as f64;
         assert!(mean_error > 0.0 && mean_error < 0.05, "{mean_error}");
     }
 }

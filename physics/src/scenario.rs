@@ -49,7 +49,12 @@ pub struct AgentsSection {
 
 impl Default for AgentsSection {
     fn default() -> Self {
-        Self { count: 12, start_region: [6.0, 6.0, 14.0, 14.0], radius: 0.15, seed: 1 }
+        Self {
+            count: 12,
+            start_region: [6.0, 6.0, 14.0, 14.0],
+            radius: 0.15,
+            seed: 1,
+        }
     }
 }
 
@@ -64,7 +69,10 @@ pub struct TimingSection {
 
 impl Default for TimingSection {
     fn default() -> Self {
-        Self { period_s: 0.2, stale_periods: 2.0 }
+        Self {
+            period_s: 0.2,
+            stale_periods: 2.0,
+        }
     }
 }
 
@@ -85,7 +93,12 @@ pub struct BusSection {
 
 impl Default for BusSection {
     fn default() -> Self {
-        Self { cell_size: 3.5, max_ring: 3, max_per_cell: 24, max_listeners_per_cell: 216 }
+        Self {
+            cell_size: 3.5,
+            max_ring: 3,
+            max_per_cell: 24,
+            max_listeners_per_cell: 216,
+        }
     }
 }
 
@@ -120,12 +133,27 @@ impl Scenario {
             arena: Arena {
                 width: 20.0,
                 height: 20.0,
-                walls: vec![Wall { from: [3.0, 16.0], to: [8.0, 16.0] }],
+                walls: vec![Wall {
+                    from: [3.0, 16.0],
+                    to: [8.0, 16.0],
+                }],
                 obstacles: vec![
-                    Obstacle::Disc { center: [4.0, 4.0], radius: 0.6 },
-                    Obstacle::Disc { center: [16.0, 15.0], radius: 0.8 },
-                    Obstacle::Box { min: [15.0, 3.0], max: [17.0, 4.0] },
-                    Obstacle::Box { min: [2.0, 9.0], max: [3.0, 12.0] },
+                    Obstacle::Disc {
+                        center: [4.0, 4.0],
+                        radius: 0.6,
+                    },
+                    Obstacle::Disc {
+                        center: [16.0, 15.0],
+                        radius: 0.8,
+                    },
+                    Obstacle::Box {
+                        min: [15.0, 3.0],
+                        max: [17.0, 4.0],
+                    },
+                    Obstacle::Box {
+                        min: [2.0, 9.0],
+                        max: [3.0, 12.0],
+                    },
                 ],
                 surfaces: vec![
                     Surface {
@@ -173,7 +201,11 @@ impl Scenario {
             message,
         };
         let deserializer = toml::Deserializer::parse(text).map_err(|e| {
-            error(e.span().map(|s| line_of_offset(text, s.start)), None, e.message().to_owned())
+            error(
+                e.span().map(|s| line_of_offset(text, s.start)),
+                None,
+                e.message().to_owned(),
+            )
         })?;
         let scenario: Scenario = serde_path_to_error::deserialize(deserializer).map_err(|e| {
             let field = e.path().to_string();
@@ -182,7 +214,9 @@ impl Scenario {
             let line = line.or_else(|| line_of_field(text, &field));
             error(line, Some(field), inner.message().to_owned())
         })?;
-        scenario.validate().map_err(|(field, message)| error(line_of_field(text, &field), Some(field), message))?;
+        scenario
+            .validate()
+            .map_err(|(field, message)| error(line_of_field(text, &field), Some(field), message))?;
         Ok(scenario)
     }
 
@@ -196,7 +230,10 @@ impl Scenario {
             if value.is_finite() && value > 0.0 {
                 Ok(())
             } else {
-                Err((field.to_owned(), format!("{value} must be a positive number")))
+                Err((
+                    field.to_owned(),
+                    format!("{value} must be a positive number"),
+                ))
             }
         };
         positive("arena.width", self.arena.width)?;
@@ -209,23 +246,46 @@ impl Scenario {
             return Err(("bus.max_per_cell".into(), "must be at least 1".into()));
         }
         if self.bus.max_listeners_per_cell < self.bus.max_per_cell {
-            return Err(("bus.max_listeners_per_cell".into(), "must be at least bus.max_per_cell".into()));
+            return Err((
+                "bus.max_listeners_per_cell".into(),
+                "must be at least bus.max_per_cell".into(),
+            ));
         }
         let [x0, y0, x1, y1] = self.agents.start_region;
-        if !(x0 < x1 && y0 < y1 && x0 >= 0.0 && y0 >= 0.0 && x1 <= self.arena.width && y1 <= self.arena.height) {
+        if !(x0 < x1
+            && y0 < y1
+            && x0 >= 0.0
+            && y0 >= 0.0
+            && x1 <= self.arena.width
+            && y1 <= self.arena.height)
+        {
             return Err((
                 "agents.start_region".into(),
-                format!("{:?} must be [xmin, ymin, xmax, ymax] inside the arena", self.agents.start_region),
+                format!(
+                    "{:?} must be [xmin, ymin, xmax, ymax] inside the arena",
+                    self.agents.start_region
+                ),
             ));
         }
         for (i, surface) in self.arena.surfaces.iter().enumerate() {
-            let scales = [surface.along_scale, surface.across_scale, surface.turn_scale];
+            let scales = [
+                surface.along_scale,
+                surface.across_scale,
+                surface.turn_scale,
+            ];
             if scales.iter().any(|s| !s.is_finite() || *s < 0.0) {
-                return Err((format!("arena.surfaces[{i}]"), "scales must be finite and not negative".into()));
+                return Err((
+                    format!("arena.surfaces[{i}]"),
+                    "scales must be finite and not negative".into(),
+                ));
             }
         }
-        self.formation.validate().map_err(|(field, message)| (format!("formation.{field}"), message))?;
-        self.motion.validate().map_err(|message| ("motion".to_owned(), message))?;
+        self.formation
+            .validate()
+            .map_err(|(field, message)| (format!("formation.{field}"), message))?;
+        self.motion
+            .validate()
+            .map_err(|message| ("motion".to_owned(), message))?;
         Ok(())
     }
 
@@ -273,7 +333,11 @@ fn line_of_field(text: &str, field: &str) -> Option<usize> {
     for (index, raw) in text.lines().enumerate() {
         let line = raw.trim();
         if let Some(header) = line.strip_prefix('[') {
-            current = header.trim_start_matches('[').trim_end_matches(']').trim().to_owned();
+            current = header
+                .trim_start_matches('[')
+                .trim_end_matches(']')
+                .trim()
+                .to_owned();
             if current == section || (section.is_empty() && current == key) {
                 section_line = Some(index + 1);
             }
@@ -306,8 +370,17 @@ mod tests {
         let text = "[arena]\nwidth = 10.0\nheight = 10.0\n\n[formation]\nneighbours = \"four\"\n";
         let error = Scenario::from_toml(text, "bad.toml").unwrap_err();
         assert_eq!(error.line, Some(6), "{error}");
-        assert_eq!(error.field.as_deref(), Some("formation.neighbours"), "{error}");
-        assert!(error.to_string().starts_with("bad.toml:6: field `formation.neighbours`"), "{error}");
+        assert_eq!(
+            error.field.as_deref(),
+            Some("formation.neighbours"),
+            "{error}"
+        );
+        assert!(
+            error
+                .to_string()
+                .starts_with("bad.toml:6: field `formation.neighbours`"),
+            "{error}"
+        );
     }
 
     #[test]

@@ -37,7 +37,12 @@ pub struct Update {
 
 impl MixtureLearner {
     pub fn new(mixture: Mixture2, window: usize) -> Self {
-        Self { mixture, window: window.clamp(1, 64), history: VecDeque::new(), min_variance: 1e-8 }
+        Self {
+            mixture,
+            window: window.clamp(1, 64),
+            history: VecDeque::new(),
+            min_variance: 1e-8,
+        }
     }
 
     /// One SLAM step: O(particles), one pass for weights and means, one for variances.
@@ -79,7 +84,8 @@ impl MixtureLearner {
             let m = &mut self.mixture;
             m.weights[j] += gain * (share - m.weights[j]);
             m.means[j] += gain * (mean - m.means[j]);
-            m.variances[j] = (m.variances[j] + gain * (variance - m.variances[j])).max(self.min_variance);
+            m.variances[j] =
+                (m.variances[j] + gain * (variance - m.variances[j])).max(self.min_variance);
         }
         let total_weight = self.mixture.weights[0] + self.mixture.weights[1];
         if total_weight > 0.0 {
@@ -94,7 +100,8 @@ impl MixtureLearner {
 fn responsibilities_of(mixture: &Mixture2, value: f64) -> [f64; 2] {
     let log_pdf = |j: usize| {
         let variance = mixture.variances[j].max(1e-300);
-        -0.5 * (value - mixture.means[j]).powi(2) / variance - 0.5 * (std::f64::consts::TAU * variance).ln()
+        -0.5 * (value - mixture.means[j]).powi(2) / variance
+            - 0.5 * (std::f64::consts::TAU * variance).ln()
     };
     let (a, b) = (log_pdf(0), log_pdf(1));
     let top = a.max(b);
@@ -111,7 +118,11 @@ mod tests {
 
     fn learner(window: usize) -> MixtureLearner {
         MixtureLearner::new(
-            Mixture2 { weights: [0.5, 0.5], means: [0.0, 1.0], variances: [0.01, 0.01] },
+            Mixture2 {
+                weights: [0.5, 0.5],
+                means: [0.0, 1.0],
+                variances: [0.01, 0.01],
+            },
             window,
         )
     }
@@ -122,9 +133,18 @@ mod tests {
     fn the_first_step_moves_each_component_to_its_draws_statistics() {
         let mut learner = learner(5);
         let draws = [
-            Draw { value: 0.1, quality: 1.0 },
-            Draw { value: -0.1, quality: 1.0 },
-            Draw { value: 1.2, quality: 2.0 },
+            Draw {
+                value: 0.1,
+                quality: 1.0,
+            },
+            Draw {
+                value: -0.1,
+                quality: 1.0,
+            },
+            Draw {
+                value: 1.2,
+                quality: 2.0,
+            },
         ];
         let update = learner.update(&draws);
         assert!((update.weights[0] - 2.0).abs() < 1e-9 && (update.weights[1] - 2.0).abs() < 1e-9);
@@ -132,14 +152,25 @@ mod tests {
         let m = learner.mixture;
         assert!((m.means[0] - 0.0).abs() < 1e-9, "{m:?}");
         assert!((m.means[1] - 1.2).abs() < 1e-9, "{m:?}");
-        assert!((m.variances[0] - 0.01).abs() < 1e-9, "(0.1^2 + 0.1^2) / 2 = 0.01: {m:?}");
-        assert!(m.variances[1] <= 1e-8 + 1e-12, "a single draw has no spread: {m:?}");
+        assert!(
+            (m.variances[0] - 0.01).abs() < 1e-9,
+            "(0.1^2 + 0.1^2) / 2 = 0.01: {m:?}"
+        );
+        assert!(
+            m.variances[1] <= 1e-8 + 1e-12,
+            "a single draw has no spread: {m:?}"
+        );
         assert!((m.weights[0] - 0.5).abs() < 1e-9, "{m:?}");
     }
 
     /// Two draws around each component, 0.05 either side of its centre.
     fn pairs(low: f64, high: f64) -> Vec<Draw> {
-        [low - 0.05, low + 0.05, high - 0.05, high + 0.05].map(|value| Draw { value, quality: 1.0 }).to_vec()
+        [low - 0.05, low + 0.05, high - 0.05, high + 0.05]
+            .map(|value| Draw {
+                value,
+                quality: 1.0,
+            })
+            .to_vec()
     }
 
     /// Hand-computed: after two steps of equal weight, the gain is 1/2, so the
@@ -148,10 +179,18 @@ mod tests {
     fn later_steps_move_by_their_share_of_the_window() {
         let mut learner = learner(5);
         learner.update(&pairs(0.0, 1.0));
-        assert!((learner.mixture.variances[0] - 0.0025).abs() < 1e-9, "{:?}", learner.mixture);
+        assert!(
+            (learner.mixture.variances[0] - 0.0025).abs() < 1e-9,
+            "{:?}",
+            learner.mixture
+        );
         let update = learner.update(&pairs(0.2, 1.0));
         assert!((update.gains[0] - 0.5).abs() < 1e-6, "{update:?}");
-        assert!((learner.mixture.means[0] - 0.1).abs() < 1e-6, "{:?}", learner.mixture);
+        assert!(
+            (learner.mixture.means[0] - 0.1).abs() < 1e-6,
+            "{:?}",
+            learner.mixture
+        );
     }
 
     #[test]
@@ -161,7 +200,13 @@ mod tests {
             learner.update(&pairs(0.0, 1.0));
         }
         let before = learner.mixture;
-        let faint: Vec<Draw> = pairs(0.2, 1.0).into_iter().map(|d| Draw { quality: 0.0005, ..d }).collect();
+        let faint: Vec<Draw> = pairs(0.2, 1.0)
+            .into_iter()
+            .map(|d| Draw {
+                quality: 0.0005,
+                ..d
+            })
+            .collect();
         let update = learner.update(&faint);
         assert!(update.gains[0] < 0.001);
         assert!((learner.mixture.means[0] - before.means[0]).abs() < 1e-3);
@@ -176,6 +221,10 @@ mod tests {
         for _ in 0..20 {
             learner.update(&pairs(0.3, 1.0));
         }
-        assert!((learner.mixture.means[0] - 0.3).abs() < 0.01, "{:?}", learner.mixture);
+        assert!(
+            (learner.mixture.means[0] - 0.3).abs() < 0.01,
+            "{:?}",
+            learner.mixture
+        );
     }
 }

@@ -15,35 +15,57 @@ use shoal_physics::metrics::{FormationMetrics, formation_metrics};
 static ONE_SWARM_AT_A_TIME: Mutex<()> = Mutex::new(());
 
 pub fn serial() -> MutexGuard<'static, ()> {
-    ONE_SWARM_AT_A_TIME.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+    ONE_SWARM_AT_A_TIME
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner())
 }
 
 /// A workspace binary, built by `cargo build --release --workspace` beside this test.
 pub fn bin(name: &str) -> PathBuf {
     let exe = std::env::current_exe().expect("test executable path");
-    let dir = exe.parent().and_then(|deps| deps.parent()).expect("target directory");
+    let dir = exe
+        .parent()
+        .and_then(|deps| deps.parent())
+        .expect("target directory");
     let path = dir.join(name);
-    assert!(path.exists(), "{} is missing: run `cargo build --release --workspace` first (scripts/test does)", path.display());
+    assert!(
+        path.exists(),
+        "{} is missing: run `cargo build --release --workspace` first (scripts/test does)",
+        path.display()
+    );
     path
 }
 
 pub fn shoal(args: &[&str]) -> Output {
-    Command::new(bin("shoal")).args(args).output().expect("run shoal")
+    Command::new(bin("shoal"))
+        .args(args)
+        .output()
+        .expect("run shoal")
 }
 
 /// `shoal status --json` of `swarm`.
 pub fn status(swarm: &str) -> Value {
     let output = shoal(&["status", "--swarm", swarm, "--json"]);
-    assert!(output.status.success(), "status failed: {}", String::from_utf8_lossy(&output.stderr));
+    assert!(
+        output.status.success(),
+        "status failed: {}",
+        String::from_utf8_lossy(&output.stderr)
+    );
     serde_json::from_slice(&output.stdout).expect("status prints JSON")
 }
 
 pub fn alive_agents(status: &Value) -> Vec<&Value> {
-    status["agents"].as_array().map(|a| a.iter().filter(|a| a["state"] == "alive").collect()).unwrap_or_default()
+    status["agents"]
+        .as_array()
+        .map(|a| a.iter().filter(|a| a["state"] == "alive").collect())
+        .unwrap_or_default()
 }
 
 pub fn alive_ids(status: &Value) -> Vec<u64> {
-    alive_agents(status).iter().filter_map(|a| a["id"].as_u64()).collect()
+    alive_agents(status)
+        .iter()
+        .filter_map(|a| a["id"].as_u64())
+        .collect()
 }
 
 /// Formation metrics of the robots `status` lists as alive with a pose.
@@ -69,7 +91,10 @@ pub fn wait_until(timeout: Duration, mut condition: impl FnMut() -> bool) -> boo
 pub fn pid_alive(pid: i32) -> bool {
     std::fs::read_to_string(format!("/proc/{pid}/stat"))
         .ok()
-        .and_then(|stat| stat.rsplit_once(')').and_then(|(_, rest)| rest.trim_start().chars().next()))
+        .and_then(|stat| {
+            stat.rsplit_once(')')
+                .and_then(|(_, rest)| rest.trim_start().chars().next())
+        })
         .is_some_and(|state| state != 'Z' && state != 'X')
 }
 
@@ -91,7 +116,10 @@ impl BackgroundSwarm {
             .stderr(Stdio::piped())
             .spawn()
             .expect("start shoal up");
-        Self { name: name.to_owned(), child: Some(child) }
+        Self {
+            name: name.to_owned(),
+            child: Some(child),
+        }
     }
 
     pub fn pid(&self) -> i32 {
@@ -117,7 +145,9 @@ impl Drop for BackgroundSwarm {
 
 /// What is left of `swarm` on the bus: its nodes and services.
 pub fn residue(swarm: &str) -> (usize, Vec<String>) {
-    let nodes = shoal_broker::liveness::swarm_nodes(swarm).expect("list nodes").len();
+    let nodes = shoal_broker::liveness::swarm_nodes(swarm)
+        .expect("list nodes")
+        .len();
     let services = shoal_broker::liveness::swarm_services(swarm).expect("list services");
     (nodes, services)
 }

@@ -5,9 +5,13 @@ use shoal_physics::Scenario;
 #[test]
 fn the_readme_scenario_example_parses() {
     let readme = include_str!("../../README.md");
-    let start = readme.find("```toml\n").expect("a TOML example in README.md") + "```toml\n".len();
+    let start = readme
+        .find("```toml\n")
+        .expect("a TOML example in README.md")
+        + "```toml\n".len();
     let end = start + readme[start..].find("```").expect("the end of the example");
-    let scenario = Scenario::from_toml(&readme[start..end], "README.md").unwrap_or_else(|e| panic!("{e}"));
+    let scenario =
+        Scenario::from_toml(&readme[start..end], "README.md").unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(scenario.name, "lab");
     assert_eq!(scenario.formation.neighbours, 4);
     assert_eq!(scenario.arena.surfaces.len(), 1);

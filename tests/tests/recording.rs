@@ -19,13 +19,24 @@ fn scratch(name: &str) -> PathBuf {
 /// What `tests/python/check_recording.py` finds in a recording.
 fn inspect(recording: &Path) -> Value {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("python/check_recording.py");
-    let output = Command::new("python3").arg(script).arg(recording).output().expect("python3");
-    assert!(output.status.success(), "the Rerun reader failed: {}", String::from_utf8_lossy(&output.stderr));
+    let output = Command::new("python3")
+        .arg(script)
+        .arg(recording)
+        .output()
+        .expect("python3");
+    assert!(
+        output.status.success(),
+        "the Rerun reader failed: {}",
+        String::from_utf8_lossy(&output.stderr)
+    );
     serde_json::from_slice(&output.stdout).expect("JSON from the reader")
 }
 
 fn rerun_cli(args: &[&str]) -> std::process::Output {
-    Command::new("rerun").args(args).output().expect("the rerun CLI (pip install rerun-sdk)")
+    Command::new("rerun")
+        .args(args)
+        .output()
+        .expect("the rerun CLI (pip install rerun-sdk)")
 }
 
 #[test]
@@ -37,11 +48,27 @@ fn a_recording_holds_the_swarm_as_the_robots_published_it() {
     let swarm_name = "e2e-record";
     let mut swarm = BackgroundSwarm::start(
         swarm_name,
-        &["--agents", "12", "--record", recording.to_str().expect("utf-8"), "--tum", tum.to_str().expect("utf-8")],
+        &[
+            "--agents",
+            "12",
+            "--record",
+            recording.to_str().expect("utf-8"),
+            "--tum",
+            tum.to_str().expect("utf-8"),
+        ],
     );
     // Listen to the roster ourselves, as one more observer, to know what the robots published.
-    assert!(wait_until(Duration::from_secs(30), || alive_ids(&status(swarm_name)).len() == 12));
-    let bus = Bus::join(swarm_name, &names::tool_node(swarm_name, "e2e-observer"), BusLimits::default()).expect("join");
+    assert!(wait_until(Duration::from_secs(30), || alive_ids(&status(
+        swarm_name
+    ))
+    .len()
+        == 12));
+    let bus = Bus::join(
+        swarm_name,
+        &names::tool_node(swarm_name, "e2e-observer"),
+        BusLimits::default(),
+    )
+    .expect("join");
     let roster = RosterReader::new(&bus).expect("roster");
     let mut published: HashMap<String, [f64; 2]> = HashMap::new();
     let started = Instant::now();
@@ -56,15 +83,32 @@ fn a_recording_holds_the_swarm_as_the_robots_published_it() {
     drop(roster);
     drop(bus);
     let output = swarm.interrupt();
-    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
 
     let verify = rerun_cli(&["rrd", "verify", recording.to_str().expect("utf-8")]);
-    assert!(verify.status.success(), "rerun rrd verify: {}", String::from_utf8_lossy(&verify.stderr));
+    assert!(
+        verify.status.success(),
+        "rerun rrd verify: {}",
+        String::from_utf8_lossy(&verify.stderr)
+    );
     let stats = rerun_cli(&["rrd", "stats", recording.to_str().expect("utf-8")]);
-    assert!(stats.status.success(), "rerun rrd stats: {}", String::from_utf8_lossy(&stats.stderr));
+    assert!(
+        stats.status.success(),
+        "rerun rrd stats: {}",
+        String::from_utf8_lossy(&stats.stderr)
+    );
 
     let found = inspect(&recording);
-    let entities: Vec<&str> = found["entities"].as_array().expect("entities").iter().filter_map(Value::as_str).collect();
+    let entities: Vec<&str> = found["entities"]
+        .as_array()
+        .expect("entities")
+        .iter()
+        .filter_map(Value::as_str)
+        .collect();
     for expected in [
         "/world/arena/walls",
         "/world/arena/obstacles/discs",
@@ -79,10 +123,22 @@ fn a_recording_holds_the_swarm_as_the_robots_published_it() {
         "/swarm/components",
         "/events",
     ] {
-        assert!(entities.contains(&expected), "{expected} missing from {entities:?}");
+        assert!(
+            entities.contains(&expected),
+            "{expected} missing from {entities:?}"
+        );
     }
-    assert_eq!(found["robots"].as_array().map(Vec::len), Some(12), "{}", found["robots"]);
-    assert!(found["ticks"].as_u64().expect("ticks") >= 25, "only {} ticks recorded", found["ticks"]);
+    assert_eq!(
+        found["robots"].as_array().map(Vec::len),
+        Some(12),
+        "{}",
+        found["robots"]
+    );
+    assert!(
+        found["ticks"].as_u64().expect("ticks") >= 25,
+        "only {} ticks recorded",
+        found["ticks"]
+    );
     // Every pose we saw on the bus that the recording also holds is identical (to f32).
     let recorded = found["poses"].as_object().expect("poses");
     let mut compared = 0;
@@ -90,7 +146,10 @@ fn a_recording_holds_the_swarm_as_the_robots_published_it() {
         if let Some(position) = recorded.get(key) {
             let rx = position[0].as_f64().expect("x");
             let ry = position[1].as_f64().expect("y");
-            assert!((rx - x).abs() < 1e-4 && (ry - y).abs() < 1e-4, "{key}: recorded ({rx}, {ry}), published ({x}, {y})");
+            assert!(
+                (rx - x).abs() < 1e-4 && (ry - y).abs() < 1e-4,
+                "{key}: recorded ({rx}, {ry}), published ({x}, {y})"
+            );
             compared += 1;
         }
     }
@@ -102,15 +161,31 @@ fn a_recording_holds_the_swarm_as_the_robots_published_it() {
     let truth = tum.join("robot-0-true.tum");
     let estimate = tum.join("robot-0-estimated.tum");
     let evo = Command::new("evo_traj")
-        .args(["tum", truth.to_str().expect("utf-8"), estimate.to_str().expect("utf-8")])
+        .args([
+            "tum",
+            truth.to_str().expect("utf-8"),
+            estimate.to_str().expect("utf-8"),
+        ])
         .output()
         .expect("evo_traj (pip install evo)");
-    assert!(evo.status.success(), "evo_traj: {}", String::from_utf8_lossy(&evo.stderr));
+    assert!(
+        evo.status.success(),
+        "evo_traj: {}",
+        String::from_utf8_lossy(&evo.stderr)
+    );
     let ape = Command::new("evo_ape")
-        .args(["tum", truth.to_str().expect("utf-8"), estimate.to_str().expect("utf-8")])
+        .args([
+            "tum",
+            truth.to_str().expect("utf-8"),
+            estimate.to_str().expect("utf-8"),
+        ])
         .output()
         .expect("evo_ape");
-    assert!(ape.status.success(), "evo_ape: {}", String::from_utf8_lossy(&ape.stderr));
+    assert!(
+        ape.status.success(),
+        "evo_ape: {}",
+        String::from_utf8_lossy(&ape.stderr)
+    );
     assert!(String::from_utf8_lossy(&ape.stdout).contains("rmse"));
     let _ = std::fs::remove_dir_all(dir);
 }
@@ -121,7 +196,11 @@ fn a_recorder_killed_with_sigkill_leaves_a_readable_file() {
     let dir = scratch("sigkill");
     let recording = dir.join("killed.rrd");
     let swarm = BackgroundSwarm::start("e2e-sigkill", &["--agents", "6"]);
-    assert!(wait_until(Duration::from_secs(30), || alive_ids(&status(&swarm.name)).len() == 6));
+    assert!(wait_until(Duration::from_secs(30), || alive_ids(&status(
+        &swarm.name
+    ))
+    .len()
+        == 6));
     let mut recorder = Command::new(bin("shoal-viewer-log"))
         .arg(&recording)
         .args(["--swarm", &swarm.name])
@@ -135,7 +214,10 @@ fn a_recorder_killed_with_sigkill_leaves_a_readable_file() {
     let found = inspect(&recording);
     // Flushed at least every second: of 4.5 s, at least the first 3 s survive.
     let ticks = found["ticks"].as_u64().expect("ticks");
-    assert!(ticks >= 15, "only {ticks} ticks survived the SIGKILL: {found}");
+    assert!(
+        ticks >= 15,
+        "only {ticks} ticks survived the SIGKILL: {found}"
+    );
     assert_eq!(found["robots"].as_array().map(Vec::len), Some(6));
     let _ = std::fs::remove_dir_all(dir);
 }

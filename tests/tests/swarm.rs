@@ -9,7 +9,11 @@ const SPREAD: f64 = 1.0;
 
 fn up_json(args: &[&str]) -> Value {
     let output = shoal(args);
-    assert!(output.status.success(), "shoal up failed: {}", String::from_utf8_lossy(&output.stderr));
+    assert!(
+        output.status.success(),
+        "shoal up failed: {}",
+        String::from_utf8_lossy(&output.stderr)
+    );
     serde_json::from_slice(&output.stdout).expect("shoal up --json prints JSON")
 }
 
@@ -17,11 +21,24 @@ fn up_json(args: &[&str]) -> Value {
 fn twelve_robots_form_one_group_at_the_desired_spacing_and_leave_nothing_behind() {
     let _turn = serial();
     let swarm = "e2e-form";
-    let summary = up_json(&["up", "--swarm", swarm, "--agents", "12", "--lockstep", "--duration", "80", "--json"]);
+    let summary = up_json(&[
+        "up",
+        "--swarm",
+        swarm,
+        "--agents",
+        "12",
+        "--lockstep",
+        "--duration",
+        "80",
+        "--json",
+    ]);
     assert_eq!(summary["agents"], 12, "{summary}");
     assert_eq!(summary["components"], 1, "{summary}");
     let ratio = summary["spacing_ratio"].as_f64().expect("ratio");
-    assert!((ratio - 1.0).abs() <= 0.15, "spacing {ratio} x spread: {summary}");
+    assert!(
+        (ratio - 1.0).abs() <= 0.15,
+        "spacing {ratio} x spread: {summary}"
+    );
     assert!(summary["converge_s"].as_f64().is_some(), "{summary}");
     assert_eq!(residue(swarm), (0, vec![]), "nodes or services left behind");
 }
@@ -30,14 +47,32 @@ fn twelve_robots_form_one_group_at_the_desired_spacing_and_leave_nothing_behind(
 fn lockstep_runs_are_deterministic_for_a_seed() {
     let _turn = serial();
     let run = |swarm: &str, seed: &str| {
-        up_json(&["up", "--swarm", swarm, "--agents", "8", "--lockstep", "--duration", "20", "--seed", seed, "--json"])
+        up_json(&[
+            "up",
+            "--swarm",
+            swarm,
+            "--agents",
+            "8",
+            "--lockstep",
+            "--duration",
+            "20",
+            "--seed",
+            seed,
+            "--json",
+        ])
     };
     let first = run("e2e-det-a", "5");
     let second = run("e2e-det-b", "5");
     let other = run("e2e-det-c", "6");
-    assert_eq!(first["spacing_ratio"], second["spacing_ratio"], "{first} vs {second}");
+    assert_eq!(
+        first["spacing_ratio"], second["spacing_ratio"],
+        "{first} vs {second}"
+    );
     assert_eq!(first["spacing_cv"], second["spacing_cv"]);
-    assert_ne!(first["spacing_ratio"], other["spacing_ratio"], "another seed, another run");
+    assert_ne!(
+        first["spacing_ratio"], other["spacing_ratio"],
+        "another seed, another run"
+    );
 }
 
 #[test]
@@ -48,13 +83,25 @@ fn killed_robots_are_dropped_cleaned_and_restarted() {
         let s = status(&swarm.name);
         alive_ids(&s).len() == 14 && status_metrics(&s, SPREAD).components == 1
     });
-    assert!(formed, "14 robots never formed one group: {}", status(&swarm.name));
+    assert!(
+        formed,
+        "14 robots never formed one group: {}",
+        status(&swarm.name)
+    );
 
     // Two by `shoal kill`, one by kill -9 from outside: both must be handled alike.
     let before = status(&swarm.name);
-    let outsider_pid = alive_agents(&before).iter().find(|a| a["id"] == 5).and_then(|a| a["pid"].as_i64()).expect("pid of 5");
+    let outsider_pid = alive_agents(&before)
+        .iter()
+        .find(|a| a["id"] == 5)
+        .and_then(|a| a["pid"].as_i64())
+        .expect("pid of 5");
     let output = shoal(&["kill", "--swarm", &swarm.name, "3", "4"]);
-    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
     // SAFETY: plain kill(2).
     unsafe { libc::kill(outsider_pid as i32, libc::SIGKILL) };
 
@@ -62,7 +109,10 @@ fn killed_robots_are_dropped_cleaned_and_restarted() {
         let s = status(&swarm.name);
         let ids = alive_ids(&s);
         let nobody_tracks_the_dead = alive_agents(&s).iter().all(|a| {
-            a["neighbours"].as_array().is_some_and(|n| n.iter().all(|id| ![3, 4, 5].contains(&id.as_u64().unwrap_or(0))))
+            a["neighbours"].as_array().is_some_and(|n| {
+                n.iter()
+                    .all(|id| ![3, 4, 5].contains(&id.as_u64().unwrap_or(0)))
+            })
         });
         ids.len() == 11
             && s["agents"].as_array().is_some_and(|a| a.len() == 11)
@@ -73,19 +123,38 @@ fn killed_robots_are_dropped_cleaned_and_restarted() {
     assert!(healed, "the swarm did not heal: {}", status(&swarm.name));
 
     let output = shoal(&["restart", "--swarm", &swarm.name, "3", "4", "5"]);
-    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
     let rejoined = wait_until(Duration::from_secs(30), || {
         let s = status(&swarm.name);
         let mut ids = alive_ids(&s);
         ids.sort_unstable();
         ids == (0..14).collect::<Vec<u64>>() && alive_agents(&s).iter().all(|a| a["x"].is_number())
     });
-    assert!(rejoined, "restarted robots did not rejoin: {}", status(&swarm.name));
+    assert!(
+        rejoined,
+        "restarted robots did not rejoin: {}",
+        status(&swarm.name)
+    );
 
-    let agent_pids: Vec<i32> = alive_agents(&status(&swarm.name)).iter().filter_map(|a| a["pid"].as_i64()).map(|p| p as i32).collect();
+    let agent_pids: Vec<i32> = alive_agents(&status(&swarm.name))
+        .iter()
+        .filter_map(|a| a["pid"].as_i64())
+        .map(|p| p as i32)
+        .collect();
     let output = swarm.interrupt();
-    assert!(output.status.success(), "Ctrl-C must stop cleanly: {}", String::from_utf8_lossy(&output.stderr));
-    assert!(agent_pids.iter().all(|p| !pid_alive(*p)), "robots outlived Ctrl-C (restarted ones too)");
+    assert!(
+        output.status.success(),
+        "Ctrl-C must stop cleanly: {}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    assert!(
+        agent_pids.iter().all(|p| !pid_alive(*p)),
+        "robots outlived Ctrl-C (restarted ones too)"
+    );
     assert_eq!(residue("e2e-heal"), (0, vec![]));
 }
 
@@ -93,14 +162,34 @@ fn killed_robots_are_dropped_cleaned_and_restarted() {
 fn robots_spawned_into_a_running_swarm_are_absorbed() {
     let _turn = serial();
     let swarm = BackgroundSwarm::start("e2e-spawn", &["--agents", "10", "--lockstep"]);
-    assert!(wait_until(Duration::from_secs(60), || alive_ids(&status(&swarm.name)).len() == 10));
-    let output = shoal(&["spawn", "--swarm", &swarm.name, "--count", "3", "--at", "14,14"]);
-    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    assert!(wait_until(Duration::from_secs(60), || alive_ids(&status(
+        &swarm.name
+    ))
+    .len()
+        == 10));
+    let output = shoal(&[
+        "spawn",
+        "--swarm",
+        &swarm.name,
+        "--count",
+        "3",
+        "--at",
+        "14,14",
+    ]);
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
     let absorbed = wait_until(Duration::from_secs(60), || {
         let s = status(&swarm.name);
         alive_ids(&s).len() == 13 && status_metrics(&s, SPREAD).components == 1
     });
-    assert!(absorbed, "spawned robots were not absorbed: {}", status(&swarm.name));
+    assert!(
+        absorbed,
+        "spawned robots were not absorbed: {}",
+        status(&swarm.name)
+    );
 }
 
 #[test]
@@ -111,16 +200,29 @@ fn two_swarms_with_different_names_do_not_see_each_other() {
     let both_up = wait_until(Duration::from_secs(60), || {
         alive_ids(&status(&red.name)).len() == 6 && alive_ids(&status(&blue.name)).len() == 9
     });
-    assert!(both_up, "red {} blue {}", status(&red.name), status(&blue.name));
+    assert!(
+        both_up,
+        "red {} blue {}",
+        status(&red.name),
+        status(&blue.name)
+    );
     let red_status = status(&red.name);
     let blue_status = status(&blue.name);
-    let pids = |s: &Value| -> Vec<i64> { alive_agents(s).iter().filter_map(|a| a["pid"].as_i64()).collect() };
+    let pids = |s: &Value| -> Vec<i64> {
+        alive_agents(s)
+            .iter()
+            .filter_map(|a| a["pid"].as_i64())
+            .collect()
+    };
     let (red_pids, blue_pids) = (pids(&red_status), pids(&blue_status));
     assert!(red_pids.iter().all(|p| !blue_pids.contains(p)));
     // Red has ids 0..6 only, so no red robot may track one of blue's ids 6..9.
     for agent in alive_agents(&red_status) {
         for id in agent["neighbours"].as_array().expect("neighbours") {
-            assert!(id.as_u64().expect("id") < 6, "red robot tracks a foreign robot: {agent}");
+            assert!(
+                id.as_u64().expect("id") < 6,
+                "red robot tracks a foreign robot: {agent}"
+            );
         }
     }
 }
@@ -130,17 +232,47 @@ fn a_malformed_scenario_names_file_line_and_field() {
     let dir = std::env::temp_dir().join(format!("shoal-e2e-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temp dir");
     let path = dir.join("bad.toml");
-    std::fs::write(&path, "[arena]\nwidth = 20.0\nheight = 20.0\n\n[formation]\nneighbours = \"four\"\n").expect("write");
-    let output = shoal(&["up", "--swarm", "e2e-bad", "--scenario", path.to_str().expect("utf-8"), "--duration", "1"]);
+    std::fs::write(
+        &path,
+        "[arena]\nwidth = 20.0\nheight = 20.0\n\n[formation]\nneighbours = \"four\"\n",
+    )
+    .expect("write");
+    let output = shoal(&[
+        "up",
+        "--swarm",
+        "e2e-bad",
+        "--scenario",
+        path.to_str().expect("utf-8"),
+        "--duration",
+        "1",
+    ]);
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(!output.status.success());
-    assert!(stderr.contains("bad.toml:6: field `formation.neighbours`"), "{stderr}");
+    assert!(
+        stderr.contains("bad.toml:6: field `formation.neighbours`"),
+        "{stderr}"
+    );
 
-    std::fs::write(&path, "[arena]\nwidth = 20.0\nheight = 20.0\n[timing]\nperiod_s = -0.2\n").expect("write");
-    let output = shoal(&["up", "--swarm", "e2e-bad", "--scenario", path.to_str().expect("utf-8"), "--duration", "1"]);
+    std::fs::write(
+        &path,
+        "[arena]\nwidth = 20.0\nheight = 20.0\n[timing]\nperiod_s = -0.2\n",
+    )
+    .expect("write");
+    let output = shoal(&[
+        "up",
+        "--swarm",
+        "e2e-bad",
+        "--scenario",
+        path.to_str().expect("utf-8"),
+        "--duration",
+        "1",
+    ]);
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(!output.status.success());
-    assert!(stderr.contains("bad.toml:5: field `timing.period_s`"), "{stderr}");
+    assert!(
+        stderr.contains("bad.toml:5: field `timing.period_s`"),
+        "{stderr}"
+    );
     let _ = std::fs::remove_dir_all(dir);
 }
 
@@ -149,35 +281,29 @@ fn malformed_bus_samples_are_rejected_and_counted() {
     use shoal_broker::{Bus, BusLimits, CellExchange, PoseSample, RosterPublisher, names};
     let _turn = serial();
     let swarm = BackgroundSwarm::start("e2e-rogue", &["--agents", "8", "--lockstep"]);
-    assert!(wait_until(Duration::from_secs(60), || alive_ids(&status(&swarm.name)).len() == 8));
+    assert!(wait_until(Duration::from_secs(60), || alive_ids(&status(
+        &swarm.name
+    ))
+    .len()
+        == 8));
 
     // A rogue publisher writes NaN and far-away poses into the cells where the
     // robots stand and into the roster.
-    let bus = Bus::join(&swarm.name, &names::tool_node(&swarm.name, "rogue"), BusLimits::default()).expect("join");
+    let bus = Bus::join(
+        &swarm.name,
+        &names::tool_node(&swarm.name, "rogue"),
+        BusLimits::default(),
+    )
+    .expect("join");
     let roster = RosterPublisher::new(&bus).expect("roster");
     let s = status(&swarm.name);
     let target = alive_agents(&s)[0].clone();
-    let (x, y) = (target["x"].as_f64().expect("x"), target["y"].as_f64().expect("y"));
+    let (x, y) = (
+        target["x"].as_f64().expect("x"),
+        target["y"].as_f64().expect("y"),
+    );
     let mut cells = CellExchange::new(shoal_physics::Scenario::default_arena().bus.cell_size);
-    let mut bad = PoseSample {
-        agent_id: 999,
-        pid: std::process::id(),
-        tick: u64::MAX / 2,
-        sim_time: 0.0,
-        x,
-        y,
-        theta: f64::NAN,
-        believed_x: x,
-        believed_y: y,
-        believed_theta: 0.0,
-        vx: 0.0,
-        vy: 0.0,
-        command: 0,
-        health: 0,
-        visible: 0,
-        neighbour_count: 0,
-        neighbours: [0; shoal_broker::MAX_NEIGHBOURS],
-    };
+    let mut bad = PoseSample::standing(999, std::process::id(), u64::MAX / 2, x, y, f64::NAN);
     for round in 0..20 {
         bad.x = if round % 2 == 0 { x } else { 1e9 };
         bad.theta = if round % 2 == 0 { f64::NAN } else { 0.0 };
@@ -190,12 +316,24 @@ fn malformed_bus_samples_are_rejected_and_counted() {
     }
     let flagged = wait_until(Duration::from_secs(10), || {
         let s = status(&swarm.name);
-        alive_agents(&s).iter().any(|a| a["health"].as_u64().is_some_and(|h| h & u64::from(shoal_broker::Health::REJECTED_INPUT) != 0))
+        alive_agents(&s).iter().any(|a| {
+            a["health"]
+                .as_u64()
+                .is_some_and(|h| h & u64::from(shoal_broker::Health::REJECTED_INPUT) != 0)
+        })
     });
     let s = status(&swarm.name);
     assert!(flagged, "no robot reported rejected input: {s}");
-    assert_eq!(alive_ids(&s).len(), 8, "the rogue was counted as a robot: {s}");
-    assert!(alive_agents(&s).iter().all(|a| a["x"].as_f64().is_some_and(f64::is_finite)));
+    assert_eq!(
+        alive_ids(&s).len(),
+        8,
+        "the rogue was counted as a robot: {s}"
+    );
+    assert!(
+        alive_agents(&s)
+            .iter()
+            .all(|a| a["x"].as_f64().is_some_and(f64::is_finite))
+    );
     drop(cells);
     drop(roster);
     drop(bus);
@@ -205,21 +343,43 @@ fn malformed_bus_samples_are_rejected_and_counted() {
 fn a_real_time_swarm_keeps_going_when_shoal_up_is_killed() {
     let _turn = serial();
     let swarm = BackgroundSwarm::start("e2e-orphans", &["--agents", "6"]);
-    assert!(wait_until(Duration::from_secs(30), || alive_ids(&status(&swarm.name)).len() == 6));
+    assert!(wait_until(Duration::from_secs(30), || alive_ids(&status(
+        &swarm.name
+    ))
+    .len()
+        == 6));
     // SAFETY: plain kill(2) on our child.
     unsafe { libc::kill(swarm.pid(), libc::SIGKILL) };
-    let ticks = |s: &Value| -> Vec<u64> { alive_agents(s).iter().filter_map(|a| a["tick"].as_u64()).collect() };
+    let ticks = |s: &Value| -> Vec<u64> {
+        alive_agents(s)
+            .iter()
+            .filter_map(|a| a["tick"].as_u64())
+            .collect()
+    };
     let before = ticks(&status(&swarm.name));
     std::thread::sleep(Duration::from_secs(2));
     let after_status = status(&swarm.name);
     let after = ticks(&after_status);
-    assert_eq!(after.len(), 6, "robots died with the launcher: {after_status}");
-    assert!(after.iter().min() > before.iter().max(), "robots stopped stepping: {before:?} then {after:?}");
-    let ids: Vec<String> = alive_ids(&after_status).iter().map(u64::to_string).collect();
+    assert_eq!(
+        after.len(),
+        6,
+        "robots died with the launcher: {after_status}"
+    );
+    assert!(
+        after.iter().min() > before.iter().max(),
+        "robots stopped stepping: {before:?} then {after:?}"
+    );
+    let ids: Vec<String> = alive_ids(&after_status)
+        .iter()
+        .map(u64::to_string)
+        .collect();
     let mut args = vec!["kill", "--graceful", "--swarm", "e2e-orphans"];
     args.extend(ids.iter().map(String::as_str));
     assert!(shoal(&args).status.success());
-    assert!(wait_until(Duration::from_secs(10), || alive_ids(&status("e2e-orphans")).is_empty()));
+    assert!(wait_until(Duration::from_secs(10), || alive_ids(&status(
+        "e2e-orphans"
+    ))
+    .is_empty()));
     let _ = std::fs::remove_dir_all(shoal_broker::SwarmRuntime::locate("e2e-orphans").dir);
     drop(swarm);
 }

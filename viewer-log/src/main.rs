@@ -36,23 +36,42 @@ fn run(args: Args) -> Result<()> {
     let runtime = SwarmRuntime::locate(&args.swarm);
     let meta = runtime.read_meta()?;
     let scenario = Scenario::from_file(&runtime.scenario_path())?;
-    let bus = Bus::join(&args.swarm, &names::tool_node(&args.swarm, &format!("recorder-{}", std::process::id())), BusLimits::default())?;
+    let bus = Bus::join(
+        &args.swarm,
+        &names::tool_node(&args.swarm, &format!("recorder-{}", std::process::id())),
+        BusLimits::default(),
+    )?;
     let roster = RosterReader::new(&bus)?;
     // Chunks are cut once a second rather than every few milliseconds: each
     // chunk carries overhead, and a second is what the flush promises anyway.
-    let batching = rerun::log::ChunkBatcherConfig { flush_tick: FLUSH_EVERY, ..rerun::log::ChunkBatcherConfig::DEFAULT };
+    let batching = rerun::log::ChunkBatcherConfig {
+        flush_tick: FLUSH_EVERY,
+        ..rerun::log::ChunkBatcherConfig::DEFAULT
+    };
     let rec = rerun::RecordingStreamBuilder::new("shoal")
         .batcher_config(batching)
         .save(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     let mut recorder = Recorder::new(rec, &scenario, args.tum.as_deref())?;
-    recorder.event(&format!("recording swarm `{}` ({})", args.swarm, if meta.lockstep { "lockstep" } else { "real time" }))?;
+    recorder.event(&format!(
+        "recording swarm `{}` ({})",
+        args.swarm,
+        if meta.lockstep {
+            "lockstep"
+        } else {
+            "real time"
+        }
+    ))?;
     let check = SampleCheck::for_map(scenario.arena.width, scenario.arena.height, 1.0);
     let silent_ticks = (scenario.timing.stale_periods.ceil() as u64).max(1) + 1;
     let started = Instant::now();
     let mut last_flush = Instant::now();
     let mut newest_tick = 0;
-    while !bus.termination_requested() && args.duration.is_none_or(|d| started.elapsed().as_secs_f64() < d) {
+    while !bus.termination_requested()
+        && args
+            .duration
+            .is_none_or(|d| started.elapsed().as_secs_f64() < d)
+    {
         roster.receive(|sample| {
             if check.inspect(&sample).is_ok() {
                 newest_tick = newest_tick.max(sample.tick);
@@ -88,7 +107,9 @@ fn run(args: Args) -> Result<()> {
 
 fn main() -> std::process::ExitCode {
     tracing_subscriber::fmt()
-        .with_env_filter(tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()))
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()),
+        )
         .with_writer(std::io::stderr)
         .init();
     match run(Args::parse()) {

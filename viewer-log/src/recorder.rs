@@ -45,7 +45,11 @@ pub struct Recorder {
 }
 
 impl Recorder {
-    pub fn new(rec: RecordingStream, scenario: &Scenario, tum_dir: Option<&Path>) -> anyhow::Result<Self> {
+    pub fn new(
+        rec: RecordingStream,
+        scenario: &Scenario,
+        tum_dir: Option<&Path>,
+    ) -> anyhow::Result<Self> {
         crate::arena::log_arena(&rec, &scenario.arena)?;
         let tum = tum_dir.map(TumWriter::new).transpose()?;
         Ok(Self {
@@ -75,8 +79,15 @@ impl Recorder {
 
     /// Logs every tick older than the newest one seen (those are complete).
     pub fn log_complete(&mut self) -> anyhow::Result<()> {
-        let Some(&newest) = self.pending.keys().next_back() else { return Ok(()) };
-        let complete: Vec<u64> = self.pending.keys().copied().filter(|t| *t < newest).collect();
+        let Some(&newest) = self.pending.keys().next_back() else {
+            return Ok(());
+        };
+        let complete: Vec<u64> = self
+            .pending
+            .keys()
+            .copied()
+            .filter(|t| *t < newest)
+            .collect();
         for tick in complete {
             if let Some(samples) = self.pending.remove(&tick) {
                 self.log_frame(tick, samples)?;
@@ -96,23 +107,35 @@ impl Recorder {
 
     /// Robots not heard of for `silent_ticks` ticks are logged as gone.
     pub fn forget_silent(&mut self, now_tick: u64, silent_ticks: u64) -> anyhow::Result<()> {
-        let gone: Vec<u32> =
-            self.robots.iter().filter(|(_, r)| r.last_tick + silent_ticks < now_tick).map(|(id, _)| *id).collect();
+        let gone: Vec<u32> = self
+            .robots
+            .iter()
+            .filter(|(_, r)| r.last_tick + silent_ticks < now_tick)
+            .map(|(id, _)| *id)
+            .collect();
         for id in gone {
             if let Some(robot) = self.robots.remove(&id) {
-                self.event(&format!("robot {id} (pid {}) fell silent after tick {}", robot.pid, robot.last_tick))?;
+                self.event(&format!(
+                    "robot {id} (pid {}) fell silent after tick {}",
+                    robot.pid, robot.last_tick
+                ))?;
             }
         }
         Ok(())
     }
 
     pub fn event(&self, text: &str) -> anyhow::Result<()> {
-        self.rec.log("events", &rerun::TextLog::new(text).with_level(rerun::TextLogLevel::INFO))?;
+        self.rec.log(
+            "events",
+            &rerun::TextLog::new(text).with_level(rerun::TextLogLevel::INFO),
+        )?;
         Ok(())
     }
 
     fn log_frame(&mut self, tick: u64, samples: Vec<PoseSample>) -> anyhow::Result<()> {
-        let Some(first) = samples.first() else { return Ok(()) };
+        let Some(first) = samples.first() else {
+            return Ok(());
+        };
         self.rec.set_time_sequence("tick", tick as i64);
         self.rec.set_duration_secs("sim_time", first.sim_time);
         for sample in &samples {
@@ -120,7 +143,8 @@ impl Recorder {
         }
         self.stats.frames += 1;
         let robots: Vec<&PoseSample> = samples.iter().collect();
-        let true_positions: Vec<[f32; 2]> = robots.iter().map(|s| [s.x as f32, s.y as f32]).collect();
+        let true_positions: Vec<[f32; 2]> =
+            robots.iter().map(|s| [s.x as f32, s.y as f32]).collect();
         let labels: Vec<String> = robots.iter().map(|s| s.agent_id.to_string()).collect();
         let colors: Vec<rerun::Color> = robots.iter().map(|s| health_color(s.health)).collect();
         self.rec.log(
@@ -133,39 +157,80 @@ impl Recorder {
         )?;
         self.rec.log(
             "world/robots/believed",
-            &rerun::Points2D::new(robots.iter().map(|s| [s.believed_x as f32, s.believed_y as f32]))
-                .with_radii(robots.iter().map(|_| 0.05f32))
-                .with_colors([rerun::Color::from_rgb(255, 170, 0)]),
+            &rerun::Points2D::new(
+                robots
+                    .iter()
+                    .map(|s| [s.believed_x as f32, s.believed_y as f32]),
+            )
+            .with_radii(robots.iter().map(|_| 0.05f32))
+            .with_colors([rerun::Color::from_rgb(255, 170, 0)]),
         )?;
         self.rec.log(
             "world/robots/heading",
-            &rerun::Arrows2D::from_vectors(robots.iter().map(|s| [0.3 * s.theta.cos() as f32, 0.3 * s.theta.sin() as f32]))
-                .with_origins(true_positions.clone()),
+            &rerun::Arrows2D::from_vectors(
+                robots
+                    .iter()
+                    .map(|s| [0.3 * s.theta.cos() as f32, 0.3 * s.theta.sin() as f32]),
+            )
+            .with_origins(true_positions.clone()),
         )?;
-        let by_id: HashMap<u32, [f32; 2]> = robots.iter().map(|s| (s.agent_id, [s.x as f32, s.y as f32])).collect();
+        let by_id: HashMap<u32, [f32; 2]> = robots
+            .iter()
+            .map(|s| (s.agent_id, [s.x as f32, s.y as f32]))
+            .collect();
         let mut links: Vec<Vec<[f32; 2]>> = Vec::new();
         for s in &robots {
             let from = [s.x as f32, s.y as f32];
-            links.extend(s.neighbour_ids().iter().filter_map(|n| by_id.get(n).map(|to| vec![from, *to])));
+            links.extend(
+                s.neighbour_ids()
+                    .iter()
+                    .filter_map(|n| by_id.get(n).map(|to| vec![from, *to])),
+            );
         }
-        self.rec.log("world/links", &rerun::LineStrips2D::new(links).with_colors([rerun::Color::from_rgb(90, 160, 255)]))?;
+        self.rec.log(
+            "world/links",
+            &rerun::LineStrips2D::new(links).with_colors([rerun::Color::from_rgb(90, 160, 255)]),
+        )?;
         if tick.is_multiple_of(TRAIL_EVERY_TICKS) {
-            let trails: Vec<Vec<[f32; 2]>> = self.robots.values().map(|r| r.trail.iter().copied().collect()).collect();
-            self.rec.log("world/robots/trails", &rerun::LineStrips2D::new(trails))?;
+            let trails: Vec<Vec<[f32; 2]>> = self
+                .robots
+                .values()
+                .map(|r| r.trail.iter().copied().collect())
+                .collect();
+            self.rec
+                .log("world/robots/trails", &rerun::LineStrips2D::new(trails))?;
         }
         for s in &robots {
             // Health rarely changes; logging it only then keeps the file small.
             if self.last_health.insert(s.agent_id, s.health) != Some(s.health) {
-                self.rec.log(format!("robots/{}/health", s.agent_id), &rerun::Scalars::new([f64::from(s.health)]))?;
+                self.rec.log(
+                    format!("robots/{}/health", s.agent_id),
+                    &rerun::Scalars::new([f64::from(s.health)]),
+                )?;
             }
         }
         let positions: Vec<DVec2> = robots.iter().map(|s| DVec2::new(s.x, s.y)).collect();
         let metrics = formation_metrics(&positions, self.spread);
-        self.rec.log("swarm/agents", &rerun::Scalars::new([metrics.agents as f64]))?;
-        self.rec.log("swarm/components", &rerun::Scalars::new([metrics.components as f64]))?;
-        self.rec.log("swarm/spacing_ratio", &rerun::Scalars::new([metrics.spacing_ratio]))?;
-        self.rec.log("recorder/dropped_samples", &rerun::Scalars::new([self.stats.dropped as f64]))?;
-        self.rec.log("recorder/rejected_samples", &rerun::Scalars::new([self.stats.rejected as f64]))?;
+        self.rec.log(
+            "swarm/agents",
+            &rerun::Scalars::new([metrics.agents as f64]),
+        )?;
+        self.rec.log(
+            "swarm/components",
+            &rerun::Scalars::new([metrics.components as f64]),
+        )?;
+        self.rec.log(
+            "swarm/spacing_ratio",
+            &rerun::Scalars::new([metrics.spacing_ratio]),
+        )?;
+        self.rec.log(
+            "recorder/dropped_samples",
+            &rerun::Scalars::new([self.stats.dropped as f64]),
+        )?;
+        self.rec.log(
+            "recorder/rejected_samples",
+            &rerun::Scalars::new([self.stats.rejected as f64]),
+        )?;
         if let Some(tum) = &mut self.tum {
             for s in &robots {
                 tum.write(s)?;
@@ -190,13 +255,24 @@ impl Recorder {
                 }
                 None
             }
-            Some(robot) => Some(format!("robot {} restarted (pid {} -> {})", sample.agent_id, robot.pid, sample.pid)),
-            None => Some(format!("robot {} (pid {}) joined at ({:.2}, {:.2})", sample.agent_id, sample.pid, sample.x, sample.y)),
+            Some(robot) => Some(format!(
+                "robot {} restarted (pid {} -> {})",
+                sample.agent_id, robot.pid, sample.pid
+            )),
+            None => Some(format!(
+                "robot {} (pid {}) joined at ({:.2}, {:.2})",
+                sample.agent_id, sample.pid, sample.x, sample.y
+            )),
         };
         if let Some(text) = event {
             self.robots.insert(
                 sample.agent_id,
-                Robot { pid: sample.pid, last_tick: sample.tick, latest: *sample, trail: VecDeque::from([point]) },
+                Robot {
+                    pid: sample.pid,
+                    last_tick: sample.tick,
+                    latest: *sample,
+                    trail: VecDeque::from([point]),
+                },
             );
             self.event(&text)?;
         }
@@ -236,19 +312,25 @@ struct TumWriter {
 
 impl TumWriter {
     fn new(dir: &Path) -> anyhow::Result<Self> {
-        std::fs::create_dir_all(dir).map_err(|e| anyhow::anyhow!("creating {}: {e}", dir.display()))?;
-        Ok(Self { dir: dir.to_owned(), files: HashMap::new() })
+        std::fs::create_dir_all(dir)
+            .map_err(|e| anyhow::anyhow!("creating {}: {e}", dir.display()))?;
+        Ok(Self {
+            dir: dir.to_owned(),
+            files: HashMap::new(),
+        })
     }
 
     fn write(&mut self, s: &PoseSample) -> anyhow::Result<()> {
-        for (kind, x, y, theta) in
-            [("true", s.x, s.y, s.theta), ("estimated", s.believed_x, s.believed_y, s.believed_theta)]
-        {
+        for (kind, x, y, theta) in [
+            ("true", s.x, s.y, s.theta),
+            ("estimated", s.believed_x, s.believed_y, s.believed_theta),
+        ] {
             let file = match self.files.entry((s.agent_id, kind)) {
                 std::collections::hash_map::Entry::Occupied(e) => e.into_mut(),
                 std::collections::hash_map::Entry::Vacant(e) => {
                     let path = self.dir.join(format!("robot-{}-{kind}.tum", s.agent_id));
-                    let file = File::create(&path).map_err(|err| anyhow::anyhow!("creating {}: {err}", path.display()))?;
+                    let file = File::create(&path)
+                        .map_err(|err| anyhow::anyhow!("creating {}: {err}", path.display()))?;
                     e.insert(BufWriter::new(file))
                 }
             };

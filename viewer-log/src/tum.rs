@@ -7,7 +7,10 @@ use std::fmt::Write as _;
 pub fn line(time_s: f64, x: f64, y: f64, theta: f64) -> String {
     let (sin, cos) = (theta / 2.0).sin_cos();
     let mut out = String::new();
-    let _ = writeln!(out, "{time_s:.6} {x:.6} {y:.6} 0.0 0.0 0.0 {sin:.9} {cos:.9}");
+    let _ = writeln!(
+        out,
+        "{time_s:.6} {x:.6} {y:.6} 0.0 0.0 0.0 {sin:.9} {cos:.9}"
+    );
     out
 }
 
@@ -18,7 +21,10 @@ mod tests {
     #[test]
     fn a_quarter_turn_is_a_unit_quaternion_about_z() {
         let text = line(1.5, 2.0, 3.0, std::f64::consts::FRAC_PI_2);
-        let values: Vec<f64> = text.split_whitespace().map(|v| v.parse().expect("number")).collect();
+        let values: Vec<f64> = text
+            .split_whitespace()
+            .map(|v| v.parse().expect("number"))
+            .collect();
         assert_eq!(values.len(), 8);
         assert!((values[6] - values[7]).abs() < 1e-9);
         assert!((values[6].powi(2) + values[7].powi(2) - 1.0).abs() < 1e-9);

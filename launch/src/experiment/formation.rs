@@ -43,7 +43,8 @@ pub fn run(agents: usize, seeds: u64, max_s: f64) -> Result<Report> {
                 scenario.formation.sectors = sectors;
                 scenario.formation.fill_empty_sectors = fill;
                 index += 1;
-                let mut swarm = RunningSwarm::launch(&swarm_name("formation", index), scenario, true)?;
+                let mut swarm =
+                    RunningSwarm::launch(&swarm_name("formation", index), scenario, true)?;
                 outcomes.push(run_until_settled(&mut swarm, max_s, max_s)?);
                 swarm.shutdown()?;
             }
@@ -57,7 +58,11 @@ pub fn run(agents: usize, seeds: u64, max_s: f64) -> Result<Report> {
                 components: mean(outcomes.iter().map(|o| o.metrics.components as f64)),
                 spacing_ratio: mean(outcomes.iter().map(|o| o.metrics.spacing_ratio)),
                 spacing_cv: mean(outcomes.iter().map(|o| o.metrics.spacing_cv)),
-                converge_s: if converged.is_empty() { None } else { Some(mean(converged.iter().copied())) },
+                converge_s: if converged.is_empty() {
+                    None
+                } else {
+                    Some(mean(converged.iter().copied()))
+                },
                 converged_runs: converged.len(),
             };
             eprintln!(

@@ -32,7 +32,11 @@ pub struct Report {
 }
 
 fn centroid(swarm: &RunningSwarm) -> DVec2 {
-    let positions: Vec<DVec2> = swarm.observer.samples().map(|s| DVec2::new(s.x, s.y)).collect();
+    let positions: Vec<DVec2> = swarm
+        .observer
+        .samples()
+        .map(|s| DVec2::new(s.x, s.y))
+        .collect();
     positions.iter().copied().sum::<DVec2>() / positions.len().max(1) as f64
 }
 
@@ -41,11 +45,15 @@ pub fn remove_central(seed: u64, max_s: f64) -> Result<Case> {
     scenario.agents.count = 20;
     scenario.agents.seed = seed;
     let spread = scenario.formation.spread;
-    let mut swarm = RunningSwarm::launch(&swarm_name("heal-remove", seed as usize), scenario, true)?;
+    let mut swarm =
+        RunningSwarm::launch(&swarm_name("heal-remove", seed as usize), scenario, true)?;
     let before = run_until_settled(&mut swarm, max_s, 5.0)?;
     let center = centroid(&swarm);
-    let mut by_distance: Vec<(f64, u32)> =
-        swarm.observer.samples().map(|s| (DVec2::new(s.x, s.y).distance(center), s.agent_id)).collect();
+    let mut by_distance: Vec<(f64, u32)> = swarm
+        .observer
+        .samples()
+        .map(|s| (DVec2::new(s.x, s.y).distance(center), s.agent_id))
+        .collect();
     by_distance.sort_by(|a, b| a.0.total_cmp(&b.0));
     let removed: Vec<u32> = by_distance.iter().take(4).map(|(_, id)| *id).collect();
     let hole = swarm
@@ -60,7 +68,9 @@ pub fn remove_central(seed: u64, max_s: f64) -> Result<Case> {
     }
     let after = run_until(&mut swarm, max_s, 5.0, |observer| {
         observer.len() == 16
-            && observer.samples().any(|s| DVec2::new(s.x, s.y).distance(hole) <= HOLE_CLOSED_SPREADS * spread)
+            && observer
+                .samples()
+                .any(|s| DVec2::new(s.x, s.y).distance(hole) <= HOLE_CLOSED_SPREADS * spread)
     })?;
     swarm.shutdown()?;
     Ok(Case {
@@ -83,7 +93,11 @@ pub fn add_at_edge(seed: u64, max_s: f64) -> Result<Case> {
     let mut swarm = RunningSwarm::launch(&swarm_name("heal-add", seed as usize), scenario, true)?;
     let before = run_until_settled(&mut swarm, max_s, 5.0)?;
     let center = centroid(&swarm);
-    let reach = swarm.observer.samples().map(|s| DVec2::new(s.x, s.y).distance(center)).fold(0.0, f64::max);
+    let reach = swarm
+        .observer
+        .samples()
+        .map(|s| DVec2::new(s.x, s.y).distance(center))
+        .fold(0.0, f64::max);
     let radius = reach + spread;
     for k in 0..6u32 {
         let angle = std::f64::consts::TAU * f64::from(k) / 6.0;
@@ -111,7 +125,10 @@ pub fn run(seeds: u64, max_s: f64) -> Result<Report> {
     let mut cases = Vec::new();
     for seed in 1..=seeds {
         for case in [remove_central(seed, max_s)?, add_at_edge(seed, max_s)?] {
-            eprintln!("healing: {} (seed {seed}): groups {}, spacing {:.2}, healed after {:?} s", case.name, case.components, case.spacing_ratio, case.heal_s);
+            eprintln!(
+                "healing: {} (seed {seed}): groups {}, spacing {:.2}, healed after {:?} s",
+                case.name, case.components, case.spacing_ratio, case.heal_s
+            );
             cases.push(case);
         }
     }

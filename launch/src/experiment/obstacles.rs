@@ -32,7 +32,10 @@ pub fn cluttered(count: usize, seed: u64) -> Scenario {
     let (w, h) = (scenario.arena.width, scenario.arena.height);
     scenario.arena.obstacles = (0..count)
         .map(|_| Obstacle::Disc {
-            center: [rng.random_range(0.5..w - 0.5), rng.random_range(0.5..h - 0.5)],
+            center: [
+                rng.random_range(0.5..w - 0.5),
+                rng.random_range(0.5..h - 0.5),
+            ],
             radius: rng.random_range(0.05..0.15),
         })
         .collect();
@@ -41,7 +44,9 @@ pub fn cluttered(count: usize, seed: u64) -> Scenario {
 
 pub fn run(agents: usize, seeds: u64, max_s: f64) -> Result<Report> {
     let mut cases = Vec::new();
-    let mut settings: Vec<(String, usize, u64)> = (1..=seeds).map(|s| (format!("clear-seed-{s}"), 0, s)).collect();
+    let mut settings: Vec<(String, usize, u64)> = (1..=seeds)
+        .map(|s| (format!("clear-seed-{s}"), 0, s))
+        .collect();
     settings.extend((1..=seeds).map(|s| (format!("400-obstacles-seed-{s}"), 400, s)));
     for (index, (name, obstacles, seed)) in settings.into_iter().enumerate() {
         let mut scenario = cluttered(obstacles, seed);

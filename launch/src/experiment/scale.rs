@@ -39,7 +39,13 @@ pub fn open_arena(agents: usize) -> Scenario {
     let spread = scenario.formation.spread;
     let start_side = (agents as f64).sqrt() * spread * 1.3;
     let side = (start_side * 2.0 + 10.0).max(20.0);
-    scenario.arena = Arena { width: side, height: side, walls: vec![], obstacles: vec![], surfaces: vec![] };
+    scenario.arena = Arena {
+        width: side,
+        height: side,
+        walls: vec![],
+        obstacles: vec![],
+        surfaces: vec![],
+    };
     let (lo, hi) = ((side - start_side) / 2.0, (side + start_side) / 2.0);
     scenario.agents.start_region = [lo, lo, hi, hi];
     scenario.agents.count = agents;
@@ -49,7 +55,8 @@ pub fn open_arena(agents: usize) -> Scenario {
 pub fn run(sizes: &[usize], max_s: f64) -> Result<Report> {
     let mut rows = Vec::new();
     for (index, &agents) in sizes.iter().enumerate() {
-        let mut swarm = RunningSwarm::launch(&swarm_name("scale", index), open_arena(agents), true)?;
+        let mut swarm =
+            RunningSwarm::launch(&swarm_name("scale", index), open_arena(agents), true)?;
         let pids = swarm.agent_pids();
         let before: ProcessUsage = pids.iter().filter_map(|p| usage(*p)).sum();
         let wall = Instant::now();
@@ -67,14 +74,20 @@ pub fn run(sizes: &[usize], max_s: f64) -> Result<Report> {
             spacing_ratio: outcome.metrics.spacing_ratio,
             converge_s: outcome.converge_s,
             ticks: outcome.ticks,
-            cpu_ms_per_agent_tick: (after_total.cpu_s - before.cpu_s) * 1000.0 / (agents as f64 * ticks),
+            cpu_ms_per_agent_tick: (after_total.cpu_s - before.cpu_s) * 1000.0
+                / (agents as f64 * ticks),
             rss_mb_per_agent: after_total.rss_mb / measured,
             private_mb_per_agent: after_total.private_mb / measured,
             speedup: outcome.ticks as f64 * swarm.scenario.timing.period_s / wall_s,
         };
         eprintln!(
             "scale: {agents} robots: groups {}, spacing {:.2}, formed after {:?} s, {:.3} ms CPU per robot per tick, {:.1} MB RSS per robot, {:.1}x real time",
-            row.components, row.spacing_ratio, row.converge_s, row.cpu_ms_per_agent_tick, row.rss_mb_per_agent, row.speedup
+            row.components,
+            row.spacing_ratio,
+            row.converge_s,
+            row.cpu_ms_per_agent_tick,
+            row.rss_mb_per_agent,
+            row.speedup
         );
         rows.push(row);
     }
