@@ -36,11 +36,16 @@ pub struct Update {
 }
 
 impl MixtureLearner {
+    /// Starts as if `mixture` had been seen for a full window of fully
+    /// informative steps (total quality 1 each), so the first real steps
+    /// move it by about 1/k rather than replacing it with what one step saw.
     pub fn new(mixture: Mixture2, window: usize) -> Self {
+        let window = window.clamp(1, 64);
+        let history = std::iter::repeat_n(mixture.weights, window).collect();
         Self {
             mixture,
-            window: window.clamp(1, 64),
-            history: VecDeque::new(),
+            window,
+            history,
             min_variance: 1e-8,
         }
     }
@@ -73,17 +78,20 @@ impl MixtureLearner {
             }
             let gain = g[j] / window_total;
             gains[j] = gain;
-            let mean = weighted_sum[j] / g[j];
-            let variance = draws
-                .iter()
-                .zip(&responsibilities)
-                .map(|(d, r)| d.quality * r[j] * (d.value - mean).powi(2))
-                .sum::<f64>()
-                / g[j];
             let share = g[j] / total_g;
             let m = &mut self.mixture;
             m.weights[j] += gain * (share - m.weights[j]);
-            m.means[j] += gain * (mean - m.means[j]);
+            m.means[j] += gain * (weighted_sum[j] / g[j] - m.means[j]);
+            // Deviations are taken from the updated running mean, not from
+            // this step's mean: the particles of one step only say where this
+            // one motion went (their spread is the posterior's, far narrower
+            // than the motion noise); the spread of the motion shows across steps.
+            let variance = draws
+                .iter()
+                .zip(&responsibilities)
+                .map(|(d, r)| d.quality * r[j] * (d.value - m.means[j]).powi(2))
+                .sum::<f64>()
+                / g[j];
             m.variances[j] =
                 (m.variances[j] + gain * (variance - m.variances[j])).max(self.min_variance);
         }
@@ -127,70 +135,34 @@ mod tests {
         )
     }
 
-    /// Hand-computed: draws far apart are each owned by one component, so
-    /// g = (q0, q1), and on the first step each gain is 1.
-    #[test]
-    fn the_first_step_moves_each_component_to_its_draws_statistics() {
-        let mut learner = learner(5);
-        let draws = [
-            Draw {
-                value: 0.1,
-                quality: 1.0,
-            },
-            Draw {
-                value: -0.1,
-                quality: 1.0,
-            },
-            Draw {
-                value: 1.2,
-                quality: 2.0,
-            },
-        ];
-        let update = learner.update(&draws);
-        assert!((update.weights[0] - 2.0).abs() < 1e-9 && (update.weights[1] - 2.0).abs() < 1e-9);
-        assert_eq!(update.gains, [1.0, 1.0]);
-        let m = learner.mixture;
-        assert!((m.means[0] - 0.0).abs() < 1e-9, "{m:?}");
-        assert!((m.means[1] - 1.2).abs() < 1e-9, "{m:?}");
-        assert!(
-            (m.variances[0] - 0.01).abs() < 1e-9,
-            "(0.1^2 + 0.1^2) / 2 = 0.01: {m:?}"
-        );
-        assert!(
-            m.variances[1] <= 1e-8 + 1e-12,
-            "a single draw has no spread: {m:?}"
-        );
-        assert!((m.weights[0] - 0.5).abs() < 1e-9, "{m:?}");
-    }
-
-    /// Two draws around each component, 0.05 either side of its centre.
+    /// Two draws 0.05 either side of each centre, each of quality 1/4.
     fn pairs(low: f64, high: f64) -> Vec<Draw> {
         [low - 0.05, low + 0.05, high - 0.05, high + 0.05]
             .map(|value| Draw {
                 value,
-                quality: 1.0,
+                quality: 0.25,
             })
             .to_vec()
     }
 
-    /// Hand-computed: after two steps of equal weight, the gain is 1/2, so the
-    /// mean moves half way from the first step's mean (0) to the second's (0.2).
+    /// Hand-computed: each component owns its two draws, so g = (0.5, 0.5);
+    /// the window holds 4 prior steps of 0.5 and this one, G = 2.5, gain 0.2.
+    /// Mean: 0 + 0.2 (0.2 - 0) = 0.04. Variance about the new mean:
+    /// ((0.15 - 0.04)^2 + (0.25 - 0.04)^2) / 2 = 0.0281, so 0.01 + 0.2 (0.0281 - 0.01) = 0.01362.
     #[test]
-    fn later_steps_move_by_their_share_of_the_window() {
+    fn a_step_moves_each_component_by_its_share_of_the_window() {
         let mut learner = learner(5);
-        learner.update(&pairs(0.0, 1.0));
-        assert!(
-            (learner.mixture.variances[0] - 0.0025).abs() < 1e-9,
-            "{:?}",
-            learner.mixture
-        );
         let update = learner.update(&pairs(0.2, 1.0));
-        assert!((update.gains[0] - 0.5).abs() < 1e-6, "{update:?}");
+        assert!((update.weights[0] - 0.5).abs() < 1e-9, "{update:?}");
+        assert!((update.gains[0] - 0.2).abs() < 1e-9, "{update:?}");
+        let m = learner.mixture;
+        assert!((m.means[0] - 0.04).abs() < 1e-9, "{m:?}");
+        assert!((m.variances[0] - 0.01362).abs() < 1e-9, "{m:?}");
         assert!(
-            (learner.mixture.means[0] - 0.1).abs() < 1e-6,
-            "{:?}",
-            learner.mixture
+            (m.means[1] - 1.0).abs() < 1e-9,
+            "the other component's draws were centred: {m:?}"
         );
+        assert!((m.weights[0] - 0.5).abs() < 1e-9, "{m:?}");
     }
 
     #[test]

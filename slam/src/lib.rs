@@ -1,4 +1,6 @@
 //! Online motion-model learning and particle-filter SLAM (thesis chapter IV).
 //! Pure logic: the SLAM process feeds it from the bus.
 
+pub mod filter;
+pub mod grid;
 pub mod learning;

@@ -1,0 +1,294 @@
+//! Particle-filter SLAM over pose and occupancy grid (DP-SLAM style, with
+//! copy-on-write maps), learning the motion model from the particles as it goes.
+
+use glam::DVec2;
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+use shoal_physics::legged::Param;
+use shoal_physics::range::RangeSensor;
+use shoal_physics::{Command, MotionModel, Pose};
+
+use crate::grid::TiledGrid;
+use crate::learning::{Draw, MixtureLearner};
+
+/// How far the map reaches beyond the arena.
+const MAP_MARGIN_M: f64 = 0.5;
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct FilterConfig {
+    pub particles: usize,
+    /// Score every n-th beam (scoring every beam adds little but time).
+    pub score_stride: usize,
+    /// Map with every n-th beam.
+    pub map_stride: usize,
+    pub cell_size: f64,
+    pub learning: bool,
+    /// The learning window k.
+    pub window: usize,
+    pub sensor: RangeSensor,
+}
+
+impl Default for FilterConfig {
+    fn default() -> Self {
+        Self {
+            particles: 500,
+            score_stride: 2,
+            map_stride: 2,
+            cell_size: 0.05,
+            learning: true,
+            window: 8,
+            sensor: RangeSensor::default(),
+        }
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct Particle {
+    pub pose: Pose,
+    pub map: TiledGrid,
+    pub weight: f64,
+}
+
+/// What one step concluded.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepReport {
+    pub estimate: Pose,
+    /// Effective sample size before resampling.
+    pub effective_particles: f64,
+    /// Share of scored beams that returned a range: how much this step knew.
+    pub information: f64,
+    pub resampled: bool,
+}
+
+pub struct ParticleFilter {
+    pub particles: Vec<Particle>,
+    model: MotionModel,
+    learners: Vec<[MixtureLearner; 3]>,
+    config: FilterConfig,
+    rng: StdRng,
+    steps: u64,
+}
+
+impl ParticleFilter {
+    /// A filter that starts certain of `start`, in a map of `width` x `height`
+    /// metres (with a margin, so walls on the border are mapped too).
+    pub fn new(
+        start: Pose,
+        model: MotionModel,
+        config: FilterConfig,
+        width: f64,
+        height: f64,
+        seed: u64,
+    ) -> Self {
+        let margin = DVec2::splat(MAP_MARGIN_M);
+        let map = TiledGrid::covering(
+            -margin,
+            DVec2::new(width, height) + margin,
+            config.cell_size,
+        );
+        let weight = 1.0 / config.particles.max(1) as f64;
+        let particles = (0..config.particles.max(1))
+            .map(|_| Particle {
+                pose: start,
+                map: map.clone(),
+                weight,
+            })
+            .collect();
+        let learners = Command::ALL
+            .iter()
+            .map(|c| {
+                Param::ALL.map(|p| MixtureLearner::new(*model.command(*c).param(p), config.window))
+            })
+            .collect();
+        Self {
+            particles,
+            model,
+            learners,
+            config,
+            rng: StdRng::seed_from_u64(seed),
+            steps: 0,
+        }
+    }
+
+    pub fn model(&self) -> &MotionModel {
+        &self.model
+    }
+
+    /// Weighted mean of the particles (circular mean for the heading).
+    pub fn estimate(&self) -> Pose {
+        let (mut x, mut y, mut s, mut c) = (0.0, 0.0, 0.0, 0.0);
+        for p in &self.particles {
+            x += p.weight * p.pose.x;
+            y += p.weight * p.pose.y;
+            s += p.weight * p.pose.theta.sin();
+            c += p.weight * p.pose.theta.cos();
+        }
+        Pose::new(x, y, s.atan2(c))
+    }
+
+    /// Builds the first map from a scan taken at the start pose, before any
+    /// motion: every particle shares it, so all poses are measured against
+    /// one frame.
+    pub fn observe_start(&mut self, ranges: &[f64]) {
+        let mut first = self.particles[0].clone();
+        integrate(&mut first, ranges, &self.config);
+        for p in &mut self.particles {
+            p.map = first.map.clone();
+        }
+        self.steps += 1;
+    }
+
+    /// The map of the heaviest particle.
+    pub fn best_map(&self) -> &TiledGrid {
+        let best = self
+            .particles
+            .iter()
+            .max_by(|a, b| a.weight.total_cmp(&b.weight));
+        &best.unwrap_or(&self.particles[0]).map
+    }
+
+    /// One step: the robot executed `command` (a wall or robot stopped its
+    /// translation if `bumped`), then its sensor read `ranges`.
+    pub fn step(&mut self, command: Command, bumped: bool, ranges: &[f64]) -> StepReport {
+        let n = self.particles.len();
+        let mut draws: Vec<[f64; 3]> = Vec::with_capacity(n);
+        for particle in &mut self.particles {
+            let motion = self.model.sample(command, &mut self.rng);
+            particle.pose = if bumped {
+                particle.pose.advanced(0.0, 0.0, motion.turn)
+            } else {
+                particle
+                    .pose
+                    .advanced(motion.along, motion.across, motion.turn)
+            };
+            draws.push([motion.along, motion.across, motion.turn]);
+        }
+        let sensor = self.config.sensor.clone();
+        let scored: Vec<usize> = (0..ranges.len().min(sensor.beams))
+            .step_by(self.config.score_stride.max(1))
+            .collect();
+        let returned: Vec<usize> = scored
+            .iter()
+            .copied()
+            .filter(|&b| ranges[b] < sensor.max_range)
+            .collect();
+        let information = if scored.is_empty() {
+            0.0
+        } else {
+            returned.len() as f64 / scored.len() as f64
+        };
+        let log_likelihoods: Vec<f64> = if self.steps == 0 {
+            vec![0.0; n]
+        } else {
+            self.particles
+                .iter()
+                .map(|p| {
+                    returned
+                        .iter()
+                        .map(|&b| {
+                            let end = beam_end(&p.pose, sensor.bearing(b), ranges[b]);
+                            f64::from(0.05 + 0.9 * p.map.occupancy_near(end)).ln()
+                        })
+                        .sum()
+                })
+                .collect()
+        };
+        let best = log_likelihoods
+            .iter()
+            .copied()
+            .fold(f64::NEG_INFINITY, f64::max);
+        let step_weights: Vec<f64> = log_likelihoods.iter().map(|l| (l - best).exp()).collect();
+        let step_total: f64 = step_weights.iter().sum();
+        if self.config.learning && self.steps > 0 && step_total > 0.0 {
+            for (k, param) in Param::ALL.iter().enumerate() {
+                // A bumped step says nothing about how far the command carries.
+                if bumped && *param != Param::T {
+                    continue;
+                }
+                let qualities: Vec<Draw> = draws
+                    .iter()
+                    .zip(&step_weights)
+                    .map(|(d, w)| Draw {
+                        value: d[k],
+                        quality: w / step_total * information,
+                    })
+                    .collect();
+                let learner = &mut self.learners[command.index()][k];
+                learner.update(&qualities);
+                *self.model.command_mut(command).param_mut(*param) = learner.mixture;
+            }
+        }
+        for (p, w) in self.particles.iter_mut().zip(&step_weights) {
+            p.weight *= w;
+        }
+        let total: f64 = self.particles.iter().map(|p| p.weight).sum();
+        for p in &mut self.particles {
+            p.weight = if total > 0.0 {
+                p.weight / total
+            } else {
+                1.0 / n as f64
+            };
+        }
+        let estimate = self.estimate();
+        let effective_particles = 1.0
+            / self
+                .particles
+                .iter()
+                .map(|p| p.weight * p.weight)
+                .sum::<f64>();
+        let resampled = effective_particles < n as f64 / 2.0;
+        if resampled {
+            self.resample();
+        }
+        for p in &mut self.particles {
+            integrate(p, ranges, &self.config);
+        }
+        self.steps += 1;
+        StepReport {
+            estimate,
+            effective_particles,
+            information,
+            resampled,
+        }
+    }
+
+    /// Low-variance resampling: one random offset, evenly spaced picks, so
+    /// particles survive in proportion to their weight without needless loss.
+    fn resample(&mut self) {
+        let n = self.particles.len();
+        let step = 1.0 / n as f64;
+        let mut target = self.rng.random::<f64>() * step;
+        let mut cumulative = self.particles[0].weight;
+        let mut i = 0;
+        let mut next = Vec::with_capacity(n);
+        for _ in 0..n {
+            while target > cumulative && i + 1 < n {
+                i += 1;
+                cumulative += self.particles[i].weight;
+            }
+            let mut chosen = self.particles[i].clone();
+            chosen.weight = step;
+            next.push(chosen);
+            target += step;
+        }
+        self.particles = next;
+    }
+}
+
+/// Adds a scan taken at the particle's pose to its map.
+fn integrate(particle: &mut Particle, ranges: &[f64], config: &FilterConfig) {
+    let sensor = &config.sensor;
+    let origin = particle.pose.position();
+    for b in (0..ranges.len().min(sensor.beams)).step_by(config.map_stride.max(1)) {
+        let hit = ranges[b] < sensor.max_range;
+        particle.map.integrate_beam(
+            origin,
+            beam_end(&particle.pose, sensor.bearing(b), ranges[b]),
+            hit,
+        );
+    }
+}
+
+fn beam_end(pose: &Pose, bearing: f64, range: f64) -> DVec2 {
+    pose.position() + DVec2::from_angle(pose.theta + bearing) * range
+}

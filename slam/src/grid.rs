@@ -1,0 +1,190 @@
+//! An occupancy grid in log-odds, stored as copy-on-write tiles: particles
+//! that descend from one another share every tile neither has changed since,
+//! so no particle copies a whole map per step.
+
+use std::sync::Arc;
+
+use glam::DVec2;
+
+/// Cells per tile side.
+const TILE: usize = 16;
+/// Log-odds added to a cell a beam ended in, and to one it passed through.
+const HIT: f32 = 0.9;
+const MISS: f32 = -0.4;
+/// Log-odds are clamped so a cell can change its mind.
+const CLAMP: f32 = 6.0;
+
+type Tile = [f32; TILE * TILE];
+
+#[derive(Clone, Debug)]
+pub struct TiledGrid {
+    /// World position of the corner of cell (0, 0).
+    pub origin: DVec2,
+    pub cell_size: f64,
+    pub width: usize,
+    pub height: usize,
+    tiles_x: usize,
+    tiles: Vec<Arc<Tile>>,
+}
+
+impl TiledGrid {
+    /// An unknown map covering `[0, width_m] x [0, height_m]`.
+    pub fn new(width_m: f64, height_m: f64, cell_size: f64) -> Self {
+        Self::covering(DVec2::ZERO, DVec2::new(width_m, height_m), cell_size)
+    }
+
+    /// An unknown map covering the rectangle from `min` to `max`.
+    pub fn covering(min: DVec2, max: DVec2, cell_size: f64) -> Self {
+        let width = ((max.x - min.x) / cell_size).ceil().max(1.0) as usize;
+        let height = ((max.y - min.y) / cell_size).ceil().max(1.0) as usize;
+        let tiles_x = width.div_ceil(TILE);
+        let tiles_y = height.div_ceil(TILE);
+        let blank = Arc::new([0.0; TILE * TILE]);
+        Self {
+            origin: min,
+            cell_size,
+            width,
+            height,
+            tiles_x,
+            tiles: vec![blank; tiles_x * tiles_y],
+        }
+    }
+
+    pub fn cell_of(&self, p: DVec2) -> Option<(usize, usize)> {
+        let local = p - self.origin;
+        let (cx, cy) = (
+            (local.x / self.cell_size).floor(),
+            (local.y / self.cell_size).floor(),
+        );
+        (cx >= 0.0 && cy >= 0.0 && (cx as usize) < self.width && (cy as usize) < self.height)
+            .then_some((cx as usize, cy as usize))
+    }
+
+    fn index(&self, (cx, cy): (usize, usize)) -> (usize, usize) {
+        (
+            (cy / TILE) * self.tiles_x + cx / TILE,
+            (cy % TILE) * TILE + cx % TILE,
+        )
+    }
+
+    pub fn log_odds(&self, cell: (usize, usize)) -> f32 {
+        let (tile, offset) = self.index(cell);
+        self.tiles[tile][offset]
+    }
+
+    fn add(&mut self, cell: (usize, usize), delta: f32) {
+        let (tile, offset) = self.index(cell);
+        let value = &mut Arc::make_mut(&mut self.tiles[tile])[offset];
+        *value = (*value + delta).clamp(-CLAMP, CLAMP);
+    }
+
+    /// Probability that the cell is occupied.
+    pub fn occupancy(&self, cell: (usize, usize)) -> f32 {
+        1.0 / (1.0 + (-self.log_odds(cell)).exp())
+    }
+
+    /// Occupancy at `p`, or a neighbour's at 60% if that is higher: a beam
+    /// ending one cell off an obstacle still scores, but less (0.5 outside the map).
+    pub fn occupancy_near(&self, p: DVec2) -> f32 {
+        let Some((cx, cy)) = self.cell_of(p) else {
+            return 0.5;
+        };
+        let mut best = self.occupancy((cx, cy));
+        for y in cy.saturating_sub(1)..=(cy + 1).min(self.height - 1) {
+            for x in cx.saturating_sub(1)..=(cx + 1).min(self.width - 1) {
+                best = best.max(0.6 * self.occupancy((x, y)));
+            }
+        }
+        best
+    }
+
+    /// Marks the cells from `from` towards `to` free, and the last one
+    /// occupied when the beam hit something.
+    pub fn integrate_beam(&mut self, from: DVec2, to: DVec2, hit: bool) {
+        let (Some(start), Some(end)) = (self.cell_of(from), self.cell_of(to)) else {
+            return;
+        };
+        let (mut x, mut y) = (start.0 as i64, start.1 as i64);
+        let (x1, y1) = (end.0 as i64, end.1 as i64);
+        let (dx, dy) = ((x1 - x).abs(), -(y1 - y).abs());
+        let (sx, sy) = (if x < x1 { 1 } else { -1 }, if y < y1 { 1 } else { -1 });
+        let mut error = dx + dy;
+        while (x, y) != (x1, y1) {
+            self.add((x as usize, y as usize), MISS);
+            let doubled = 2 * error;
+            if doubled >= dy {
+                error += dy;
+                x += sx;
+            }
+            if doubled <= dx {
+                error += dx;
+                y += sy;
+            }
+        }
+        self.add(end, if hit { HIT } else { MISS });
+    }
+
+    /// How many tiles this grid shares with `other` (same allocation).
+    pub fn shared_tiles(&self, other: &Self) -> usize {
+        self.tiles
+            .iter()
+            .zip(&other.tiles)
+            .filter(|(a, b)| Arc::ptr_eq(a, b))
+            .count()
+    }
+
+    pub fn tile_count(&self) -> usize {
+        self.tiles.len()
+    }
+
+    /// Row-major occupancy values (ROS convention: 0 free, 100 occupied, 255 unknown).
+    pub fn to_ros(&self) -> Vec<u8> {
+        let mut cells = Vec::with_capacity(self.width * self.height);
+        for y in 0..self.height {
+            for x in 0..self.width {
+                let l = self.log_odds((x, y));
+                cells.push(if l.abs() < 0.2 {
+                    255
+                } else {
+                    (self.occupancy((x, y)) * 100.0).round() as u8
+                });
+            }
+        }
+        cells
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_beam_frees_its_path_and_occupies_its_end() {
+        let mut grid = TiledGrid::new(2.0, 1.0, 0.05);
+        for _ in 0..3 {
+            grid.integrate_beam(DVec2::new(0.1, 0.5), DVec2::new(1.5, 0.5), true);
+        }
+        assert!(grid.occupancy(grid.cell_of(DVec2::new(1.5, 0.5)).expect("in map")) > 0.9);
+        assert!(grid.occupancy(grid.cell_of(DVec2::new(0.8, 0.5)).expect("in map")) < 0.3);
+        assert!(
+            (grid.occupancy(grid.cell_of(DVec2::new(0.8, 0.9)).expect("in map")) - 0.5).abs()
+                < 1e-6,
+            "untouched"
+        );
+    }
+
+    #[test]
+    fn copies_share_tiles_until_one_changes_them() {
+        let mut a = TiledGrid::new(3.2, 3.2, 0.05);
+        let mut b = a.clone();
+        assert_eq!(a.shared_tiles(&b), a.tile_count());
+        b.integrate_beam(DVec2::new(0.1, 0.1), DVec2::new(0.5, 0.1), true);
+        let shared = a.shared_tiles(&b);
+        assert!(
+            shared < a.tile_count() && shared >= a.tile_count() - 2,
+            "only the touched tile was copied: {shared}"
+        );
+        a.integrate_beam(DVec2::new(3.0, 3.0), DVec2::new(3.1, 3.0), false);
+        assert!(a.shared_tiles(&b) < shared);
+    }
+}
