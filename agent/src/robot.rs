@@ -18,6 +18,8 @@ pub struct Robot {
     pub belief: MotionModel,
     pub believed: Pose,
     rng: StdRng,
+    /// The sensor draws its own noise, so sensing never changes how the body moves.
+    sensor_rng: StdRng,
 }
 
 /// What the robot did in one period.
@@ -47,7 +49,13 @@ impl Robot {
             belief: scenario.motion.clone(),
             believed: start,
             rng: StdRng::seed_from_u64(seed),
+            sensor_rng: StdRng::seed_from_u64(seed ^ 0x5ca9),
         }
+    }
+
+    /// What the range sensor reads now, with `others` as the bodies around.
+    pub fn scan(&mut self, scenario: &Scenario, others: &[DVec2]) -> Vec<f64> {
+        scenario.sensor.read(&scenario.arena, &self.body.pose, others, self.body.radius, &mut self.sensor_rng)
     }
 
     /// One control period against the robots it senses.

@@ -5,9 +5,10 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 use anyhow::{Context, Result};
 use shoal_broker::liveness::remove_dead_nodes;
 use shoal_broker::{
-    Bus, BusLimits, CellExchange, ClockListener, Health, MAX_NEIGHBOURS, PoseSample,
+    Bus, BusLimits, CellExchange, ClockListener, Health, MAX_BEAMS, MAX_NEIGHBOURS, PoseSample, ScanSample,
     RosterPublisher, SampleCheck, SwarmRuntime, names,
 };
+use shoal_broker::robot_streams;
 use shoal_physics::{Neighbour, Pose, Scenario};
 
 use crate::neighbours::NeighbourTable;
@@ -51,6 +52,9 @@ pub fn run(options: AgentOptions) -> Result<()> {
     };
     let mut check = SampleCheck::for_map(scenario.arena.width, scenario.arena.height, MAP_MARGIN_M);
     let mut robot = Robot::new(options.id, options.start, &scenario);
+    let scans = robot_streams::scan_publisher(&bus, options.id)?;
+    let model_updates = robot_streams::model_subscriber(&bus, options.id)?;
+    let estimates = robot_streams::estimate_subscriber(&bus, options.id)?;
     let mut table = NeighbourTable::new(options.id);
     let mut range = SensingRange::new(scenario.bus.max_ring);
     let period = Duration::from_secs_f64(scenario.timing.period_s);
@@ -151,9 +155,44 @@ pub fn run(options: AgentOptions) -> Result<()> {
             .filter(|n| n.position.distance(me) <= inner_radius)
             .count();
 
+        // What a SLAM process learned about this robot replaces its own guesses.
+        model_updates.receive(|update| {
+            if let Err(reason) = apply_model_update(&mut robot.belief, &update) {
+                check.rejected += 1;
+                tracing::warn!("rejected a model update: {reason}");
+            }
+        })?;
+        estimates.receive(|e| {
+            let estimate = Pose::new(e.x, e.y, e.theta);
+            if estimate.is_finite() {
+                robot.believed = estimate;
+            } else {
+                check.rejected += 1;
+            }
+        })?;
+
         let before = robot.body.pose;
         let decision = robot.step(&sensed, &scenario);
         let after = robot.body.pose;
+        let bodies: Vec<glam::DVec2> = sensed.iter().map(|n| n.position).collect();
+        let ranges = robot.scan(&scenario, &bodies);
+        let mut scan = ScanSample {
+            agent_id: options.id,
+            pid,
+            tick,
+            sim_time,
+            command: decision.command.index() as u32,
+            bumped: u32::from(decision.outcome.bumped),
+            beam_count: ranges.len().min(MAX_BEAMS) as u32,
+            reserved: 0,
+            field_of_view: scenario.sensor.field_of_view,
+            max_range: scenario.sensor.max_range,
+            ranges: [0.0; MAX_BEAMS],
+        };
+        for (slot, range) in scan.ranges.iter_mut().zip(&ranges) {
+            *slot = *range as f32;
+        }
+        scans.publish(&scan)?;
         let mut health = 0;
         if decision.outcome.bumped {
             health |= Health::BUMPED;
@@ -223,6 +262,26 @@ pub fn run(options: AgentOptions) -> Result<()> {
         .write_last_pose(options.id, [last.x, last.y, last.theta])
         .context("noting the last pose on the way out")?;
     tracing::info!(id = options.id, tick = last.tick, "robot left the swarm");
+    Ok(())
+}
+
+/// Adopts one learned mixture, if it is a valid one for a known command.
+fn apply_model_update(
+    model: &mut shoal_physics::MotionModel,
+    update: &shoal_broker::ModelUpdate,
+) -> Result<(), String> {
+    let command = shoal_physics::Command::from_index(update.command as usize)
+        .ok_or_else(|| format!("unknown command index {}", update.command))?;
+    let param = *shoal_physics::legged::Param::ALL
+        .get(update.param as usize)
+        .ok_or_else(|| format!("unknown parameter index {}", update.param))?;
+    let mixture = shoal_physics::Mixture2 {
+        weights: update.weights,
+        means: update.means,
+        variances: update.variances,
+    };
+    mixture.validate()?;
+    *model.command_mut(command).param_mut(param) = mixture;
     Ok(())
 }
 

@@ -10,6 +10,7 @@ pub mod clock;
 pub mod liveness;
 pub mod names;
 pub mod roster;
+pub mod robot_streams;
 pub mod runtime;
 pub mod wire;
 
@@ -20,4 +21,4 @@ pub use clock::{ClockListener, ClockSource};
 pub use liveness::{SwarmNode, SwarmNodeState};
 pub use roster::{RosterPublisher, RosterReader};
 pub use runtime::{SwarmMeta, SwarmRuntime};
-pub use wire::{ClockTick, Health, MAX_NEIGHBOURS, PoseSample};
+pub use wire::{ClockTick, EstimateSample, Health, MAX_BEAMS, MAX_NEIGHBOURS, ModelUpdate, PoseSample, ScanSample};

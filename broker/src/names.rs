@@ -41,6 +41,18 @@ pub fn ack_event(swarm: &str) -> String {
     format!("shoal/{swarm}/ack-event")
 }
 
+pub fn scan(swarm: &str, id: u32) -> String {
+    format!("shoal/{swarm}/scan/{id}")
+}
+
+pub fn estimate(swarm: &str, id: u32) -> String {
+    format!("shoal/{swarm}/estimate/{id}")
+}
+
+pub fn model(swarm: &str, id: u32) -> String {
+    format!("shoal/{swarm}/model/{id}")
+}
+
 pub fn agent_node(swarm: &str, id: u32) -> String {
     format!("shoal/{swarm}/agent/{id}")
 }

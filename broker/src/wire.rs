@@ -82,6 +82,69 @@ impl Health {
     pub const REJECTED_INPUT: u32 = 8;
 }
 
+/// The most beams a scan carries.
+pub const MAX_BEAMS: usize = 361;
+
+/// What a robot's range sensor read after executing a command.
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("shoal.Scan")]
+#[repr(C)]
+pub struct ScanSample {
+    pub agent_id: u32,
+    pub pid: u32,
+    pub tick: u64,
+    pub sim_time: f64,
+    /// Index of the command executed before the scan (`shoal_physics::Command::ALL`).
+    pub command: u32,
+    /// 1 when a wall or robot stopped the command's translation.
+    pub bumped: u32,
+    pub beam_count: u32,
+    pub reserved: u32,
+    /// Beams spread evenly over this angle, centred on the heading.
+    pub field_of_view: f64,
+    /// Ranges at or beyond this returned nothing.
+    pub max_range: f64,
+    pub ranges: [f32; MAX_BEAMS],
+}
+
+impl ScanSample {
+    pub fn ranges(&self) -> &[f32] {
+        &self.ranges[..(self.beam_count as usize).min(MAX_BEAMS)]
+    }
+}
+
+/// A SLAM process's estimate of a robot's pose.
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("shoal.Estimate")]
+#[repr(C)]
+pub struct EstimateSample {
+    pub agent_id: u32,
+    pub reserved: u32,
+    pub tick: u64,
+    pub x: f64,
+    pub y: f64,
+    pub theta: f64,
+    pub effective_particles: f64,
+}
+
+/// A learned motion-model parameter: one command, one of D, C, T, as a
+/// two-Gaussian mixture.
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("shoal.ModelUpdate")]
+#[repr(C)]
+pub struct ModelUpdate {
+    pub agent_id: u32,
+    pub command: u32,
+    /// 0 = D (along), 1 = C (across), 2 = T (turn).
+    pub param: u32,
+    pub reserved: u32,
+    /// The SLAM step that produced it.
+    pub step: u64,
+    pub weights: [f64; 2],
+    pub means: [f64; 2],
+    pub variances: [f64; 2],
+}
+
 /// One beat of the lockstep clock.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
 #[type_name("shoal.ClockTick")]
@@ -101,6 +164,9 @@ mod tests {
         // python/shoal_wire.py declares the same fields; these sizes pin the layout.
         assert_eq!(core::mem::size_of::<PoseSample>(), 168);
         assert_eq!(core::mem::size_of::<ClockTick>(), 24);
+        assert_eq!(core::mem::size_of::<ScanSample>(), 56 + 4 * MAX_BEAMS + 4);
+        assert_eq!(core::mem::size_of::<EstimateSample>(), 48);
+        assert_eq!(core::mem::size_of::<ModelUpdate>(), 72);
         assert_eq!(
             unsafe { <PoseSample as ZeroCopySend>::type_name() },
             "shoal.Pose"

@@ -49,6 +49,15 @@ enum Commands {
         /// With --record: also write each robot's true and believed trajectory as TUM files here.
         #[arg(long, requires = "record")]
         tum: Option<PathBuf>,
+        /// Start a SLAM process following these robots, e.g. 0,3.
+        #[arg(long, value_delimiter = ',')]
+        slam: Vec<u32>,
+    },
+    /// Run particle-filter SLAM on robots of a running swarm (see `shoal-slam --help`).
+    Slam {
+        /// Arguments for shoal-slam, e.g. --follow 3 --learning off --particles 200.
+        #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
+        args: Vec<String>,
     },
     /// Record a running swarm into a Rerun file (.rrd) until Ctrl-C.
     Record {
@@ -220,6 +229,7 @@ fn run(cli: Cli) -> Result<()> {
             json,
             record,
             tum,
+            slam,
         } => {
             up::up(up::UpOptions {
                 swarm,
@@ -231,7 +241,16 @@ fn run(cli: Cli) -> Result<()> {
                 json,
                 record,
                 tum,
+                slam,
             })?;
+        }
+        Commands::Slam { args } => {
+            let status = std::process::Command::new(shoal::process::sibling_binary("shoal-slam")?)
+                .args(&args)
+                .status()?;
+            if !status.success() {
+                anyhow::bail!("shoal-slam failed ({status})");
+            }
         }
         Commands::Record {
             out,

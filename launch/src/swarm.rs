@@ -41,7 +41,8 @@ pub struct RunningSwarm {
     bus: Bus,
     roster: RosterReader,
     children: BTreeMap<u32, Child>,
-    recorder: Option<Child>,
+    /// Processes that serve the swarm (recorder, SLAM), by binary name.
+    helpers: Vec<(String, Child)>,
     started: Instant,
     stopped: bool,
 }
@@ -97,7 +98,7 @@ impl RunningSwarm {
             bus,
             roster,
             children: BTreeMap::new(),
-            recorder: None,
+            helpers: Vec::new(),
             started: Instant::now(),
             stopped: false,
         };
@@ -130,23 +131,35 @@ impl RunningSwarm {
 
     /// Starts the recorder process, writing `out` (and TUM files into `tum`).
     pub fn record(&mut self, out: &Path, tum: Option<&Path>) -> Result<()> {
-        let log = std::fs::File::create(self.runtime.dir.join("recorder.log"))?;
-        let mut command = Command::new(sibling_binary("shoal-viewer-log")?);
-        command
-            .arg(out)
-            .args(["--swarm", &self.name])
+        let mut args = vec![out.as_os_str().to_owned(), "--swarm".into(), self.name.clone().into()];
+        if let Some(tum) = tum {
+            args.extend(["--tum".into(), tum.as_os_str().to_owned()]);
+        }
+        self.start_helper("shoal-viewer-log", &args)
+    }
+
+    /// Starts a SLAM process following robots `ids`.
+    pub fn follow_with_slam(&mut self, ids: &[u32]) -> Result<()> {
+        let ids: Vec<String> = ids.iter().map(u32::to_string).collect();
+        let args = ["--swarm".into(), self.name.clone().into(), "--follow".into(), ids.join(",").into()];
+        self.start_helper("shoal-slam", &args)
+    }
+
+    fn start_helper(&mut self, binary: &str, args: &[std::ffi::OsString]) -> Result<()> {
+        let log = std::fs::File::create(self.runtime.dir.join(format!("{binary}.log")))?;
+        let child = Command::new(sibling_binary(binary)?)
+            .args(args)
             .stdin(Stdio::null())
             .stdout(log.try_clone()?)
-            .stderr(log);
-        if let Some(tum) = tum {
-            command.arg("--tum").arg(tum);
-        }
-        self.recorder = Some(command.spawn().context("starting the recorder")?);
+            .stderr(log)
+            .spawn()
+            .with_context(|| format!("starting {binary}"))?;
+        self.helpers.push((binary.to_owned(), child));
         Ok(())
     }
 
     pub fn recorder_pid(&self) -> Option<i32> {
-        self.recorder.as_ref().map(|r| r.id() as i32)
+        self.helpers.iter().find(|(name, _)| name == "shoal-viewer-log").map(|(_, c)| c.id() as i32)
     }
 
     /// Pids of the robots this process started and that still run.
@@ -221,16 +234,16 @@ impl RunningSwarm {
             return Ok(());
         }
         self.stopped = true;
-        // The recorder goes first, so it does not log every robot leaving,
-        // and it gets time to write the recording's footer.
-        if let Some(mut recorder) = self.recorder.take() {
-            let _ = signal(recorder.id() as i32, libc::SIGTERM);
+        // Helpers go first: the recorder then does not log every robot
+        // leaving, and gets time to write the recording's footer.
+        for (_, mut helper) in self.helpers.drain(..) {
+            let _ = signal(helper.id() as i32, libc::SIGTERM);
             let deadline = Instant::now() + Duration::from_secs(10);
-            while matches!(recorder.try_wait(), Ok(None)) && Instant::now() < deadline {
+            while matches!(helper.try_wait(), Ok(None)) && Instant::now() < deadline {
                 std::thread::sleep(Duration::from_millis(20));
             }
-            let _ = recorder.kill();
-            let _ = recorder.wait();
+            let _ = helper.kill();
+            let _ = helper.wait();
         }
         let mut pids: Vec<i32> = self.children.values().map(|c| c.id() as i32).collect();
         for node in swarm_nodes(&self.name)? {

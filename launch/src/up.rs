@@ -26,6 +26,8 @@ pub struct UpOptions {
     pub json: bool,
     pub record: Option<PathBuf>,
     pub tum: Option<PathBuf>,
+    /// Robots a SLAM process follows (added to the scenario's `[slam] follow`).
+    pub slam: Vec<u32>,
 }
 
 #[derive(Debug, Serialize)]
@@ -62,10 +64,19 @@ pub fn up(options: UpOptions) -> Result<UpSummary> {
     if let Some(seed) = options.seed {
         scenario.agents.seed = seed;
     }
+    for id in &options.slam {
+        if !scenario.slam.follow.contains(id) {
+            scenario.slam.follow.push(*id);
+        }
+    }
+    let follow = scenario.slam.follow.clone();
     let spread = scenario.formation.spread;
     let mut swarm = RunningSwarm::launch(&options.swarm, scenario, options.lockstep)?;
     if let Some(out) = &options.record {
         swarm.record(out, options.tum.as_deref())?;
+    }
+    if !follow.is_empty() {
+        swarm.follow_with_slam(&follow)?;
     }
     let progress = if std::io::stderr().is_terminal() {
         let bar = ProgressBar::new_spinner();

@@ -11,6 +11,7 @@ use crate::arena::{Arena, Obstacle, Surface, Wall};
 use crate::formation::FormationParams;
 use crate::legged::MotionModel;
 use crate::pose::Pose;
+use crate::range::RangeSensor;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -26,9 +27,22 @@ pub struct Scenario {
     pub timing: TimingSection,
     #[serde(default)]
     pub bus: BusSection,
+    /// Every robot's range sensor.
+    #[serde(default)]
+    pub sensor: RangeSensor,
+    /// Robots a SLAM process follows when the swarm starts.
+    #[serde(default)]
+    pub slam: SlamSection,
     /// The body's true motion distributions; the robot's own (believed) model starts equal to them.
     #[serde(default = "MotionModel::legged_default")]
     pub motion: MotionModel,
+}
+
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SlamSection {
+    /// Ids of the robots to follow; empty starts no SLAM process.
+    pub follow: Vec<u32>,
 }
 
 fn default_name() -> String {
@@ -176,6 +190,8 @@ impl Scenario {
             formation: FormationParams::default(),
             timing: TimingSection::default(),
             bus: BusSection::default(),
+            sensor: RangeSensor::default(),
+            slam: SlamSection::default(),
             motion: MotionModel::legged_default(),
         }
     }

@@ -1,0 +1,177 @@
+//! `shoal-slam`: follows robots' sensor streams on the bus, runs particle-filter
+//! SLAM for each, learns each robot's motion model online and publishes pose
+//! estimates and model updates back to the robots.
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::time::Duration;
+
+use anyhow::{Context, Result, bail};
+use clap::Parser;
+use shoal_broker::robot_streams::{self, StreamPublisher, StreamSubscriber};
+use shoal_broker::{Bus, BusLimits, EstimateSample, ModelUpdate, RosterReader, ScanSample, SwarmRuntime, names};
+use shoal_physics::legged::Param;
+use shoal_physics::{Command, MotionModel, Pose, Scenario};
+use shoal_slam::filter::{FilterConfig, ParticleFilter};
+
+#[derive(Parser)]
+#[command(version, about = "Particle-filter SLAM that learns each followed robot's motion model online")]
+struct Args {
+    #[arg(long, default_value = "default")]
+    swarm: String,
+    /// Ids of the robots to follow, e.g. 0,3.
+    #[arg(long, value_delimiter = ',', required = true)]
+    follow: Vec<u32>,
+    #[arg(long, default_value_t = 500)]
+    particles: usize,
+    /// The learning window k (5..=10).
+    #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u64).range(5..=10))]
+    window: u64,
+    #[arg(long, value_enum, default_value_t = Learning::On)]
+    learning: Learning,
+    /// The model to start from (TOML, per command: d, c, t mixtures); default: the swarm's.
+    #[arg(long)]
+    initial_model: Option<PathBuf>,
+    /// Occupancy grid cell size, metres.
+    #[arg(long, default_value_t = 0.05)]
+    grid: f64,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum Learning {
+    On,
+    Off,
+}
+
+/// Reads a motion model file; errors name the file and line.
+fn read_model(path: &PathBuf) -> Result<MotionModel> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    toml::from_str(&text).map_err(|e| {
+        let line = e.span().map(|s| text[..s.start.min(text.len())].matches('\n').count() + 1);
+        let place = line.map_or_else(String::new, |l| format!(":{l}"));
+        anyhow::anyhow!("{}{place}: {}", path.display(), e.message())
+    })
+}
+
+struct Followed {
+    scans: StreamSubscriber<ScanSample>,
+    estimates: StreamPublisher<EstimateSample>,
+    models: StreamPublisher<ModelUpdate>,
+    filter: Option<ParticleFilter>,
+    steps: u64,
+}
+
+fn run(args: Args) -> Result<()> {
+    let runtime = SwarmRuntime::locate(&args.swarm);
+    runtime.read_meta()?;
+    let scenario = Scenario::from_file(&runtime.scenario_path())?;
+    let initial = match &args.initial_model {
+        Some(path) => read_model(path)?,
+        None => scenario.motion.clone(),
+    };
+    if !(args.grid > 0.0 && args.grid.is_finite()) {
+        bail!("--grid must be a positive cell size in metres");
+    }
+    let bus = Bus::join(&args.swarm, &names::tool_node(&args.swarm, &format!("slam-{}", std::process::id())), BusLimits::default())?;
+    let roster = RosterReader::new(&bus)?;
+    let mut followed: BTreeMap<u32, Followed> = BTreeMap::new();
+    for &id in &args.follow {
+        followed.insert(
+            id,
+            Followed {
+                scans: robot_streams::scan_subscriber(&bus, id)?,
+                estimates: robot_streams::estimate_publisher(&bus, id)?,
+                models: robot_streams::model_publisher(&bus, id)?,
+                filter: None,
+                steps: 0,
+            },
+        );
+    }
+    let config = FilterConfig {
+        particles: args.particles.max(1),
+        cell_size: args.grid,
+        learning: args.learning == Learning::On,
+        window: args.window as usize,
+        sensor: scenario.sensor.clone(),
+        ..FilterConfig::default()
+    };
+    tracing::info!(follow = ?args.follow, learning = ?args.learning, "SLAM following");
+    let mut anchors: BTreeMap<u32, Pose> = BTreeMap::new();
+    while !bus.termination_requested() {
+        // A filter starts at the robot's pose when following begins, so its
+        // estimates and the robot's true pose share one frame.
+        roster.receive(|s| {
+            if followed.contains_key(&s.agent_id) {
+                anchors.insert(s.agent_id, Pose::new(s.x, s.y, s.theta));
+            }
+        })?;
+        let mut idle = true;
+        for (id, robot) in &mut followed {
+            let mut scans = Vec::new();
+            robot.scans.receive(|scan| scans.push(scan))?;
+            for scan in scans {
+                idle = false;
+                let ranges: Vec<f64> = scan.ranges().iter().map(|r| f64::from(*r)).collect();
+                let Some(command) = Command::from_index(scan.command as usize) else { continue };
+                let filter = match &mut robot.filter {
+                    Some(filter) => filter,
+                    None => {
+                        let Some(start) = anchors.get(id) else { continue };
+                        let mut filter = ParticleFilter::new(
+                            *start,
+                            initial.clone(),
+                            config.clone(),
+                            scenario.arena.width,
+                            scenario.arena.height,
+                            u64::from(*id),
+                        );
+                        filter.observe_start(&ranges);
+                        robot.filter.insert(filter)
+                    }
+                };
+                let report = filter.step(command, scan.bumped != 0, &ranges);
+                robot.steps += 1;
+                robot.estimates.publish(&EstimateSample {
+                    agent_id: *id,
+                    reserved: 0,
+                    tick: scan.tick,
+                    x: report.estimate.x,
+                    y: report.estimate.y,
+                    theta: report.estimate.theta,
+                    effective_particles: report.effective_particles,
+                })?;
+                for (index, param) in Param::ALL.iter().enumerate() {
+                    let mixture = filter.model().command(command).param(*param);
+                    robot.models.publish(&ModelUpdate {
+                        agent_id: *id,
+                        command: command.index() as u32,
+                        param: index as u32,
+                        reserved: 0,
+                        step: robot.steps,
+                        weights: mixture.weights,
+                        means: mixture.means,
+                        variances: mixture.variances,
+                    })?;
+                }
+            }
+        }
+        if idle {
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    }
+    Ok(())
+}
+
+fn main() -> std::process::ExitCode {
+    tracing_subscriber::fmt()
+        .with_env_filter(tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()))
+        .with_writer(std::io::stderr)
+        .init();
+    match run(Args::parse()) {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("shoal-slam: error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
