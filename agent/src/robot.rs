@@ -55,7 +55,13 @@ impl Robot {
 
     /// What the range sensor reads now, with `others` as the bodies around.
     pub fn scan(&mut self, scenario: &Scenario, others: &[DVec2]) -> Vec<f64> {
-        scenario.sensor.read(&scenario.arena, &self.body.pose, others, self.body.radius, &mut self.sensor_rng)
+        scenario.sensor.read(
+            &scenario.arena,
+            &self.body.pose,
+            others,
+            self.body.radius,
+            &mut self.sensor_rng,
+        )
     }
 
     /// One control period against the robots it senses.

@@ -4,11 +4,11 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::{Context, Result};
 use shoal_broker::liveness::remove_dead_nodes;
-use shoal_broker::{
-    Bus, BusLimits, CellExchange, ClockListener, Health, MAX_BEAMS, MAX_NEIGHBOURS, PoseSample, ScanSample,
-    RosterPublisher, SampleCheck, SwarmRuntime, names,
-};
 use shoal_broker::robot_streams;
+use shoal_broker::{
+    Bus, BusLimits, CellExchange, ClockListener, Health, MAX_BEAMS, MAX_NEIGHBOURS, PoseSample,
+    RosterPublisher, SampleCheck, ScanSample, SwarmRuntime, names,
+};
 use shoal_physics::{Neighbour, Pose, Scenario};
 
 use crate::neighbours::NeighbourTable;

@@ -9,8 +9,8 @@ pub mod check;
 pub mod clock;
 pub mod liveness;
 pub mod names;
-pub mod roster;
 pub mod robot_streams;
+pub mod roster;
 pub mod runtime;
 pub mod wire;
 
@@ -21,4 +21,7 @@ pub use clock::{ClockListener, ClockSource};
 pub use liveness::{SwarmNode, SwarmNodeState};
 pub use roster::{RosterPublisher, RosterReader};
 pub use runtime::{SwarmMeta, SwarmRuntime};
-pub use wire::{ClockTick, EstimateSample, Health, MAX_BEAMS, MAX_NEIGHBOURS, ModelUpdate, PoseSample, ScanSample};
+pub use wire::{
+    ClockTick, EstimateSample, Health, MAX_BEAMS, MAX_NEIGHBOURS, ModelUpdate, PoseSample,
+    ScanSample,
+};

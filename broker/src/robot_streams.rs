@@ -18,7 +18,10 @@ const BUFFER: usize = 32;
 fn open<T: Debug + ZeroCopySend + 'static>(
     bus: &Bus,
     name: &str,
-) -> Result<iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, T, ()>, BusError> {
+) -> Result<
+    iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, T, ()>,
+    BusError,
+> {
     bus.publish_subscribe::<T>(name, 2, bus.limits.max_observers, BUFFER, 0)
 }
 
@@ -29,13 +32,18 @@ pub struct StreamPublisher<T: Debug + ZeroCopySend + 'static> {
 
 impl<T: Debug + ZeroCopySend + Copy + 'static> StreamPublisher<T> {
     fn new(bus: &Bus, name: &str) -> Result<Self, BusError> {
-        let publisher =
-            open::<T>(bus, name)?.publisher_builder().create().map_err(|e| BusError::iceoryx(format!("publish {name}"), e))?;
+        let publisher = open::<T>(bus, name)?
+            .publisher_builder()
+            .create()
+            .map_err(|e| BusError::iceoryx(format!("publish {name}"), e))?;
         Ok(Self { publisher })
     }
 
     pub fn publish(&self, value: &T) -> Result<(), BusError> {
-        self.publisher.send_copy(*value).map(|_| ()).map_err(|e| BusError::iceoryx("send", e))
+        self.publisher
+            .send_copy(*value)
+            .map(|_| ())
+            .map_err(|e| BusError::iceoryx("send", e))
     }
 }
 
@@ -46,13 +54,19 @@ pub struct StreamSubscriber<T: Debug + ZeroCopySend + 'static> {
 
 impl<T: Debug + ZeroCopySend + Copy + 'static> StreamSubscriber<T> {
     fn new(bus: &Bus, name: &str) -> Result<Self, BusError> {
-        let subscriber =
-            open::<T>(bus, name)?.subscriber_builder().create().map_err(|e| BusError::iceoryx(format!("follow {name}"), e))?;
+        let subscriber = open::<T>(bus, name)?
+            .subscriber_builder()
+            .create()
+            .map_err(|e| BusError::iceoryx(format!("follow {name}"), e))?;
         Ok(Self { subscriber })
     }
 
     pub fn receive(&self, mut on_value: impl FnMut(T)) -> Result<(), BusError> {
-        while let Some(sample) = self.subscriber.receive().map_err(|e| BusError::iceoryx("receive", e))? {
+        while let Some(sample) = self
+            .subscriber
+            .receive()
+            .map_err(|e| BusError::iceoryx("receive", e))?
+        {
             on_value(*sample);
         }
         Ok(())
@@ -71,7 +85,10 @@ pub fn estimate_publisher(bus: &Bus, id: u32) -> Result<StreamPublisher<Estimate
     StreamPublisher::new(bus, &names::estimate(&bus.swarm, id))
 }
 
-pub fn estimate_subscriber(bus: &Bus, id: u32) -> Result<StreamSubscriber<EstimateSample>, BusError> {
+pub fn estimate_subscriber(
+    bus: &Bus,
+    id: u32,
+) -> Result<StreamSubscriber<EstimateSample>, BusError> {
     StreamSubscriber::new(bus, &names::estimate(&bus.swarm, id))
 }
 

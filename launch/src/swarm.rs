@@ -131,7 +131,11 @@ impl RunningSwarm {
 
     /// Starts the recorder process, writing `out` (and TUM files into `tum`).
     pub fn record(&mut self, out: &Path, tum: Option<&Path>) -> Result<()> {
-        let mut args = vec![out.as_os_str().to_owned(), "--swarm".into(), self.name.clone().into()];
+        let mut args = vec![
+            out.as_os_str().to_owned(),
+            "--swarm".into(),
+            self.name.clone().into(),
+        ];
         if let Some(tum) = tum {
             args.extend(["--tum".into(), tum.as_os_str().to_owned()]);
         }
@@ -141,7 +145,12 @@ impl RunningSwarm {
     /// Starts a SLAM process following robots `ids`.
     pub fn follow_with_slam(&mut self, ids: &[u32]) -> Result<()> {
         let ids: Vec<String> = ids.iter().map(u32::to_string).collect();
-        let args = ["--swarm".into(), self.name.clone().into(), "--follow".into(), ids.join(",").into()];
+        let args = [
+            "--swarm".into(),
+            self.name.clone().into(),
+            "--follow".into(),
+            ids.join(",").into(),
+        ];
         self.start_helper("shoal-slam", &args)
     }
 
@@ -159,7 +168,10 @@ impl RunningSwarm {
     }
 
     pub fn recorder_pid(&self) -> Option<i32> {
-        self.helpers.iter().find(|(name, _)| name == "shoal-viewer-log").map(|(_, c)| c.id() as i32)
+        self.helpers
+            .iter()
+            .find(|(name, _)| name == "shoal-viewer-log")
+            .map(|(_, c)| c.id() as i32)
     }
 
     /// Pids of the robots this process started and that still run.

@@ -280,6 +280,9 @@ fn integrate(particle: &mut Particle, ranges: &[f64], config: &FilterConfig) {
     let sensor = &config.sensor;
     let origin = particle.pose.position();
     for b in (0..ranges.len().min(sensor.beams)).step_by(config.map_stride.max(1)) {
+        if ranges[b].is_nan() {
+            continue;
+        }
         let hit = ranges[b] < sensor.max_range;
         particle.map.integrate_beam(
             origin,

@@ -9,13 +9,18 @@ use std::time::Duration;
 use anyhow::{Context, Result, bail};
 use clap::Parser;
 use shoal_broker::robot_streams::{self, StreamPublisher, StreamSubscriber};
-use shoal_broker::{Bus, BusLimits, EstimateSample, ModelUpdate, RosterReader, ScanSample, SwarmRuntime, names};
+use shoal_broker::{
+    Bus, BusLimits, EstimateSample, ModelUpdate, RosterReader, ScanSample, SwarmRuntime, names,
+};
 use shoal_physics::legged::Param;
 use shoal_physics::{Command, MotionModel, Pose, Scenario};
 use shoal_slam::filter::{FilterConfig, ParticleFilter};
 
 #[derive(Parser)]
-#[command(version, about = "Particle-filter SLAM that learns each followed robot's motion model online")]
+#[command(
+    version,
+    about = "Particle-filter SLAM that learns each followed robot's motion model online"
+)]
 struct Args {
     #[arg(long, default_value = "default")]
     swarm: String,
@@ -45,9 +50,12 @@ enum Learning {
 
 /// Reads a motion model file; errors name the file and line.
 fn read_model(path: &PathBuf) -> Result<MotionModel> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
     toml::from_str(&text).map_err(|e| {
-        let line = e.span().map(|s| text[..s.start.min(text.len())].matches('\n').count() + 1);
+        let line = e
+            .span()
+            .map(|s| text[..s.start.min(text.len())].matches('\n').count() + 1);
         let place = line.map_or_else(String::new, |l| format!(":{l}"));
         anyhow::anyhow!("{}{place}: {}", path.display(), e.message())
     })
@@ -72,7 +80,11 @@ fn run(args: Args) -> Result<()> {
     if !(args.grid > 0.0 && args.grid.is_finite()) {
         bail!("--grid must be a positive cell size in metres");
     }
-    let bus = Bus::join(&args.swarm, &names::tool_node(&args.swarm, &format!("slam-{}", std::process::id())), BusLimits::default())?;
+    let bus = Bus::join(
+        &args.swarm,
+        &names::tool_node(&args.swarm, &format!("slam-{}", std::process::id())),
+        BusLimits::default(),
+    )?;
     let roster = RosterReader::new(&bus)?;
     let mut followed: BTreeMap<u32, Followed> = BTreeMap::new();
     for &id in &args.follow {
@@ -97,13 +109,20 @@ fn run(args: Args) -> Result<()> {
     };
     tracing::info!(follow = ?args.follow, learning = ?args.learning, "SLAM following");
     let mut anchors: BTreeMap<u32, Pose> = BTreeMap::new();
+    // Where every robot stands, to drop beams that ended on one: robots move,
+    // so they do not belong in the map.
+    let mut bodies: BTreeMap<u32, glam::DVec2> = BTreeMap::new();
     while !bus.termination_requested() {
         // A filter starts at the robot's pose when following begins, so its
         // estimates and the robot's true pose share one frame.
         roster.receive(|s| {
+            if !(s.x.is_finite() && s.y.is_finite() && s.theta.is_finite()) {
+                return;
+            }
             if followed.contains_key(&s.agent_id) {
                 anchors.insert(s.agent_id, Pose::new(s.x, s.y, s.theta));
             }
+            bodies.insert(s.agent_id, glam::DVec2::new(s.x, s.y));
         })?;
         let mut idle = true;
         for (id, robot) in &mut followed {
@@ -111,12 +130,25 @@ fn run(args: Args) -> Result<()> {
             robot.scans.receive(|scan| scans.push(scan))?;
             for scan in scans {
                 idle = false;
-                let ranges: Vec<f64> = scan.ranges().iter().map(|r| f64::from(*r)).collect();
-                let Some(command) = Command::from_index(scan.command as usize) else { continue };
+                let mut ranges: Vec<f64> = scan.ranges().iter().map(|r| f64::from(*r)).collect();
+                if let Some(filter) = &robot.filter {
+                    mask_robots(
+                        &mut ranges,
+                        &filter.estimate(),
+                        &scenario.sensor,
+                        &bodies,
+                        *id,
+                    );
+                }
+                let Some(command) = Command::from_index(scan.command as usize) else {
+                    continue;
+                };
                 let filter = match &mut robot.filter {
                     Some(filter) => filter,
                     None => {
-                        let Some(start) = anchors.get(id) else { continue };
+                        let Some(start) = anchors.get(id) else {
+                            continue;
+                        };
                         let mut filter = ParticleFilter::new(
                             *start,
                             initial.clone(),
@@ -162,9 +194,36 @@ fn run(args: Args) -> Result<()> {
     Ok(())
 }
 
+/// Replaces with NaN the ranges of beams that end within a body's reach of
+/// another robot, seen from `pose`.
+fn mask_robots(
+    ranges: &mut [f64],
+    pose: &Pose,
+    sensor: &shoal_physics::range::RangeSensor,
+    bodies: &BTreeMap<u32, glam::DVec2>,
+    own_id: u32,
+) {
+    const REACH_M: f64 = 0.35;
+    for (b, range) in ranges.iter_mut().enumerate() {
+        if *range >= sensor.max_range {
+            continue;
+        }
+        let end =
+            pose.position() + glam::DVec2::from_angle(pose.theta + sensor.bearing(b)) * *range;
+        if bodies
+            .iter()
+            .any(|(id, p)| *id != own_id && p.distance(end) < REACH_M)
+        {
+            *range = f64::NAN;
+        }
+    }
+}
+
 fn main() -> std::process::ExitCode {
     tracing_subscriber::fmt()
-        .with_env_filter(tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()))
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()),
+        )
         .with_writer(std::io::stderr)
         .init();
     match run(Args::parse()) {
