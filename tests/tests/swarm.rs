@@ -383,3 +383,26 @@ fn a_real_time_swarm_keeps_going_when_shoal_up_is_killed() {
     let _ = std::fs::remove_dir_all(shoal_broker::SwarmRuntime::locate("e2e-orphans").dir);
     drop(swarm);
 }
+
+#[test]
+fn the_official_python_iceoryx2_client_reads_the_roster() {
+    let _turn = serial();
+    let swarm = BackgroundSwarm::start("e2e-python", &["--agents", "5"]);
+    assert!(wait_until(Duration::from_secs(30), || alive_ids(&status(&swarm.name)).len() == 5));
+    let script = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("python/read_roster.py");
+    let output = std::process::Command::new("python3")
+        .arg(script)
+        .args([swarm.name.as_str(), "1.5"])
+        .output()
+        .expect("python3");
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let read: Value = serde_json::from_slice(&output.stdout).expect("JSON");
+    let robots = read["robots"].as_object().expect("robots");
+    let mut ids: Vec<u64> = robots.keys().filter_map(|k| k.parse().ok()).collect();
+    ids.sort_unstable();
+    assert_eq!(ids, vec![0, 1, 2, 3, 4], "{read}");
+    for value in robots.values() {
+        let (x, y) = (value[0].as_f64().expect("x"), value[1].as_f64().expect("y"));
+        assert!((0.0..=20.0).contains(&x) && (0.0..=20.0).contains(&y), "{value}");
+    }
+}
