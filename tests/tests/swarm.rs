@@ -232,47 +232,32 @@ fn a_malformed_scenario_names_file_line_and_field() {
     let dir = std::env::temp_dir().join(format!("shoal-e2e-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temp dir");
     let path = dir.join("bad.toml");
-    std::fs::write(
-        &path,
-        "[arena]\nwidth = 20.0\nheight = 20.0\n\n[formation]\nneighbours = \"four\"\n",
-    )
-    .expect("write");
-    let output = shoal(&[
-        "up",
-        "--swarm",
-        "e2e-bad",
-        "--scenario",
-        path.to_str().expect("utf-8"),
-        "--duration",
-        "1",
-    ]);
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    assert!(!output.status.success());
-    assert!(
-        stderr.contains("bad.toml:6: field `formation.neighbours`"),
-        "{stderr}"
-    );
-
-    std::fs::write(
-        &path,
-        "[arena]\nwidth = 20.0\nheight = 20.0\n[timing]\nperiod_s = -0.2\n",
-    )
-    .expect("write");
-    let output = shoal(&[
-        "up",
-        "--swarm",
-        "e2e-bad",
-        "--scenario",
-        path.to_str().expect("utf-8"),
-        "--duration",
-        "1",
-    ]);
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    assert!(!output.status.success());
-    assert!(
-        stderr.contains("bad.toml:5: field `timing.period_s`"),
-        "{stderr}"
-    );
+    let cases = [
+        (
+            "[arena]\nwidth = 20.0\nheight = 20.0\n\n[formation]\nneighbours = \"four\"\n",
+            "bad.toml:6: field `formation.neighbours`",
+        ),
+        (
+            "[arena]\nwidth = 20.0\nheight = 20.0\n[timing]\nperiod_s = -0.2\n",
+            "bad.toml:5: field `timing.period_s`",
+        ),
+    ];
+    for (text, expected) in cases {
+        std::fs::write(&path, text).expect("write");
+        let scenario = path.to_str().expect("utf-8");
+        let output = shoal(&[
+            "up",
+            "--swarm",
+            "e2e-bad",
+            "--scenario",
+            scenario,
+            "--duration",
+            "1",
+        ]);
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(!output.status.success());
+        assert!(stderr.contains(expected), "{stderr}");
+    }
     let _ = std::fs::remove_dir_all(dir);
 }
 
@@ -388,14 +373,22 @@ fn a_real_time_swarm_keeps_going_when_shoal_up_is_killed() {
 fn the_official_python_iceoryx2_client_reads_the_roster() {
     let _turn = serial();
     let swarm = BackgroundSwarm::start("e2e-python", &["--agents", "5"]);
-    assert!(wait_until(Duration::from_secs(30), || alive_ids(&status(&swarm.name)).len() == 5));
+    assert!(wait_until(Duration::from_secs(30), || alive_ids(&status(
+        &swarm.name
+    ))
+    .len()
+        == 5));
     let script = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("python/read_roster.py");
     let output = std::process::Command::new("python3")
         .arg(script)
         .args([swarm.name.as_str(), "1.5"])
         .output()
         .expect("python3");
-    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
     let read: Value = serde_json::from_slice(&output.stdout).expect("JSON");
     let robots = read["robots"].as_object().expect("robots");
     let mut ids: Vec<u64> = robots.keys().filter_map(|k| k.parse().ok()).collect();
@@ -403,6 +396,9 @@ fn the_official_python_iceoryx2_client_reads_the_roster() {
     assert_eq!(ids, vec![0, 1, 2, 3, 4], "{read}");
     for value in robots.values() {
         let (x, y) = (value[0].as_f64().expect("x"), value[1].as_f64().expect("y"));
-        assert!((0.0..=20.0).contains(&x) && (0.0..=20.0).contains(&y), "{value}");
+        assert!(
+            (0.0..=20.0).contains(&x) && (0.0..=20.0).contains(&y),
+            "{value}"
+        );
     }
 }
