@@ -20,6 +20,8 @@ const MAP_MARGIN_M: f64 = 1.0;
 /// How often a robot notes its last pose for `shoal restart`, and at most how
 /// often it sweeps the bus for dead nodes.
 const HOUSEKEEPING_PERIOD: Duration = Duration::from_secs(1);
+/// How many ticks of believed poses a robot keeps, to apply late SLAM estimates.
+const BELIEF_HISTORY_TICKS: usize = 64;
 /// A robot sensing fewer robots than this listens further.
 const WIDEN_BELOW: usize = 3;
 
@@ -55,6 +57,8 @@ pub fn run(options: AgentOptions) -> Result<()> {
     let scans = robot_streams::scan_publisher(&bus, options.id)?;
     let model_updates = robot_streams::model_subscriber(&bus, options.id)?;
     let estimates = robot_streams::estimate_subscriber(&bus, options.id)?;
+    let mut believed_history: std::collections::VecDeque<(u64, Pose)> =
+        std::collections::VecDeque::new();
     let mut table = NeighbourTable::new(options.id);
     let mut range = SensingRange::new(scenario.bus.max_ring);
     let period = Duration::from_secs_f64(scenario.timing.period_s);
@@ -162,12 +166,15 @@ pub fn run(options: AgentOptions) -> Result<()> {
                 tracing::warn!("rejected a model update: {reason}");
             }
         })?;
+        // An estimate is of a past tick: keep the motion believed since then.
         estimates.receive(|e| {
             let estimate = Pose::new(e.x, e.y, e.theta);
-            if estimate.is_finite() {
-                robot.believed = estimate;
-            } else {
+            if !estimate.is_finite() {
                 check.rejected += 1;
+                return;
+            }
+            if let Some((_, then)) = believed_history.iter().find(|(t, _)| *t == e.tick) {
+                robot.believed = estimate.compose(&robot.believed.relative_to(then));
             }
         })?;
 
@@ -229,6 +236,10 @@ pub fn run(options: AgentOptions) -> Result<()> {
         publish(&bus, &mut cells, &roster, &mut last)?;
         if let Some(clock) = &clock {
             clock.acknowledge()?;
+        }
+        believed_history.push_back((tick, robot.believed));
+        if believed_history.len() > BELIEF_HISTORY_TICKS {
+            believed_history.pop_front();
         }
 
         // Widen only when nearly alone: a robot on the edge of a formation

@@ -29,6 +29,22 @@ impl Pose {
         }
     }
 
+    /// This pose seen from `origin`'s frame.
+    pub fn relative_to(&self, origin: &Pose) -> Pose {
+        let offset = DVec2::from_angle(-origin.theta).rotate(self.position() - origin.position());
+        Pose::new(offset.x, offset.y, wrap_angle(self.theta - origin.theta))
+    }
+
+    /// `relative`, given in this pose's frame, in world coordinates.
+    pub fn compose(&self, relative: &Pose) -> Pose {
+        let offset = DVec2::from_angle(self.theta).rotate(relative.position());
+        Pose::new(
+            self.x + offset.x,
+            self.y + offset.y,
+            wrap_angle(self.theta + relative.theta),
+        )
+    }
+
     pub fn is_finite(&self) -> bool {
         self.x.is_finite() && self.y.is_finite() && self.theta.is_finite()
     }
@@ -54,6 +70,15 @@ mod tests {
         let pose = Pose::new(1.0, 2.0, FRAC_PI_2).advanced(1.0, 0.5, 0.0);
         assert!((pose.x - 0.5).abs() < 1e-12);
         assert!((pose.y - 3.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn composing_a_relative_pose_undoes_taking_it() {
+        let origin = Pose::new(1.0, 2.0, 0.7);
+        let pose = Pose::new(-3.0, 0.5, -2.9);
+        let back = origin.compose(&pose.relative_to(&origin));
+        assert!((back.x - pose.x).abs() < 1e-12 && (back.y - pose.y).abs() < 1e-12);
+        assert!((wrap_angle(back.theta - pose.theta)).abs() < 1e-12);
     }
 
     #[test]
