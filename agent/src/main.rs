@@ -42,22 +42,13 @@ fn parse_pose(text: &str) -> Result<Pose, String> {
 }
 
 fn main() -> std::process::ExitCode {
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()),
-        )
-        .with_writer(std::io::stderr)
-        .init();
     let args = Args::parse();
-    match run(AgentOptions {
-        swarm: args.swarm,
-        id: args.id,
-        start: args.at,
-    }) {
-        Ok(()) => std::process::ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("shoal-agent {}: error: {e:#}", args.id);
-            std::process::ExitCode::FAILURE
-        }
-    }
+    let name = format!("shoal-agent {}", args.id);
+    shoal_broker::process_main::run_main(&name, "info", || {
+        run(AgentOptions {
+            swarm: args.swarm,
+            id: args.id,
+            start: args.at,
+        })
+    })
 }

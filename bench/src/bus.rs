@@ -333,31 +333,6 @@ pub fn run(sizes: &[usize], samples: usize, json: bool) -> Result<()> {
             });
         }
     }
-    if json {
-        println!(
-            "{}",
-            serde_json::to_string(&serde_json::json!({ "rows": rows }))?
-        );
-    } else {
-        println!(
-            "| robots | transport | p50 µs | p99 µs | max µs | lost | p50 / socket | p99 / socket | robot CPU ms per period |"
-        );
-        println!("|---|---|---|---|---|---|---|---|---|");
-        for r in &rows {
-            println!(
-                "| {} | {:?} | {:.1} | {:.1} | {:.1} | {} | {:.2} | {:.2} | {} |",
-                r.agents,
-                r.transport,
-                r.p50_us,
-                r.p99_us,
-                r.max_us,
-                r.lost,
-                r.p50_vs_unix_socket,
-                r.p99_vs_unix_socket,
-                r.robot_cpu_ms_per_period
-                    .map_or_else(|| "-".to_owned(), |c| format!("{c:.3}"))
-            );
-        }
-    }
+    shoal::report::print(&serde_json::json!({ "rows": rows }), json)?;
     Ok(())
 }

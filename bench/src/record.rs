@@ -57,28 +57,6 @@ pub fn run(agents: &[usize], seconds: f64, json: bool) -> Result<()> {
             recorder_vs_robots: recorder_cpu / robots_cpu.max(1e-9),
         });
     }
-    if json {
-        println!(
-            "{}",
-            serde_json::to_string(&serde_json::json!({ "rows": rows }))?
-        );
-    } else {
-        println!(
-            "| robots | seconds | bytes | bytes per robot per s | recorder CPU (cores) | robots CPU (cores) | recorder / robots |"
-        );
-        println!("|---|---|---|---|---|---|---|");
-        for r in &rows {
-            println!(
-                "| {} | {:.0} | {} | {:.0} | {:.3} | {:.3} | {:.2} |",
-                r.agents,
-                r.seconds,
-                r.bytes,
-                r.bytes_per_robot_per_s,
-                r.recorder_cpu_share,
-                r.robots_cpu_share,
-                r.recorder_vs_robots
-            );
-        }
-    }
+    shoal::report::print(&serde_json::json!({ "rows": rows }), json)?;
     Ok(())
 }

@@ -133,8 +133,4 @@ impl Bus {
     pub fn termination_requested(&self) -> bool {
         self.node.wait(core::time::Duration::ZERO).is_err()
     }
-
-    pub fn prefix(&self) -> String {
-        names::prefix(&self.swarm)
-    }
 }

@@ -156,8 +156,4 @@ impl CellExchange {
         }
         Ok(())
     }
-
-    pub fn listened_cells(&self) -> usize {
-        self.subscribers.len()
-    }
 }

@@ -9,6 +9,7 @@ pub mod check;
 pub mod clock;
 pub mod liveness;
 pub mod names;
+pub mod process_main;
 pub mod robot_streams;
 pub mod roster;
 pub mod runtime;

@@ -6,6 +6,7 @@ pub mod control;
 pub mod experiment;
 pub mod observer;
 pub mod process;
+pub mod report;
 pub mod status;
 pub mod swarm;
 pub mod up;

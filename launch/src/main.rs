@@ -1,6 +1,6 @@
 //! `shoal`: the command line of the Shoal swarm runtime.
 
-use shoal::{control, experiment, status, up};
+use shoal::{control, experiment, report, status, up};
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -61,15 +61,9 @@ enum Commands {
     },
     /// Record a running swarm into a Rerun file (.rrd) until Ctrl-C.
     Record {
-        out: PathBuf,
-        #[arg(long, default_value = "default")]
-        swarm: String,
-        /// Also write each robot's true and believed trajectory as TUM files here.
-        #[arg(long)]
-        tum: Option<PathBuf>,
-        /// Stop after this many seconds.
-        #[arg(long)]
-        duration: Option<f64>,
+        /// Arguments for shoal-viewer-log: OUT.rrd [--swarm NAME] [--tum DIR] [--duration SECS].
+        #[arg(trailing_var_arg = true, allow_hyphen_values = true, required = true)]
+        args: Vec<String>,
     },
     /// List every robot on the bus: id, pid, state, pose, neighbours.
     Status {
@@ -150,53 +144,6 @@ enum ExperimentKind {
     },
 }
 
-/// Prints `report` as JSON, or its one list of records as a Markdown table.
-fn print_report(report: &impl serde::Serialize, json: bool) -> Result<()> {
-    let value = serde_json::to_value(report)?;
-    if json {
-        println!("{value}");
-        return Ok(());
-    }
-    let records = value
-        .as_object()
-        .and_then(|o| o.values().find_map(|v| v.as_array()))
-        .cloned()
-        .unwrap_or_default();
-    let Some(first) = records.first().and_then(|r| r.as_object()) else {
-        return Ok(());
-    };
-    let columns: Vec<&String> = first.keys().collect();
-    let cell = |v: &serde_json::Value| match v {
-        serde_json::Value::Number(n) => n.as_f64().map_or_else(
-            || n.to_string(),
-            |f| {
-                if f.fract() == 0.0 {
-                    format!("{f}")
-                } else {
-                    format!("{f:.3}")
-                }
-            },
-        ),
-        serde_json::Value::Null => "-".to_owned(),
-        serde_json::Value::String(s) => s.clone(),
-        other => other.to_string(),
-    };
-    println!(
-        "| {} |",
-        columns
-            .iter()
-            .map(|c| c.as_str())
-            .collect::<Vec<_>>()
-            .join(" | ")
-    );
-    println!("|{}", "---|".repeat(columns.len()));
-    for record in &records {
-        let cells: Vec<String> = columns.iter().map(|c| cell(&record[c.as_str()])).collect();
-        println!("| {} |", cells.join(" | "));
-    }
-    Ok(())
-}
-
 fn parse_point(text: &str) -> Result<[f64; 2], String> {
     let parts: Vec<&str> = text.split(',').collect();
     let [x, y] = parts[..] else {
@@ -215,6 +162,17 @@ fn parse_point(text: &str) -> Result<[f64; 2], String> {
             })
     };
     Ok([parse(x)?, parse(y)?])
+}
+
+/// Runs a sibling binary with `args` in the foreground; its failure is ours.
+fn forward(binary: &str, args: &[String]) -> Result<()> {
+    let status = std::process::Command::new(shoal::process::sibling_binary(binary)?)
+        .args(args)
+        .status()?;
+    if !status.success() {
+        anyhow::bail!("{binary} failed ({status})");
+    }
+    Ok(())
 }
 
 fn run(cli: Cli) -> Result<()> {
@@ -244,34 +202,8 @@ fn run(cli: Cli) -> Result<()> {
                 slam,
             })?;
         }
-        Commands::Slam { args } => {
-            let status = std::process::Command::new(shoal::process::sibling_binary("shoal-slam")?)
-                .args(&args)
-                .status()?;
-            if !status.success() {
-                anyhow::bail!("shoal-slam failed ({status})");
-            }
-        }
-        Commands::Record {
-            out,
-            swarm,
-            tum,
-            duration,
-        } => {
-            let mut command =
-                std::process::Command::new(shoal::process::sibling_binary("shoal-viewer-log")?);
-            command.arg(&out).args(["--swarm", &swarm]);
-            if let Some(tum) = tum {
-                command.arg("--tum").arg(tum);
-            }
-            if let Some(duration) = duration {
-                command.args(["--duration", &duration.to_string()]);
-            }
-            let status = command.status()?;
-            if !status.success() {
-                anyhow::bail!("the recorder failed ({status})");
-            }
-        }
+        Commands::Slam { args } => forward("shoal-slam", &args)?,
+        Commands::Record { args } => forward("shoal-viewer-log", &args)?,
         Commands::Status { swarm, json } => {
             let report = status::gather(&swarm)?;
             if json {
@@ -285,7 +217,7 @@ fn run(cli: Cli) -> Result<()> {
                 agents,
                 seeds,
                 max_seconds,
-            } => print_report(
+            } => report::print(
                 &experiment::formation::run(agents, seeds, max_seconds)?,
                 json,
             )?,
@@ -293,15 +225,15 @@ fn run(cli: Cli) -> Result<()> {
                 agents,
                 seeds,
                 max_seconds,
-            } => print_report(
+            } => report::print(
                 &experiment::obstacles::run(agents, seeds, max_seconds)?,
                 json,
             )?,
             ExperimentKind::Healing { seeds, max_seconds } => {
-                print_report(&experiment::healing::run(seeds, max_seconds)?, json)?
+                report::print(&experiment::healing::run(seeds, max_seconds)?, json)?
             }
             ExperimentKind::Scale { sizes, max_seconds } => {
-                print_report(&experiment::scale::run(&sizes, max_seconds)?, json)?
+                report::print(&experiment::scale::run(&sizes, max_seconds)?, json)?
             }
         },
         Commands::Kill {
@@ -318,17 +250,5 @@ fn run(cli: Cli) -> Result<()> {
 }
 
 fn main() -> ExitCode {
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()),
-        )
-        .with_writer(std::io::stderr)
-        .init();
-    match run(Cli::parse()) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("shoal: error: {e:#}");
-            ExitCode::FAILURE
-        }
-    }
+    shoal_broker::process_main::run_main("shoal", "warn", || run(Cli::parse()))
 }

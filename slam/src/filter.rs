@@ -138,15 +138,6 @@ impl ParticleFilter {
         self.steps += 1;
     }
 
-    /// The map of the heaviest particle.
-    pub fn best_map(&self) -> &TiledGrid {
-        let best = self
-            .particles
-            .iter()
-            .max_by(|a, b| a.weight.total_cmp(&b.weight));
-        &best.unwrap_or(&self.particles[0]).map
-    }
-
     /// One step: the robot executed `command` (a wall or robot stopped its
     /// translation if `bumped`), then its sensor read `ranges`.
     pub fn step(&mut self, command: Command, bumped: bool, ranges: &[f64]) -> StepReport {
@@ -275,6 +266,29 @@ impl ParticleFilter {
     }
 }
 
+/// How close to another robot a beam must end to be taken for a hit on it.
+const BODY_REACH_M: f64 = 0.35;
+
+/// Marks with NaN the ranges of beams that, seen from `pose`, end on one of
+/// the robots at `bodies`: robots move, so they do not belong in the map.
+pub fn mask_bodies(
+    ranges: &mut [f64],
+    pose: &Pose,
+    sensor: &RangeSensor,
+    bodies: impl Iterator<Item = DVec2>,
+) {
+    let bodies: Vec<DVec2> = bodies.collect();
+    for (b, range) in ranges.iter_mut().enumerate() {
+        if *range >= sensor.max_range {
+            continue;
+        }
+        let end = beam_end(pose, sensor.bearing(b), *range);
+        if bodies.iter().any(|p| p.distance(end) < BODY_REACH_M) {
+            *range = f64::NAN;
+        }
+    }
+}
+
 /// Adds a scan taken at the particle's pose to its map.
 fn integrate(particle: &mut Particle, ranges: &[f64], config: &FilterConfig) {
     let sensor = &config.sensor;
@@ -294,4 +308,28 @@ fn integrate(particle: &mut Particle, ranges: &[f64], config: &FilterConfig) {
 
 fn beam_end(pose: &Pose, bearing: f64, range: f64) -> DVec2 {
     pose.position() + DVec2::from_angle(pose.theta + bearing) * range
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn beams_ending_on_other_robots_are_masked() {
+        let sensor = RangeSensor {
+            beams: 3,
+            ..RangeSensor::default()
+        };
+        // Beams at -90, 0 and +90 degrees from a robot at the origin facing +x.
+        let mut ranges = vec![1.0, 2.0, sensor.max_range];
+        mask_bodies(
+            &mut ranges,
+            &Pose::new(0.0, 0.0, 0.0),
+            &sensor,
+            [DVec2::new(2.1, 0.0)].into_iter(),
+        );
+        assert_eq!(ranges[0], 1.0);
+        assert!(ranges[1].is_nan(), "the beam ahead ends 0.1 m from a robot");
+        assert_eq!(ranges[2], sensor.max_range, "no return is left alone");
+    }
 }

@@ -136,22 +136,6 @@ impl TiledGrid {
     pub fn tile_count(&self) -> usize {
         self.tiles.len()
     }
-
-    /// Row-major occupancy values (ROS convention: 0 free, 100 occupied, 255 unknown).
-    pub fn to_ros(&self) -> Vec<u8> {
-        let mut cells = Vec::with_capacity(self.width * self.height);
-        for y in 0..self.height {
-            for x in 0..self.width {
-                let l = self.log_odds((x, y));
-                cells.push(if l.abs() < 0.2 {
-                    255
-                } else {
-                    (self.occupancy((x, y)) * 100.0).round() as u8
-                });
-            }
-        }
-        cells
-    }
 }
 
 #[cfg(test)]

@@ -14,7 +14,7 @@ use shoal_broker::{
 };
 use shoal_physics::legged::Param;
 use shoal_physics::{Command, MotionModel, Pose, Scenario};
-use shoal_slam::filter::{FilterConfig, ParticleFilter};
+use shoal_slam::filter::{FilterConfig, ParticleFilter, mask_bodies};
 
 #[derive(Parser)]
 #[command(
@@ -132,13 +132,11 @@ fn run(args: Args) -> Result<()> {
                 idle = false;
                 let mut ranges: Vec<f64> = scan.ranges().iter().map(|r| f64::from(*r)).collect();
                 if let Some(filter) = &robot.filter {
-                    mask_robots(
-                        &mut ranges,
-                        &filter.estimate(),
-                        &scenario.sensor,
-                        &bodies,
-                        *id,
-                    );
+                    let others = bodies
+                        .iter()
+                        .filter(|(other, _)| *other != id)
+                        .map(|(_, p)| *p);
+                    mask_bodies(&mut ranges, &filter.estimate(), &scenario.sensor, others);
                 }
                 let Some(command) = Command::from_index(scan.command as usize) else {
                     continue;
@@ -194,43 +192,6 @@ fn run(args: Args) -> Result<()> {
     Ok(())
 }
 
-/// Replaces with NaN the ranges of beams that end within a body's reach of
-/// another robot, seen from `pose`.
-fn mask_robots(
-    ranges: &mut [f64],
-    pose: &Pose,
-    sensor: &shoal_physics::range::RangeSensor,
-    bodies: &BTreeMap<u32, glam::DVec2>,
-    own_id: u32,
-) {
-    const REACH_M: f64 = 0.35;
-    for (b, range) in ranges.iter_mut().enumerate() {
-        if *range >= sensor.max_range {
-            continue;
-        }
-        let end =
-            pose.position() + glam::DVec2::from_angle(pose.theta + sensor.bearing(b)) * *range;
-        if bodies
-            .iter()
-            .any(|(id, p)| *id != own_id && p.distance(end) < REACH_M)
-        {
-            *range = f64::NAN;
-        }
-    }
-}
-
 fn main() -> std::process::ExitCode {
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()),
-        )
-        .with_writer(std::io::stderr)
-        .init();
-    match run(Args::parse()) {
-        Ok(()) => std::process::ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("shoal-slam: error: {e:#}");
-            std::process::ExitCode::FAILURE
-        }
-    }
+    shoal_broker::process_main::run_main("shoal-slam", "info", || run(Args::parse()))
 }

@@ -77,6 +77,7 @@ fn with_a_correct_model_and_learning_the_filter_tracks_the_robot() {
     let rmse = (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt();
     // Issue 3 asks for every step under 10 cm; today the worst step reaches
     // about 11.5 cm (rmse 4.6 cm), so this pins what the filter does now.
+    eprintln!("300 steps: worst {worst:.3} m, rmse {rmse:.3} m");
     assert!(
         rmse < 0.10 && worst < 0.15,
         "worst {worst:.3} m, rmse {rmse:.3} m"
@@ -102,6 +103,7 @@ fn learning_corrects_a_model_whose_turns_are_twice_too_large() {
     let (late_learning, late_fixed) = (rmse(&learning[150..]), rmse(&fixed[150..]));
     // Issue 3 asks for learning to bring the error under 10 cm here; today it
     // cuts the late error about tenfold (0.58 m against 5.5 m), not yet that far.
+    eprintln!("last 150 steps: rmse {late_learning:.3} m learning, {late_fixed:.3} m not learning");
     assert!(
         late_fixed > 5.0 * late_learning,
         "last 150 steps: rmse {late_learning:.3} m learning, {late_fixed:.3} m not learning"

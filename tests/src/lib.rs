@@ -88,15 +88,7 @@ pub fn wait_until(timeout: Duration, mut condition: impl FnMut() -> bool) -> boo
     false
 }
 
-pub fn pid_alive(pid: i32) -> bool {
-    std::fs::read_to_string(format!("/proc/{pid}/stat"))
-        .ok()
-        .and_then(|stat| {
-            stat.rsplit_once(')')
-                .and_then(|(_, rest)| rest.trim_start().chars().next())
-        })
-        .is_some_and(|state| state != 'Z' && state != 'X')
-}
+pub use shoal::process::pid_alive;
 
 /// A `shoal up` running in the background. Dropping it stops the swarm with
 /// Ctrl-C (SIGINT), as a user would, so no test leaves robots behind.

@@ -106,17 +106,5 @@ fn run(args: Args) -> Result<()> {
 }
 
 fn main() -> std::process::ExitCode {
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()),
-        )
-        .with_writer(std::io::stderr)
-        .init();
-    match run(Args::parse()) {
-        Ok(()) => std::process::ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("shoal-viewer-log: error: {e:#}");
-            std::process::ExitCode::FAILURE
-        }
-    }
+    shoal_broker::process_main::run_main("shoal-viewer-log", "warn", || run(Args::parse()))
 }

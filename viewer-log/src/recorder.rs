@@ -63,10 +63,6 @@ impl Recorder {
         })
     }
 
-    pub fn stream(&self) -> &RecordingStream {
-        &self.rec
-    }
-
     /// Takes one sample that passed the bus checks.
     pub fn add(&mut self, sample: PoseSample) {
         self.stats.samples += 1;
@@ -285,10 +281,6 @@ impl Recorder {
         }
         self.rec.flush_blocking()?;
         Ok(())
-    }
-
-    pub fn robots(&self) -> impl Iterator<Item = &PoseSample> {
-        self.robots.values().map(|r| &r.latest)
     }
 }
 

@@ -1,0 +1,26 @@
+//! The frame of every Shoal binary: logs to stderr (`RUST_LOG` overrides the
+//! default level), and an error ends the process with its context and a
+//! non-zero exit.
+
+use std::process::ExitCode;
+
+pub fn run_main(
+    name: &str,
+    default_level: &str,
+    body: impl FnOnce() -> anyhow::Result<()>,
+) -> ExitCode {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| default_level.into()),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    match body() {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("{name}: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
