@@ -95,35 +95,67 @@ pub use shoal::process::pid_alive;
 pub struct BackgroundSwarm {
     pub name: String,
     child: Option<Child>,
+    log: PathBuf,
 }
 
 impl BackgroundSwarm {
     pub fn start(name: &str, extra: &[&str]) -> Self {
         let mut args = vec!["up", "--swarm", name];
         args.extend_from_slice(extra);
+        // A file, not a pipe: nobody reads a pipe while the test waits, and a
+        // full pipe would stall `shoal up` and with it a lockstep swarm.
+        let log = std::env::temp_dir().join(format!("shoal-e2e-{name}.log"));
+        let out = std::fs::File::create(&log).expect("create the shoal up log");
+        let err = out.try_clone().expect("clone the log handle");
         let child = Command::new(bin("shoal"))
             .args(&args)
             .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
+            .stdout(out)
+            .stderr(err)
             .spawn()
             .expect("start shoal up");
         Self {
             name: name.to_owned(),
             child: Some(child),
+            log,
         }
+    }
+
+    /// What `shoal up` has printed so far, for failure messages.
+    pub fn log(&self) -> String {
+        std::fs::read_to_string(&self.log).unwrap_or_default()
+    }
+
+    /// Waits until exactly `count` robots are alive; panics with the status
+    /// and the launcher's output otherwise.
+    pub fn wait_alive(&mut self, count: usize, timeout: Duration) {
+        let mut last = Value::Null;
+        let reached = wait_until(timeout, || {
+            if let Some(Ok(Some(exit))) = self.child.as_mut().map(Child::try_wait) {
+                panic!("shoal up {} ended early ({exit}):\n{}", self.name, self.log());
+            }
+            last = status(&self.name);
+            alive_ids(&last).len() == count
+        });
+        assert!(
+            reached,
+            "{count} robots of {} not alive within {timeout:?}\nstatus: {last}\nshoal up said:\n{}",
+            self.name,
+            self.log()
+        );
     }
 
     pub fn pid(&self) -> i32 {
         self.child.as_ref().map_or(0, |c| c.id() as i32)
     }
 
-    /// Sends Ctrl-C to `shoal up` and returns its output.
-    pub fn interrupt(&mut self) -> Output {
-        let child = self.child.take().expect("running");
+    /// Sends Ctrl-C to `shoal up`, waits for it and returns what it printed.
+    pub fn interrupt(&mut self) -> (std::process::ExitStatus, String) {
+        let mut child = self.child.take().expect("running");
         // SAFETY: plain kill(2) on a child we own.
         unsafe { libc::kill(child.id() as i32, libc::SIGINT) };
-        child.wait_with_output().expect("wait for shoal up")
+        let status = child.wait().expect("wait for shoal up");
+        (status, self.log())
     }
 }
 

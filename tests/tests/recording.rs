@@ -58,11 +58,7 @@ fn a_recording_holds_the_swarm_as_the_robots_published_it() {
         ],
     );
     // Listen to the roster ourselves, as one more observer, to know what the robots published.
-    assert!(wait_until(Duration::from_secs(30), || alive_ids(&status(
-        swarm_name
-    ))
-    .len()
-        == 12));
+    swarm.wait_alive(12, Duration::from_secs(30));
     let bus = Bus::join(
         swarm_name,
         &names::tool_node(swarm_name, "e2e-observer"),
@@ -82,12 +78,8 @@ fn a_recording_holds_the_swarm_as_the_robots_published_it() {
     }
     drop(roster);
     drop(bus);
-    let output = swarm.interrupt();
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
+    let (exit, said) = swarm.interrupt();
+    assert!(exit.success(), "{}", said);
 
     let verify = rerun_cli(&["rrd", "verify", recording.to_str().expect("utf-8")]);
     assert!(
@@ -195,12 +187,8 @@ fn a_recorder_killed_with_sigkill_leaves_a_readable_file() {
     let _turn = serial();
     let dir = scratch("sigkill");
     let recording = dir.join("killed.rrd");
-    let swarm = BackgroundSwarm::start("e2e-sigkill", &["--agents", "6"]);
-    assert!(wait_until(Duration::from_secs(30), || alive_ids(&status(
-        &swarm.name
-    ))
-    .len()
-        == 6));
+    let mut swarm = BackgroundSwarm::start("e2e-sigkill", &["--agents", "6"]);
+    swarm.wait_alive(6, Duration::from_secs(30));
     let mut recorder = Command::new(bin("shoal-viewer-log"))
         .arg(&recording)
         .args(["--swarm", &swarm.name])

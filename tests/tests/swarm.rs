@@ -145,12 +145,8 @@ fn killed_robots_are_dropped_cleaned_and_restarted() {
         .filter_map(|a| a["pid"].as_i64())
         .map(|p| p as i32)
         .collect();
-    let output = swarm.interrupt();
-    assert!(
-        output.status.success(),
-        "Ctrl-C must stop cleanly: {}",
-        String::from_utf8_lossy(&output.stderr)
-    );
+    let (exit, said) = swarm.interrupt();
+    assert!(exit.success(), "Ctrl-C must stop cleanly: {}", said);
     assert!(
         agent_pids.iter().all(|p| !pid_alive(*p)),
         "robots outlived Ctrl-C (restarted ones too)"
@@ -161,12 +157,8 @@ fn killed_robots_are_dropped_cleaned_and_restarted() {
 #[test]
 fn robots_spawned_into_a_running_swarm_are_absorbed() {
     let _turn = serial();
-    let swarm = BackgroundSwarm::start("e2e-spawn", &["--agents", "10", "--lockstep"]);
-    assert!(wait_until(Duration::from_secs(60), || alive_ids(&status(
-        &swarm.name
-    ))
-    .len()
-        == 10));
+    let mut swarm = BackgroundSwarm::start("e2e-spawn", &["--agents", "10", "--lockstep"]);
+    swarm.wait_alive(10, Duration::from_secs(60));
     let output = shoal(&[
         "spawn",
         "--swarm",
@@ -265,12 +257,8 @@ fn a_malformed_scenario_names_file_line_and_field() {
 fn malformed_bus_samples_are_rejected_and_counted() {
     use shoal_broker::{Bus, BusLimits, CellExchange, PoseSample, RosterPublisher, names};
     let _turn = serial();
-    let swarm = BackgroundSwarm::start("e2e-rogue", &["--agents", "8", "--lockstep"]);
-    assert!(wait_until(Duration::from_secs(60), || alive_ids(&status(
-        &swarm.name
-    ))
-    .len()
-        == 8));
+    let mut swarm = BackgroundSwarm::start("e2e-rogue", &["--agents", "8", "--lockstep"]);
+    swarm.wait_alive(8, Duration::from_secs(60));
 
     // A rogue publisher writes NaN and far-away poses into the cells where the
     // robots stand and into the roster.
@@ -327,12 +315,8 @@ fn malformed_bus_samples_are_rejected_and_counted() {
 #[test]
 fn a_real_time_swarm_keeps_going_when_shoal_up_is_killed() {
     let _turn = serial();
-    let swarm = BackgroundSwarm::start("e2e-orphans", &["--agents", "6"]);
-    assert!(wait_until(Duration::from_secs(30), || alive_ids(&status(
-        &swarm.name
-    ))
-    .len()
-        == 6));
+    let mut swarm = BackgroundSwarm::start("e2e-orphans", &["--agents", "6"]);
+    swarm.wait_alive(6, Duration::from_secs(30));
     // SAFETY: plain kill(2) on our child.
     unsafe { libc::kill(swarm.pid(), libc::SIGKILL) };
     let ticks = |s: &Value| -> Vec<u64> {
@@ -372,12 +356,8 @@ fn a_real_time_swarm_keeps_going_when_shoal_up_is_killed() {
 #[test]
 fn the_official_python_iceoryx2_client_reads_the_roster() {
     let _turn = serial();
-    let swarm = BackgroundSwarm::start("e2e-python", &["--agents", "5"]);
-    assert!(wait_until(Duration::from_secs(30), || alive_ids(&status(
-        &swarm.name
-    ))
-    .len()
-        == 5));
+    let mut swarm = BackgroundSwarm::start("e2e-python", &["--agents", "5"]);
+    swarm.wait_alive(5, Duration::from_secs(30));
     let script = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("python/read_roster.py");
     let output = std::process::Command::new("python3")
         .arg(script)
