@@ -4,6 +4,7 @@
 
 pub mod arena;
 pub mod body;
+pub mod effects;
 pub mod formation;
 pub mod legged;
 pub mod metrics;
@@ -12,11 +13,14 @@ pub mod planner;
 pub mod pose;
 pub mod range;
 pub mod scenario;
+pub mod unicycle;
 
 pub use arena::{Arena, Obstacle, Surface, Wall};
 pub use body::{Body, StepOutcome};
+pub use effects::{Effect, ScopedEffect};
 pub use formation::{ForceLaw, FormationParams, Neighbour};
 pub use legged::{Command, MotionModel, MotionSample};
 pub use mixture::Mixture2;
 pub use pose::{Pose, wrap_angle};
 pub use scenario::{Scenario, ScenarioError};
+pub use unicycle::{CommandGrid, Executed, UnicycleModel};

@@ -216,20 +216,7 @@ impl Scenario {
             field,
             message,
         };
-        let deserializer = toml::Deserializer::parse(text).map_err(|e| {
-            error(
-                e.span().map(|s| line_of_offset(text, s.start)),
-                None,
-                e.message().to_owned(),
-            )
-        })?;
-        let scenario: Scenario = serde_path_to_error::deserialize(deserializer).map_err(|e| {
-            let field = e.path().to_string();
-            let inner = e.into_inner();
-            let line = inner.span().map(|s| line_of_offset(text, s.start));
-            let line = line.or_else(|| line_of_field(text, &field));
-            error(line, Some(field), inner.message().to_owned())
-        })?;
+        let scenario: Scenario = parse_toml(text, file)?;
         scenario
             .validate()
             .map_err(|(field, message)| error(line_of_field(text, &field), Some(field), message))?;
@@ -338,7 +325,44 @@ fn line_of_offset(text: &str, offset: usize) -> usize {
 }
 
 /// The line where `section.key` is written, for errors found after parsing.
-fn line_of_field(text: &str, field: &str) -> Option<usize> {
+/// Parses TOML `text` into `T`; errors name `file`, the line and the field.
+pub fn parse_toml<T: serde::de::DeserializeOwned>(
+    text: &str,
+    file: &str,
+) -> Result<T, ScenarioError> {
+    let error = |line, field: Option<String>, message: String| ScenarioError {
+        file: file.to_owned(),
+        line,
+        field,
+        message,
+    };
+    let deserializer = toml::Deserializer::parse(text).map_err(|e| {
+        error(
+            e.span().map(|s| line_of_offset(text, s.start)),
+            None,
+            e.message().to_owned(),
+        )
+    })?;
+    serde_path_to_error::deserialize(deserializer).map_err(|e| {
+        let field = e.path().to_string();
+        let inner = e.into_inner();
+        let line = inner.span().map(|s| line_of_offset(text, s.start));
+        let line = line.or_else(|| line_of_field(text, &field));
+        error(line, Some(field), inner.message().to_owned())
+    })
+}
+
+/// The line of the `index`-th `[[name]]` table in `text`.
+pub(crate) fn line_of_nth_table(text: &str, name: &str, index: usize) -> Option<usize> {
+    let header = format!("[[{name}]]");
+    text.lines()
+        .enumerate()
+        .filter(|(_, line)| line.trim() == header)
+        .nth(index)
+        .map(|(number, _)| number + 1)
+}
+
+pub(crate) fn line_of_field(text: &str, field: &str) -> Option<usize> {
     let (section, key) = match field.rsplit_once('.') {
         Some((section, key)) => (section, key),
         None => ("", field),

@@ -126,16 +126,21 @@ impl BackgroundSwarm {
         std::fs::read_to_string(&self.log).unwrap_or_default()
     }
 
-    /// Waits until exactly `count` robots are alive; panics with the status
-    /// and the launcher's output otherwise.
+    /// Waits until exactly `count` robots are alive and have published a
+    /// pose; panics with the status and the launcher's output otherwise.
     pub fn wait_alive(&mut self, count: usize, timeout: Duration) {
         let mut last = Value::Null;
         let reached = wait_until(timeout, || {
             if let Some(Ok(Some(exit))) = self.child.as_mut().map(Child::try_wait) {
-                panic!("shoal up {} ended early ({exit}):\n{}", self.name, self.log());
+                panic!(
+                    "shoal up {} ended early ({exit}):\n{}",
+                    self.name,
+                    self.log()
+                );
             }
             last = status(&self.name);
-            alive_ids(&last).len() == count
+            let agents = alive_agents(&last);
+            agents.len() == count && agents.iter().all(|a| a["x"].is_f64())
         });
         assert!(
             reached,

@@ -1,0 +1,240 @@
+//! The library of physical effects a wheeled body can have and a simulation
+//! model can leave out. Each is a small parametric term; the identity value
+//! of every parameter is the plain unicycle.
+
+use serde::{Deserialize, Serialize};
+
+/// One physical effect with its parameters, named as `shoal diagnose` reports them.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum Effect {
+    /// Commands take effect this late.
+    Latency { seconds: f64 },
+    /// Forward speed is this multiple of the command.
+    SpeedScale { factor: f64 },
+    /// Turn rate is this multiple of the command.
+    TurnScale { factor: f64 },
+    /// A constant turn rate added to every command.
+    TurnBias { rad_per_s: f64 },
+    /// Heading turns by this much per metre driven (unequal wheels).
+    HeadingDrift { rad_per_m: f64 },
+    /// Forward speed cannot change faster than this (inertia).
+    AccelLimit { m_per_s2: f64 },
+    /// The fraction of speed lost grows with speed: v (1 - k |v|).
+    Slip { per_m_per_s: f64 },
+    /// Speed and turn gain lose this fraction per minute since the start.
+    BatteryFade { per_minute: f64 },
+    /// Inside the region [xmin, ymin, xmax, ymax] speed is multiplied by the factor.
+    SurfaceZone { region: [f64; 4], speed_factor: f64 },
+    /// A constant drift in the world frame (slope, current, wind), m/s.
+    ExternalFlow { vx: f64, vy: f64 },
+    /// Play in the steering: the executed turn rate only follows the command
+    /// once it differs by more than this (backlash; depends on history).
+    Hysteresis { play_rad_per_s: f64 },
+    /// Motion noise variance grows by this fraction per m/s of speed.
+    SpeedNoise { per_m_per_s: f64 },
+}
+
+/// The kinds, in the order `shoal diagnose` tries them.
+pub const EFFECT_KINDS: [&str; 12] = [
+    "latency",
+    "speed_scale",
+    "turn_scale",
+    "turn_bias",
+    "heading_drift",
+    "accel_limit",
+    "slip",
+    "battery_fade",
+    "surface_zone",
+    "external_flow",
+    "hysteresis",
+    "speed_noise",
+];
+
+impl Effect {
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Effect::Latency { .. } => "latency",
+            Effect::SpeedScale { .. } => "speed_scale",
+            Effect::TurnScale { .. } => "turn_scale",
+            Effect::TurnBias { .. } => "turn_bias",
+            Effect::HeadingDrift { .. } => "heading_drift",
+            Effect::AccelLimit { .. } => "accel_limit",
+            Effect::Slip { .. } => "slip",
+            Effect::BatteryFade { .. } => "battery_fade",
+            Effect::SurfaceZone { .. } => "surface_zone",
+            Effect::ExternalFlow { .. } => "external_flow",
+            Effect::Hysteresis { .. } => "hysteresis",
+            Effect::SpeedNoise { .. } => "speed_noise",
+        }
+    }
+
+    /// The fitted parameters as (name, value), in a fixed order. The region
+    /// of a surface zone is located, not fitted, so it is not among them.
+    pub fn params(&self) -> Vec<(&'static str, f64)> {
+        match *self {
+            Effect::Latency { seconds } => vec![("seconds", seconds)],
+            Effect::SpeedScale { factor } => vec![("factor", factor)],
+            Effect::TurnScale { factor } => vec![("factor", factor)],
+            Effect::TurnBias { rad_per_s } => vec![("rad_per_s", rad_per_s)],
+            Effect::HeadingDrift { rad_per_m } => vec![("rad_per_m", rad_per_m)],
+            Effect::AccelLimit { m_per_s2 } => vec![("m_per_s2", m_per_s2)],
+            Effect::Slip { per_m_per_s } => vec![("per_m_per_s", per_m_per_s)],
+            Effect::BatteryFade { per_minute } => vec![("per_minute", per_minute)],
+            Effect::SurfaceZone { speed_factor, .. } => vec![("speed_factor", speed_factor)],
+            Effect::ExternalFlow { vx, vy } => vec![("vx", vx), ("vy", vy)],
+            Effect::Hysteresis { play_rad_per_s } => vec![("play_rad_per_s", play_rad_per_s)],
+            Effect::SpeedNoise { per_m_per_s } => vec![("per_m_per_s", per_m_per_s)],
+        }
+    }
+
+    /// The same effect with its fitted parameters replaced by `values`
+    /// (as many as [`Effect::params`] returns).
+    pub fn with_params(&self, values: &[f64]) -> Effect {
+        let v = |i: usize| values.get(i).copied().unwrap_or(f64::NAN);
+        match *self {
+            Effect::Latency { .. } => Effect::Latency { seconds: v(0) },
+            Effect::SpeedScale { .. } => Effect::SpeedScale { factor: v(0) },
+            Effect::TurnScale { .. } => Effect::TurnScale { factor: v(0) },
+            Effect::TurnBias { .. } => Effect::TurnBias { rad_per_s: v(0) },
+            Effect::HeadingDrift { .. } => Effect::HeadingDrift { rad_per_m: v(0) },
+            Effect::AccelLimit { .. } => Effect::AccelLimit { m_per_s2: v(0) },
+            Effect::Slip { .. } => Effect::Slip { per_m_per_s: v(0) },
+            Effect::BatteryFade { .. } => Effect::BatteryFade { per_minute: v(0) },
+            Effect::SurfaceZone { region, .. } => Effect::SurfaceZone {
+                region,
+                speed_factor: v(0),
+            },
+            Effect::ExternalFlow { .. } => Effect::ExternalFlow { vx: v(0), vy: v(1) },
+            Effect::Hysteresis { .. } => Effect::Hysteresis {
+                play_rad_per_s: v(0),
+            },
+            Effect::SpeedNoise { .. } => Effect::SpeedNoise { per_m_per_s: v(0) },
+        }
+    }
+
+    /// The effect of `kind` at its identity (the plain model), or `None` for
+    /// an unknown kind. A surface zone needs a region, given here.
+    pub fn identity(kind: &str, region: [f64; 4]) -> Option<Effect> {
+        Some(match kind {
+            "latency" => Effect::Latency { seconds: 0.0 },
+            "speed_scale" => Effect::SpeedScale { factor: 1.0 },
+            "turn_scale" => Effect::TurnScale { factor: 1.0 },
+            "turn_bias" => Effect::TurnBias { rad_per_s: 0.0 },
+            "heading_drift" => Effect::HeadingDrift { rad_per_m: 0.0 },
+            "accel_limit" => Effect::AccelLimit { m_per_s2: 5.0 },
+            "slip" => Effect::Slip { per_m_per_s: 0.0 },
+            "battery_fade" => Effect::BatteryFade { per_minute: 0.0 },
+            "surface_zone" => Effect::SurfaceZone {
+                region,
+                speed_factor: 1.0,
+            },
+            "external_flow" => Effect::ExternalFlow { vx: 0.0, vy: 0.0 },
+            "hysteresis" => Effect::Hysteresis {
+                play_rad_per_s: 0.0,
+            },
+            "speed_noise" => Effect::SpeedNoise { per_m_per_s: 0.0 },
+            _ => return None,
+        })
+    }
+
+    /// Where the parameters may lie; outside, the effect is not physical.
+    pub fn in_bounds(&self) -> bool {
+        match *self {
+            Effect::Latency { seconds } => (0.0..=2.0).contains(&seconds),
+            Effect::SpeedScale { factor } | Effect::TurnScale { factor } => {
+                (0.2..=5.0).contains(&factor)
+            }
+            Effect::TurnBias { rad_per_s } => rad_per_s.abs() <= 2.0,
+            Effect::HeadingDrift { rad_per_m } => rad_per_m.abs() <= 2.0,
+            Effect::AccelLimit { m_per_s2 } => (0.01..=50.0).contains(&m_per_s2),
+            Effect::Slip { per_m_per_s } => (-1.0..=3.0).contains(&per_m_per_s),
+            Effect::BatteryFade { per_minute } => (-0.5..=0.5).contains(&per_minute),
+            Effect::SurfaceZone { speed_factor, .. } => (0.0..=3.0).contains(&speed_factor),
+            Effect::ExternalFlow { vx, vy } => vx.hypot(vy) <= 2.0,
+            Effect::Hysteresis { play_rad_per_s } => (0.0..=2.0).contains(&play_rad_per_s),
+            Effect::SpeedNoise { per_m_per_s } => (0.0..=1000.0).contains(&per_m_per_s),
+        }
+    }
+
+    /// One sentence for the user.
+    pub fn sentence(&self) -> String {
+        match *self {
+            Effect::Latency { seconds } => {
+                format!("Commands take effect {seconds:.2} s late (actuation latency).")
+            }
+            Effect::SpeedScale { factor } => format!(
+                "The robot drives at {:.0}% of the commanded speed (speed scale error).",
+                factor * 100.0
+            ),
+            Effect::TurnScale { factor } => format!(
+                "The robot turns at {:.0}% of the commanded rate (turn scale error).",
+                factor * 100.0
+            ),
+            Effect::TurnBias { rad_per_s } => format!(
+                "The robot turns {:.3} rad/s {} than commanded (turn bias).",
+                rad_per_s.abs(),
+                if rad_per_s > 0.0 {
+                    "more to the left"
+                } else {
+                    "more to the right"
+                }
+            ),
+            Effect::HeadingDrift { rad_per_m } => format!(
+                "The heading drifts {:.3} rad per metre driven, to the {} (unequal wheels).",
+                rad_per_m.abs(),
+                if rad_per_m > 0.0 { "left" } else { "right" }
+            ),
+            Effect::AccelLimit { m_per_s2 } => {
+                format!("Speed changes at most {m_per_s2:.2} m/s² (inertia).")
+            }
+            Effect::Slip { per_m_per_s } => format!(
+                "The robot loses {:.0}% of its speed per m/s of speed (slip).",
+                per_m_per_s * 100.0
+            ),
+            Effect::BatteryFade { per_minute } => format!(
+                "Speed and turn gain fade by {:.2}% per minute (battery).",
+                per_minute * 100.0
+            ),
+            Effect::SurfaceZone {
+                region: [x0, y0, x1, y1],
+                speed_factor,
+            } => format!(
+                "In [{x0:.1}, {y0:.1}] to [{x1:.1}, {y1:.1}] m the robot drives at {:.0}% speed (surface zone).",
+                speed_factor * 100.0
+            ),
+            Effect::ExternalFlow { vx, vy } => format!(
+                "The robot drifts at ({vx:.3}, {vy:.3}) m/s in the world frame (slope, current or wind)."
+            ),
+            Effect::Hysteresis { play_rad_per_s } => format!(
+                "The turn rate lags changes of the command by a play of {play_rad_per_s:.3} rad/s (hysteresis)."
+            ),
+            Effect::SpeedNoise { per_m_per_s } => format!(
+                "Motion noise variance grows by {:.0}% per m/s of speed (speed-dependent noise).",
+                per_m_per_s * 100.0
+            ),
+        }
+    }
+}
+
+/// An effect, optionally active only during `[t_start, t_end]` seconds of the run.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ScopedEffect {
+    #[serde(flatten)]
+    pub effect: Effect,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub during: Option<[f64; 2]>,
+}
+
+impl ScopedEffect {
+    pub fn always(effect: Effect) -> Self {
+        Self {
+            effect,
+            during: None,
+        }
+    }
+
+    pub fn active_at(&self, t: f64) -> bool {
+        self.during.is_none_or(|[a, b]| t >= a && t <= b)
+    }
+}

@@ -1,0 +1,341 @@
+//! A wheeled robot driven by (v, omega) commands: the plain unicycle plus
+//! whatever effects of [`crate::effects`] its model carries. The same code
+//! moves the simulated body and predicts motion in `shoal diagnose`, so a
+//! model that diagnosis writes is exactly what the simulator runs.
+
+use serde::{Deserialize, Serialize};
+
+use crate::effects::{Effect, ScopedEffect};
+use crate::pose::{Pose, wrap_angle};
+use crate::scenario::{ScenarioError, parse_toml};
+
+/// A unicycle model with effects; `effects = []` is the plain model.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct UnicycleModel {
+    #[serde(default)]
+    pub effects: Vec<ScopedEffect>,
+}
+
+/// Commands held until the next one, sampled on a fixed time grid.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CommandGrid {
+    pub t0: f64,
+    pub dt: f64,
+    pub v: Vec<f64>,
+    pub omega: Vec<f64>,
+}
+
+/// What the actuators executed at each grid step, before the effects that
+/// depend on where the robot is.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Executed {
+    pub v: Vec<f64>,
+    pub omega: Vec<f64>,
+}
+
+impl CommandGrid {
+    /// Samples commands given at sorted `times` (each held until the next) every `dt`.
+    pub fn from_held(times: &[f64], v: &[f64], omega: &[f64], dt: f64) -> Self {
+        let (Some(&first), Some(&last)) = (times.first(), times.last()) else {
+            return Self {
+                t0: 0.0,
+                dt,
+                v: Vec::new(),
+                omega: Vec::new(),
+            };
+        };
+        let steps = ((last - first) / dt).floor() as usize + 1;
+        let mut grid = Self {
+            t0: first,
+            dt,
+            v: Vec::with_capacity(steps),
+            omega: Vec::with_capacity(steps),
+        };
+        let mut row = 0;
+        for i in 0..steps {
+            let t = first + i as f64 * dt;
+            while row + 1 < times.len() && times[row + 1] <= t {
+                row += 1;
+            }
+            grid.v.push(v[row]);
+            grid.omega.push(omega[row]);
+        }
+        grid
+    }
+
+    pub fn len(&self) -> usize {
+        self.v.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.v.is_empty()
+    }
+
+    pub fn time(&self, index: usize) -> f64 {
+        self.t0 + index as f64 * self.dt
+    }
+
+    /// The command at time `t`, interpolated between grid steps so that a
+    /// fitted latency moves the prediction smoothly; before the first
+    /// command the robot stands.
+    pub fn at(&self, t: f64) -> (f64, f64) {
+        let position = (t - self.t0) / self.dt;
+        if position < 0.0 || self.v.is_empty() {
+            return (0.0, 0.0);
+        }
+        let i = position.floor() as usize;
+        if i + 1 >= self.v.len() {
+            let last = self.v.len() - 1;
+            return (self.v[last], self.omega[last]);
+        }
+        let f = position - i as f64;
+        (
+            self.v[i] + f * (self.v[i + 1] - self.v[i]),
+            self.omega[i] + f * (self.omega[i + 1] - self.omega[i]),
+        )
+    }
+}
+
+impl UnicycleModel {
+    pub fn plain() -> Self {
+        Self::default()
+    }
+
+    pub fn with_effects(effects: Vec<ScopedEffect>) -> Self {
+        Self { effects }
+    }
+
+    /// Reads a model file; errors name the file, line and field.
+    pub fn from_toml(text: &str, file: &str) -> Result<Self, ScenarioError> {
+        let model: Self = parse_toml(text, file)?;
+        for (index, scoped) in model.effects.iter().enumerate() {
+            let finite = scoped.effect.params().iter().all(|(_, v)| v.is_finite());
+            if !finite || !scoped.effect.in_bounds() {
+                let field = format!("effects[{index}]");
+                return Err(ScenarioError {
+                    file: file.to_owned(),
+                    line: crate::scenario::line_of_nth_table(text, "effects", index),
+                    field: Some(field),
+                    message: format!(
+                        "{} has parameters outside what is physical: {:?}",
+                        scoped.effect.kind(),
+                        scoped.effect.params()
+                    ),
+                });
+            }
+        }
+        Ok(model)
+    }
+
+    pub fn to_toml(&self) -> String {
+        toml::to_string_pretty(self).unwrap_or_default()
+    }
+
+    fn active(&self, t: f64) -> impl Iterator<Item = &Effect> {
+        self.effects
+            .iter()
+            .filter(move |e| e.active_at(t))
+            .map(|e| &e.effect)
+    }
+
+    /// Runs the actuators over the whole grid: latency, hysteresis, gains
+    /// and the acceleration limit. Seconds count from the grid's start.
+    pub fn execute(&self, grid: &CommandGrid) -> Executed {
+        let mut executed = Executed {
+            v: Vec::with_capacity(grid.len()),
+            omega: Vec::with_capacity(grid.len()),
+        };
+        let mut held_omega = 0.0_f64;
+        let mut last_v = 0.0_f64;
+        for i in 0..grid.len() {
+            let t = grid.time(i);
+            let run_s = t - grid.t0;
+            let (mut v, mut omega) = (grid.v[i], grid.omega[i]);
+            for effect in self.active(run_s) {
+                if let Effect::Latency { seconds } = *effect {
+                    (v, omega) = grid.at(t - seconds);
+                }
+            }
+            let moving = v != 0.0 || omega != 0.0;
+            let mut accel_limit = f64::INFINITY;
+            for effect in self.active(run_s) {
+                match *effect {
+                    Effect::Hysteresis { play_rad_per_s } => {
+                        held_omega =
+                            held_omega.clamp(omega - play_rad_per_s, omega + play_rad_per_s);
+                        omega = held_omega;
+                    }
+                    Effect::SpeedScale { factor } => v *= factor,
+                    Effect::TurnScale { factor } => omega *= factor,
+                    Effect::TurnBias { rad_per_s } if moving => omega += rad_per_s,
+                    Effect::Slip { per_m_per_s } => v *= (1.0 - per_m_per_s * v.abs()).max(0.0),
+                    Effect::BatteryFade { per_minute } => {
+                        let gain = (1.0 - per_minute * run_s / 60.0).max(0.0);
+                        v *= gain;
+                        omega *= gain;
+                    }
+                    Effect::AccelLimit { m_per_s2 } => accel_limit = m_per_s2,
+                    _ => {}
+                }
+            }
+            let max_change = accel_limit * grid.dt;
+            v = last_v + (v - last_v).clamp(-max_change, max_change);
+            last_v = v;
+            executed.v.push(v);
+            executed.omega.push(omega);
+        }
+        executed
+    }
+
+    /// One integration step of `dt` from `pose` with the executed `v`,
+    /// `omega` at `run_s` seconds into the run: the effects that depend on
+    /// place and distance.
+    pub fn step(&self, pose: Pose, v: f64, omega: f64, run_s: f64, dt: f64) -> Pose {
+        let mut speed = v;
+        let mut turn = omega * dt;
+        let mut flow = (0.0, 0.0);
+        for effect in self.active(run_s) {
+            match *effect {
+                Effect::SurfaceZone {
+                    region: [x0, y0, x1, y1],
+                    speed_factor,
+                } if pose.x >= x0 && pose.x <= x1 && pose.y >= y0 && pose.y <= y1 => {
+                    speed *= speed_factor;
+                }
+                Effect::ExternalFlow { vx, vy } => flow = (vx, vy),
+                _ => {}
+            }
+        }
+        for effect in self.active(run_s) {
+            if let Effect::HeadingDrift { rad_per_m } = *effect {
+                turn += rad_per_m * speed * dt;
+            }
+        }
+        let heading = pose.theta + 0.5 * turn;
+        Pose {
+            x: pose.x + (speed * heading.cos() + flow.0) * dt,
+            y: pose.y + (speed * heading.sin() + flow.1) * dt,
+            theta: wrap_angle(pose.theta + turn),
+        }
+    }
+
+    /// Integrates from `start` at grid step `from` to grid step `to`.
+    pub fn integrate(
+        &self,
+        grid: &CommandGrid,
+        executed: &Executed,
+        start: Pose,
+        from: usize,
+        to: usize,
+    ) -> Pose {
+        let mut pose = start;
+        for i in from..to.min(executed.v.len()) {
+            let run_s = grid.time(i) - grid.t0;
+            pose = self.step(pose, executed.v[i], executed.omega[i], run_s, grid.dt);
+        }
+        pose
+    }
+
+    /// How much larger than the plain model's the motion noise variance is
+    /// at `speed` m/s.
+    pub fn noise_multiplier(&self, speed: f64, run_s: f64) -> f64 {
+        self.active(run_s)
+            .map(|e| match *e {
+                Effect::SpeedNoise { per_m_per_s } => 1.0 + per_m_per_s * speed.abs(),
+                _ => 1.0,
+            })
+            .product()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn straight(seconds: f64, v: f64, omega: f64) -> CommandGrid {
+        CommandGrid::from_held(&[0.0, seconds], &[v, v], &[omega, omega], 0.01)
+    }
+
+    fn drive(model: &UnicycleModel, grid: &CommandGrid) -> Pose {
+        let executed = model.execute(grid);
+        model.integrate(grid, &executed, Pose::default(), 0, grid.len())
+    }
+
+    #[test]
+    fn the_plain_model_drives_a_circle_exactly() {
+        let grid = straight(std::f64::consts::PI, 0.5, 1.0);
+        let end = drive(&UnicycleModel::plain(), &grid);
+        // Half a circle of radius 0.5 m ends 1 m to the left, heading back
+        // (the grid holds the last command for up to one more step).
+        assert!(end.x.abs() < 0.005 && (end.y - 1.0).abs() < 1e-3, "{end:?}");
+    }
+
+    #[test]
+    fn effects_change_the_motion_as_named() {
+        let grid = straight(10.0, 0.2, 0.0);
+        let plain = drive(&UnicycleModel::plain(), &grid);
+        let scaled = drive(
+            &UnicycleModel::with_effects(vec![ScopedEffect::always(Effect::SpeedScale {
+                factor: 0.9,
+            })]),
+            &grid,
+        );
+        assert!((scaled.x - 0.9 * plain.x).abs() < 1e-9);
+        let drifting = drive(
+            &UnicycleModel::with_effects(vec![ScopedEffect::always(Effect::HeadingDrift {
+                rad_per_m: 0.1,
+            })]),
+            &grid,
+        );
+        assert!(
+            (drifting.theta - 0.1 * plain.x).abs() < 1e-3,
+            "{drifting:?}"
+        );
+        let late = UnicycleModel::with_effects(vec![ScopedEffect::always(Effect::Latency {
+            seconds: 0.5,
+        })]);
+        let executed = late.execute(&straight(2.0, 0.2, 0.0));
+        assert_eq!(executed.v[10], 0.0, "nothing happens before the latency");
+        assert_eq!(executed.v[60], 0.2);
+        let inert = UnicycleModel::with_effects(vec![ScopedEffect::always(Effect::AccelLimit {
+            m_per_s2: 0.1,
+        })]);
+        let executed = inert.execute(&straight(2.0, 0.2, 0.0));
+        assert!((executed.v[99] - 0.1).abs() < 1e-9, "{}", executed.v[99]);
+    }
+
+    #[test]
+    fn an_effect_scoped_to_a_span_acts_only_there() {
+        let grid = straight(10.0, 0.2, 0.0);
+        let model = UnicycleModel::with_effects(vec![ScopedEffect {
+            effect: Effect::SpeedScale { factor: 0.5 },
+            during: Some([5.0, 10.0]),
+        }]);
+        let executed = model.execute(&grid);
+        assert_eq!(executed.v[100], 0.2);
+        assert_eq!(executed.v[700], 0.1);
+    }
+
+    #[test]
+    fn a_model_file_round_trips_and_bad_values_name_the_line() {
+        let model = UnicycleModel::with_effects(vec![
+            ScopedEffect::always(Effect::Latency { seconds: 0.18 }),
+            ScopedEffect {
+                effect: Effect::SurfaceZone {
+                    region: [1.0, 1.0, 2.0, 2.0],
+                    speed_factor: 0.7,
+                },
+                during: Some([10.0, 20.0]),
+            },
+        ]);
+        let text = model.to_toml();
+        assert_eq!(UnicycleModel::from_toml(&text, "m.toml").ok(), Some(model));
+        let bad = "[[effects]]\nkind = \"latency\"\nseconds = 0.1\n\n[[effects]]\nkind = \"speed_scale\"\nfactor = -3.0\n";
+        let error = UnicycleModel::from_toml(bad, "m.toml").expect_err("negative scale");
+        assert_eq!(error.line, Some(5), "{error}");
+        let unknown = "[[effects]]\nkind = \"teleport\"\n";
+        let error = UnicycleModel::from_toml(unknown, "m.toml").expect_err("unknown kind");
+        assert!(error.to_string().contains("teleport"), "{error}");
+    }
+}
