@@ -23,4 +23,4 @@ pub use legged::{Command, MotionModel, MotionSample};
 pub use mixture::Mixture2;
 pub use pose::{Pose, wrap_angle};
 pub use scenario::{Scenario, ScenarioError};
-pub use unicycle::{CommandGrid, Executed, UnicycleModel};
+pub use unicycle::{Actuators, CommandGrid, Executed, UnicycleModel};

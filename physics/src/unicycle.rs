@@ -97,6 +97,56 @@ impl CommandGrid {
     }
 }
 
+/// The actuators' memory: the steering's held rate and the last speed.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Actuators {
+    held_omega: f64,
+    last_v: f64,
+}
+
+impl Actuators {
+    /// What the actuators execute at grid step `i` under `model`; only looks
+    /// back in time, so a body can extend the grid as commands arrive.
+    /// Seconds of the run count from the grid's start.
+    pub fn execute(&mut self, model: &UnicycleModel, grid: &CommandGrid, i: usize) -> (f64, f64) {
+        let t = grid.time(i);
+        let run_s = t - grid.t0;
+        let (mut v, mut omega) = (grid.v[i], grid.omega[i]);
+        for effect in model.active(run_s) {
+            if let Effect::Latency { seconds } = *effect {
+                (v, omega) = grid.at(t - seconds);
+            }
+        }
+        let moving = v != 0.0 || omega != 0.0;
+        let mut accel_limit = f64::INFINITY;
+        for effect in model.active(run_s) {
+            match *effect {
+                Effect::Hysteresis { play_rad_per_s } => {
+                    self.held_omega = self
+                        .held_omega
+                        .clamp(omega - play_rad_per_s, omega + play_rad_per_s);
+                    omega = self.held_omega;
+                }
+                Effect::SpeedScale { factor } => v *= factor,
+                Effect::TurnScale { factor } => omega *= factor,
+                Effect::TurnBias { rad_per_s } if moving => omega += rad_per_s,
+                Effect::Slip { per_m_per_s } => v *= (1.0 - per_m_per_s * v.abs()).max(0.0),
+                Effect::BatteryFade { per_minute } => {
+                    let gain = (1.0 - per_minute * run_s / 60.0).max(0.0);
+                    v *= gain;
+                    omega *= gain;
+                }
+                Effect::AccelLimit { m_per_s2 } => accel_limit = m_per_s2,
+                _ => {}
+            }
+        }
+        let max_change = accel_limit * grid.dt;
+        v = self.last_v + (v - self.last_v).clamp(-max_change, max_change);
+        self.last_v = v;
+        (v, omega)
+    }
+}
+
 impl UnicycleModel {
     pub fn plain() -> Self {
         Self::default()
@@ -140,52 +190,13 @@ impl UnicycleModel {
     }
 
     /// Runs the actuators over the whole grid: latency, hysteresis, gains
-    /// and the acceleration limit. Seconds count from the grid's start.
+    /// and the acceleration limit.
     pub fn execute(&self, grid: &CommandGrid) -> Executed {
-        let mut executed = Executed {
-            v: Vec::with_capacity(grid.len()),
-            omega: Vec::with_capacity(grid.len()),
-        };
-        let mut held_omega = 0.0_f64;
-        let mut last_v = 0.0_f64;
-        for i in 0..grid.len() {
-            let t = grid.time(i);
-            let run_s = t - grid.t0;
-            let (mut v, mut omega) = (grid.v[i], grid.omega[i]);
-            for effect in self.active(run_s) {
-                if let Effect::Latency { seconds } = *effect {
-                    (v, omega) = grid.at(t - seconds);
-                }
-            }
-            let moving = v != 0.0 || omega != 0.0;
-            let mut accel_limit = f64::INFINITY;
-            for effect in self.active(run_s) {
-                match *effect {
-                    Effect::Hysteresis { play_rad_per_s } => {
-                        held_omega =
-                            held_omega.clamp(omega - play_rad_per_s, omega + play_rad_per_s);
-                        omega = held_omega;
-                    }
-                    Effect::SpeedScale { factor } => v *= factor,
-                    Effect::TurnScale { factor } => omega *= factor,
-                    Effect::TurnBias { rad_per_s } if moving => omega += rad_per_s,
-                    Effect::Slip { per_m_per_s } => v *= (1.0 - per_m_per_s * v.abs()).max(0.0),
-                    Effect::BatteryFade { per_minute } => {
-                        let gain = (1.0 - per_minute * run_s / 60.0).max(0.0);
-                        v *= gain;
-                        omega *= gain;
-                    }
-                    Effect::AccelLimit { m_per_s2 } => accel_limit = m_per_s2,
-                    _ => {}
-                }
-            }
-            let max_change = accel_limit * grid.dt;
-            v = last_v + (v - last_v).clamp(-max_change, max_change);
-            last_v = v;
-            executed.v.push(v);
-            executed.omega.push(omega);
-        }
-        executed
+        let mut actuators = Actuators::default();
+        let (v, omega) = (0..grid.len())
+            .map(|i| actuators.execute(self, grid, i))
+            .unzip();
+        Executed { v, omega }
     }
 
     /// One integration step of `dt` from `pose` with the executed `v`,

@@ -1,0 +1,238 @@
+//! Maximum-likelihood fit of effect parameters: Nelder-Mead (argmin) on the
+//! negative log-likelihood with the noise profiled out, and standard errors
+//! from the curvature of that likelihood at its minimum.
+
+use argmin::core::{CostFunction, Error, Executor, State};
+use argmin::solver::neldermead::NelderMead;
+use shoal_physics::{CommandGrid, Effect, ScopedEffect, UnicycleModel};
+
+use crate::likelihood::{residuals, score};
+use crate::segments::Segment;
+
+/// A fit: the free effects with their fitted values, the likelihood reached
+/// and each parameter's standard error (NaN when the curvature is flat).
+#[derive(Clone, Debug)]
+pub struct Fitted {
+    pub effects: Vec<ScopedEffect>,
+    pub nll: f64,
+    pub stderr: Vec<f64>,
+    pub evaluations: usize,
+}
+
+/// The simplex step of a parameter: the scale on which it matters.
+fn step_of(effect: &Effect, name: &str) -> f64 {
+    match (effect, name) {
+        (Effect::Latency { .. }, _) => 0.05,
+        (Effect::SpeedScale { .. } | Effect::TurnScale { .. }, _) => 0.05,
+        (Effect::TurnBias { .. }, _) => 0.02,
+        (Effect::HeadingDrift { .. }, _) => 0.05,
+        (Effect::AccelLimit { .. }, _) => 1.0,
+        (Effect::Slip { .. }, _) => 0.2,
+        (Effect::BatteryFade { .. }, _) => 0.01,
+        (Effect::SurfaceZone { .. }, _) => 0.1,
+        (Effect::ExternalFlow { .. }, _) => 0.01,
+        (Effect::Hysteresis { .. }, _) => 0.05,
+        (Effect::SpeedNoise { .. }, _) => 2.0,
+    }
+}
+
+#[derive(Clone, Copy)]
+struct Problem<'a> {
+    grid: &'a CommandGrid,
+    segments: &'a [Segment],
+    fixed: &'a [ScopedEffect],
+    free: &'a [ScopedEffect],
+    /// What an unphysical parameter costs: worse than anything physical.
+    out_of_bounds: f64,
+}
+
+impl Problem<'_> {
+    fn effects(&self, params: &[f64]) -> Vec<ScopedEffect> {
+        let mut offset = 0;
+        self.free
+            .iter()
+            .map(|template| {
+                let count = template.effect.params().len();
+                let effect = template.effect.with_params(&params[offset..offset + count]);
+                offset += count;
+                ScopedEffect {
+                    effect,
+                    during: template.during,
+                }
+            })
+            .collect()
+    }
+
+    fn nll(&self, params: &[f64]) -> f64 {
+        let free = self.effects(params);
+        if free.iter().any(|e| !e.effect.in_bounds()) {
+            return self.out_of_bounds;
+        }
+        let model = UnicycleModel::with_effects(self.fixed.iter().cloned().chain(free).collect());
+        let r = residuals(&model, self.grid, self.segments);
+        let nll = score(&model, self.segments, &r, None).nll;
+        if nll.is_finite() { nll } else { self.out_of_bounds }
+    }
+}
+
+impl CostFunction for Problem<'_> {
+    type Param = Vec<f64>;
+    type Output = f64;
+
+    fn cost(&self, params: &Self::Param) -> Result<Self::Output, Error> {
+        Ok(self.nll(params))
+    }
+}
+
+/// The likelihood of `fixed` effects alone.
+pub fn nll_of(grid: &CommandGrid, segments: &[Segment], effects: &[ScopedEffect]) -> f64 {
+    let model = UnicycleModel::with_effects(effects.to_vec());
+    let r = residuals(&model, grid, segments);
+    score(&model, segments, &r, None).nll
+}
+
+/// Fits the parameters of `free` (starting from their current values) with
+/// `fixed` held as they are.
+pub fn fit(
+    grid: &CommandGrid,
+    segments: &[Segment],
+    fixed: &[ScopedEffect],
+    free: &[ScopedEffect],
+    max_iters: u64,
+) -> Fitted {
+    let start: Vec<f64> = free
+        .iter()
+        .flat_map(|e| e.effect.params().into_iter().map(|(_, v)| v))
+        .collect();
+    let steps: Vec<f64> = free
+        .iter()
+        .flat_map(|e| {
+            e.effect
+                .params()
+                .into_iter()
+                .map(|(name, _)| step_of(&e.effect, name))
+        })
+        .collect();
+    let baseline = nll_of(grid, segments, fixed);
+    let problem = Problem {
+        grid,
+        segments,
+        fixed,
+        free,
+        out_of_bounds: baseline.abs() * 10.0 + 1e12,
+    };
+    let mut simplex = vec![start.clone()];
+    for (i, step) in steps.iter().enumerate() {
+        let mut vertex = start.clone();
+        vertex[i] += step;
+        if problem.nll(&vertex) >= problem.out_of_bounds {
+            vertex[i] = start[i] - step;
+        }
+        simplex.push(vertex);
+    }
+    let solver = NelderMead::new(simplex)
+        .with_sd_tolerance(1e-7)
+        .expect("a non-negative tolerance");
+    let outcome = Executor::new(problem, solver)
+        .configure(|state| state.max_iters(max_iters))
+        .run();
+    let (best, evaluations) = match outcome {
+        Ok(result) => {
+            let state = result.state();
+            let evaluations = state.get_func_counts().values().sum::<u64>() as usize;
+            (state.get_best_param().cloned().unwrap_or(start), evaluations)
+        }
+        Err(_) => (start, 0),
+    };
+    let nll = problem.nll(&best);
+    let stderr = standard_errors(&problem, &best, nll, &steps);
+    Fitted {
+        effects: problem.effects(&best),
+        nll,
+        stderr,
+        evaluations,
+    }
+}
+
+/// Standard errors from the inverse Hessian of the negative log-likelihood
+/// (central differences).
+fn standard_errors(problem: &Problem, at: &[f64], at_nll: f64, steps: &[f64]) -> Vec<f64> {
+    let n = at.len();
+    let h: Vec<f64> = steps.iter().map(|s| s * 0.02).collect();
+    let f = |delta: &[(usize, f64)]| {
+        let mut p = at.to_vec();
+        for &(i, d) in delta {
+            p[i] += d;
+        }
+        problem.nll(&p)
+    };
+    let mut hessian = vec![vec![0.0; n]; n];
+    for i in 0..n {
+        hessian[i][i] = (f(&[(i, h[i])]) - 2.0 * at_nll + f(&[(i, -h[i])])) / (h[i] * h[i]);
+        for j in 0..i {
+            let value = (f(&[(i, h[i]), (j, h[j])]) - f(&[(i, h[i]), (j, -h[j])])
+                - f(&[(i, -h[i]), (j, h[j])])
+                + f(&[(i, -h[i]), (j, -h[j])]))
+                / (4.0 * h[i] * h[j]);
+            hessian[i][j] = value;
+            hessian[j][i] = value;
+        }
+    }
+    match invert(hessian) {
+        Some(inverse) => (0..n)
+            .map(|i| {
+                let v = inverse[i][i];
+                if v > 0.0 { v.sqrt() } else { f64::NAN }
+            })
+            .collect(),
+        None => vec![f64::NAN; n],
+    }
+}
+
+/// Gauss-Jordan inverse of a small matrix; `None` when singular.
+fn invert(mut a: Vec<Vec<f64>>) -> Option<Vec<Vec<f64>>> {
+    let n = a.len();
+    let mut inverse: Vec<Vec<f64>> = (0..n)
+        .map(|i| (0..n).map(|j| if i == j { 1.0 } else { 0.0 }).collect())
+        .collect();
+    for col in 0..n {
+        let pivot = (col..n).max_by(|&x, &y| a[x][col].abs().total_cmp(&a[y][col].abs()))?;
+        if a[pivot][col].abs() < 1e-300 || !a[pivot][col].is_finite() {
+            return None;
+        }
+        a.swap(col, pivot);
+        inverse.swap(col, pivot);
+        let d = a[col][col];
+        for k in 0..n {
+            a[col][k] /= d;
+            inverse[col][k] /= d;
+        }
+        for row in 0..n {
+            if row != col {
+                let factor = a[row][col];
+                for k in 0..n {
+                    a[row][k] -= factor * a[col][k];
+                    inverse[row][k] -= factor * inverse[col][k];
+                }
+            }
+        }
+    }
+    Some(inverse)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::invert;
+
+    #[test]
+    fn inverts_a_small_matrix() {
+        let inverse = invert(vec![vec![4.0, 7.0], vec![2.0, 6.0]]).expect("regular");
+        let expected = [[0.6, -0.7], [-0.2, 0.4]];
+        for i in 0..2 {
+            for j in 0..2 {
+                assert!((inverse[i][j] - expected[i][j]).abs() < 1e-12);
+            }
+        }
+        assert!(invert(vec![vec![1.0, 2.0], vec![2.0, 4.0]]).is_none());
+    }
+}

@@ -1,0 +1,130 @@
+//! Synthetic runs with known physics: a wheeled body driven by the same
+//! [`UnicycleModel`] as the simulator, with motion noise, observed by a
+//! motion-capture system. Used to prove that diagnosis finds what it should
+//! and nothing else.
+
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+use rand_distr::{Distribution, Normal};
+use shoal_physics::{Actuators, CommandGrid, Pose, UnicycleModel, wrap_angle};
+
+use crate::recording::{Commands, Poses, Recording};
+
+#[derive(Clone, Debug)]
+pub struct Settings {
+    pub duration_s: f64,
+    pub command_hz: f64,
+    pub pose_hz: f64,
+    /// The operator keeps the robot inside [-half, half] square metres.
+    pub arena_half_m: f64,
+    pub max_speed: f64,
+    pub max_turn: f64,
+    /// Motion noise: random walk in distance (m per sqrt s) and heading (rad per sqrt s).
+    pub along_noise: f64,
+    pub turn_noise: f64,
+    /// Motion-capture noise per observation.
+    pub observation_noise_m: f64,
+    pub observation_noise_rad: f64,
+    /// Where the operator turns rather than drives straight (a confound).
+    pub turn_inside: Option<[f64; 4]>,
+    pub seed: u64,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Self {
+            duration_s: 600.0,
+            command_hz: 50.0,
+            pose_hz: 67.0,
+            arena_half_m: 2.5,
+            max_speed: 0.3,
+            max_turn: 0.8,
+            along_noise: 0.01,
+            turn_noise: 0.02,
+            observation_noise_m: 0.002,
+            observation_noise_rad: 0.005,
+            turn_inside: None,
+            seed: 1,
+        }
+    }
+}
+
+/// The physics' own step: finer than any command rate.
+const BODY_DT: f64 = 0.005;
+
+fn inside(region: &[f64; 4], pose: &Pose) -> bool {
+    pose.x >= region[0] && pose.x <= region[2] && pose.y >= region[1] && pose.y <= region[3]
+}
+
+/// Drives `truth` for `settings.duration_s` and returns what was commanded and observed.
+pub fn generate(truth: &UnicycleModel, settings: &Settings) -> Recording {
+    let mut rng = StdRng::seed_from_u64(settings.seed);
+    let unit = Normal::new(0.0, 1.0).expect("unit normal");
+    let steps = (settings.duration_s / BODY_DT) as usize;
+    let command_every = ((1.0 / settings.command_hz) / BODY_DT).round().max(1.0) as usize;
+    let pose_every = 1.0 / settings.pose_hz;
+
+    // The operator picks commands from where the robot truly is, so the
+    // commands must be chosen while the body moves.
+    let mut commanded = Commands::default();
+    let mut observed = Poses::default();
+    let mut pose = Pose::new(0.0, 0.0, rng.random_range(-3.14..3.14));
+    let mut hold_until = 0.0;
+    let (mut v, mut omega) = (0.0, 0.0);
+    let mut actuators = Actuators::default();
+    let mut next_observation = rng.random_range(0.0..pose_every);
+    // The body executes on its own fine grid, extended as commands arrive.
+    let mut grid = CommandGrid {
+        t0: 0.0,
+        dt: BODY_DT,
+        v: Vec::with_capacity(steps),
+        omega: Vec::with_capacity(steps),
+    };
+    for i in 0..steps {
+        let t = i as f64 * BODY_DT;
+        if i % command_every == 0 {
+            if t >= hold_until {
+                let half = settings.arena_half_m;
+                let outside = pose.x.abs() > half || pose.y.abs() > half;
+                let turning_zone = settings.turn_inside.is_some_and(|r| inside(&r, &pose));
+                if outside {
+                    let home = (-pose.y).atan2(-pose.x);
+                    v = 0.5 * settings.max_speed;
+                    omega = (2.0 * wrap_angle(home - pose.theta)).clamp(-settings.max_turn, settings.max_turn);
+                    hold_until = t + 0.5;
+                } else if rng.random_bool(0.1) {
+                    (v, omega) = (0.0, 0.0);
+                    hold_until = t + rng.random_range(0.5..2.0);
+                } else {
+                    v = rng.random_range(0.2..1.0) * settings.max_speed;
+                    omega = rng.random_range(-1.0..1.0) * settings.max_turn;
+                    if turning_zone {
+                        omega = omega.signum() * settings.max_turn;
+                    }
+                    hold_until = t + rng.random_range(0.5..3.0);
+                }
+            }
+            commanded.t.push(t);
+            commanded.v.push(v);
+            commanded.omega.push(omega);
+        }
+        grid.v.push(v);
+        grid.omega.push(omega);
+        let (ev, eomega) = actuators.execute(truth, &grid, i);
+        let m = truth.noise_multiplier(ev, t).sqrt();
+        let noisy_v = ev + m * settings.along_noise * unit.sample(&mut rng) / BODY_DT.sqrt();
+        let noisy_omega = eomega + m * settings.turn_noise * unit.sample(&mut rng) / BODY_DT.sqrt();
+        pose = truth.step(pose, noisy_v, noisy_omega, t, BODY_DT);
+        while next_observation <= t + BODY_DT {
+            observed.push(
+                next_observation,
+                pose.x + settings.observation_noise_m * unit.sample(&mut rng),
+                pose.y + settings.observation_noise_m * unit.sample(&mut rng),
+                pose.theta + settings.observation_noise_rad * unit.sample(&mut rng),
+            );
+            next_observation += pose_every;
+        }
+    }
+    Recording::from_absolute(commanded, observed)
+}
+

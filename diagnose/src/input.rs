@@ -1,0 +1,207 @@
+//! Parsing the inputs of `shoal diagnose` from text: CSV files with named
+//! columns and MRCLAM's whitespace-separated files. Every error names the
+//! file and the line, so a user can open it and see what is wrong.
+
+use crate::recording::{Commands, Poses};
+
+#[derive(Debug, thiserror::Error, PartialEq)]
+#[error("{file}{}: {message}", line.map(|l| format!(":{l}")).unwrap_or_default())]
+pub struct InputError {
+    pub file: String,
+    pub line: Option<usize>,
+    pub message: String,
+}
+
+/// How the fields of a line are separated.
+#[derive(Clone, Copy)]
+enum Layout<'a> {
+    /// Comma separated with a header naming the columns.
+    Csv { columns: &'a [&'a str] },
+    /// Whitespace separated, `#` comments, columns by position.
+    Whitespace { columns: &'a [&'a str] },
+}
+
+/// Rows of numbers in the requested column order, with their line numbers.
+fn read_rows(text: &str, file: &str, layout: Layout) -> Result<Vec<(usize, Vec<f64>)>, InputError> {
+    let error = |line: usize, message: String| InputError {
+        file: file.to_owned(),
+        line: Some(line),
+        message,
+    };
+    if !text.is_empty() && !text.ends_with('\n') {
+        let last = text.lines().count();
+        return Err(error(
+            last,
+            "the file ends in the middle of a line (was it cut short?)".into(),
+        ));
+    }
+    let (columns, positions, mut lines) = match layout {
+        Layout::Csv { columns } => {
+            let mut lines = text
+                .lines()
+                .enumerate()
+                .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
+            let Some((header_index, header)) = lines.next() else {
+                return Err(InputError {
+                    file: file.to_owned(),
+                    line: None,
+                    message: format!("empty file; expected a header `{}`", columns.join(",")),
+                });
+            };
+            let names: Vec<&str> = header.split(',').map(str::trim).collect();
+            let mut positions = Vec::new();
+            for column in columns {
+                let Some(p) = names.iter().position(|n| n == column) else {
+                    return Err(error(
+                        header_index + 1,
+                        format!(
+                            "missing column `{column}`: the header must name {}",
+                            columns.join(", ")
+                        ),
+                    ));
+                };
+                positions.push(p);
+            }
+            (columns, positions, Box::new(lines) as Box<dyn Iterator<Item = (usize, &str)>>)
+        }
+        Layout::Whitespace { columns } => {
+            let lines = text
+                .lines()
+                .enumerate()
+                .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
+            (columns, (0..columns.len()).collect(), Box::new(lines) as Box<dyn Iterator<Item = (usize, &str)>>)
+        }
+    };
+    let comma = matches!(layout, Layout::Csv { .. });
+    let mut rows = Vec::new();
+    let mut last_time = f64::NEG_INFINITY;
+    for (index, line) in &mut lines {
+        let number = index + 1;
+        let fields: Vec<&str> = if comma {
+            line.split(',').map(str::trim).collect()
+        } else {
+            line.split_whitespace().collect()
+        };
+        let mut values = Vec::with_capacity(columns.len());
+        for (column, &position) in columns.iter().zip(&positions) {
+            let Some(field) = fields.get(position) else {
+                return Err(error(number, format!("missing field `{column}`")));
+            };
+            let value: f64 = field
+                .parse()
+                .map_err(|_| error(number, format!("field `{column}` is not a number: `{field}`")))?;
+            if !value.is_finite() {
+                return Err(error(number, format!("field `{column}` is not finite: `{field}`")));
+            }
+            values.push(value);
+        }
+        if values[0] < last_time {
+            return Err(error(
+                number,
+                format!(
+                    "times go backwards: `{}` = {} after {last_time}; rows must be sorted by time",
+                    columns[0], values[0]
+                ),
+            ));
+        }
+        last_time = values[0];
+        rows.push((number, values));
+    }
+    if rows.len() < 2 {
+        return Err(InputError {
+            file: file.to_owned(),
+            line: None,
+            message: format!("needs at least two rows of data, found {}", rows.len()),
+        });
+    }
+    Ok(rows)
+}
+
+fn commands_from(rows: Vec<(usize, Vec<f64>)>) -> Commands {
+    let mut commands = Commands::default();
+    for (_, row) in rows {
+        // Two commands at the same time: the later one is what the robot kept.
+        if commands.t.last() == Some(&row[0]) {
+            commands.t.pop();
+            commands.v.pop();
+            commands.omega.pop();
+        }
+        commands.t.push(row[0]);
+        commands.v.push(row[1]);
+        commands.omega.push(row[2]);
+    }
+    commands
+}
+
+fn poses_from(rows: Vec<(usize, Vec<f64>)>) -> Poses {
+    let mut poses = Poses::default();
+    for (_, row) in rows {
+        if poses.t.last() != Some(&row[0]) {
+            poses.push(row[0], row[1], row[2], row[3]);
+        }
+    }
+    poses
+}
+
+/// A commands CSV: header `t,v,omega`.
+pub fn commands_csv(text: &str, file: &str) -> Result<Commands, InputError> {
+    let columns = ["t", "v", "omega"];
+    read_rows(text, file, Layout::Csv { columns: &columns }).map(commands_from)
+}
+
+/// A poses CSV: header `t,x,y,theta`.
+pub fn poses_csv(text: &str, file: &str) -> Result<Poses, InputError> {
+    let columns = ["t", "x", "y", "theta"];
+    read_rows(text, file, Layout::Csv { columns: &columns }).map(poses_from)
+}
+
+/// MRCLAM `Robot{n}_Odometry.dat`: time, v, omega (the commands sent).
+pub fn mrclam_odometry(text: &str, file: &str) -> Result<Commands, InputError> {
+    let columns = ["time", "forward velocity", "angular velocity"];
+    read_rows(text, file, Layout::Whitespace { columns: &columns }).map(commands_from)
+}
+
+/// MRCLAM `Robot{n}_Groundtruth.dat`: time, x, y, orientation (motion capture).
+pub fn mrclam_groundtruth(text: &str, file: &str) -> Result<Poses, InputError> {
+    let columns = ["time", "x", "y", "orientation"];
+    read_rows(text, file, Layout::Whitespace { columns: &columns }).map(poses_from)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn columns_are_found_by_name() {
+        let commands = commands_csv("omega,t,v\n0.1,0,0.2\n0.2,1,0.3\n", "c.csv").expect("valid");
+        assert_eq!(commands.t, vec![0.0, 1.0]);
+        assert_eq!(commands.v, vec![0.2, 0.3]);
+        assert_eq!(commands.omega, vec![0.1, 0.2]);
+    }
+
+    #[test]
+    fn bad_input_names_file_and_line() {
+        let cases = [
+            ("t,v\n0,1\n1,1\n", 1, "missing column `omega`"),
+            ("t,v,omega\n0,1,0\n2,1,0\n1,1,0\n", 4, "times go backwards"),
+            ("t,v,omega\n0,1,0\n1,NaN,0\n", 3, "not finite"),
+            ("t,v,omega\n0,1,0\n1,1\n", 3, "missing field `omega`"),
+            ("t,v,omega\n0,1,0\n1,1,0\n2,1,", 4, "ends in the middle of a line"),
+            ("t,v,omega\n0,1,0\n1,x,0\n", 3, "not a number"),
+        ];
+        for (text, line, message) in cases {
+            let error = commands_csv(text, "cmds.csv").expect_err(text);
+            assert_eq!(error.line, Some(line), "{error}");
+            assert!(error.to_string().contains(message), "{error}");
+            assert!(error.to_string().starts_with(&format!("cmds.csv:{line}: ")), "{error}");
+        }
+    }
+
+    #[test]
+    fn mrclam_files_skip_their_header() {
+        let text = "# a\n# b\n# c\n# d\n1248444187.156 \t  0.086 \t -0.398 \n1248444187.186 \t  0.086 \t -0.398 \n";
+        let commands = mrclam_odometry(text, "Robot1_Odometry.dat").expect("valid");
+        assert_eq!(commands.t.len(), 2);
+        assert_eq!(commands.omega[1], -0.398);
+    }
+}

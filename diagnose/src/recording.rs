@@ -1,0 +1,94 @@
+//! A real run as diagnosis sees it: the commands sent and the poses observed.
+
+use shoal_physics::{Pose, wrap_angle};
+
+/// Commands, each held until the next: seconds, m/s, rad/s.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Commands {
+    pub t: Vec<f64>,
+    pub v: Vec<f64>,
+    pub omega: Vec<f64>,
+}
+
+/// Observed poses at any rate. Headings are unwrapped so they interpolate.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Poses {
+    pub t: Vec<f64>,
+    pub x: Vec<f64>,
+    pub y: Vec<f64>,
+    pub theta: Vec<f64>,
+}
+
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Recording {
+    pub commands: Commands,
+    pub poses: Poses,
+    /// Seconds subtracted from every time, so the run starts at 0.
+    pub t_origin: f64,
+}
+
+/// Observations further apart than this leave a gap that no segment spans.
+pub const MAX_OBSERVATION_GAP_S: f64 = 0.5;
+
+impl Poses {
+    pub fn push(&mut self, t: f64, x: f64, y: f64, theta: f64) {
+        let theta = match self.theta.last() {
+            Some(&previous) => previous + wrap_angle(theta - previous),
+            None => theta,
+        };
+        self.t.push(t);
+        self.x.push(x);
+        self.y.push(y);
+        self.theta.push(theta);
+    }
+
+    pub fn len(&self) -> usize {
+        self.t.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.t.is_empty()
+    }
+
+    /// The observed pose at `t`, interpolated; `None` outside the
+    /// observations or across a gap.
+    pub fn at(&self, t: f64) -> Option<Pose> {
+        let after = self.t.partition_point(|&s| s < t);
+        if after == 0 {
+            return (self.t.first() == Some(&t)).then(|| self.pose(0));
+        }
+        if after >= self.t.len() {
+            return None;
+        }
+        let before = after - 1;
+        let (t0, t1) = (self.t[before], self.t[after]);
+        if t1 - t0 > MAX_OBSERVATION_GAP_S {
+            return None;
+        }
+        let f = if t1 > t0 { (t - t0) / (t1 - t0) } else { 0.0 };
+        let lerp = |a: &[f64]| a[before] + f * (a[after] - a[before]);
+        Some(Pose::new(lerp(&self.x), lerp(&self.y), lerp(&self.theta)))
+    }
+
+    fn pose(&self, i: usize) -> Pose {
+        Pose::new(self.x[i], self.y[i], self.theta[i])
+    }
+}
+
+impl Recording {
+    /// Shifts every time so the first command is at 0 s.
+    pub fn from_absolute(mut commands: Commands, mut poses: Poses) -> Self {
+        let t_origin = commands.t.first().copied().unwrap_or(0.0);
+        commands.t.iter_mut().for_each(|t| *t -= t_origin);
+        poses.t.iter_mut().for_each(|t| *t -= t_origin);
+        Self {
+            commands,
+            poses,
+            t_origin,
+        }
+    }
+
+    pub fn duration(&self) -> f64 {
+        self.commands.t.last().copied().unwrap_or(0.0)
+    }
+}

@@ -1,0 +1,63 @@
+//! The unit of comparison: a short stretch of the run. Each segment starts
+//! the model from the observed pose and asks where it predicts the robot one
+//! horizon later; errors therefore do not accumulate across the run, and
+//! segments are close to independent.
+
+use shoal_physics::{CommandGrid, Pose};
+
+use crate::recording::Recording;
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Segment {
+    /// Grid steps `from..to` of the command grid.
+    pub from: usize,
+    pub to: usize,
+    pub t_start: f64,
+    pub t_end: f64,
+    pub start: Pose,
+    pub end: Pose,
+    /// Mean commanded |v| and omega over the segment.
+    pub speed: f64,
+    pub turn: f64,
+    /// Commanded distance over the segment, metres.
+    pub distance: f64,
+    /// Observed midpoint of the segment.
+    pub mid: [f64; 2],
+}
+
+/// The command grid for `recording`: fine enough for the physics, coarse
+/// enough that an hour of data fits in a few milliseconds per evaluation.
+pub fn command_grid(recording: &Recording, dt: f64) -> CommandGrid {
+    let c = &recording.commands;
+    CommandGrid::from_held(&c.t, &c.v, &c.omega, dt)
+}
+
+/// Cuts the run into back-to-back segments of `horizon` seconds wherever
+/// both ends were observed.
+pub fn segments(recording: &Recording, grid: &CommandGrid, horizon: f64) -> Vec<Segment> {
+    let steps = ((horizon / grid.dt).round() as usize).max(1);
+    let mut out = Vec::new();
+    let mut from = 0;
+    while from + steps < grid.len() {
+        let to = from + steps;
+        let (t_start, t_end) = (grid.time(from), grid.time(to));
+        if let (Some(start), Some(end)) = (recording.poses.at(t_start), recording.poses.at(t_end)) {
+            let speed = grid.v[from..to].iter().map(|v| v.abs()).sum::<f64>() / steps as f64;
+            let turn = grid.omega[from..to].iter().sum::<f64>() / steps as f64;
+            out.push(Segment {
+                from,
+                to,
+                t_start,
+                t_end,
+                start,
+                end,
+                speed,
+                turn,
+                distance: speed * (t_end - t_start),
+                mid: [0.5 * (start.x + end.x), 0.5 * (start.y + end.y)],
+            });
+        }
+        from = to;
+    }
+    out
+}
