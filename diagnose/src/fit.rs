@@ -16,7 +16,7 @@ pub struct Fitted {
     pub effects: Vec<ScopedEffect>,
     pub nll: f64,
     pub stderr: Vec<f64>,
-    pub evaluations: usize,
+    pub iterations: u64,
 }
 
 /// The simplex step of a parameter: the scale on which it matters.
@@ -71,7 +71,11 @@ impl Problem<'_> {
         let model = UnicycleModel::with_effects(self.fixed.iter().cloned().chain(free).collect());
         let r = residuals(&model, self.grid, self.segments);
         let nll = score(&model, self.segments, &r, None).nll;
-        if nll.is_finite() { nll } else { self.out_of_bounds }
+        if nll.is_finite() {
+            nll
+        } else {
+            self.out_of_bounds
+        }
     }
 }
 
@@ -131,16 +135,18 @@ pub fn fit(
         simplex.push(vertex);
     }
     let solver = NelderMead::new(simplex)
-        .with_sd_tolerance(1e-7)
+        .with_sd_tolerance(1e-3)
         .expect("a non-negative tolerance");
     let outcome = Executor::new(problem, solver)
         .configure(|state| state.max_iters(max_iters))
         .run();
-    let (best, evaluations) = match outcome {
+    let (best, iterations) = match outcome {
         Ok(result) => {
             let state = result.state();
-            let evaluations = state.get_func_counts().values().sum::<u64>() as usize;
-            (state.get_best_param().cloned().unwrap_or(start), evaluations)
+            (
+                state.get_best_param().cloned().unwrap_or(start),
+                state.get_iter(),
+            )
         }
         Err(_) => (start, 0),
     };
@@ -150,7 +156,7 @@ pub fn fit(
         effects: problem.effects(&best),
         nll,
         stderr,
-        evaluations,
+        iterations,
     }
 }
 
@@ -170,7 +176,8 @@ fn standard_errors(problem: &Problem, at: &[f64], at_nll: f64, steps: &[f64]) ->
     for i in 0..n {
         hessian[i][i] = (f(&[(i, h[i])]) - 2.0 * at_nll + f(&[(i, -h[i])])) / (h[i] * h[i]);
         for j in 0..i {
-            let value = (f(&[(i, h[i]), (j, h[j])]) - f(&[(i, h[i]), (j, -h[j])])
+            let value = (f(&[(i, h[i]), (j, h[j])])
+                - f(&[(i, h[i]), (j, -h[j])])
                 - f(&[(i, -h[i]), (j, h[j])])
                 + f(&[(i, -h[i]), (j, -h[j])]))
                 / (4.0 * h[i] * h[j]);

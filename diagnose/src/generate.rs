@@ -90,7 +90,8 @@ pub fn generate(truth: &UnicycleModel, settings: &Settings) -> Recording {
                 if outside {
                     let home = (-pose.y).atan2(-pose.x);
                     v = 0.5 * settings.max_speed;
-                    omega = (2.0 * wrap_angle(home - pose.theta)).clamp(-settings.max_turn, settings.max_turn);
+                    omega = (2.0 * wrap_angle(home - pose.theta))
+                        .clamp(-settings.max_turn, settings.max_turn);
                     hold_until = t + 0.5;
                 } else if rng.random_bool(0.1) {
                     (v, omega) = (0.0, 0.0);
@@ -127,4 +128,3 @@ pub fn generate(truth: &UnicycleModel, settings: &Settings) -> Recording {
     }
     Recording::from_absolute(commanded, observed)
 }
-

@@ -62,14 +62,22 @@ fn read_rows(text: &str, file: &str, layout: Layout) -> Result<Vec<(usize, Vec<f
                 };
                 positions.push(p);
             }
-            (columns, positions, Box::new(lines) as Box<dyn Iterator<Item = (usize, &str)>>)
+            (
+                columns,
+                positions,
+                Box::new(lines) as Box<dyn Iterator<Item = (usize, &str)>>,
+            )
         }
         Layout::Whitespace { columns } => {
             let lines = text
                 .lines()
                 .enumerate()
                 .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
-            (columns, (0..columns.len()).collect(), Box::new(lines) as Box<dyn Iterator<Item = (usize, &str)>>)
+            (
+                columns,
+                (0..columns.len()).collect(),
+                Box::new(lines) as Box<dyn Iterator<Item = (usize, &str)>>,
+            )
         }
     };
     let comma = matches!(layout, Layout::Csv { .. });
@@ -87,11 +95,17 @@ fn read_rows(text: &str, file: &str, layout: Layout) -> Result<Vec<(usize, Vec<f
             let Some(field) = fields.get(position) else {
                 return Err(error(number, format!("missing field `{column}`")));
             };
-            let value: f64 = field
-                .parse()
-                .map_err(|_| error(number, format!("field `{column}` is not a number: `{field}`")))?;
+            let value: f64 = field.parse().map_err(|_| {
+                error(
+                    number,
+                    format!("field `{column}` is not a number: `{field}`"),
+                )
+            })?;
             if !value.is_finite() {
-                return Err(error(number, format!("field `{column}` is not finite: `{field}`")));
+                return Err(error(
+                    number,
+                    format!("field `{column}` is not finite: `{field}`"),
+                ));
             }
             values.push(value);
         }
@@ -186,14 +200,21 @@ mod tests {
             ("t,v,omega\n0,1,0\n2,1,0\n1,1,0\n", 4, "times go backwards"),
             ("t,v,omega\n0,1,0\n1,NaN,0\n", 3, "not finite"),
             ("t,v,omega\n0,1,0\n1,1\n", 3, "missing field `omega`"),
-            ("t,v,omega\n0,1,0\n1,1,0\n2,1,", 4, "ends in the middle of a line"),
+            (
+                "t,v,omega\n0,1,0\n1,1,0\n2,1,",
+                4,
+                "ends in the middle of a line",
+            ),
             ("t,v,omega\n0,1,0\n1,x,0\n", 3, "not a number"),
         ];
         for (text, line, message) in cases {
             let error = commands_csv(text, "cmds.csv").expect_err(text);
             assert_eq!(error.line, Some(line), "{error}");
             assert!(error.to_string().contains(message), "{error}");
-            assert!(error.to_string().starts_with(&format!("cmds.csv:{line}: ")), "{error}");
+            assert!(
+                error.to_string().starts_with(&format!("cmds.csv:{line}: ")),
+                "{error}"
+            );
         }
     }
 

@@ -2,9 +2,15 @@
 //! the simulation left out, and how much better the run is explained with it.
 //! Pure logic: inputs arrive as text or numbers, outputs leave as values.
 
-pub mod input;
-pub mod likelihood;
-pub mod recording;
-pub mod segments;
+pub mod diagnosis;
 pub mod fit;
 pub mod generate;
+pub mod input;
+pub mod likelihood;
+pub mod locate;
+pub mod recording;
+pub mod segments;
+
+pub use diagnosis::{Diagnosis, Options, diagnose};
+pub use recording::Recording;
+pub mod experiment;

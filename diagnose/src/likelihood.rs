@@ -66,7 +66,11 @@ fn variances(noise: &Noise, s: &Segment, multiplier: f64) -> [f64; 3] {
 }
 
 /// Estimates the noise of `residuals` (moments, given the model's multipliers).
-pub fn estimate_noise(model: &UnicycleModel, segments: &[Segment], residuals: &[Residual]) -> Noise {
+pub fn estimate_noise(
+    model: &UnicycleModel,
+    segments: &[Segment],
+    residuals: &[Residual],
+) -> Noise {
     let n = segments.len().max(1) as f64;
     let (mut along, mut across, mut theta, mut lever) = (0.0, 0.0, 0.0, 0.0);
     for (s, r) in segments.iter().zip(residuals) {
@@ -122,7 +126,11 @@ pub fn score(
 /// Root mean square position and heading error of `residuals`.
 pub fn rmse(residuals: &[Residual]) -> (f64, f64) {
     let n = residuals.len().max(1) as f64;
-    let pos = residuals.iter().map(|r| r[0] * r[0] + r[1] * r[1]).sum::<f64>() / n;
+    let pos = residuals
+        .iter()
+        .map(|r| r[0] * r[0] + r[1] * r[1])
+        .sum::<f64>()
+        / n;
     let theta = residuals.iter().map(|r| r[2] * r[2]).sum::<f64>() / n;
     (pos.sqrt(), theta.sqrt())
 }

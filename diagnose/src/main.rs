@@ -1,1 +1,306 @@
-fn main() {}
+//! `shoal-diagnose`: why a simulator disagrees with a robot.
+
+mod plot;
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use anyhow::{Context, Result, bail};
+use clap::{Args, Parser, Subcommand};
+use shoal_diagnose::experiment::{cases, run_case};
+use shoal_diagnose::generate::{Settings, generate};
+use shoal_diagnose::input::{commands_csv, mrclam_groundtruth, mrclam_odometry, poses_csv};
+use shoal_diagnose::{Diagnosis, Options, Recording, diagnose};
+use shoal_physics::UnicycleModel;
+
+#[derive(Parser)]
+#[command(
+    version,
+    about = "Find where a simulation and a real run differ, name the physics the simulation left out, fit it and show the fit improve",
+    args_conflicts_with_subcommands = true
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Commands>,
+    #[command(flatten)]
+    diagnose: DiagnoseArgs,
+}
+
+#[derive(Args)]
+struct DiagnoseArgs {
+    /// A run directory holding commands.csv and poses.csv.
+    run: Option<PathBuf>,
+    /// Commands sent: CSV with header t,v,omega (held until the next row).
+    #[arg(long, requires = "poses", conflicts_with_all = ["run", "mrclam"])]
+    commands: Option<PathBuf>,
+    /// Observed poses: CSV with header t,x,y,theta (any rate).
+    #[arg(long, requires = "commands")]
+    poses: Option<PathBuf>,
+    /// An MRCLAM dataset directory (e.g. shared/data/mrclam-d6); with --robot.
+    #[arg(long, requires = "robot", conflicts_with = "run")]
+    mrclam: Option<PathBuf>,
+    /// Which MRCLAM robot, 1-5.
+    #[arg(long)]
+    robot: Option<u32>,
+    /// The simulation model (TOML); default: the plain unicycle.
+    #[arg(long)]
+    model: Option<PathBuf>,
+    /// Print one JSON object instead of the report.
+    #[arg(long)]
+    json: bool,
+    /// Write model.toml and fit.png here.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Seconds each comparison predicts ahead.
+    #[arg(long, default_value_t = 1.0)]
+    horizon: f64,
+}
+
+#[derive(Subcommand)]
+enum Commands {
+    /// Write a synthetic run (commands.csv, poses.csv) whose body has the effects of --truth.
+    Generate {
+        /// A model file with the true effects; default: none.
+        #[arg(long)]
+        truth: Option<PathBuf>,
+        #[arg(long)]
+        out: PathBuf,
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        #[arg(long, default_value_t = 600.0)]
+        duration: f64,
+    },
+    /// Detection, false positives and parameter error over many seeds, per effect.
+    Experiment {
+        #[arg(long, default_value_t = 5)]
+        seeds: u64,
+        #[arg(long, default_value_t = 600.0)]
+        duration: f64,
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+fn read(path: &Path) -> Result<String> {
+    std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))
+}
+
+fn load_csv_pair(commands: &Path, poses: &Path) -> Result<Recording> {
+    let c = commands_csv(&read(commands)?, &commands.display().to_string())?;
+    let p = poses_csv(&read(poses)?, &poses.display().to_string())?;
+    Ok(Recording::from_absolute(c, p))
+}
+
+fn load(args: &DiagnoseArgs) -> Result<Recording> {
+    if let (Some(c), Some(p)) = (&args.commands, &args.poses) {
+        return load_csv_pair(c, p);
+    }
+    if let Some(dir) = &args.mrclam {
+        let robot = args.robot.context("--mrclam needs --robot N")?;
+        let odometry = dir.join(format!("Robot{robot}_Odometry.dat"));
+        let truth = dir.join(format!("Robot{robot}_Groundtruth.dat"));
+        let c = mrclam_odometry(&read(&odometry)?, &odometry.display().to_string())?;
+        let p = mrclam_groundtruth(&read(&truth)?, &truth.display().to_string())?;
+        return Ok(Recording::from_absolute(c, p));
+    }
+    if let Some(run) = &args.run {
+        if run.extension().is_some_and(|e| e == "rrd") {
+            bail!(
+                "{}: read .rrd recordings with `shoal-viewer-log export-run {} DIR`, then diagnose DIR",
+                run.display(),
+                run.display()
+            );
+        }
+        return load_csv_pair(&run.join("commands.csv"), &run.join("poses.csv"));
+    }
+    bail!(
+        "nothing to diagnose: give a run directory, --commands and --poses, or --mrclam DIR --robot N"
+    )
+}
+
+fn report(d: &Diagnosis, model_out: Option<&Path>, plot: Option<&Path>) {
+    println!("{} segments of {:.1} s compared.", d.segments, d.horizon_s);
+    if !d.mismatch {
+        println!("No significant mismatch: the model explains the run within its noise.");
+    }
+    for l in d.located.iter().take(8) {
+        let place = l
+            .region
+            .map(|r| {
+                format!(
+                    " in [{:.1}, {:.1}]-[{:.1}, {:.1}] m",
+                    r[0], r[1], r[2], r[3]
+                )
+            })
+            .unwrap_or_default();
+        println!(
+            "  differs by {}: {:.0}-{:.0} s{place}, {} ({} residual, z {:.1}, p {:.1e})",
+            l.family, l.t_start, l.t_end, l.commands, l.component, l.z, l.significance
+        );
+    }
+    if d.mismatch && d.effects.is_empty() {
+        println!("The mismatch is significant but no effect of the library explains it.");
+    }
+    for e in &d.effects {
+        println!("  {} (ΔBIC {:.0})", e.sentence, e.delta_bic);
+    }
+    println!(
+        "Held-out position error {:.1} mm -> {:.1} mm, heading {:.2} -> {:.2} deg, NLL {:.2} -> {:.2} per segment.",
+        d.baseline.heldout_rmse_pos_m * 1e3,
+        d.improved.heldout_rmse_pos_m * 1e3,
+        d.baseline.heldout_rmse_theta_rad.to_degrees(),
+        d.improved.heldout_rmse_theta_rad.to_degrees(),
+        d.baseline.heldout_nll,
+        d.improved.heldout_nll
+    );
+    if let Some(m) = model_out {
+        println!("Model written to {}", m.display());
+    }
+    if let Some(p) = plot {
+        println!("Plot written to {}", p.display());
+    }
+}
+
+fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
+    let recording = load(args)?;
+    let model = match &args.model {
+        Some(path) => UnicycleModel::from_toml(&read(path)?, &path.display().to_string())?,
+        None => UnicycleModel::plain(),
+    };
+    let options = Options {
+        horizon_s: args.horizon,
+        ..Options::default()
+    };
+    let diagnosis = diagnose(&recording, &model, &options);
+    let (mut model_out, mut plot_out) = (None, None);
+    if let Some(dir) = &args.out {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        let path = dir.join("model.toml");
+        let text = format!(
+            "# Written by shoal diagnose: the input model plus the effects it found.\n# Load it with --model, or as the body of a simulated robot.\n{}",
+            diagnosis.model.to_toml()
+        );
+        std::fs::write(&path, text).with_context(|| format!("cannot write {}", path.display()))?;
+        model_out = Some(path);
+        let png = dir.join("fit.png");
+        plot::fit_png(&png, &recording, &diagnosis)?;
+        plot_out = Some(png);
+    }
+    if args.json {
+        let mut value = serde_json::to_value(&diagnosis)?;
+        value["model_out"] = serde_json::json!(model_out.as_ref().map(|p| p.display().to_string()));
+        value["plot"] = serde_json::json!(plot_out.as_ref().map(|p| p.display().to_string()));
+        println!("{value}");
+    } else {
+        report(&diagnosis, model_out.as_deref(), plot_out.as_deref());
+    }
+    Ok(())
+}
+
+fn run_generate(truth: Option<&Path>, out: &Path, seed: u64, duration: f64) -> Result<()> {
+    let model = match truth {
+        Some(path) => UnicycleModel::from_toml(&read(path)?, &path.display().to_string())?,
+        None => UnicycleModel::plain(),
+    };
+    let recording = generate(
+        &model,
+        &Settings {
+            seed,
+            duration_s: duration,
+            ..Settings::default()
+        },
+    );
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let c = &recording.commands;
+    let mut commands = String::from("t,v,omega\n");
+    for i in 0..c.t.len() {
+        commands.push_str(&format!("{:.3},{:.6},{:.6}\n", c.t[i], c.v[i], c.omega[i]));
+    }
+    let p = &recording.poses;
+    let mut poses = String::from("t,x,y,theta\n");
+    for i in 0..p.t.len() {
+        poses.push_str(&format!(
+            "{:.4},{:.6},{:.6},{:.6}\n",
+            p.t[i],
+            p.x[i],
+            p.y[i],
+            shoal_physics::wrap_angle(p.theta[i])
+        ));
+    }
+    std::fs::write(out.join("commands.csv"), commands)?;
+    std::fs::write(out.join("poses.csv"), poses)?;
+    std::fs::write(out.join("truth.toml"), model.to_toml())?;
+    Ok(())
+}
+
+fn run_experiment(seeds: u64, duration: f64, json: bool) -> Result<()> {
+    let mut rows = Vec::new();
+    for case in cases(duration) {
+        // Null runs measure the false-positive rate: give them more seeds.
+        let n = if case.truth.is_empty() {
+            seeds * 4
+        } else {
+            seeds
+        };
+        let row = run_case(&case, 1000..1000 + n, duration);
+        eprintln!(
+            "{}: detected {:.0}%, false positives {:.0}%",
+            row.name,
+            row.detection_rate * 100.0,
+            row.false_positive_rate * 100.0
+        );
+        rows.push(row);
+    }
+    if json {
+        println!(
+            "{}",
+            serde_json::json!({ "duration_s": duration, "cases": rows })
+        );
+    } else {
+        println!(
+            "| case | concealed | runs | detected | false positives | param error | held-out pos RMSE before → after | s/run |"
+        );
+        println!("|---|---|---|---|---|---|---|---|");
+        for r in rows {
+            println!(
+                "| {} | {} | {} | {:.0}% | {:.0}% | {} | {:.1} → {:.1} mm | {:.1} |",
+                r.name,
+                r.concealment,
+                r.runs,
+                r.detection_rate * 100.0,
+                r.false_positive_rate * 100.0,
+                r.param_error
+                    .map_or("-".into(), |e| format!("{:.0}%", e * 100.0)),
+                r.heldout_rmse_pos_m_before * 1e3,
+                r.heldout_rmse_pos_m_after * 1e3,
+                r.seconds_per_run
+            );
+        }
+    }
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let outcome = match &cli.command {
+        Some(Commands::Generate {
+            truth,
+            out,
+            seed,
+            duration,
+        }) => run_generate(truth.as_deref(), out, *seed, *duration),
+        Some(Commands::Experiment {
+            seeds,
+            duration,
+            json,
+        }) => run_experiment(*seeds, *duration, *json),
+        None => run_diagnose(&cli.diagnose),
+    };
+    match outcome {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("shoal diagnose: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

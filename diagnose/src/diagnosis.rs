@@ -1,0 +1,435 @@
+//! The whole diagnosis: locate the mismatch, name it by forward selection
+//! of effects on BIC, and measure the fit before and after on held-out,
+//! time-blocked folds.
+
+use std::collections::BTreeMap;
+
+use serde::Serialize;
+use shoal_physics::effects::EFFECT_KINDS;
+use shoal_physics::{CommandGrid, Effect, ScopedEffect, UnicycleModel};
+
+use crate::fit::{Fitted, fit, nll_of};
+use crate::likelihood::{Residual, estimate_noise, residuals, rmse, segment_nll, standardised};
+use crate::locate::{Located, locate};
+use crate::recording::Recording;
+use crate::segments::{Segment, command_grid, segments};
+
+#[derive(Clone, Debug)]
+pub struct Options {
+    /// Seconds each segment predicts ahead.
+    pub horizon_s: f64,
+    /// The command grid's step.
+    pub grid_dt: f64,
+    /// An effect enters when it lowers BIC by more than this.
+    pub min_bic_gain: f64,
+    pub max_effects: usize,
+    /// Family-wise level of the locating tests.
+    pub alpha: f64,
+    pub folds: usize,
+    pub max_iters: u64,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Self {
+            horizon_s: 1.0,
+            grid_dt: 0.02,
+            min_bic_gain: 10.0,
+            max_effects: 4,
+            alpha: 0.01,
+            folds: 5,
+            max_iters: 120,
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Where {
+    pub t_start: f64,
+    pub t_end: f64,
+    pub region: Option<[f64; 4]>,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FoundEffect {
+    pub kind: &'static str,
+    pub params: BTreeMap<&'static str, f64>,
+    pub stderr: BTreeMap<&'static str, Option<f64>>,
+    #[serde(rename = "where")]
+    pub place: Where,
+    pub delta_bic: f64,
+    pub sentence: String,
+    #[serde(skip)]
+    pub scoped: ScopedEffect,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Heldout {
+    pub heldout_rmse_pos_m: f64,
+    pub heldout_rmse_theta_rad: f64,
+    /// Mean negative log-likelihood per held-out segment.
+    pub heldout_nll: f64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct Diagnosis {
+    pub mismatch: bool,
+    pub located: Vec<Located>,
+    pub effects: Vec<FoundEffect>,
+    pub baseline: Heldout,
+    pub improved: Heldout,
+    pub segments: usize,
+    pub horizon_s: f64,
+    /// Seconds subtracted from the input's times; reported times count from it.
+    pub t_origin: f64,
+    /// The input model plus what was found, ready to write as model.toml.
+    #[serde(skip)]
+    pub model: UnicycleModel,
+    /// Per held-out segment: start time, plain and improved position error.
+    #[serde(skip)]
+    pub heldout_errors: Vec<(f64, f64, f64)>,
+}
+
+/// The prepared run: grid and segments.
+pub struct Prepared {
+    pub grid: CommandGrid,
+    pub segments: Vec<Segment>,
+}
+
+pub fn prepare(recording: &Recording, options: &Options) -> Prepared {
+    let grid = command_grid(recording, options.grid_dt);
+    let segments = segments(recording, &grid, options.horizon_s);
+    Prepared { grid, segments }
+}
+
+/// Extra BIC parameters for where an effect acts: a located span or
+/// region was picked among a few, not fitted freely.
+const WHERE_PARAMS: usize = 2;
+
+fn candidates(located: &[Located], duration: f64) -> Vec<ScopedEffect> {
+    let mut out: Vec<ScopedEffect> = EFFECT_KINDS
+        .iter()
+        .filter(|k| **k != "surface_zone")
+        .filter_map(|k| Effect::identity(k, [0.0; 4]))
+        .map(ScopedEffect::always)
+        .collect();
+    let spans = located
+        .iter()
+        .filter(|l| l.family == "time" && l.t_end - l.t_start < 0.8 * duration)
+        .take(2);
+    for span in spans {
+        for kind in [
+            "speed_scale",
+            "turn_scale",
+            "turn_bias",
+            "heading_drift",
+            "latency",
+            "external_flow",
+        ] {
+            if let Some(effect) = Effect::identity(kind, [0.0; 4]) {
+                out.push(ScopedEffect {
+                    effect,
+                    during: Some([span.t_start, span.t_end]),
+                });
+            }
+        }
+    }
+    for place in located.iter().filter(|l| l.family == "place").take(3) {
+        if let Some(region) = place.region
+            && let Some(effect) = Effect::identity("surface_zone", region)
+        {
+            out.push(ScopedEffect::always(effect));
+        }
+    }
+    out
+}
+
+fn extra_params(candidate: &ScopedEffect) -> usize {
+    let located =
+        candidate.during.is_some() || matches!(candidate.effect, Effect::SurfaceZone { .. });
+    candidate.effect.params().len() + if located { WHERE_PARAMS } else { 0 }
+}
+
+/// Fits every candidate on two threads; returns them in the same order.
+fn fit_all(
+    grid: &CommandGrid,
+    segments: &[Segment],
+    fixed: &[ScopedEffect],
+    candidates: &[ScopedEffect],
+    max_iters: u64,
+) -> Vec<Fitted> {
+    let workers = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .min(candidates.len().max(1));
+    let mut results: Vec<Option<Fitted>> = vec![None; candidates.len()];
+    std::thread::scope(|scope| {
+        let chunks: Vec<_> = results
+            .chunks_mut(candidates.len().div_ceil(workers).max(1))
+            .enumerate()
+            .map(|(w, slots)| {
+                let chunk = candidates.len().div_ceil(workers).max(1);
+                scope.spawn(move || {
+                    for (k, slot) in slots.iter_mut().enumerate() {
+                        let candidate = &candidates[w * chunk + k];
+                        *slot = Some(fit(
+                            grid,
+                            segments,
+                            fixed,
+                            std::slice::from_ref(candidate),
+                            max_iters,
+                        ));
+                    }
+                })
+            })
+            .collect();
+        for handle in chunks {
+            let _ = handle.join();
+        }
+    });
+    results.into_iter().flatten().collect()
+}
+
+/// Held-out fit of `fixed` plus `found` (refitted per fold) on time-blocked folds.
+fn heldout(
+    prepared: &Prepared,
+    fixed: &[ScopedEffect],
+    found: &[ScopedEffect],
+    options: &Options,
+) -> (Heldout, Vec<(f64, f64)>) {
+    let n = prepared.segments.len();
+    let folds = options.folds.clamp(2, n.max(2));
+    let mut all_residuals: Vec<Residual> = Vec::with_capacity(n);
+    let mut errors = Vec::with_capacity(n);
+    let mut nll = 0.0;
+    for f in 0..folds {
+        let (lo, hi) = (f * n / folds, (f + 1) * n / folds);
+        let train: Vec<Segment> = prepared.segments[..lo]
+            .iter()
+            .chain(&prepared.segments[hi..])
+            .cloned()
+            .collect();
+        let test = &prepared.segments[lo..hi];
+        let effects: Vec<ScopedEffect> = if found.is_empty() {
+            fixed.to_vec()
+        } else {
+            let refit = fit(&prepared.grid, &train, fixed, found, options.max_iters / 2);
+            fixed.iter().cloned().chain(refit.effects).collect()
+        };
+        let model = UnicycleModel::with_effects(effects);
+        let noise = estimate_noise(&model, &train, &residuals(&model, &prepared.grid, &train));
+        let r = residuals(&model, &prepared.grid, test);
+        nll += segment_nll(&model, &noise, test, &r).iter().sum::<f64>();
+        for (s, res) in test.iter().zip(&r) {
+            errors.push((s.t_start, res[0].hypot(res[1])));
+        }
+        all_residuals.extend(r);
+    }
+    let (pos, theta) = rmse(&all_residuals);
+    (
+        Heldout {
+            heldout_rmse_pos_m: pos,
+            heldout_rmse_theta_rad: theta,
+            heldout_nll: nll / n.max(1) as f64,
+        },
+        errors,
+    )
+}
+
+fn describe(scoped: &ScopedEffect, stderr: &[f64], delta_bic: f64, duration: f64) -> FoundEffect {
+    let params = scoped.effect.params();
+    let region = match scoped.effect {
+        Effect::SurfaceZone { region, .. } => Some(region),
+        _ => None,
+    };
+    let [t_start, t_end] = scoped.during.unwrap_or([0.0, duration]);
+    let mut sentence = scoped.effect.sentence();
+    if let Some([a, b]) = scoped.during {
+        sentence = format!(
+            "{} Only from {a:.0} s to {b:.0} s.",
+            sentence.trim_end_matches('.')
+        );
+        sentence = sentence.replacen(". Only", " only", 1);
+    }
+    FoundEffect {
+        kind: scoped.effect.kind(),
+        params: params.iter().copied().collect(),
+        stderr: params
+            .iter()
+            .zip(stderr.iter().chain(std::iter::repeat(&f64::NAN)))
+            .map(|((name, _), &se)| (*name, se.is_finite().then_some(se)))
+            .collect(),
+        place: Where {
+            t_start,
+            t_end,
+            region,
+        },
+        delta_bic,
+        sentence,
+        scoped: scoped.clone(),
+    }
+}
+
+/// An effect found over the whole run may act only in part of it: tries
+/// it on the first or last part of the run, split at tenths and then
+/// refined, and keeps the narrower scope when BIC clearly prefers it.
+#[allow(clippy::too_many_arguments)]
+fn narrower_scope(
+    prepared: &Prepared,
+    base: &[ScopedEffect],
+    global: &ScopedEffect,
+    current: f64,
+    global_gain: f64,
+    log_n: f64,
+    duration: f64,
+    options: &Options,
+) -> Option<(ScopedEffect, f64)> {
+    let scopable = !matches!(
+        global.effect,
+        Effect::SurfaceZone { .. } | Effect::BatteryFade { .. } | Effect::SpeedNoise { .. }
+    );
+    if !scopable || global.during.is_some() {
+        return None;
+    }
+    let gain_of =
+        |f: &Fitted, c: &ScopedEffect| 2.0 * (f.nll - current) + extra_params(c) as f64 * log_n;
+    let spans = |cuts: &[f64]| -> Vec<ScopedEffect> {
+        cuts.iter()
+            .filter(|&&c| c > 0.0 && c < duration)
+            .flat_map(|&c| [[0.0, c], [c, duration]])
+            .map(|during| ScopedEffect {
+                effect: global.effect.clone(),
+                during: Some(during),
+            })
+            .collect()
+    };
+    let mut best: Option<(ScopedEffect, f64)> = None;
+    let mut step = duration / 10.0;
+    let mut cuts: Vec<f64> = (1..10).map(|k| k as f64 * step).collect();
+    for _ in 0..2 {
+        let tries = spans(&cuts);
+        let fits = fit_all(
+            &prepared.grid,
+            &prepared.segments,
+            base,
+            &tries,
+            options.max_iters,
+        );
+        for (f, c) in fits.iter().zip(&tries) {
+            let gain = gain_of(f, c);
+            if best.as_ref().is_none_or(|(_, g)| gain < *g) {
+                best = Some((f.effects[0].clone(), gain));
+            }
+        }
+        let Some((scoped, _)) = &best else {
+            return None;
+        };
+        let [a, b] = scoped.during.unwrap_or([0.0, duration]);
+        let cut = if a > 0.0 { a } else { b };
+        step /= 4.0;
+        cuts = vec![cut - 2.0 * step, cut - step, cut + step, cut + 2.0 * step];
+    }
+    best.filter(|(_, gain)| *gain < global_gain - options.min_bic_gain)
+}
+
+/// Diagnoses `recording` against `model`.
+pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options) -> Diagnosis {
+    let prepared = prepare(recording, options);
+    let (grid, segs) = (&prepared.grid, &prepared.segments);
+    let duration = recording.duration();
+    let fixed = model.effects.clone();
+    let plain_residuals = residuals(model, grid, segs);
+    let noise = estimate_noise(model, segs, &plain_residuals);
+    let located = locate(
+        segs,
+        &standardised(model, &noise, segs, &plain_residuals),
+        options.alpha,
+    );
+
+    let log_n = ((3 * segs.len()).max(2) as f64).ln();
+    let mut remaining = candidates(&located, duration);
+    let mut found: Vec<ScopedEffect> = Vec::new();
+    let mut gains: Vec<f64> = Vec::new();
+    let mut current = nll_of(grid, segs, &fixed);
+    while found.len() < options.max_effects && !remaining.is_empty() && segs.len() >= 20 {
+        let base: Vec<ScopedEffect> = fixed.iter().chain(&found).cloned().collect();
+        let fits = fit_all(grid, segs, &base, &remaining, options.max_iters);
+        let remaining_before = remaining.clone();
+        let best = fits
+            .iter()
+            .zip(&remaining)
+            .map(|(f, c)| 2.0 * (f.nll - current) + extra_params(c) as f64 * log_n)
+            .enumerate()
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        let Some((index, delta_bic)) = best else {
+            break;
+        };
+        if delta_bic > -options.min_bic_gain {
+            break;
+        }
+        let mut chosen = fits[index].effects[0].clone();
+        let mut delta_bic = delta_bic;
+        if let Some((scoped, scoped_gain)) = narrower_scope(
+            &prepared, &base, &chosen, current, delta_bic, log_n, duration, options,
+        ) {
+            (chosen, delta_bic) = (scoped, scoped_gain);
+        }
+        remaining.retain(|c| c.effect.kind() != chosen.effect.kind());
+        // Later rounds only try what helped on its own: an effect that did
+        // not lower the likelihood alone is rarely needed in company.
+        let helpful: Vec<bool> = fits.iter().map(|f| f.nll < current - 1.0).collect();
+        let mut keep = helpful.iter();
+        let mut kept: Vec<ScopedEffect> = Vec::new();
+        for (c, f) in remaining_before.iter().zip(&fits) {
+            let _ = f;
+            if keep.next() == Some(&true) && remaining.contains(c) {
+                kept.push(c.clone());
+            }
+        }
+        remaining = kept;
+        found.push(chosen);
+        gains.push(delta_bic);
+        // Effects found earlier may now be estimated differently: refit together.
+        let joint = fit(grid, segs, &fixed, &found, options.max_iters * 2);
+        found = joint.effects;
+        current = joint.nll;
+    }
+    let stderr = if found.is_empty() {
+        Vec::new()
+    } else {
+        fit(grid, segs, &fixed, &found, options.max_iters).stderr
+    };
+    let mut offset = 0;
+    let effects: Vec<FoundEffect> = found
+        .iter()
+        .zip(&gains)
+        .map(|(scoped, &gain)| {
+            let count = scoped.effect.params().len();
+            let se = &stderr[offset.min(stderr.len())..(offset + count).min(stderr.len())];
+            offset += count;
+            describe(scoped, se, gain, duration)
+        })
+        .collect();
+
+    let (baseline, plain_errors) = heldout(&prepared, &fixed, &[], options);
+    let (improved, improved_errors) = if found.is_empty() {
+        (baseline, plain_errors.clone())
+    } else {
+        heldout(&prepared, &fixed, &found, options)
+    };
+    Diagnosis {
+        mismatch: !effects.is_empty() || !located.is_empty(),
+        located,
+        effects,
+        baseline,
+        improved,
+        segments: segs.len(),
+        horizon_s: options.horizon_s,
+        t_origin: recording.t_origin,
+        model: UnicycleModel::with_effects(fixed.into_iter().chain(found).collect()),
+        heldout_errors: plain_errors
+            .iter()
+            .zip(&improved_errors)
+            .map(|(&(t, plain), &(_, better))| (t, plain, better))
+            .collect(),
+    }
+}

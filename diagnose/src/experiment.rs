@@ -1,0 +1,228 @@
+//! The proof on concealed effects: runs generated with each effect hidden
+//! (smaller than the per-step noise, present in part of the run or map, or
+//! confounded with turning), null runs and pairs, each diagnosed blind.
+
+use serde::Serialize;
+use shoal_physics::{Effect, ScopedEffect, UnicycleModel};
+
+use crate::generate::{Settings, generate};
+use crate::{Options, diagnose};
+
+pub struct Case {
+    pub name: &'static str,
+    /// How the effect is hidden.
+    pub concealment: &'static str,
+    pub truth: Vec<ScopedEffect>,
+    pub turn_inside: Option<[f64; 4]>,
+}
+
+const ZONE: [f64; 4] = [0.5, 0.5, 2.0, 2.0];
+
+/// The cases: every effect of the library, concealed, then two pairs.
+pub fn cases(duration_s: f64) -> Vec<Case> {
+    let always = |effect| vec![ScopedEffect::always(effect)];
+    let tiny = "per-step effect far below the per-step noise";
+    vec![
+        Case {
+            name: "null",
+            concealment: "no effect",
+            truth: vec![],
+            turn_inside: None,
+        },
+        Case {
+            name: "latency",
+            concealment: tiny,
+            truth: always(Effect::Latency { seconds: 0.12 }),
+            turn_inside: None,
+        },
+        Case {
+            name: "speed_scale",
+            concealment: tiny,
+            truth: always(Effect::SpeedScale { factor: 0.96 }),
+            turn_inside: None,
+        },
+        Case {
+            name: "turn_scale",
+            concealment: tiny,
+            truth: always(Effect::TurnScale { factor: 0.94 }),
+            turn_inside: None,
+        },
+        Case {
+            name: "turn_bias",
+            concealment: "only in the second half of the run",
+            truth: vec![ScopedEffect {
+                effect: Effect::TurnBias { rad_per_s: 0.015 },
+                during: Some([duration_s / 2.0, duration_s]),
+            }],
+            turn_inside: None,
+        },
+        Case {
+            name: "heading_drift",
+            concealment: tiny,
+            truth: always(Effect::HeadingDrift { rad_per_m: 0.04 }),
+            turn_inside: None,
+        },
+        Case {
+            name: "accel_limit",
+            concealment: tiny,
+            truth: always(Effect::AccelLimit { m_per_s2: 0.4 }),
+            turn_inside: None,
+        },
+        Case {
+            name: "slip",
+            concealment: tiny,
+            truth: always(Effect::Slip { per_m_per_s: 0.3 }),
+            turn_inside: None,
+        },
+        Case {
+            name: "battery_fade",
+            concealment: "grows slowly over the run",
+            truth: always(Effect::BatteryFade { per_minute: 0.008 }),
+            turn_inside: None,
+        },
+        Case {
+            name: "surface_zone",
+            concealment: "only in part of the map, visited mostly while turning",
+            truth: always(Effect::SurfaceZone {
+                region: ZONE,
+                speed_factor: 0.8,
+            }),
+            turn_inside: Some(ZONE),
+        },
+        Case {
+            name: "external_flow",
+            concealment: tiny,
+            truth: always(Effect::ExternalFlow {
+                vx: 0.006,
+                vy: -0.004,
+            }),
+            turn_inside: None,
+        },
+        Case {
+            name: "hysteresis",
+            concealment: tiny,
+            truth: always(Effect::Hysteresis {
+                play_rad_per_s: 0.08,
+            }),
+            turn_inside: None,
+        },
+        Case {
+            name: "speed_noise",
+            concealment: "noise only, no bias",
+            truth: always(Effect::SpeedNoise { per_m_per_s: 6.0 }),
+            turn_inside: None,
+        },
+        Case {
+            name: "latency+heading_drift",
+            concealment: "two effects together",
+            truth: vec![
+                ScopedEffect::always(Effect::Latency { seconds: 0.12 }),
+                ScopedEffect::always(Effect::HeadingDrift { rad_per_m: 0.04 }),
+            ],
+            turn_inside: None,
+        },
+        Case {
+            name: "speed_scale+external_flow",
+            concealment: "two effects together",
+            truth: vec![
+                ScopedEffect::always(Effect::SpeedScale { factor: 0.96 }),
+                ScopedEffect::always(Effect::ExternalFlow {
+                    vx: 0.006,
+                    vy: -0.004,
+                }),
+            ],
+            turn_inside: None,
+        },
+    ]
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct Row {
+    pub name: String,
+    pub concealment: String,
+    pub runs: usize,
+    /// Share of runs in which every true effect was named.
+    pub detection_rate: f64,
+    /// Share of runs naming an effect that is not there.
+    pub false_positive_rate: f64,
+    /// Mean relative error of the true effects' parameters, where found.
+    pub param_error: Option<f64>,
+    pub heldout_rmse_pos_m_before: f64,
+    pub heldout_rmse_pos_m_after: f64,
+    pub seconds_per_run: f64,
+    /// How often each kind was named over the runs.
+    pub named: std::collections::BTreeMap<String, usize>,
+}
+
+/// Relative error of `found`'s parameters against `truth`'s.
+fn param_error(truth: &Effect, found: &Effect) -> f64 {
+    let t = truth.params();
+    let f = found.params();
+    let scale = t.iter().map(|(_, v)| v.abs()).fold(0.0, f64::max).max(1e-9);
+    let identity = Effect::identity(truth.kind(), [0.0; 4])
+        .map(|e| e.params())
+        .unwrap_or_default();
+    // Scale errors relative to the effect's size (distance from identity).
+    let size = t
+        .iter()
+        .zip(&identity)
+        .map(|((_, v), (_, i))| (v - i).abs())
+        .fold(0.0, f64::max)
+        .max(1e-9 * scale);
+    t.iter()
+        .zip(&f)
+        .map(|((_, a), (_, b))| (a - b).abs())
+        .fold(0.0, f64::max)
+        / size
+}
+
+pub fn run_case(case: &Case, seeds: std::ops::Range<u64>, duration_s: f64) -> Row {
+    let truth = UnicycleModel::with_effects(case.truth.clone());
+    let true_kinds: Vec<&str> = case.truth.iter().map(|e| e.effect.kind()).collect();
+    let (mut detected, mut false_positive, mut errors) = (0, 0, Vec::new());
+    let (mut before, mut after, mut seconds) = (0.0, 0.0, 0.0);
+    let mut named = std::collections::BTreeMap::new();
+    let runs = seeds.clone().count();
+    for seed in seeds {
+        let settings = Settings {
+            duration_s,
+            seed,
+            turn_inside: case.turn_inside,
+            ..Settings::default()
+        };
+        let recording = generate(&truth, &settings);
+        let started = std::time::Instant::now();
+        let diagnosis = diagnose(&recording, &UnicycleModel::plain(), &Options::default());
+        seconds += started.elapsed().as_secs_f64();
+        before += diagnosis.baseline.heldout_rmse_pos_m;
+        after += diagnosis.improved.heldout_rmse_pos_m;
+        let kinds: Vec<&str> = diagnosis.effects.iter().map(|e| e.kind).collect();
+        for k in &kinds {
+            *named.entry((*k).to_owned()).or_insert(0) += 1;
+        }
+        if !true_kinds.is_empty() && true_kinds.iter().all(|k| kinds.contains(k)) {
+            detected += 1;
+        }
+        if kinds.iter().any(|k| !true_kinds.contains(k)) {
+            false_positive += 1;
+        }
+        for t in &case.truth {
+            if let Some(f) = diagnosis.effects.iter().find(|f| f.kind == t.effect.kind()) {
+                errors.push(param_error(&t.effect, &f.scoped.effect));
+            }
+        }
+    }
+    let n = runs.max(1) as f64;
+    Row {
+        name: case.name.to_owned(),
+        concealment: case.concealment.to_owned(),
+        runs,
+        detection_rate: detected as f64 / n,
+        false_positive_rate: false_positive as f64 / n,
+        param_error: (!errors.is_empty()).then(|| errors.iter().sum::<f64>() / errors.len() as f64),
+        heldout_rmse_pos_m_before: before / n,
+        heldout_rmse_pos_m_after: after / n,
+        seconds_per_run: seconds / n,
+        named,
+    }
+}

@@ -1,0 +1,264 @@
+//! Where the model and the run differ: the plain model's standardised
+//! residuals tested by time, by place, by command and by speed. Every test
+//! is counted and the p-values are Holm-corrected, so a run with no
+//! mismatch reports nothing at the chosen level.
+
+use serde::Serialize;
+use statrs::distribution::{ChiSquared, ContinuousCDF, Normal};
+
+use crate::segments::Segment;
+
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Located {
+    /// Which test found it: `time`, `place`, `command` or `speed`.
+    pub family: &'static str,
+    pub t_start: f64,
+    pub t_end: f64,
+    pub region: Option<[f64; 4]>,
+    pub commands: String,
+    /// Which part of the motion differs: `along`, `across`, `heading` or `spread`.
+    pub component: &'static str,
+    /// The Holm-corrected p-value.
+    pub significance: f64,
+    /// The test statistic, in standard deviations.
+    pub z: f64,
+    pub segments: usize,
+}
+
+struct Group {
+    family: &'static str,
+    members: Vec<usize>,
+    commands: String,
+    region: Option<[f64; 4]>,
+    /// Position along its family's axis (block or cell), for merging neighbours.
+    key: (i64, i64),
+}
+
+const COMPONENTS: [&str; 4] = ["along", "across", "heading", "spread"];
+const MIN_GROUP: usize = 12;
+
+/// What a segment's commands were, in words.
+pub fn command_class(segment: &Segment) -> &'static str {
+    if segment.speed < 0.01 && segment.turn.abs() < 0.02 {
+        "standing"
+    } else if segment.turn.abs() < 0.1 {
+        "straight"
+    } else if segment.turn > 0.0 {
+        "turning left"
+    } else {
+        "turning right"
+    }
+}
+
+fn groups(segments: &[Segment]) -> Vec<Group> {
+    let n = segments.len();
+    let mut out = Vec::new();
+    // Time: contiguous blocks of about 25 segments, 4 to 40 of them.
+    let blocks = (n / 25).clamp(4, 40).min(n / MIN_GROUP).max(1);
+    for b in 0..blocks {
+        let members: Vec<usize> = (b * n / blocks..(b + 1) * n / blocks).collect();
+        out.push(Group {
+            family: "time",
+            members,
+            commands: "any".into(),
+            region: None,
+            key: (b as i64, 0),
+        });
+    }
+    // Place: an 8 x 8 grid over where the robot went.
+    let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
+    for s in segments {
+        x0 = x0.min(s.mid[0]);
+        y0 = y0.min(s.mid[1]);
+        x1 = x1.max(s.mid[0]);
+        y1 = y1.max(s.mid[1]);
+    }
+    let cell = ((x1 - x0).max(y1 - y0) / 8.0).max(0.05);
+    let mut cells: std::collections::BTreeMap<(i64, i64), Vec<usize>> = Default::default();
+    for (i, s) in segments.iter().enumerate() {
+        let key = (
+            ((s.mid[0] - x0) / cell).floor() as i64,
+            ((s.mid[1] - y0) / cell).floor() as i64,
+        );
+        cells.entry(key).or_default().push(i);
+    }
+    for (key, members) in cells {
+        let region = [
+            x0 + key.0 as f64 * cell,
+            y0 + key.1 as f64 * cell,
+            x0 + (key.0 + 1) as f64 * cell,
+            y0 + (key.1 + 1) as f64 * cell,
+        ];
+        out.push(Group {
+            family: "place",
+            members,
+            commands: "any".into(),
+            region: Some(region),
+            key,
+        });
+    }
+    // Command classes.
+    for class in ["standing", "straight", "turning left", "turning right"] {
+        let members: Vec<usize> = (0..n)
+            .filter(|&i| command_class(&segments[i]) == class)
+            .collect();
+        out.push(Group {
+            family: "command",
+            members,
+            commands: class.into(),
+            region: None,
+            key: (0, 0),
+        });
+    }
+    // Speed quartiles of the moving segments.
+    let mut moving: Vec<usize> = (0..n).filter(|&i| segments[i].speed >= 0.01).collect();
+    moving.sort_by(|&a, &b| segments[a].speed.total_cmp(&segments[b].speed));
+    for q in 0..4 {
+        let members: Vec<usize> = moving[q * moving.len() / 4..(q + 1) * moving.len() / 4].to_vec();
+        if let (Some(&lo), Some(&hi)) = (members.first(), members.last()) {
+            out.push(Group {
+                family: "speed",
+                commands: format!(
+                    "speed {:.2}-{:.2} m/s",
+                    segments[lo].speed, segments[hi].speed
+                ),
+                members,
+                region: None,
+                key: (q as i64, 0),
+            });
+        }
+    }
+    out.retain(|g| g.members.len() >= MIN_GROUP);
+    out
+}
+
+/// Holm's step-down correction of `p`, in the same order.
+pub fn holm(p: &[f64]) -> Vec<f64> {
+    let m = p.len();
+    let mut order: Vec<usize> = (0..m).collect();
+    order.sort_by(|&a, &b| p[a].total_cmp(&p[b]));
+    let mut adjusted = vec![1.0; m];
+    let mut running: f64 = 0.0;
+    for (rank, &i) in order.iter().enumerate() {
+        running = running.max(((m - rank) as f64 * p[i]).min(1.0));
+        adjusted[i] = running;
+    }
+    adjusted
+}
+
+/// Tests `standardised` residuals (one per segment) and returns what is
+/// significant at `alpha` after correction, most significant first.
+pub fn locate(segments: &[Segment], standardised: &[[f64; 3]], alpha: f64) -> Vec<Located> {
+    let normal = Normal::standard();
+    let groups = groups(segments);
+    let mut tests: Vec<(usize, usize, f64, f64)> = Vec::new();
+    for (g, group) in groups.iter().enumerate() {
+        let n = group.members.len() as f64;
+        for c in 0..3 {
+            let z = group
+                .members
+                .iter()
+                .map(|&i| standardised[i][c])
+                .sum::<f64>()
+                / n.sqrt();
+            tests.push((g, c, z, 2.0 * normal.sf(z.abs())));
+        }
+        // Spread: are the residuals larger (or smaller) than the noise says?
+        let dof = 3.0 * n;
+        let sum: f64 = group
+            .members
+            .iter()
+            .map(|&i| standardised[i].iter().map(|z| z * z).sum::<f64>())
+            .sum();
+        if let Ok(chi) = ChiSquared::new(dof) {
+            let p = 2.0 * chi.cdf(sum).min(chi.sf(sum));
+            tests.push((g, 3, (sum - dof) / (2.0 * dof).sqrt(), p.min(1.0)));
+        }
+    }
+    let adjusted = holm(&tests.iter().map(|t| t.3).collect::<Vec<_>>());
+    // The strongest significant test of each group.
+    let mut best: Vec<Option<(usize, f64, f64)>> = vec![None; groups.len()];
+    for (&(g, c, z, _), &p) in tests.iter().zip(&adjusted) {
+        if p < alpha && best[g].is_none_or(|(_, bp, _)| p < bp) {
+            best[g] = Some((c, p, z));
+        }
+    }
+    let mut found = Vec::new();
+    let mut taken = vec![false; groups.len()];
+    for g in 0..groups.len() {
+        let Some((c, p, z)) = best[g] else { continue };
+        if taken[g] {
+            continue;
+        }
+        // Neighbouring significant blocks or cells form one span or region.
+        let mut members = groups[g].members.clone();
+        let mut region = groups[g].region;
+        let (mut p_min, mut z_best, mut component) = (p, z, c);
+        if matches!(groups[g].family, "time" | "place") {
+            let mut frontier = vec![g];
+            taken[g] = true;
+            while let Some(h) = frontier.pop() {
+                for k in 0..groups.len() {
+                    let adjacent = groups[k].family == groups[h].family
+                        && (groups[k].key.0 - groups[h].key.0).abs()
+                            + (groups[k].key.1 - groups[h].key.1).abs()
+                            == 1;
+                    if !taken[k] && adjacent && best[k].is_some() {
+                        taken[k] = true;
+                        frontier.push(k);
+                        members.extend_from_slice(&groups[k].members);
+                        if let (Some(r), Some(o)) = (region, groups[k].region) {
+                            region = Some([
+                                r[0].min(o[0]),
+                                r[1].min(o[1]),
+                                r[2].max(o[2]),
+                                r[3].max(o[3]),
+                            ]);
+                        }
+                        if let Some((kc, kp, kz)) = best[k]
+                            && kp < p_min
+                        {
+                            (p_min, z_best, component) = (kp, kz, kc);
+                        }
+                    }
+                }
+            }
+        }
+        let t_start = members
+            .iter()
+            .map(|&i| segments[i].t_start)
+            .fold(f64::MAX, f64::min);
+        let t_end = members
+            .iter()
+            .map(|&i| segments[i].t_end)
+            .fold(f64::MIN, f64::max);
+        found.push(Located {
+            family: groups[g].family,
+            t_start,
+            t_end,
+            region,
+            commands: groups[g].commands.clone(),
+            component: COMPONENTS[component],
+            significance: p_min,
+            z: z_best,
+            segments: members.len(),
+        });
+    }
+    found.sort_by(|a, b| a.significance.total_cmp(&b.significance));
+    found
+}
+
+#[cfg(test)]
+mod tests {
+    use super::holm;
+
+    #[test]
+    fn holm_matches_hand_computed_values() {
+        // m = 4: 0.01*4, max(0.04, 0.02*3), max(0.06, 0.03*2), max(0.06, 0.5)
+        let adjusted = holm(&[0.03, 0.01, 0.5, 0.02]);
+        let expected = [0.06, 0.04, 0.5, 0.06];
+        for (a, e) in adjusted.iter().zip(expected) {
+            assert!((a - e).abs() < 1e-12, "{adjusted:?}");
+        }
+    }
+}
