@@ -27,6 +27,10 @@ pub struct Options {
     pub alpha: f64,
     pub folds: usize,
     pub max_iters: u64,
+    /// How many segments rank the candidates of a round.
+    pub screen_segments: usize,
+    /// How many of the best-ranked candidates are fitted on every segment.
+    pub confirm: usize,
 }
 
 impl Default for Options {
@@ -39,6 +43,8 @@ impl Default for Options {
             alpha: 0.01,
             folds: 5,
             max_iters: 120,
+            screen_segments: 400,
+            confirm: 3,
         }
     }
 }
@@ -198,10 +204,7 @@ fn heldout(
 ) -> (Heldout, Vec<(f64, f64)>) {
     let n = prepared.segments.len();
     let folds = options.folds.clamp(2, n.max(2));
-    let mut all_residuals: Vec<Residual> = Vec::with_capacity(n);
-    let mut errors = Vec::with_capacity(n);
-    let mut nll = 0.0;
-    for f in 0..folds {
+    let one_fold = |f: usize| -> (f64, Vec<Residual>) {
         let (lo, hi) = (f * n / folds, (f + 1) * n / folds);
         let train: Vec<Segment> = prepared.segments[..lo]
             .iter()
@@ -212,18 +215,40 @@ fn heldout(
         let effects: Vec<ScopedEffect> = if found.is_empty() {
             fixed.to_vec()
         } else {
-            let refit = fit(&prepared.grid, &train, fixed, found, options.max_iters / 2);
+            // Refit on part of the training folds only: the full-data fit is
+            // a close start, and held-out data are never seen.
+            let train_screen = subsample(&train, 2 * options.screen_segments);
+            let refit = fit(
+                &prepared.grid,
+                &train_screen,
+                fixed,
+                found,
+                options.max_iters / 2,
+            );
             fixed.iter().cloned().chain(refit.effects).collect()
         };
         let model = UnicycleModel::with_effects(effects);
         let noise = estimate_noise(&model, &train, &residuals(&model, &prepared.grid, &train));
         let r = residuals(&model, &prepared.grid, test);
-        nll += segment_nll(&model, &noise, test, &r).iter().sum::<f64>();
-        for (s, res) in test.iter().zip(&r) {
-            errors.push((s.t_start, res[0].hypot(res[1])));
-        }
-        all_residuals.extend(r);
-    }
+        (segment_nll(&model, &noise, test, &r).iter().sum::<f64>(), r)
+    };
+    let per_fold: Vec<(f64, Vec<Residual>)> = std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..folds)
+            .map(|f| scope.spawn(move || one_fold(f)))
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| h.join().unwrap_or((f64::NAN, Vec::new())))
+            .collect()
+    });
+    let nll: f64 = per_fold.iter().map(|(nll, _)| nll).sum();
+    let all_residuals: Vec<Residual> = per_fold.into_iter().flat_map(|(_, r)| r).collect();
+    let errors: Vec<(f64, f64)> = prepared
+        .segments
+        .iter()
+        .zip(&all_residuals)
+        .map(|(s, r)| (s.t_start, r[0].hypot(r[1])))
+        .collect();
     let (pos, theta) = rmse(&all_residuals);
     (
         Heldout {
@@ -271,18 +296,15 @@ fn describe(scoped: &ScopedEffect, stderr: &[f64], delta_bic: f64, duration: f64
 
 /// An effect found over the whole run may act only in part of it: tries
 /// it on the first or last part of the run, split at tenths and then
-/// refined, and keeps the narrower scope when BIC clearly prefers it.
-#[allow(clippy::too_many_arguments)]
+/// refined, on `screen`; returns the best narrower scope to confirm.
 fn narrower_scope(
-    prepared: &Prepared,
+    grid: &CommandGrid,
+    screen: &[Segment],
     base: &[ScopedEffect],
     global: &ScopedEffect,
-    current: f64,
-    global_gain: f64,
-    log_n: f64,
     duration: f64,
     options: &Options,
-) -> Option<(ScopedEffect, f64)> {
+) -> Option<ScopedEffect> {
     let scopable = !matches!(
         global.effect,
         Effect::SurfaceZone { .. } | Effect::BatteryFade { .. } | Effect::SpeedNoise { .. }
@@ -290,8 +312,6 @@ fn narrower_scope(
     if !scopable || global.during.is_some() {
         return None;
     }
-    let gain_of =
-        |f: &Fitted, c: &ScopedEffect| 2.0 * (f.nll - current) + extra_params(c) as f64 * log_n;
     let spans = |cuts: &[f64]| -> Vec<ScopedEffect> {
         cuts.iter()
             .filter(|&&c| c > 0.0 && c < duration)
@@ -307,28 +327,25 @@ fn narrower_scope(
     let mut cuts: Vec<f64> = (1..10).map(|k| k as f64 * step).collect();
     for _ in 0..2 {
         let tries = spans(&cuts);
-        let fits = fit_all(
-            &prepared.grid,
-            &prepared.segments,
-            base,
-            &tries,
-            options.max_iters,
-        );
-        for (f, c) in fits.iter().zip(&tries) {
-            let gain = gain_of(f, c);
-            if best.as_ref().is_none_or(|(_, g)| gain < *g) {
-                best = Some((f.effects[0].clone(), gain));
+        let fits = fit_all(grid, screen, base, &tries, options.max_iters / 2);
+        for f in &fits {
+            if best.as_ref().is_none_or(|(_, nll)| f.nll < *nll) {
+                best = Some((f.effects[0].clone(), f.nll));
             }
         }
-        let Some((scoped, _)) = &best else {
-            return None;
-        };
+        let (scoped, _) = best.as_ref()?;
         let [a, b] = scoped.during.unwrap_or([0.0, duration]);
         let cut = if a > 0.0 { a } else { b };
         step /= 4.0;
         cuts = vec![cut - 2.0 * step, cut - step, cut + step, cut + 2.0 * step];
     }
-    best.filter(|(_, gain)| *gain < global_gain - options.min_bic_gain)
+    best.map(|(scoped, _)| scoped)
+}
+
+/// Every k-th segment, at most `count` of them.
+fn subsample(segments: &[Segment], count: usize) -> Vec<Segment> {
+    let every = segments.len().div_ceil(count.max(1)).max(1);
+    segments.iter().step_by(every).cloned().collect()
 }
 
 /// Diagnoses `recording` against `model`.
@@ -346,46 +363,77 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
     );
 
     let log_n = ((3 * segs.len()).max(2) as f64).ln();
+    // Candidates are ranked on an even subsample, and only the best few are
+    // fitted on every segment: the cost of a round stops growing with the
+    // length of the run.
+    let screen = subsample(segs, options.screen_segments);
+    let screen_log_n = ((3 * screen.len()).max(2) as f64).ln();
     let mut remaining = candidates(&located, duration);
     let mut found: Vec<ScopedEffect> = Vec::new();
     let mut gains: Vec<f64> = Vec::new();
     let mut current = nll_of(grid, segs, &fixed);
     while found.len() < options.max_effects && !remaining.is_empty() && segs.len() >= 20 {
         let base: Vec<ScopedEffect> = fixed.iter().chain(&found).cloned().collect();
-        let fits = fit_all(grid, segs, &base, &remaining, options.max_iters);
-        let remaining_before = remaining.clone();
-        let best = fits
+        let screen_current = nll_of(grid, &screen, &base);
+        let screened = fit_all(grid, &screen, &base, &remaining, options.max_iters);
+        let gain = |f: &Fitted, c: &ScopedEffect, now: f64, log_n: f64| {
+            2.0 * (f.nll - now) + extra_params(c) as f64 * log_n
+        };
+        let mut ranked: Vec<(f64, ScopedEffect)> = screened
             .iter()
             .zip(&remaining)
-            .map(|(f, c)| 2.0 * (f.nll - current) + extra_params(c) as f64 * log_n)
-            .enumerate()
-            .min_by(|a, b| a.1.total_cmp(&b.1));
-        let Some((index, delta_bic)) = best else {
+            .map(|(f, c)| {
+                (
+                    gain(f, c, screen_current, screen_log_n),
+                    f.effects[0].clone(),
+                )
+            })
+            .filter(|(g, _)| *g < 0.0)
+            .collect();
+        ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
+        ranked.truncate(options.confirm);
+        if ranked.is_empty() {
+            break;
+        }
+        let top: Vec<ScopedEffect> = ranked.into_iter().map(|(_, c)| c).collect();
+        let confirmed = fit_all(grid, segs, &base, &top, options.max_iters / 2);
+        let Some((mut delta_bic, mut chosen)) = confirmed
+            .iter()
+            .zip(&top)
+            .map(|(f, c)| (gain(f, c, current, log_n), f.effects[0].clone()))
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+        else {
             break;
         };
         if delta_bic > -options.min_bic_gain {
             break;
         }
-        let mut chosen = fits[index].effects[0].clone();
-        let mut delta_bic = delta_bic;
-        if let Some((scoped, scoped_gain)) = narrower_scope(
-            &prepared, &base, &chosen, current, delta_bic, log_n, duration, options,
-        ) {
-            (chosen, delta_bic) = (scoped, scoped_gain);
-        }
-        remaining.retain(|c| c.effect.kind() != chosen.effect.kind());
-        // Later rounds only try what helped on its own: an effect that did
-        // not lower the likelihood alone is rarely needed in company.
-        let helpful: Vec<bool> = fits.iter().map(|f| f.nll < current - 1.0).collect();
-        let mut keep = helpful.iter();
-        let mut kept: Vec<ScopedEffect> = Vec::new();
-        for (c, f) in remaining_before.iter().zip(&fits) {
-            let _ = f;
-            if keep.next() == Some(&true) && remaining.contains(c) {
-                kept.push(c.clone());
+        let varies_in_time = located.iter().any(|l| l.family == "time");
+        if let Some(scoped) = narrower_scope(grid, &screen, &base, &chosen, duration, options)
+            .filter(|_| varies_in_time)
+        {
+            let full = fit(
+                grid,
+                segs,
+                &base,
+                std::slice::from_ref(&scoped),
+                options.max_iters / 2,
+            );
+            let scoped_gain = gain(&full, &scoped, current, log_n);
+            if scoped_gain < delta_bic - options.min_bic_gain {
+                (chosen, delta_bic) = (full.effects[0].clone(), scoped_gain);
             }
         }
-        remaining = kept;
+        // Later rounds only try what helped on its own: an effect that did
+        // not lower the likelihood alone is rarely needed in company.
+        remaining = remaining
+            .iter()
+            .zip(&screened)
+            .filter(|(c, f)| {
+                f.nll < screen_current - 1.0 && c.effect.kind() != chosen.effect.kind()
+            })
+            .map(|(c, _)| c.clone())
+            .collect();
         found.push(chosen);
         gains.push(delta_bic);
         // Effects found earlier may now be estimated differently: refit together.
@@ -409,7 +457,6 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
             describe(scoped, se, gain, duration)
         })
         .collect();
-
     let (baseline, plain_errors) = heldout(&prepared, &fixed, &[], options);
     let (improved, improved_errors) = if found.is_empty() {
         (baseline, plain_errors.clone())

@@ -32,12 +32,16 @@ pub struct Score {
 
 const VARIANCE_FLOOR: f64 = 1e-12;
 
+/// Seconds the actuators run before a segment starts, so that latency,
+/// inertia and play have their history.
+const WARMUP_S: f64 = 0.3;
+
 pub fn residuals(model: &UnicycleModel, grid: &CommandGrid, segments: &[Segment]) -> Vec<Residual> {
-    let executed = model.execute(grid);
+    let warmup = (WARMUP_S / grid.dt).ceil() as usize;
     segments
         .iter()
         .map(|s| {
-            let predicted = model.integrate(grid, &executed, s.start, s.from, s.to);
+            let predicted = model.predict(grid, s.start, s.from, s.to, warmup);
             let (dx, dy) = (s.end.x - predicted.x, s.end.y - predicted.y);
             let (sin, cos) = s.start.theta.sin_cos();
             [

@@ -84,7 +84,8 @@ impl CommandGrid {
         if position < 0.0 || self.v.is_empty() {
             return (0.0, 0.0);
         }
-        let i = position.floor() as usize;
+        // Truncation is the floor here: position is not negative.
+        let i = position as usize;
         if i + 1 >= self.v.len() {
             let last = self.v.len() - 1;
             return (self.v[last], self.omega[last]);
@@ -105,6 +106,14 @@ pub struct Actuators {
 }
 
 impl Actuators {
+    /// Actuators that have been holding (`v`, `omega`) for a while.
+    pub fn settled(v: f64, omega: f64) -> Self {
+        Self {
+            held_omega: omega,
+            last_v: v,
+        }
+    }
+
     /// What the actuators execute at grid step `i` under `model`; only looks
     /// back in time, so a body can extend the grid as commands arrive.
     /// Seconds of the run count from the grid's start.
@@ -203,6 +212,12 @@ impl UnicycleModel {
     /// `omega` at `run_s` seconds into the run: the effects that depend on
     /// place and distance.
     pub fn step(&self, pose: Pose, v: f64, omega: f64, run_s: f64, dt: f64) -> Pose {
+        let mut next = self.step_raw(pose, v, omega, run_s, dt);
+        next.theta = wrap_angle(next.theta);
+        next
+    }
+
+    fn step_raw(&self, pose: Pose, v: f64, omega: f64, run_s: f64, dt: f64) -> Pose {
         let mut speed = v;
         let mut turn = omega * dt;
         let mut flow = (0.0, 0.0);
@@ -223,12 +238,45 @@ impl UnicycleModel {
                 turn += rad_per_m * speed * dt;
             }
         }
-        let heading = pose.theta + 0.5 * turn;
+        self.step_unwrapped(pose, speed, turn, flow, dt)
+    }
+
+    /// Midpoint integration; the heading is left unwrapped so that long
+    /// predictions need no wrapping per step.
+    fn step_unwrapped(&self, pose: Pose, speed: f64, turn: f64, flow: (f64, f64), dt: f64) -> Pose {
+        let (sin, cos) = (pose.theta + 0.5 * turn).sin_cos();
         Pose {
-            x: pose.x + (speed * heading.cos() + flow.0) * dt,
-            y: pose.y + (speed * heading.sin() + flow.1) * dt,
-            theta: wrap_angle(pose.theta + turn),
+            x: pose.x + (speed * cos + flow.0) * dt,
+            y: pose.y + (speed * sin + flow.1) * dt,
+            theta: pose.theta + turn,
         }
+    }
+
+    /// Predicts the pose at grid step `to` from `start` at step `from`, the
+    /// actuators warmed up over `warmup` steps before: the cost of one
+    /// prediction does not depend on how long the run is.
+    pub fn predict(
+        &self,
+        grid: &CommandGrid,
+        start: Pose,
+        from: usize,
+        to: usize,
+        warmup: usize,
+    ) -> Pose {
+        let first = from.saturating_sub(warmup);
+        let (mut pose, to) = (start, to.min(grid.len()));
+        if first >= to {
+            return pose;
+        }
+        let mut actuators = Actuators::settled(grid.v[first], grid.omega[first]);
+        for i in first..to {
+            let (v, omega) = actuators.execute(self, grid, i);
+            if i >= from {
+                pose = self.step_raw(pose, v, omega, grid.time(i) - grid.t0, grid.dt);
+            }
+        }
+        pose.theta = wrap_angle(pose.theta);
+        pose
     }
 
     /// Integrates from `start` at grid step `from` to grid step `to`.
