@@ -65,6 +65,8 @@ pub struct FoundEffect {
     pub place: Where,
     pub delta_bic: f64,
     pub sentence: String,
+    /// Other kinds that explain the run as well (within 2 of BIC).
+    pub indistinguishable_from: Vec<&'static str>,
     #[serde(skip)]
     pub scoped: ScopedEffect,
 }
@@ -290,6 +292,7 @@ fn describe(scoped: &ScopedEffect, stderr: &[f64], delta_bic: f64, duration: f64
         },
         delta_bic,
         sentence,
+        indistinguishable_from: Vec::new(),
         scoped: scoped.clone(),
     }
 }
@@ -371,6 +374,7 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
     let mut remaining = candidates(&located, duration);
     let mut found: Vec<ScopedEffect> = Vec::new();
     let mut gains: Vec<f64> = Vec::new();
+    let mut ties: Vec<Vec<&'static str>> = Vec::new();
     let mut current = nll_of(grid, segs, &fixed);
     while found.len() < options.max_effects && !remaining.is_empty() && segs.len() >= 20 {
         let base: Vec<ScopedEffect> = fixed.iter().chain(&found).cloned().collect();
@@ -397,14 +401,22 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
         }
         let top: Vec<ScopedEffect> = ranked.into_iter().map(|(_, c)| c).collect();
         let confirmed = fit_all(grid, segs, &base, &top, options.max_iters / 2);
-        let Some((mut delta_bic, mut chosen)) = confirmed
+        let mut confirmed: Vec<(f64, ScopedEffect)> = confirmed
             .iter()
             .zip(&top)
             .map(|(f, c)| (gain(f, c, current, log_n), f.effects[0].clone()))
-            .min_by(|a, b| a.0.total_cmp(&b.0))
-        else {
+            .collect();
+        confirmed.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let Some((mut delta_bic, mut chosen)) = confirmed.first().cloned() else {
             break;
         };
+        // Explanations within 2 of BIC are not worth more than a bare
+        // mention apart (Kass and Raftery): name them beside the choice.
+        let tied: Vec<&'static str> = confirmed[1..]
+            .iter()
+            .filter(|(g, c)| *g < delta_bic + 2.0 && c.effect.kind() != chosen.effect.kind())
+            .map(|(_, c)| c.effect.kind())
+            .collect();
         if delta_bic > -options.min_bic_gain {
             break;
         }
@@ -436,6 +448,7 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
             .collect();
         found.push(chosen);
         gains.push(delta_bic);
+        ties.push(tied);
         // Effects found earlier may now be estimated differently: refit together.
         let joint = fit(grid, segs, &fixed, &found, options.max_iters * 2);
         found = joint.effects;
@@ -449,12 +462,14 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
     let mut offset = 0;
     let effects: Vec<FoundEffect> = found
         .iter()
-        .zip(&gains)
-        .map(|(scoped, &gain)| {
+        .zip(gains.iter().zip(&ties))
+        .map(|(scoped, (&gain, tied))| {
             let count = scoped.effect.params().len();
             let se = &stderr[offset.min(stderr.len())..(offset + count).min(stderr.len())];
             offset += count;
-            describe(scoped, se, gain, duration)
+            let mut found = describe(scoped, se, gain, duration);
+            found.indistinguishable_from = tied.clone();
+            found
         })
         .collect();
     let (baseline, plain_errors) = heldout(&prepared, &fixed, &[], options);

@@ -143,6 +143,9 @@ pub struct Row {
     pub runs: usize,
     /// Share of runs in which every true effect was named.
     pub detection_rate: f64,
+    /// Share of runs where each true effect was named or tied with the
+    /// named one (an equally good explanation of these data).
+    pub named_or_tied_rate: f64,
     /// Share of runs naming an effect that is not there.
     pub false_positive_rate: f64,
     /// Mean relative error of the true effects' parameters, where found.
@@ -180,6 +183,7 @@ pub fn run_case(case: &Case, seeds: std::ops::Range<u64>, duration_s: f64) -> Ro
     let truth = UnicycleModel::with_effects(case.truth.clone());
     let true_kinds: Vec<&str> = case.truth.iter().map(|e| e.effect.kind()).collect();
     let (mut detected, mut false_positive, mut errors) = (0, 0, Vec::new());
+    let mut named_or_tied = 0;
     let (mut before, mut after, mut seconds) = (0.0, 0.0, 0.0);
     let mut named = std::collections::BTreeMap::new();
     let runs = seeds.clone().count();
@@ -203,6 +207,18 @@ pub fn run_case(case: &Case, seeds: std::ops::Range<u64>, duration_s: f64) -> Ro
         if !true_kinds.is_empty() && true_kinds.iter().all(|k| kinds.contains(k)) {
             detected += 1;
         }
+        let tied: Vec<&str> = diagnosis
+            .effects
+            .iter()
+            .flat_map(|e| e.indistinguishable_from.iter().copied())
+            .collect();
+        if !true_kinds.is_empty()
+            && true_kinds
+                .iter()
+                .all(|k| kinds.contains(k) || tied.contains(k))
+        {
+            named_or_tied += 1;
+        }
         if kinds.iter().any(|k| !true_kinds.contains(k)) {
             false_positive += 1;
         }
@@ -218,6 +234,7 @@ pub fn run_case(case: &Case, seeds: std::ops::Range<u64>, duration_s: f64) -> Ro
         concealment: case.concealment.to_owned(),
         runs,
         detection_rate: detected as f64 / n,
+        named_or_tied_rate: named_or_tied as f64 / n,
         false_positive_rate: false_positive as f64 / n,
         param_error: (!errors.is_empty()).then(|| errors.iter().sum::<f64>() / errors.len() as f64),
         heldout_rmse_pos_m_before: before / n,

@@ -97,7 +97,7 @@ pub fn generate(truth: &UnicycleModel, settings: &Settings) -> Recording {
                     (v, omega) = (0.0, 0.0);
                     hold_until = t + rng.random_range(0.5..2.0);
                 } else {
-                    v = rng.random_range(0.2..1.0) * settings.max_speed;
+                    v = rng.random_range(0.05..1.0) * settings.max_speed;
                     omega = rng.random_range(-1.0..1.0) * settings.max_turn;
                     if turning_zone {
                         omega = omega.signum() * settings.max_turn;

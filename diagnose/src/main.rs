@@ -143,6 +143,12 @@ fn report(d: &Diagnosis, model_out: Option<&Path>, plot: Option<&Path>) {
     }
     for e in &d.effects {
         println!("  {} (ΔBIC {:.0})", e.sentence, e.delta_bic);
+        if !e.indistinguishable_from.is_empty() {
+            println!(
+                "    these data explain it equally well as: {}",
+                e.indistinguishable_from.join(", ")
+            );
+        }
     }
     println!(
         "Held-out position error {:.1} mm -> {:.1} mm, heading {:.2} -> {:.2} deg, NLL {:.2} -> {:.2} per segment.",
@@ -263,11 +269,12 @@ fn run_experiment(seeds: u64, duration: f64, json: bool) -> Result<()> {
         println!("|---|---|---|---|---|---|---|---|");
         for r in rows {
             println!(
-                "| {} | {} | {} | {:.0}% | {:.0}% | {} | {:.1} → {:.1} mm | {:.1} |",
+                "| {} | {} | {} | {:.0}% | {:.0}% | {:.0}% | {} | {:.1} → {:.1} mm | {:.1} |",
                 r.name,
                 r.concealment,
                 r.runs,
                 r.detection_rate * 100.0,
+                r.named_or_tied_rate * 100.0,
                 r.false_positive_rate * 100.0,
                 r.param_error
                     .map_or("-".into(), |e| format!("{:.0}%", e * 100.0)),
