@@ -1,6 +1,7 @@
 //! `shoal-bench`: what the bus costs, measured against a baseline in the same run.
 
 mod bus;
+mod diagnose;
 mod record;
 
 use anyhow::Result;
@@ -38,6 +39,14 @@ enum Commands {
         #[arg(long)]
         json: bool,
     },
+    /// How long `shoal diagnose` takes on runs of these lengths at 100 Hz,
+    /// against reading the same files.
+    Diagnose {
+        #[arg(long, value_delimiter = ',', default_value = "10,60")]
+        minutes: Vec<f64>,
+        #[arg(long)]
+        json: bool,
+    },
     /// Internal: one end of the latency probe.
     #[command(hide = true)]
     Probe {
@@ -64,6 +73,7 @@ fn main() -> Result<()> {
             seconds,
             json,
         } => record::run(&agents, seconds, json),
+        Commands::Diagnose { minutes, json } => diagnose::run(&minutes, json),
         Commands::Probe {
             role,
             swarm,

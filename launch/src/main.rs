@@ -59,6 +59,12 @@ enum Commands {
         #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
         args: Vec<String>,
     },
+    /// Find where a simulation and a real run differ and name the missing physics (see `shoal-diagnose --help`).
+    Diagnose {
+        /// Arguments for shoal-diagnose, e.g. --mrclam DIR --robot 3 --json --out diag.
+        #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
+        args: Vec<String>,
+    },
     /// Record a running swarm into a Rerun file (.rrd) until Ctrl-C.
     Record {
         /// Arguments for shoal-viewer-log: OUT.rrd [--swarm NAME] [--tum DIR] [--duration SECS].
@@ -135,6 +141,12 @@ enum ExperimentKind {
         #[arg(long, default_value_t = 90.0)]
         max_seconds: f64,
     },
+    /// Concealed effects, null runs and pairs diagnosed blind (see `shoal-diagnose experiment --help`).
+    Diagnose {
+        /// Arguments for `shoal-diagnose experiment`, e.g. --seeds 5.
+        #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
+        args: Vec<String>,
+    },
     /// From 3 to hundreds of robot processes.
     Scale {
         #[arg(long, value_delimiter = ',', default_value = "3,10,25,50,100,200")]
@@ -164,13 +176,14 @@ fn parse_point(text: &str) -> Result<[f64; 2], String> {
     Ok([parse(x)?, parse(y)?])
 }
 
-/// Runs a sibling binary with `args` in the foreground; its failure is ours.
+/// Runs a sibling binary with `args` in the foreground; its failure is
+/// ours, with its exit code (it has already said why).
 fn forward(binary: &str, args: &[String]) -> Result<()> {
     let status = std::process::Command::new(shoal::process::sibling_binary(binary)?)
         .args(args)
         .status()?;
     if !status.success() {
-        anyhow::bail!("{binary} failed ({status})");
+        std::process::exit(status.code().unwrap_or(1));
     }
     Ok(())
 }
@@ -204,6 +217,7 @@ fn run(cli: Cli) -> Result<()> {
         }
         Commands::Slam { args } => forward("shoal-slam", &args)?,
         Commands::Record { args } => forward("shoal-viewer-log", &args)?,
+        Commands::Diagnose { args } => forward("shoal-diagnose", &args)?,
         Commands::Status { swarm, json } => {
             let report = status::gather(&swarm)?;
             if json {
@@ -234,6 +248,13 @@ fn run(cli: Cli) -> Result<()> {
             }
             ExperimentKind::Scale { sizes, max_seconds } => {
                 report::print(&experiment::scale::run(&sizes, max_seconds)?, json)?
+            }
+            ExperimentKind::Diagnose { mut args } => {
+                args.insert(0, "experiment".into());
+                if json {
+                    args.push("--json".into());
+                }
+                forward("shoal-diagnose", &args)?
             }
         },
         Commands::Kill {
