@@ -51,7 +51,9 @@ impl Recorder {
         tum_dir: Option<&Path>,
     ) -> anyhow::Result<Self> {
         crate::arena::log_arena(&rec, &scenario.arena)?;
-        let tum = tum_dir.map(TumWriter::new).transpose()?;
+        let tum = tum_dir
+            .map(|dir| TumWriter::new(dir, scenario.motion.clone(), scenario.timing.period_s))
+            .transpose()?;
         Ok(Self {
             rec,
             spread: scenario.formation.spread,
@@ -296,20 +298,50 @@ fn health_color(health: u32) -> rerun::Color {
     }
 }
 
-/// Each robot's true and believed trajectory, one TUM file each.
+/// Each robot's true and believed trajectory, one TUM file each, and what
+/// `shoal diagnose` reads: `robot-<id>/commands.csv` (the executed command's
+/// expected motion under the model the robot was run with, as v and omega)
+/// and `robot-<id>/poses.csv` (its true poses).
 struct TumWriter {
     dir: PathBuf,
     files: HashMap<(u32, &'static str), BufWriter<File>>,
+    motion: shoal_physics::MotionModel,
+    period_s: f64,
 }
 
 impl TumWriter {
-    fn new(dir: &Path) -> anyhow::Result<Self> {
+    fn new(dir: &Path, motion: shoal_physics::MotionModel, period_s: f64) -> anyhow::Result<Self> {
         std::fs::create_dir_all(dir)
             .map_err(|e| anyhow::anyhow!("creating {}: {e}", dir.display()))?;
         Ok(Self {
             dir: dir.to_owned(),
             files: HashMap::new(),
+            motion,
+            period_s,
         })
+    }
+
+    fn file(&mut self, id: u32, kind: &'static str) -> anyhow::Result<&mut BufWriter<File>> {
+        match self.files.entry((id, kind)) {
+            std::collections::hash_map::Entry::Occupied(e) => Ok(e.into_mut()),
+            std::collections::hash_map::Entry::Vacant(e) => {
+                let (path, header) = match kind {
+                    "commands" | "poses" => {
+                        let folder = self.dir.join(format!("robot-{id}"));
+                        std::fs::create_dir_all(&folder)
+                            .map_err(|err| anyhow::anyhow!("creating {}: {err}", folder.display()))?;
+                        let header = if kind == "commands" { "t,v,omega\n" } else { "t,x,y,theta\n" };
+                        (folder.join(format!("{kind}.csv")), header)
+                    }
+                    _ => (self.dir.join(format!("robot-{id}-{kind}.tum")), ""),
+                };
+                let file = File::create(&path)
+                    .map_err(|err| anyhow::anyhow!("creating {}: {err}", path.display()))?;
+                let mut writer = BufWriter::new(file);
+                writer.write_all(header.as_bytes())?;
+                Ok(e.insert(writer))
+            }
+        }
     }
 
     fn write(&mut self, s: &PoseSample) -> anyhow::Result<()> {
@@ -317,17 +349,22 @@ impl TumWriter {
             ("true", s.x, s.y, s.theta),
             ("estimated", s.believed_x, s.believed_y, s.believed_theta),
         ] {
-            let file = match self.files.entry((s.agent_id, kind)) {
-                std::collections::hash_map::Entry::Occupied(e) => e.into_mut(),
-                std::collections::hash_map::Entry::Vacant(e) => {
-                    let path = self.dir.join(format!("robot-{}-{kind}.tum", s.agent_id));
-                    let file = File::create(&path)
-                        .map_err(|err| anyhow::anyhow!("creating {}: {err}", path.display()))?;
-                    e.insert(BufWriter::new(file))
-                }
-            };
-            file.write_all(crate::tum::line(s.sim_time, x, y, theta).as_bytes())?;
+            let line = crate::tum::line(s.sim_time, x, y, theta);
+            self.file(s.agent_id, kind)?.write_all(line.as_bytes())?;
         }
+        // The command a pose carries moved the robot there over the period before it.
+        if let Some(command) = shoal_physics::Command::from_index(s.command as usize) {
+            let mean = self.motion.mean(command);
+            let line = format!(
+                "{:.3},{:.6},{:.6}\n",
+                s.sim_time - self.period_s,
+                mean.along / self.period_s,
+                mean.turn / self.period_s
+            );
+            self.file(s.agent_id, "commands")?.write_all(line.as_bytes())?;
+        }
+        let line = format!("{:.3},{:.6},{:.6},{:.6}\n", s.sim_time, s.x, s.y, s.theta);
+        self.file(s.agent_id, "poses")?.write_all(line.as_bytes())?;
         Ok(())
     }
 
