@@ -24,5 +24,5 @@ pub use roster::{RosterPublisher, RosterReader};
 pub use runtime::{SwarmMeta, SwarmRuntime};
 pub use wire::{
     ClockTick, EstimateSample, Health, MAX_BEAMS, MAX_NEIGHBOURS, ModelUpdate, PoseSample,
-    ScanSample,
+    RecorderProgress, ScanSample,
 };

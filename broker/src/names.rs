@@ -29,6 +29,10 @@ pub fn roster(swarm: &str) -> String {
     format!("shoal/{swarm}/roster")
 }
 
+pub fn recorder_progress(swarm: &str) -> String {
+    format!("shoal/{swarm}/recorder-progress")
+}
+
 pub fn clock(swarm: &str) -> String {
     format!("shoal/{swarm}/clock")
 }

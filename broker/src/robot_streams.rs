@@ -10,7 +10,7 @@ use iceoryx2::prelude::*;
 
 use crate::bus::{Bus, BusError};
 use crate::names;
-use crate::wire::{EstimateSample, ModelUpdate, ScanSample};
+use crate::wire::{EstimateSample, ModelUpdate, RecorderProgress, ScanSample};
 
 /// A follower may fall this many samples behind before the oldest are overwritten.
 const BUFFER: usize = 32;
@@ -98,4 +98,16 @@ pub fn model_publisher(bus: &Bus, id: u32) -> Result<StreamPublisher<ModelUpdate
 
 pub fn model_subscriber(bus: &Bus, id: u32) -> Result<StreamSubscriber<ModelUpdate>, BusError> {
     StreamSubscriber::new(bus, &names::model(&bus.swarm, id))
+}
+
+pub fn recorder_progress_publisher(
+    bus: &Bus,
+) -> Result<StreamPublisher<RecorderProgress>, BusError> {
+    StreamPublisher::new(bus, &names::recorder_progress(&bus.swarm))
+}
+
+pub fn recorder_progress_subscriber(
+    bus: &Bus,
+) -> Result<StreamSubscriber<RecorderProgress>, BusError> {
+    StreamSubscriber::new(bus, &names::recorder_progress(&bus.swarm))
 }

@@ -155,6 +155,15 @@ pub struct ClockTick {
     pub period_s: f64,
 }
 
+/// The newest lockstep tick a recorder has written; the launcher of a
+/// lockstep swarm paces its clock to it, so a recording misses no tick.
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("shoal.RecorderProgress")]
+#[repr(C)]
+pub struct RecorderProgress {
+    pub tick: u64,
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

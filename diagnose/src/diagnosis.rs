@@ -272,10 +272,9 @@ fn describe(scoped: &ScopedEffect, stderr: &[f64], delta_bic: f64, duration: f64
     let mut sentence = scoped.effect.sentence();
     if let Some([a, b]) = scoped.during {
         sentence = format!(
-            "{} Only from {a:.0} s to {b:.0} s.",
+            "{}, only from {a:.0} s to {b:.0} s.",
             sentence.trim_end_matches('.')
         );
-        sentence = sentence.replacen(". Only", " only", 1);
     }
     FoundEffect {
         kind: scoped.effect.kind(),
@@ -345,6 +344,37 @@ fn narrower_scope(
     best.map(|(scoped, _)| scoped)
 }
 
+/// Where the robot drove during a speed effect's span, as a region; `None`
+/// for other effects.
+fn zone_of_span(segments: &[Segment], scoped: &ScopedEffect) -> Option<[f64; 4]> {
+    let [a, b] = scoped.during?;
+    if !matches!(
+        scoped.effect,
+        Effect::SpeedScale { .. } | Effect::Slip { .. }
+    ) {
+        return None;
+    }
+    let inside: Vec<&Segment> = segments
+        .iter()
+        .filter(|s| s.t_start >= a && s.t_end <= b && s.speed > 0.01)
+        .collect();
+    if inside.len() < 5 {
+        return None;
+    }
+    let mut region = [f64::MAX, f64::MAX, f64::MIN, f64::MIN];
+    for s in inside {
+        for p in [&s.start, &s.end] {
+            region = [
+                region[0].min(p.x),
+                region[1].min(p.y),
+                region[2].max(p.x),
+                region[3].max(p.y),
+            ];
+        }
+    }
+    Some(region)
+}
+
 /// Every k-th segment, at most `count` of them.
 fn subsample(segments: &[Segment], count: usize) -> Vec<Segment> {
     let every = segments.len().div_ceil(count.max(1)).max(1);
@@ -412,7 +442,7 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
         };
         // Explanations within 2 of BIC are not worth more than a bare
         // mention apart (Kass and Raftery): name them beside the choice.
-        let tied: Vec<&'static str> = confirmed[1..]
+        let mut tied: Vec<&'static str> = confirmed[1..]
             .iter()
             .filter(|(g, c)| *g < delta_bic + 2.0 && c.effect.kind() != chosen.effect.kind())
             .map(|(_, c)| c.effect.kind())
@@ -434,6 +464,26 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
             let scoped_gain = gain(&full, &scoped, current, log_n);
             if scoped_gain < delta_bic - options.min_bic_gain {
                 (chosen, delta_bic) = (full.effects[0].clone(), scoped_gain);
+                // A robot that drives into a zone and stays there shows a speed
+                // change in time that is as much a change in place: try the
+                // region it drove in over that span as a surface zone.
+                if let Some(zone) = zone_of_span(segs, &chosen)
+                    && let Some(zone_effect) = Effect::identity("surface_zone", zone)
+                {
+                    let zone_candidate = ScopedEffect::always(zone_effect);
+                    let zone_fit = fit(
+                        grid,
+                        segs,
+                        &base,
+                        std::slice::from_ref(&zone_candidate),
+                        options.max_iters / 2,
+                    );
+                    let zone_gain = gain(&zone_fit, &zone_candidate, current, log_n);
+                    if zone_gain < delta_bic + 2.0 {
+                        tied.push(chosen.effect.kind());
+                        (chosen, delta_bic) = (zone_fit.effects[0].clone(), zone_gain);
+                    }
+                }
             }
         }
         // Later rounds only try what helped on its own: an effect that did

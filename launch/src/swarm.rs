@@ -8,7 +8,10 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::{Context, Result, bail};
 use shoal_broker::liveness::{SwarmNodeState, remove_dead_nodes, swarm_nodes};
-use shoal_broker::{Bus, BusLimits, RosterReader, SampleCheck, SwarmMeta, SwarmRuntime, names};
+use shoal_broker::robot_streams::{self, StreamSubscriber};
+use shoal_broker::{
+    Bus, BusLimits, RecorderProgress, RosterReader, SampleCheck, SwarmMeta, SwarmRuntime, names,
+};
 use shoal_physics::{Pose, Scenario};
 
 use crate::clock::LockstepClock;
@@ -43,8 +46,43 @@ pub struct RunningSwarm {
     children: BTreeMap<u32, Child>,
     /// Processes that serve the swarm (recorder, SLAM), by binary name.
     helpers: Vec<(String, Child)>,
+    /// In lockstep, the clock waits for the recorder to keep up.
+    recorder_pace: Option<RecorderPace>,
     started: Instant,
     stopped: bool,
+}
+
+/// The recorder's progress, which a lockstep clock must not outrun by more
+/// than the roster buffers (8 samples per robot).
+struct RecorderPace {
+    progress: StreamSubscriber<RecorderProgress>,
+    tick: Option<u64>,
+}
+
+/// Ticks a lockstep clock may run ahead of its recorder.
+const RECORDER_LAG_TICKS: u64 = 4;
+/// A recorder silent this long is no longer waited for.
+const RECORDER_PATIENCE: Duration = Duration::from_secs(10);
+
+impl RecorderPace {
+    /// Waits until the recorder has read up to `tick - RECORDER_LAG_TICKS`;
+    /// false when it stopped answering.
+    fn wait_for(&mut self, tick: u64) -> Result<bool> {
+        let started = Instant::now();
+        loop {
+            let mut newest = self.tick;
+            self.progress
+                .receive(|p| newest = Some(newest.map_or(p.tick, |n: u64| n.max(p.tick))))?;
+            self.tick = newest;
+            if self.tick.is_some_and(|t| t + RECORDER_LAG_TICKS >= tick) {
+                return Ok(true);
+            }
+            if started.elapsed() > RECORDER_PATIENCE {
+                return Ok(false);
+            }
+            std::thread::sleep(Duration::from_micros(200));
+        }
+    }
 }
 
 impl RunningSwarm {
@@ -99,6 +137,7 @@ impl RunningSwarm {
             roster,
             children: BTreeMap::new(),
             helpers: Vec::new(),
+            recorder_pace: None,
             started: Instant::now(),
             stopped: false,
         };
@@ -138,6 +177,12 @@ impl RunningSwarm {
         ];
         if let Some(tum) = tum {
             args.extend(["--tum".into(), tum.as_os_str().to_owned()]);
+        }
+        if self.clock.is_some() {
+            self.recorder_pace = Some(RecorderPace {
+                progress: robot_streams::recorder_progress_subscriber(&self.bus)?,
+                tick: None,
+            });
         }
         self.start_helper("shoal-viewer-log", &args)
     }
@@ -198,6 +243,14 @@ impl RunningSwarm {
         let observer = &mut self.observer;
         match &mut self.clock {
             Some(clock) => {
+                if let Some(pace) = &mut self.recorder_pace
+                    && !pace.wait_for(clock.tick)?
+                {
+                    tracing::warn!(
+                        "the recorder stopped answering; the clock no longer waits for it"
+                    );
+                    self.recorder_pace = None;
+                }
                 clock.advance(
                     &self.roster,
                     |pid| {

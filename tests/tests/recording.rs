@@ -209,3 +209,69 @@ fn a_recorder_killed_with_sigkill_leaves_a_readable_file() {
     assert_eq!(found["robots"].as_array().map(Vec::len), Some(6));
     let _ = std::fs::remove_dir_all(dir);
 }
+
+/// Robots walk from a plain floor into mud their motion model does not know;
+/// `shoal diagnose` finds the mud from the recorded run alone.
+#[test]
+fn a_surface_the_robots_model_lacks_is_diagnosed_from_the_recorded_run() {
+    let _turn = serial();
+    let dir = scratch("mud");
+    let scenario = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/mud.toml");
+    let run = dir.join("run");
+    let output = shoal(&[
+        "up",
+        "--swarm",
+        "e2e-mud",
+        "--scenario",
+        scenario.to_str().expect("utf-8"),
+        "--lockstep",
+        "--duration",
+        "150",
+        "--record",
+        run.join("run.rrd").to_str().expect("utf-8"),
+        "--tum",
+        run.to_str().expect("utf-8"),
+    ]);
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let mut found_mud = Vec::new();
+    for robot in 0..6 {
+        let robot_dir = run.join(format!("robot-{robot}"));
+        let poses = std::fs::read_to_string(robot_dir.join("poses.csv")).expect("poses.csv");
+        // The lockstep clock waits for the recorder: every tick is there.
+        assert!(
+            poses.lines().count() >= 745,
+            "robot {robot}: {} rows",
+            poses.lines().count()
+        );
+        let output = shoal(&["diagnose", robot_dir.to_str().expect("utf-8"), "--json"]);
+        assert!(
+            output.status.success(),
+            "{}",
+            String::from_utf8_lossy(&output.stderr)
+        );
+        let d: Value = serde_json::from_slice(&output.stdout).expect("JSON");
+        assert_eq!(d["mismatch"], true, "robot {robot}: {d}");
+        let zone = d["effects"].as_array().expect("effects").iter().find(|e| {
+            e["kind"] == "surface_zone"
+                && e["where"]["region"][0]
+                    .as_f64()
+                    .is_some_and(|x0| (17.0..23.0).contains(&x0))
+                && e["params"]["speed_factor"]
+                    .as_f64()
+                    .is_some_and(|f| (0.4..0.8).contains(&f))
+        });
+        if zone.is_some() {
+            found_mud.push(robot);
+        }
+    }
+    // The mud starts at x = 20 and shortens strides by 40%.
+    assert!(
+        found_mud.len() >= 4,
+        "mud found for robots {found_mud:?} only"
+    );
+    let _ = std::fs::remove_dir_all(dir);
+}

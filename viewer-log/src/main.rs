@@ -42,12 +42,17 @@ fn run(args: Args) -> Result<()> {
         BusLimits::default(),
     )?;
     let roster = RosterReader::new(&bus)?;
+    let progress = shoal_broker::robot_streams::recorder_progress_publisher(&bus)?;
     // Chunks are cut once a second rather than every few milliseconds: each
     // chunk carries overhead, and a second is what the flush promises anyway.
     let batching = rerun::log::ChunkBatcherConfig {
         flush_tick: FLUSH_EVERY,
         ..rerun::log::ChunkBatcherConfig::DEFAULT
     };
+    if let Some(parent) = args.out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent)
+            .with_context(|| format!("creating the folder of {}", args.out.display()))?;
+    }
     let rec = rerun::RecordingStreamBuilder::new("shoal")
         .batcher_config(batching)
         .save(&args.out)
@@ -80,6 +85,8 @@ fn run(args: Args) -> Result<()> {
                 recorder.count_rejected();
             }
         })?;
+        // A lockstep launcher paces its clock to this, so no tick is missed.
+        progress.publish(&shoal_broker::RecorderProgress { tick: newest_tick })?;
         recorder.log_complete()?;
         recorder.forget_silent(newest_tick, silent_ticks)?;
         if last_flush.elapsed() >= FLUSH_EVERY {

@@ -328,9 +328,14 @@ impl TumWriter {
                 let (path, header) = match kind {
                     "commands" | "poses" => {
                         let folder = self.dir.join(format!("robot-{id}"));
-                        std::fs::create_dir_all(&folder)
-                            .map_err(|err| anyhow::anyhow!("creating {}: {err}", folder.display()))?;
-                        let header = if kind == "commands" { "t,v,omega\n" } else { "t,x,y,theta\n" };
+                        std::fs::create_dir_all(&folder).map_err(|err| {
+                            anyhow::anyhow!("creating {}: {err}", folder.display())
+                        })?;
+                        let header = if kind == "commands" {
+                            "t,v,omega\n"
+                        } else {
+                            "t,x,y,theta\n"
+                        };
                         (folder.join(format!("{kind}.csv")), header)
                     }
                     _ => (self.dir.join(format!("robot-{id}-{kind}.tum")), ""),
@@ -361,7 +366,8 @@ impl TumWriter {
                 mean.along / self.period_s,
                 mean.turn / self.period_s
             );
-            self.file(s.agent_id, "commands")?.write_all(line.as_bytes())?;
+            self.file(s.agent_id, "commands")?
+                .write_all(line.as_bytes())?;
         }
         let line = format!("{:.3},{:.6},{:.6},{:.6}\n", s.sim_time, s.x, s.y, s.theta);
         self.file(s.agent_id, "poses")?.write_all(line.as_bytes())?;
