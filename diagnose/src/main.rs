@@ -28,7 +28,8 @@ struct Cli {
 
 #[derive(Args)]
 struct DiagnoseArgs {
-    /// A run directory holding commands.csv and poses.csv.
+    /// A run directory holding commands.csv and poses.csv (for a Shoal run:
+    /// DIR/robot-<id> of `shoal up --record run.rrd --tum DIR`).
     run: Option<PathBuf>,
     /// Commands sent: CSV with header t,v,omega (held until the next row).
     #[arg(long, requires = "poses", conflicts_with_all = ["run", "mrclam"])]
@@ -106,8 +107,9 @@ fn load(args: &DiagnoseArgs) -> Result<Recording> {
     if let Some(run) = &args.run {
         if run.extension().is_some_and(|e| e == "rrd") {
             bail!(
-                "{}: read .rrd recordings with `shoal-viewer-log export-run {} DIR`, then diagnose DIR",
-                run.display(),
+                "{}: diagnose a Shoal run through the folder its recorder writes beside it: \
+                 `shoal up --record run.rrd --tum DIR` writes DIR/robot-<id>/commands.csv and poses.csv; \
+                 then `shoal diagnose DIR/robot-<id>`",
                 run.display()
             );
         }
