@@ -23,6 +23,7 @@ pub use liveness::{SwarmNode, SwarmNodeState};
 pub use roster::{RosterPublisher, RosterReader};
 pub use runtime::{SwarmMeta, SwarmRuntime};
 pub use wire::{
-    ClockTick, EstimateSample, Health, MAX_BEAMS, MAX_NEIGHBOURS, ModelUpdate, PoseSample,
-    RecorderProgress, ScanSample,
+    ClockTick, EstimateSample, Health, MAX_BEAMS, MAX_MAP_SIDE, MAX_NEIGHBOURS,
+    MAX_SHOWN_PARTICLES, ModelUpdate, PoseSample, RecorderProgress, ScanSample, SlamMap,
+    SlamParticles,
 };

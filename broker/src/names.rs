@@ -29,6 +29,16 @@ pub fn roster(swarm: &str) -> String {
     format!("shoal/{swarm}/roster")
 }
 
+/// Every followed robot's particles, from the SLAM process to viewers.
+pub fn slam_particles(swarm: &str) -> String {
+    format!("shoal/{swarm}/slam/particles")
+}
+
+/// Every followed robot's coarse map, from the SLAM process to viewers.
+pub fn slam_map(swarm: &str) -> String {
+    format!("shoal/{swarm}/slam/map")
+}
+
 pub fn recorder_progress(swarm: &str) -> String {
     format!("shoal/{swarm}/recorder-progress")
 }

@@ -10,7 +10,9 @@ use iceoryx2::prelude::*;
 
 use crate::bus::{Bus, BusError};
 use crate::names;
-use crate::wire::{EstimateSample, ModelUpdate, RecorderProgress, ScanSample};
+use crate::wire::{
+    EstimateSample, ModelUpdate, RecorderProgress, ScanSample, SlamMap, SlamParticles,
+};
 
 /// A follower may fall this many samples behind before the oldest are overwritten.
 const BUFFER: usize = 32;
@@ -110,4 +112,20 @@ pub fn recorder_progress_subscriber(
     bus: &Bus,
 ) -> Result<StreamSubscriber<RecorderProgress>, BusError> {
     StreamSubscriber::new(bus, &names::recorder_progress(&bus.swarm))
+}
+
+pub fn slam_particles_publisher(bus: &Bus) -> Result<StreamPublisher<SlamParticles>, BusError> {
+    StreamPublisher::new(bus, &names::slam_particles(&bus.swarm))
+}
+
+pub fn slam_particles_subscriber(bus: &Bus) -> Result<StreamSubscriber<SlamParticles>, BusError> {
+    StreamSubscriber::new(bus, &names::slam_particles(&bus.swarm))
+}
+
+pub fn slam_map_publisher(bus: &Bus) -> Result<StreamPublisher<SlamMap>, BusError> {
+    StreamPublisher::new(bus, &names::slam_map(&bus.swarm))
+}
+
+pub fn slam_map_subscriber(bus: &Bus) -> Result<StreamSubscriber<SlamMap>, BusError> {
+    StreamSubscriber::new(bus, &names::slam_map(&bus.swarm))
 }

@@ -155,6 +155,40 @@ pub struct ClockTick {
     pub period_s: f64,
 }
 
+/// How many particles a SLAM view shows at most.
+pub const MAX_SHOWN_PARTICLES: usize = 256;
+/// The side of a SLAM map view, in cells at most.
+pub const MAX_MAP_SIDE: usize = 128;
+
+/// A followed robot's particles after a SLAM step (an even subsample), for viewers.
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("shoal.SlamParticles")]
+#[repr(C)]
+pub struct SlamParticles {
+    pub agent_id: u32,
+    pub count: u32,
+    /// The robot's tick of the scan this step used.
+    pub tick: u64,
+    pub sim_time: f64,
+    pub xy: [[f32; 2]; MAX_SHOWN_PARTICLES],
+}
+
+/// A followed robot's map (its best particle's), coarsened to at most
+/// `MAX_MAP_SIDE` cells a side, as ROS occupancy: 0 free, 100 occupied, 255 unknown.
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("shoal.SlamMap")]
+#[repr(C)]
+pub struct SlamMap {
+    pub agent_id: u32,
+    pub width: u32,
+    pub height: u32,
+    pub cell_size: f32,
+    pub origin: [f32; 2],
+    pub tick: u64,
+    pub sim_time: f64,
+    pub cells: [u8; MAX_MAP_SIDE * MAX_MAP_SIDE],
+}
+
 /// The newest lockstep tick a recorder has written; the launcher of a
 /// lockstep swarm paces its clock to it, so a recording misses no tick.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]

@@ -125,6 +125,37 @@ impl TiledGrid {
     }
 
     /// How many tiles this grid shares with `other` (same allocation).
+    /// The map coarsened so neither side exceeds `max_side` cells, as ROS
+    /// occupancy (0 free .. 100 occupied, 255 never observed): returns
+    /// width, height, the coarse cell size and the cells, row by row from
+    /// the origin.
+    pub fn coarsened(&self, max_side: usize) -> (usize, usize, f64, Vec<u8>) {
+        let factor = self.width.max(self.height).div_ceil(max_side.max(1)).max(1);
+        let (width, height) = (self.width.div_ceil(factor), self.height.div_ceil(factor));
+        let mut cells = vec![255u8; width * height];
+        for row in 0..height {
+            for col in 0..width {
+                // A coarse cell is as occupied as its most occupied fine cell,
+                // so thin walls survive coarsening.
+                let mut observed = false;
+                let mut most = 0.0f32;
+                for y in row * factor..((row + 1) * factor).min(self.height) {
+                    for x in col * factor..((col + 1) * factor).min(self.width) {
+                        let odds = self.log_odds((x, y));
+                        if odds != 0.0 {
+                            observed = true;
+                            most = most.max(1.0 / (1.0 + (-odds).exp()));
+                        }
+                    }
+                }
+                if observed {
+                    cells[row * width + col] = (most * 100.0).round() as u8;
+                }
+            }
+        }
+        (width, height, self.cell_size * factor as f64, cells)
+    }
+
     pub fn shared_tiles(&self, other: &Self) -> usize {
         self.tiles
             .iter()
@@ -141,6 +172,19 @@ impl TiledGrid {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_coarsened_map_keeps_walls_and_unknown_space() {
+        let mut grid = TiledGrid::new(4.0, 2.0, 0.05);
+        grid.integrate_beam(DVec2::new(0.5, 1.0), DVec2::new(3.0, 1.0), true);
+        let (width, height, cell, cells) = grid.coarsened(20);
+        assert_eq!((width, height), (20, 10));
+        assert!((cell - 0.2).abs() < 1e-12);
+        let at = |x: f64, y: f64| cells[(y / cell) as usize * width + (x / cell) as usize];
+        assert!(at(3.0, 1.0) > 50, "the hit is occupied");
+        assert!(at(1.5, 1.0) < 50, "the beam's path is free");
+        assert_eq!(at(1.5, 0.1), 255, "never observed");
+    }
 
     #[test]
     fn a_beam_frees_its_path_and_occupies_its_end() {

@@ -2,6 +2,8 @@
 //! SLAM for each, learns each robot's motion model online and publishes pose
 //! estimates and model updates back to the robots.
 
+mod view;
+
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -86,6 +88,8 @@ fn run(args: Args) -> Result<()> {
         BusLimits::default(),
     )?;
     let roster = RosterReader::new(&bus)?;
+    let particles_out = robot_streams::slam_particles_publisher(&bus)?;
+    let maps_out = robot_streams::slam_map_publisher(&bus)?;
     let mut followed: BTreeMap<u32, Followed> = BTreeMap::new();
     for &id in &args.follow {
         followed.insert(
@@ -161,6 +165,10 @@ fn run(args: Args) -> Result<()> {
                 };
                 let report = filter.step(command, scan.bumped != 0, &ranges);
                 robot.steps += 1;
+                particles_out.publish(&view::particles(*id, &scan, filter))?;
+                if robot.steps % MAP_EVERY_STEPS == 1 {
+                    maps_out.publish(&view::map(*id, &scan, filter))?;
+                }
                 robot.estimates.publish(&EstimateSample {
                     agent_id: *id,
                     reserved: 0,
@@ -191,6 +199,9 @@ fn run(args: Args) -> Result<()> {
     }
     Ok(())
 }
+
+/// Viewers get a map every this many steps: a map is 16 KB, particles 2 KB.
+const MAP_EVERY_STEPS: u64 = 10;
 
 fn main() -> std::process::ExitCode {
     shoal_broker::process_main::run_main("shoal-slam", "info", || run(Args::parse()))

@@ -3,7 +3,8 @@
 Usage: check_recording.py RECORDING.rrd
 
 Prints {"entities": [...], "ticks": N, "max_sim_time": S, "robots": [...],
-"poses": {"<id>@<tick>": [x, y], ...}, "events": [...]}.
+"poses": {"<id>@<tick>": [x, y], ...}, "events": [...],
+"slam_rows": {"<entity>": rows logged}}.
 """
 
 import json
@@ -19,6 +20,7 @@ def main(path: str) -> None:
     poses = {}
     events = []
     max_sim_time = 0.0
+    slam_rows = {}
     for chunk in rrx.RrdReader(path).stream().to_chunks():
         entities.add(chunk.entity_path)
         batch = chunk.to_record_batch()
@@ -37,6 +39,8 @@ def main(path: str) -> None:
                 for position, label in zip(row_positions, row_labels):
                     robots.add(int(label))
                     poses[f"{label}@{tick}"] = position
+        if chunk.entity_path.startswith("/world/slam/") or chunk.entity_path.startswith("/slam/"):
+            slam_rows[chunk.entity_path] = slam_rows.get(chunk.entity_path, 0) + batch.num_rows
         if chunk.entity_path == "/events":
             texts = [n for n in names if n.endswith(":text")]
             if texts:
@@ -51,6 +55,7 @@ def main(path: str) -> None:
                 "robots": sorted(robots),
                 "poses": poses,
                 "events": [e for e in events if e is not None],
+                "slam_rows": slam_rows,
             }
         )
     )

@@ -275,3 +275,47 @@ fn a_surface_the_robots_model_lacks_is_diagnosed_from_the_recorded_run() {
     );
     let _ = std::fs::remove_dir_all(dir);
 }
+
+/// A SLAM process's particles, map and learned model land in the recording.
+#[test]
+fn a_recording_holds_what_slam_learns() {
+    let _turn = serial();
+    let dir = scratch("slam-record");
+    let recording = dir.join("slam.rrd");
+    let output = shoal(&[
+        "up",
+        "--swarm",
+        "e2e-slam-record",
+        "--agents",
+        "4",
+        "--duration",
+        "12",
+        "--slam",
+        "0",
+        "--record",
+        recording.to_str().expect("utf-8"),
+    ]);
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let found = inspect(&recording);
+    let rows = |entity: &str| found["slam_rows"][entity].as_u64().unwrap_or(0);
+    // One particle batch per SLAM step, and at least a few dozen steps in 12 s.
+    assert!(
+        rows("/world/slam/0/particles") >= 20,
+        "{}",
+        found["slam_rows"]
+    );
+    // The map is logged again as it fills in.
+    assert!(rows("/world/slam/0/map") >= 2, "{}", found["slam_rows"]);
+    let model_entities = found["slam_rows"]
+        .as_object()
+        .expect("slam rows")
+        .keys()
+        .filter(|k| k.starts_with("/slam/0/model/"))
+        .count();
+    assert!(model_entities >= 3, "{}", found["slam_rows"]);
+    let _ = std::fs::remove_dir_all(dir);
+}

@@ -2,4 +2,5 @@
 
 pub mod arena;
 pub mod recorder;
+pub mod slam;
 pub mod tum;

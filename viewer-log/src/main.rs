@@ -43,6 +43,7 @@ fn run(args: Args) -> Result<()> {
     )?;
     let roster = RosterReader::new(&bus)?;
     let progress = shoal_broker::robot_streams::recorder_progress_publisher(&bus)?;
+    let mut slam_views = shoal_viewer_log::slam::SlamViews::new(&bus)?;
     // Chunks are cut once a second rather than every few milliseconds: each
     // chunk carries overhead, and a second is what the flush promises anyway.
     let batching = rerun::log::ChunkBatcherConfig {
@@ -88,6 +89,9 @@ fn run(args: Args) -> Result<()> {
         // A lockstep launcher paces its clock to this, so no tick is missed.
         progress.publish(&shoal_broker::RecorderProgress { tick: newest_tick })?;
         recorder.log_complete()?;
+        for _ in 0..slam_views.poll(&bus, recorder.stream())? {
+            recorder.count_rejected();
+        }
         recorder.forget_silent(newest_tick, silent_ticks)?;
         if last_flush.elapsed() >= FLUSH_EVERY {
             last_flush = Instant::now();

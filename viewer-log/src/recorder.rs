@@ -71,6 +71,10 @@ impl Recorder {
         self.pending.entry(sample.tick).or_default().push(sample);
     }
 
+    pub fn stream(&self) -> &RecordingStream {
+        &self.rec
+    }
+
     pub fn count_rejected(&mut self) {
         self.stats.rejected += 1;
     }

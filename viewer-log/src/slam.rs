@@ -1,0 +1,137 @@
+//! What the SLAM process shares with viewers: each followed robot's particles
+//! (one Points2D batch per step), its map as a GridMap that fills in, and its
+//! learned motion model as scalar plots.
+
+use std::collections::BTreeMap;
+
+use rerun::RecordingStream;
+use shoal_broker::robot_streams::{self, StreamSubscriber};
+use shoal_broker::{Bus, ModelUpdate, SlamMap, SlamParticles};
+use shoal_physics::Command;
+
+const PARAM_NAMES: [&str; 3] = ["D", "C", "T"];
+
+pub struct SlamViews {
+    particles: StreamSubscriber<SlamParticles>,
+    maps: StreamSubscriber<SlamMap>,
+    models: BTreeMap<u32, StreamSubscriber<ModelUpdate>>,
+    /// The newest tick of each followed robot's SLAM step, for its model updates.
+    ticks: BTreeMap<u32, (u64, f64)>,
+}
+
+fn finite(values: &[f32]) -> bool {
+    values.iter().all(|v| v.is_finite())
+}
+
+impl SlamViews {
+    pub fn new(bus: &Bus) -> anyhow::Result<Self> {
+        Ok(Self {
+            particles: robot_streams::slam_particles_subscriber(bus)?,
+            maps: robot_streams::slam_map_subscriber(bus)?,
+            models: BTreeMap::new(),
+            ticks: BTreeMap::new(),
+        })
+    }
+
+    /// Logs what arrived; returns how many samples were malformed and skipped.
+    pub fn poll(&mut self, bus: &Bus, rec: &RecordingStream) -> anyhow::Result<u64> {
+        let mut rejected = 0;
+        let mut batches = Vec::new();
+        self.particles.receive(|p| batches.push(p))?;
+        for p in batches {
+            let count = (p.count as usize).min(p.xy.len());
+            if !finite(&p.xy[..count].concat()) || !p.sim_time.is_finite() {
+                rejected += 1;
+                continue;
+            }
+            rec.set_time_sequence("tick", p.tick as i64);
+            rec.set_duration_secs("sim_time", p.sim_time);
+            rec.log(
+                format!("world/slam/{}/particles", p.agent_id),
+                &rerun::Points2D::new(p.xy[..count].iter().copied())
+                    .with_radii([0.02f32])
+                    .with_colors([rerun::Color::from_rgb(190, 90, 255)]),
+            )?;
+            self.ticks.insert(p.agent_id, (p.tick, p.sim_time));
+            if !self.models.contains_key(&p.agent_id) {
+                self.models.insert(
+                    p.agent_id,
+                    robot_streams::model_subscriber(bus, p.agent_id)?,
+                );
+            }
+        }
+        let mut maps = Vec::new();
+        self.maps.receive(|m| maps.push(m))?;
+        for m in maps {
+            let cells = (m.width as usize) * (m.height as usize);
+            if cells == 0 || cells > m.cells.len() || !(m.cell_size > 0.0) || !finite(&m.origin) {
+                rejected += 1;
+                continue;
+            }
+            rec.set_time_sequence("tick", m.tick as i64);
+            rec.set_duration_secs("sim_time", m.sim_time);
+            rec.log(
+                format!("world/slam/{}/map", m.agent_id),
+                &rerun::GridMap::new(
+                    m.cells[..cells].to_vec(),
+                    rerun::components::ImageFormat::from_color_model(
+                        [m.width, m.height],
+                        rerun::ColorModel::L,
+                        rerun::ChannelDatatype::U8,
+                    ),
+                    m.cell_size,
+                )
+                .with_translation([m.origin[0], m.origin[1], 0.0])
+                .with_colormap(rerun::components::Colormap::RvizMap)
+                .with_draw_order(-15.0),
+            )?;
+        }
+        for (id, models) in &self.models {
+            let mut updates = Vec::new();
+            models.receive(|u| updates.push(u))?;
+            let Some(&(tick, sim_time)) = self.ticks.get(id) else {
+                continue;
+            };
+            for u in updates {
+                let (Some(command), Some(param)) = (
+                    Command::from_index(u.command as usize),
+                    PARAM_NAMES.get(u.param as usize),
+                ) else {
+                    rejected += 1;
+                    continue;
+                };
+                let values = [
+                    u.weights[0],
+                    u.weights[1],
+                    u.means[0],
+                    u.means[1],
+                    u.variances[0],
+                    u.variances[1],
+                ];
+                if values.iter().any(|v| !v.is_finite()) {
+                    rejected += 1;
+                    continue;
+                }
+                rec.set_time_sequence("tick", tick as i64);
+                rec.set_duration_secs("sim_time", sim_time);
+                // Entity paths keep to letters, digits and underscores.
+                let name: String = command
+                    .to_string()
+                    .chars()
+                    .map(|c| {
+                        if c.is_ascii_alphanumeric() || c == '-' {
+                            c
+                        } else {
+                            '_'
+                        }
+                    })
+                    .collect();
+                rec.log(
+                    format!("slam/{id}/model/{}/{param}", name.trim_end_matches('_')),
+                    &rerun::Scalars::new(values),
+                )?;
+            }
+        }
+        Ok(rejected)
+    }
+}
