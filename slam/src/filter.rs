@@ -11,6 +11,9 @@ use shoal_physics::{Command, MotionModel, Pose};
 use crate::grid::TiledGrid;
 use crate::learning::{Draw, MixtureLearner};
 
+/// The range of scales exploring particles apply to a drawn motion.
+const EXPLORE_SCALE: (f64, f64) = (0.3, 1.7);
+
 /// How far the map reaches beyond the arena.
 const MAP_MARGIN_M: f64 = 0.5;
 
@@ -25,6 +28,10 @@ pub struct FilterConfig {
     pub learning: bool,
     /// The learning window k.
     pub window: usize,
+    /// Share of particles whose motion is scaled at random (0.3-1.7x) to
+    /// keep a wrong model's truth within reach of the learner (only while
+    /// learning).
+    pub explore: f64,
     pub sensor: RangeSensor,
 }
 
@@ -37,6 +44,7 @@ impl Default for FilterConfig {
             cell_size: 0.05,
             learning: true,
             window: 8,
+            explore: 0.2,
             sensor: RangeSensor::default(),
         }
     }
@@ -143,8 +151,25 @@ impl ParticleFilter {
     pub fn step(&mut self, command: Command, bumped: bool, ranges: &[f64]) -> StepReport {
         let n = self.particles.len();
         let mut draws: Vec<[f64; 3]> = Vec::with_capacity(n);
-        for particle in &mut self.particles {
-            let motion = self.model.sample(command, &mut self.rng);
+        // Exploring serves the learner; without learning the model is taken as is.
+        let explore = if self.config.learning {
+            self.config.explore
+        } else {
+            0.0
+        };
+        let explorers = (explore * n as f64).round() as usize;
+        for (i, particle) in self.particles.iter_mut().enumerate() {
+            let mut motion = self.model.sample(command, &mut self.rng);
+            // Some particles try the command carrying farther or less far than
+            // the model says: when the model is wrong (a new surface, another
+            // robot), they keep the truth within reach, and their qualities
+            // show the learner where it lies.
+            if i % n.max(1).div_ceil(explorers.max(1)) == 0 && explorers > 0 {
+                let scale = self.rng.random_range(EXPLORE_SCALE.0..EXPLORE_SCALE.1);
+                motion.along *= scale;
+                motion.across *= scale;
+                motion.turn *= self.rng.random_range(EXPLORE_SCALE.0..EXPLORE_SCALE.1);
+            }
             particle.pose = if bumped {
                 particle.pose.advanced(0.0, 0.0, motion.turn)
             } else {
