@@ -3,6 +3,7 @@
 mod bus;
 mod diagnose;
 mod record;
+mod slam;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -47,6 +48,16 @@ enum Commands {
         #[arg(long)]
         json: bool,
     },
+    /// SLAM steps and particle-beam evaluations per second by particle count
+    /// (180 beams), and the real-time factor for one robot at 10 Hz.
+    Slam {
+        #[arg(long, value_delimiter = ',', default_value = "100,1000,5000")]
+        particles: Vec<usize>,
+        #[arg(long, default_value_t = 100)]
+        steps: usize,
+        #[arg(long)]
+        json: bool,
+    },
     /// Internal: one end of the latency probe.
     #[command(hide = true)]
     Probe {
@@ -74,6 +85,11 @@ fn main() -> Result<()> {
             json,
         } => record::run(&agents, seconds, json),
         Commands::Diagnose { minutes, json } => diagnose::run(&minutes, json),
+        Commands::Slam {
+            particles,
+            steps,
+            json,
+        } => slam::run(&particles, steps, json),
         Commands::Probe {
             role,
             swarm,
