@@ -72,13 +72,12 @@ struct Followed {
 }
 
 fn run(args: Args) -> Result<()> {
+    // A bad model file is reported before anything else, swarm or not.
+    let from_file = args.initial_model.as_ref().map(read_model).transpose()?;
     let runtime = SwarmRuntime::locate(&args.swarm);
     runtime.read_meta()?;
     let scenario = Scenario::from_file(&runtime.scenario_path())?;
-    let initial = match &args.initial_model {
-        Some(path) => read_model(path)?,
-        None => scenario.motion.clone(),
-    };
+    let initial = from_file.unwrap_or_else(|| scenario.motion.clone());
     if !(args.grid > 0.0 && args.grid.is_finite()) {
         bail!("--grid must be a positive cell size in metres");
     }
