@@ -12,14 +12,14 @@ fn a_model_file_with_a_negative_variance_or_bad_weights_is_rejected() {
             "[\"walk(2)\"]\nd = { weights = [0.5, 0.5], means = [0.1, 0.2], variances = [-1e-4, 1e-4] }\n\
              c = { weights = [0.5, 0.5], means = [0.0, 0.0], variances = [1e-4, 1e-4] }\n\
              t = { weights = [0.5, 0.5], means = [0.0, 0.0], variances = [1e-4, 1e-4] }\n",
-            "variance 0 is -0.0001",
+            "toml:2: walk(2).d: variance 0 is -0.0001",
         ),
         (
             "weights.toml",
             "[\"turn(1)\"]\nd = { weights = [0.5, 0.5], means = [0.0, 0.0], variances = [1e-4, 1e-4] }\n\
              c = { weights = [0.5, 0.5], means = [0.0, 0.0], variances = [1e-4, 1e-4] }\n\
              t = { weights = [0.5, 0.7], means = [0.1, 0.2], variances = [1e-4, 1e-4] }\n",
-            "weights sum to 1.2",
+            "toml:4: turn(1).t: weights sum to 1.2",
         ),
     ];
     for (name, text, expected) in cases {
