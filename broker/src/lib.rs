@@ -21,7 +21,7 @@ pub use check::{Rejection, SampleCheck};
 pub use clock::{ClockListener, ClockSource};
 pub use liveness::{SwarmNode, SwarmNodeState};
 pub use roster::{RosterPublisher, RosterReader};
-pub use runtime::{SwarmMeta, SwarmRuntime};
+pub use runtime::{FollowedReport, SlamReport, SwarmMeta, SwarmRuntime};
 pub use wire::{
     ClockTick, EstimateSample, Health, MAX_BEAMS, MAX_MAP_SIDE, MAX_NEIGHBOURS,
     MAX_SHOWN_PARTICLES, ModelUpdate, PoseSample, RecorderProgress, ScanSample, SlamMap,

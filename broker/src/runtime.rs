@@ -19,6 +19,27 @@ pub struct SwarmMeta {
     pub launcher_pid: u32,
 }
 
+/// The SLAM process's view of each robot it follows.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct SlamReport {
+    pub pid: u32,
+    pub followed: Vec<FollowedReport>,
+}
+
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct FollowedReport {
+    pub id: u32,
+    pub steps: u64,
+    /// How far the learned model has moved from the one SLAM started with:
+    /// the mean over commands and parameters of |mean shift| / starting std.
+    pub model_distance: f64,
+    /// No scan for a while: the robot is gone, its filter waits.
+    pub paused: bool,
+    /// The filter's pose estimate, once it has started.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub estimate: Option<[f64; 3]>,
+}
+
 #[derive(Clone, Debug)]
 pub struct SwarmRuntime {
     pub dir: PathBuf,
@@ -76,6 +97,21 @@ impl SwarmRuntime {
                 format!("{}: {e}", path.display()),
             )
         })
+    }
+
+    fn slam_report_path(&self) -> PathBuf {
+        self.dir.join("slam.toml")
+    }
+
+    /// What the SLAM process says of the robots it follows, for `shoal status`.
+    pub fn write_slam_report(&self, report: &SlamReport) -> io::Result<()> {
+        let text = toml::to_string(report).map_err(io::Error::other)?;
+        write_atomically(&self.slam_report_path(), &text)
+    }
+
+    pub fn read_slam_report(&self) -> Option<SlamReport> {
+        let text = std::fs::read_to_string(self.slam_report_path()).ok()?;
+        toml::from_str(&text).ok()
     }
 
     pub fn write_last_pose(&self, id: u32, pose: [f64; 3]) -> io::Result<()> {

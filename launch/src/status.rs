@@ -6,7 +6,7 @@ use std::time::{Duration, Instant};
 use anyhow::Result;
 use serde::Serialize;
 use shoal_broker::liveness::{SwarmNodeState, swarm_nodes};
-use shoal_broker::{Bus, BusLimits, PoseSample, RosterReader, SwarmRuntime, names};
+use shoal_broker::{Bus, BusLimits, FollowedReport, PoseSample, RosterReader, SwarmRuntime, names};
 
 #[derive(Debug, Serialize)]
 pub struct AgentStatus {
@@ -19,6 +19,9 @@ pub struct AgentStatus {
     pub tick: Option<u64>,
     pub health: Option<u32>,
     pub neighbours: Vec<u32>,
+    /// What the SLAM process knows of this robot, if it follows it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub slam: Option<FollowedReport>,
 }
 
 #[derive(Debug, Serialize)]
@@ -27,6 +30,8 @@ pub struct StatusReport {
     pub agents: Vec<AgentStatus>,
     /// Dead nodes of this swarm whose resources nobody has removed yet.
     pub stale_nodes: usize,
+    /// Every robot a live SLAM process follows, present or not.
+    pub slam: Vec<FollowedReport>,
 }
 
 /// Listens to the roster for a few periods and lists every node of the swarm.
@@ -49,6 +54,10 @@ pub fn gather(swarm: &str) -> Result<StatusReport> {
         })?;
         std::thread::sleep(Duration::from_millis(10));
     }
+    // The report of a SLAM process that is gone says nothing of today.
+    let slam = SwarmRuntime::locate(swarm)
+        .read_slam_report()
+        .filter(|r| crate::process::pid_alive(r.pid as i32));
     let mut agents = Vec::new();
     let mut stale_nodes = 0;
     for node in swarm_nodes(swarm)? {
@@ -75,6 +84,9 @@ pub fn gather(swarm: &str) -> Result<StatusReport> {
             neighbours: sample
                 .map(|s| s.neighbour_ids().to_vec())
                 .unwrap_or_default(),
+            slam: slam
+                .as_ref()
+                .and_then(|r| r.followed.iter().find(|f| f.id == id).cloned()),
         });
     }
     agents.sort_by_key(|a| (a.id, a.state));
@@ -82,6 +94,7 @@ pub fn gather(swarm: &str) -> Result<StatusReport> {
         swarm: swarm.to_owned(),
         agents,
         stale_nodes,
+        slam: slam.map(|r| r.followed).unwrap_or_default(),
     })
 }
 
@@ -91,21 +104,36 @@ pub fn print_table(report: &StatusReport) {
         "swarm `{}`: {alive} alive, {} stale nodes",
         report.swarm, report.stale_nodes
     );
+    for f in report.slam.iter().filter(|f| f.paused) {
+        println!("SLAM follows robot {} (paused: no scans from it)", f.id);
+    }
     println!(
-        "{:>5} {:>8} {:>6} {:>8} {:>8} {:>7}  neighbours",
-        "id", "pid", "state", "x", "y", "theta"
+        "{:>5} {:>8} {:>6} {:>8} {:>8} {:>7}  {:<26} neighbours",
+        "id", "pid", "state", "x", "y", "theta", "slam"
     );
     for a in &report.agents {
         let num = |v: Option<f64>| v.map_or_else(|| "-".to_owned(), |v| format!("{v:.2}"));
         let neighbours: Vec<String> = a.neighbours.iter().map(u32::to_string).collect();
+        let slam = a.slam.as_ref().map_or_else(
+            || "-".to_owned(),
+            |f| {
+                format!(
+                    "{} steps, model moved {:.2}{}",
+                    f.steps,
+                    f.model_distance,
+                    if f.paused { ", paused" } else { "" }
+                )
+            },
+        );
         println!(
-            "{:>5} {:>8} {:>6} {:>8} {:>8} {:>7}  {}",
+            "{:>5} {:>8} {:>6} {:>8} {:>8} {:>7}  {:<26} {}",
             a.id,
             a.pid,
             a.state,
             num(a.x),
             num(a.y),
             num(a.theta),
+            slam,
             neighbours.join(",")
         );
     }

@@ -195,6 +195,25 @@ impl MotionModel {
         }
     }
 
+    /// How far this model lies from `reference`: the mean over commands and
+    /// parameters of the shift of the mixture mean in units of the
+    /// reference's standard deviation.
+    pub fn distance_from(&self, reference: &MotionModel) -> f64 {
+        let mut total = 0.0;
+        let mut count = 0.0;
+        for command in Command::ALL {
+            for param in Param::ALL {
+                let (a, b) = (
+                    self.command(command).param(param),
+                    reference.command(command).param(param),
+                );
+                total += (a.mean() - b.mean()).abs() / b.variance().sqrt().max(1e-9);
+                count += 1.0;
+            }
+        }
+        total / count
+    }
+
     pub fn validate(&self) -> Result<(), String> {
         for command in Command::ALL {
             for param in Param::ALL {
@@ -237,6 +256,18 @@ impl From<MotionModel> for BTreeMap<String, CommandModel> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_model_is_as_far_from_another_as_its_means_moved_in_standard_deviations() {
+        let reference = MotionModel::legged_default();
+        assert_eq!(reference.distance_from(&reference), 0.0);
+        let mut moved = reference.clone();
+        let d = moved.command_mut(Command::Walk(2)).param_mut(Param::D);
+        let std = d.variance().sqrt();
+        d.means = d.means.map(|m| m + std);
+        // One of 14 x 3 parameters moved by one standard deviation.
+        assert!((moved.distance_from(&reference) - 1.0 / 42.0).abs() < 1e-9);
+    }
 
     #[test]
     fn commands_round_trip_through_their_names_and_indices() {

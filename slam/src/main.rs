@@ -12,7 +12,8 @@ use anyhow::{Context, Result, bail};
 use clap::Parser;
 use shoal_broker::robot_streams::{self, StreamPublisher, StreamSubscriber};
 use shoal_broker::{
-    Bus, BusLimits, EstimateSample, ModelUpdate, RosterReader, ScanSample, SwarmRuntime, names,
+    Bus, BusLimits, EstimateSample, FollowedReport, ModelUpdate, RosterReader, ScanSample,
+    SlamReport, SwarmRuntime, names,
 };
 use shoal_physics::legged::Param;
 use shoal_physics::{Command, MotionModel, Pose, Scenario};
@@ -88,6 +89,7 @@ struct Followed {
     models: StreamPublisher<ModelUpdate>,
     filter: Option<ParticleFilter>,
     steps: u64,
+    last_scan: Option<std::time::Instant>,
 }
 
 fn run(args: Args) -> Result<()> {
@@ -118,6 +120,7 @@ fn run(args: Args) -> Result<()> {
                 models: robot_streams::model_publisher(&bus, id)?,
                 filter: None,
                 steps: 0,
+                last_scan: None,
             },
         );
     }
@@ -131,6 +134,7 @@ fn run(args: Args) -> Result<()> {
     };
     tracing::info!(follow = ?args.follow, learning = ?args.learning, "SLAM following");
     let mut anchors: BTreeMap<u32, Pose> = BTreeMap::new();
+    let mut last_report = std::time::Instant::now();
     // Where every robot stands, to drop beams that ended on one: robots move,
     // so they do not belong in the map.
     let mut bodies: BTreeMap<u32, glam::DVec2> = BTreeMap::new();
@@ -152,6 +156,7 @@ fn run(args: Args) -> Result<()> {
             robot.scans.receive(|scan| scans.push(scan))?;
             for scan in scans {
                 idle = false;
+                robot.last_scan = Some(std::time::Instant::now());
                 let mut ranges: Vec<f64> = scan.ranges().iter().map(|r| f64::from(*r)).collect();
                 if let Some(filter) = &robot.filter {
                     let others = bodies
@@ -211,11 +216,46 @@ fn run(args: Args) -> Result<()> {
                 }
             }
         }
+        if last_report.elapsed() >= REPORT_EVERY {
+            last_report = std::time::Instant::now();
+            let report = report(&followed, &initial);
+            if let Err(e) = runtime.write_slam_report(&report) {
+                tracing::warn!("cannot write the SLAM report: {e}");
+            }
+        }
         if idle {
             std::thread::sleep(Duration::from_millis(5));
         }
     }
     Ok(())
+}
+
+/// How often `shoal status` learns what SLAM knows.
+const REPORT_EVERY: Duration = Duration::from_secs(1);
+/// A followed robot without scans this long is paused: killed, its filter
+/// waits for it to come back.
+const PAUSED_AFTER: Duration = Duration::from_secs(2);
+
+fn report(followed: &BTreeMap<u32, Followed>, initial: &MotionModel) -> SlamReport {
+    SlamReport {
+        pid: std::process::id(),
+        followed: followed
+            .iter()
+            .map(|(id, robot)| {
+                let estimate = robot.filter.as_ref().map(ParticleFilter::estimate);
+                FollowedReport {
+                    id: *id,
+                    steps: robot.steps,
+                    model_distance: robot
+                        .filter
+                        .as_ref()
+                        .map_or(0.0, |f| f.model().distance_from(initial)),
+                    paused: robot.last_scan.is_none_or(|t| t.elapsed() > PAUSED_AFTER),
+                    estimate: estimate.map(|p| [p.x, p.y, p.theta]),
+                }
+            })
+            .collect(),
+    }
 }
 
 /// Viewers get a map every this many steps: a map is 16 KB, particles 2 KB.

@@ -41,3 +41,103 @@ fn a_model_file_with_a_negative_variance_or_bad_weights_is_rejected() {
     }
     let _ = std::fs::remove_dir_all(dir);
 }
+
+fn followed(status: &serde_json::Value, id: u64) -> Option<serde_json::Value> {
+    status["slam"]
+        .as_array()?
+        .iter()
+        .find(|f| f["id"] == id)
+        .cloned()
+}
+
+fn steps(status: &serde_json::Value, id: u64) -> u64 {
+    followed(status, id)
+        .and_then(|s| s["steps"].as_u64())
+        .unwrap_or(0)
+}
+
+/// Killing a followed robot pauses its filter and restarting it resumes it;
+/// killing the SLAM process leaves the swarm alone, and a new one resumes
+/// from the live streams. `shoal status` shows it all.
+#[test]
+fn slam_pauses_with_its_robot_and_the_swarm_outlives_slam() {
+    let _turn = serial();
+    let mut swarm = BackgroundSwarm::start("e2e-slam-live", &["--agents", "5", "--slam", "0"]);
+    swarm.wait_alive(5, std::time::Duration::from_secs(30));
+    let name = swarm.name.clone();
+    let learning = wait_until(std::time::Duration::from_secs(20), || {
+        steps(&status(&name), 0) > 10
+    });
+    assert!(learning, "SLAM never stepped: {}", status(&name));
+    let s = status(&name);
+    let report = followed(&s, 0).expect("robot 0 is followed");
+    let agent = s["agents"]
+        .as_array()
+        .and_then(|a| a.iter().find(|a| a["id"] == 0))
+        .expect("robot 0");
+    assert_eq!(agent["slam"]["id"], 0, "{agent}");
+    assert_eq!(report["paused"], false, "{report}");
+    assert!(report["model_distance"].as_f64().is_some(), "{report}");
+
+    assert!(shoal(&["kill", "--swarm", &name, "0"]).status.success());
+    let paused = wait_until(std::time::Duration::from_secs(10), || {
+        followed(&status(&name), 0).is_some_and(|f| f["paused"] == true)
+    });
+    assert!(
+        paused,
+        "the filter of a killed robot did not pause: {}",
+        status(&name)
+    );
+    assert!(shoal(&["restart", "--swarm", &name, "0"]).status.success());
+    let before = steps(&status(&name), 0);
+    let resumed = wait_until(std::time::Duration::from_secs(15), || {
+        let s = status(&name);
+        followed(&s, 0).is_some_and(|f| f["paused"] == false) && steps(&s, 0) > before + 5
+    });
+    assert!(resumed, "the filter did not resume: {}", status(&name));
+
+    let slam_pid = shoal_broker::SwarmRuntime::locate(&name)
+        .read_slam_report()
+        .expect("a SLAM report")
+        .pid as i32;
+    // SAFETY: plain kill(2) of the SLAM process the swarm started.
+    unsafe { libc::kill(slam_pid, libc::SIGKILL) };
+    let ticks = |s: &serde_json::Value| -> u64 {
+        alive_agents(s)
+            .iter()
+            .filter_map(|a| a["tick"].as_u64())
+            .max()
+            .unwrap_or(0)
+    };
+    let before = ticks(&status(&name));
+    std::thread::sleep(std::time::Duration::from_secs(2));
+    let after = status(&name);
+    assert_eq!(alive_ids(&after).len(), 5, "{after}");
+    assert!(
+        ticks(&after) > before,
+        "the swarm stopped with SLAM: {after}"
+    );
+    assert!(
+        followed(&after, 0).is_none(),
+        "a dead SLAM process still reports: {after}"
+    );
+
+    let mut again = std::process::Command::new(bin("shoal"))
+        .args(["slam", "--swarm", &name, "--follow", "0"])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("start shoal slam");
+    let restarted = wait_until(std::time::Duration::from_secs(20), || {
+        steps(&status(&name), 0) > 5
+    });
+    let _ = again.kill();
+    let _ = again.wait();
+    assert!(
+        restarted,
+        "a new SLAM process did not pick the robot up: {}",
+        status(&name)
+    );
+    let (exit, said) = swarm.interrupt();
+    assert!(exit.success(), "{said}");
+}
