@@ -6,6 +6,8 @@ use rand::SeedableRng;
 use rand::rngs::StdRng;
 use shoal_physics::formation::{choose_neighbours, net_force};
 use shoal_physics::planner::plan_command;
+use shoal_physics::scenario::Behaviour;
+use shoal_physics::wander::{range_ahead, wander_command};
 use shoal_physics::{Body, Command, MotionModel, Neighbour, Pose, Scenario, StepOutcome};
 
 /// Metres of desired motion per unit of net force.
@@ -17,9 +19,16 @@ pub struct Robot {
     /// The model the robot believes it moves by: it plans and dead-reckons with it.
     pub belief: MotionModel,
     pub believed: Pose,
+    /// Pure dead reckoning with the believed model, never corrected: the
+    /// motion between two ticks, to carry a late SLAM estimate forward.
+    pub odometry: Pose,
     rng: StdRng,
     /// The sensor draws its own noise, so sensing never changes how the body moves.
     sensor_rng: StdRng,
+    /// The last scan and command, for a wandering robot.
+    last_ranges: Vec<f64>,
+    last_command: Command,
+    steps: u64,
 }
 
 /// What the robot did in one period.
@@ -45,23 +54,30 @@ impl Robot {
                 pose: start,
                 radius: scenario.agents.radius,
                 model: scenario.motion.clone(),
+                sim_time: 0.0,
             },
             belief: scenario.motion.clone(),
             believed: start,
+            odometry: start,
             rng: StdRng::seed_from_u64(seed),
             sensor_rng: StdRng::seed_from_u64(seed ^ 0x5ca9),
+            last_ranges: Vec::new(),
+            last_command: Command::Stand,
+            steps: 0,
         }
     }
 
     /// What the range sensor reads now, with `others` as the bodies around.
     pub fn scan(&mut self, scenario: &Scenario, others: &[DVec2]) -> Vec<f64> {
-        scenario.sensor.read(
+        let ranges = scenario.sensor.read(
             &scenario.arena,
             &self.body.pose,
             others,
             self.body.radius,
             &mut self.sensor_rng,
-        )
+        );
+        self.last_ranges.clone_from(&ranges);
+        ranges
     }
 
     /// One control period against the robots it senses.
@@ -75,7 +91,15 @@ impl Robot {
         } else {
             force.normalize() * (force.length() * STEP_PER_UNIT_FORCE).min(max_step)
         };
-        let command = plan_command(&self.body.pose, displacement, &self.belief);
+        let command = match scenario.agents.behaviour {
+            Behaviour::Formation => plan_command(&self.body.pose, displacement, &self.belief),
+            Behaviour::Wander => {
+                let ahead = range_ahead(&self.last_ranges, &scenario.sensor);
+                self.steps += 1;
+                wander_command(self.steps, ahead, self.last_command)
+            }
+        };
+        self.last_command = command;
         let nearby: Vec<DVec2> = sensed
             .iter()
             .map(|n| n.position)
@@ -87,6 +111,9 @@ impl Robot {
         let expected = self.belief.mean(command);
         self.believed = self
             .believed
+            .advanced(expected.along, expected.across, expected.turn);
+        self.odometry = self
+            .odometry
             .advanced(expected.along, expected.across, expected.turn);
         Decision {
             tracked,

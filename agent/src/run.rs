@@ -57,7 +57,7 @@ pub fn run(options: AgentOptions) -> Result<()> {
     let scans = robot_streams::scan_publisher(&bus, options.id)?;
     let model_updates = robot_streams::model_subscriber(&bus, options.id)?;
     let estimates = robot_streams::estimate_subscriber(&bus, options.id)?;
-    let mut believed_history: std::collections::VecDeque<(u64, Pose)> =
+    let mut odometry_history: std::collections::VecDeque<(u64, Pose)> =
         std::collections::VecDeque::new();
     let mut table = NeighbourTable::new(options.id);
     let mut range = SensingRange::new(scenario.bus.max_ring);
@@ -173,12 +173,15 @@ pub fn run(options: AgentOptions) -> Result<()> {
                 check.rejected += 1;
                 return;
             }
-            if let Some((_, then)) = believed_history.iter().find(|(t, _)| *t == e.tick) {
-                robot.believed = estimate.compose(&robot.believed.relative_to(then));
+            // Dead reckoning is never corrected, so the motion since the
+            // estimate's tick is the same however many corrections came in between.
+            if let Some((_, then)) = odometry_history.iter().find(|(t, _)| *t == e.tick) {
+                robot.believed = estimate.compose(&robot.odometry.relative_to(then));
             }
         })?;
 
         let before = robot.body.pose;
+        robot.body.sim_time = sim_time;
         let decision = robot.step(&sensed, &scenario);
         let after = robot.body.pose;
         let bodies: Vec<glam::DVec2> = sensed.iter().map(|n| n.position).collect();
@@ -237,9 +240,9 @@ pub fn run(options: AgentOptions) -> Result<()> {
         if let Some(clock) = &clock {
             clock.acknowledge()?;
         }
-        believed_history.push_back((tick, robot.believed));
-        if believed_history.len() > BELIEF_HISTORY_TICKS {
-            believed_history.pop_front();
+        odometry_history.push_back((tick, robot.odometry));
+        if odometry_history.len() > BELIEF_HISTORY_TICKS {
+            odometry_history.pop_front();
         }
 
         // Widen only when nearly alone: a robot on the edge of a formation

@@ -54,6 +54,7 @@ fn seconds_per_step(particles: usize, steps: usize) -> (f64, usize) {
         pose: start,
         radius: 0.15,
         model: model.clone(),
+        sim_time: 0.0,
     };
     let config = FilterConfig {
         particles,

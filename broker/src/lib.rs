@@ -23,7 +23,6 @@ pub use liveness::{SwarmNode, SwarmNodeState};
 pub use roster::{RosterPublisher, RosterReader};
 pub use runtime::{FollowedReport, SlamReport, SwarmMeta, SwarmRuntime};
 pub use wire::{
-    ClockTick, EstimateSample, Health, MAX_BEAMS, MAX_MAP_SIDE, MAX_NEIGHBOURS,
-    MAX_SHOWN_PARTICLES, ModelUpdate, PoseSample, RecorderProgress, ScanSample, SlamMap,
-    SlamParticles,
+    ClockTick, EstimateSample, Health, HelperProgress, MAX_BEAMS, MAX_MAP_SIDE, MAX_NEIGHBOURS,
+    MAX_SHOWN_PARTICLES, ModelUpdate, PoseSample, ScanSample, SlamMap, SlamParticles,
 };

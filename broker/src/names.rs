@@ -39,8 +39,9 @@ pub fn slam_map(swarm: &str) -> String {
     format!("shoal/{swarm}/slam/map")
 }
 
-pub fn recorder_progress(swarm: &str) -> String {
-    format!("shoal/{swarm}/recorder-progress")
+/// How far `helper` (recorder, slam) has read, for a lockstep clock.
+pub fn progress(swarm: &str, helper: &str) -> String {
+    format!("shoal/{swarm}/progress/{helper}")
 }
 
 pub fn clock(swarm: &str) -> String {

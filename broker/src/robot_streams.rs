@@ -11,7 +11,7 @@ use iceoryx2::prelude::*;
 use crate::bus::{Bus, BusError};
 use crate::names;
 use crate::wire::{
-    EstimateSample, ModelUpdate, RecorderProgress, ScanSample, SlamMap, SlamParticles,
+    EstimateSample, HelperProgress, ModelUpdate, ScanSample, SlamMap, SlamParticles,
 };
 
 /// A follower may fall this many samples behind before the oldest are overwritten.
@@ -102,16 +102,18 @@ pub fn model_subscriber(bus: &Bus, id: u32) -> Result<StreamSubscriber<ModelUpda
     StreamSubscriber::new(bus, &names::model(&bus.swarm, id))
 }
 
-pub fn recorder_progress_publisher(
+pub fn progress_publisher(
     bus: &Bus,
-) -> Result<StreamPublisher<RecorderProgress>, BusError> {
-    StreamPublisher::new(bus, &names::recorder_progress(&bus.swarm))
+    helper: &str,
+) -> Result<StreamPublisher<HelperProgress>, BusError> {
+    StreamPublisher::new(bus, &names::progress(&bus.swarm, helper))
 }
 
-pub fn recorder_progress_subscriber(
+pub fn progress_subscriber(
     bus: &Bus,
-) -> Result<StreamSubscriber<RecorderProgress>, BusError> {
-    StreamSubscriber::new(bus, &names::recorder_progress(&bus.swarm))
+    helper: &str,
+) -> Result<StreamSubscriber<HelperProgress>, BusError> {
+    StreamSubscriber::new(bus, &names::progress(&bus.swarm, helper))
 }
 
 pub fn slam_particles_publisher(bus: &Bus) -> Result<StreamPublisher<SlamParticles>, BusError> {

@@ -189,12 +189,13 @@ pub struct SlamMap {
     pub cells: [u8; MAX_MAP_SIDE * MAX_MAP_SIDE],
 }
 
-/// The newest lockstep tick a recorder has written; the launcher of a
-/// lockstep swarm paces its clock to it, so a recording misses no tick.
+/// The newest lockstep tick a helper (recorder, SLAM) has read; the
+/// launcher of a lockstep swarm paces its clock to it, so a helper misses
+/// no tick.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("shoal.RecorderProgress")]
+#[type_name("shoal.HelperProgress")]
 #[repr(C)]
-pub struct RecorderProgress {
+pub struct HelperProgress {
     pub tick: u64,
 }
 

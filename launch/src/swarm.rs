@@ -10,7 +10,7 @@ use anyhow::{Context, Result, bail};
 use shoal_broker::liveness::{SwarmNodeState, remove_dead_nodes, swarm_nodes};
 use shoal_broker::robot_streams::{self, StreamSubscriber};
 use shoal_broker::{
-    Bus, BusLimits, RecorderProgress, RosterReader, SampleCheck, SwarmMeta, SwarmRuntime, names,
+    Bus, BusLimits, HelperProgress, RosterReader, SampleCheck, SwarmMeta, SwarmRuntime, names,
 };
 use shoal_physics::{Pose, Scenario};
 
@@ -46,26 +46,27 @@ pub struct RunningSwarm {
     children: BTreeMap<u32, Child>,
     /// Processes that serve the swarm (recorder, SLAM), by binary name.
     helpers: Vec<(String, Child)>,
-    /// In lockstep, the clock waits for the recorder to keep up.
-    recorder_pace: Option<RecorderPace>,
+    /// In lockstep, the clock waits for helpers (recorder, SLAM) to keep up.
+    paces: Vec<Pace>,
     started: Instant,
     stopped: bool,
 }
 
-/// The recorder's progress, which a lockstep clock must not outrun by more
-/// than the roster buffers (8 samples per robot).
-struct RecorderPace {
-    progress: StreamSubscriber<RecorderProgress>,
+/// A helper's progress, which a lockstep clock must not outrun by more than
+/// the buffers between robots and helpers (8 roster samples, 32 scans).
+struct Pace {
+    helper: &'static str,
+    progress: StreamSubscriber<HelperProgress>,
     tick: Option<u64>,
 }
 
-/// Ticks a lockstep clock may run ahead of its recorder.
-const RECORDER_LAG_TICKS: u64 = 4;
-/// A recorder silent this long is no longer waited for.
-const RECORDER_PATIENCE: Duration = Duration::from_secs(10);
+/// Ticks a lockstep clock may run ahead of its helpers.
+const HELPER_LAG_TICKS: u64 = 4;
+/// A helper silent this long is no longer waited for.
+const HELPER_PATIENCE: Duration = Duration::from_secs(10);
 
-impl RecorderPace {
-    /// Waits until the recorder has read up to `tick - RECORDER_LAG_TICKS`;
+impl Pace {
+    /// Waits until the helper has read up to `tick - HELPER_LAG_TICKS`;
     /// false when it stopped answering.
     fn wait_for(&mut self, tick: u64) -> Result<bool> {
         let started = Instant::now();
@@ -74,10 +75,10 @@ impl RecorderPace {
             self.progress
                 .receive(|p| newest = Some(newest.map_or(p.tick, |n: u64| n.max(p.tick))))?;
             self.tick = newest;
-            if self.tick.is_some_and(|t| t + RECORDER_LAG_TICKS >= tick) {
+            if self.tick.is_some_and(|t| t + HELPER_LAG_TICKS >= tick) {
                 return Ok(true);
             }
-            if started.elapsed() > RECORDER_PATIENCE {
+            if started.elapsed() > HELPER_PATIENCE {
                 return Ok(false);
             }
             std::thread::sleep(Duration::from_micros(200));
@@ -137,7 +138,7 @@ impl RunningSwarm {
             roster,
             children: BTreeMap::new(),
             helpers: Vec::new(),
-            recorder_pace: None,
+            paces: Vec::new(),
             started: Instant::now(),
             stopped: false,
         };
@@ -178,13 +179,20 @@ impl RunningSwarm {
         if let Some(tum) = tum {
             args.extend(["--tum".into(), tum.as_os_str().to_owned()]);
         }
+        self.pace_to("recorder")?;
+        self.start_helper("shoal-viewer-log", &args)
+    }
+
+    /// In lockstep, makes the clock wait for `helper`'s progress.
+    fn pace_to(&mut self, helper: &'static str) -> Result<()> {
         if self.clock.is_some() {
-            self.recorder_pace = Some(RecorderPace {
-                progress: robot_streams::recorder_progress_subscriber(&self.bus)?,
+            self.paces.push(Pace {
+                helper,
+                progress: robot_streams::progress_subscriber(&self.bus, helper)?,
                 tick: None,
             });
         }
-        self.start_helper("shoal-viewer-log", &args)
+        Ok(())
     }
 
     /// Starts a SLAM process following robots `ids`.
@@ -196,6 +204,7 @@ impl RunningSwarm {
             "--follow".into(),
             ids.join(",").into(),
         ];
+        self.pace_to("slam")?;
         self.start_helper("shoal-slam", &args)
     }
 
@@ -243,13 +252,18 @@ impl RunningSwarm {
         let observer = &mut self.observer;
         match &mut self.clock {
             Some(clock) => {
-                if let Some(pace) = &mut self.recorder_pace
-                    && !pace.wait_for(clock.tick)?
-                {
-                    tracing::warn!(
-                        "the recorder stopped answering; the clock no longer waits for it"
-                    );
-                    self.recorder_pace = None;
+                let mut silent = Vec::new();
+                for (index, pace) in self.paces.iter_mut().enumerate() {
+                    if !pace.wait_for(clock.tick)? {
+                        tracing::warn!(
+                            helper = pace.helper,
+                            "a helper stopped answering; the clock no longer waits for it"
+                        );
+                        silent.push(index);
+                    }
+                }
+                for index in silent.into_iter().rev() {
+                    self.paces.remove(index);
                 }
                 clock.advance(
                     &self.roster,

@@ -32,6 +32,14 @@ pub struct Surface {
     pub across_scale: f64,
     #[serde(default = "one")]
     pub turn_scale: f64,
+    /// Seconds into the run from which the surface is there (a floor that
+    /// changes part-way: wet, cleaned, worn).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub from_s: f64,
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 fn one() -> f64 {
@@ -104,6 +112,14 @@ impl Arena {
         self.surfaces.iter().rev().find(|s| s.contains(p))
     }
 
+    /// The surface under `p` at `t` seconds into the run.
+    pub fn surface_at_time(&self, p: DVec2, t: f64) -> Option<&Surface> {
+        self.surfaces
+            .iter()
+            .rev()
+            .find(|s| s.contains(p) && t >= s.from_s)
+    }
+
     /// Whether a disc of `radius` at `p` overlaps a wall or an obstacle, or leaves the arena.
     pub fn blocks(&self, p: DVec2, radius: f64) -> bool {
         if p.x < radius || p.y < radius || p.x > self.width - radius || p.y > self.height - radius {
@@ -169,6 +185,7 @@ mod tests {
                 along_scale: 1.3,
                 across_scale: 1.0,
                 turn_scale: 0.8,
+                from_s: 0.0,
             }],
         }
     }

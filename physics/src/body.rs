@@ -12,6 +12,8 @@ pub struct Body {
     pub pose: Pose,
     pub radius: f64,
     pub model: MotionModel,
+    /// Seconds into the run: surfaces may appear part-way.
+    pub sim_time: f64,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -34,7 +36,7 @@ impl Body {
         rng: &mut impl Rng,
     ) -> StepOutcome {
         let mut motion = self.model.sample(command, rng);
-        if let Some(surface) = arena.surface_at(self.pose.position()) {
+        if let Some(surface) = arena.surface_at_time(self.pose.position(), self.sim_time) {
             motion = surface.apply(motion);
         }
         let candidate = self.pose.advanced(motion.along, motion.across, motion.turn);
@@ -81,6 +83,7 @@ mod tests {
             pose: Pose::new(5.0, 5.0, 0.0),
             radius: 0.15,
             model: MotionModel::legged_default(),
+            sim_time: 0.0,
         };
         let mut rng = rand::rngs::StdRng::seed_from_u64(1);
         let outcome = body.step(Command::Walk(2), &open_floor(), &[], &mut rng);
@@ -95,6 +98,7 @@ mod tests {
             pose: Pose::new(9.8, 5.0, 0.0),
             radius: 0.15,
             model: MotionModel::legged_default(),
+            sim_time: 0.0,
         };
         assert!(
             body.step(Command::Walk(3), &open_floor(), &[], &mut rng)
@@ -106,6 +110,7 @@ mod tests {
             pose: Pose::new(5.0, 5.0, 0.0),
             radius: 0.15,
             model: MotionModel::legged_default(),
+            sim_time: 0.0,
         };
         let other = [DVec2::new(5.35, 5.0)];
         assert!(

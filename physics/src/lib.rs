@@ -14,6 +14,7 @@ pub mod pose;
 pub mod range;
 pub mod scenario;
 pub mod unicycle;
+pub mod wander;
 
 pub use arena::{Arena, Obstacle, Surface, Wall};
 pub use body::{Body, StepOutcome};

@@ -59,6 +59,17 @@ pub struct AgentsSection {
     pub radius: f64,
     /// Seeds the start poses and every robot's noise.
     pub seed: u64,
+    /// `formation` (the default) or `wander`: explore alone, as SLAM
+    /// experiments need.
+    pub behaviour: Behaviour,
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Behaviour {
+    #[default]
+    Formation,
+    Wander,
 }
 
 impl Default for AgentsSection {
@@ -68,6 +79,7 @@ impl Default for AgentsSection {
             start_region: [6.0, 6.0, 14.0, 14.0],
             radius: 0.15,
             seed: 1,
+            behaviour: Behaviour::Formation,
         }
     }
 }
@@ -176,6 +188,7 @@ impl Scenario {
                         along_scale: 1.0,
                         across_scale: 1.0,
                         turn_scale: 1.0,
+                        from_s: 0.0,
                     },
                     Surface {
                         name: "tile".into(),
@@ -183,6 +196,7 @@ impl Scenario {
                         along_scale: 1.25,
                         across_scale: 1.6,
                         turn_scale: 0.85,
+                        from_s: 0.0,
                     },
                 ],
             },

@@ -12,8 +12,8 @@ use anyhow::{Context, Result, bail};
 use clap::Parser;
 use shoal_broker::robot_streams::{self, StreamPublisher, StreamSubscriber};
 use shoal_broker::{
-    Bus, BusLimits, EstimateSample, FollowedReport, ModelUpdate, RosterReader, ScanSample,
-    SlamReport, SwarmRuntime, names,
+    Bus, BusLimits, EstimateSample, FollowedReport, HelperProgress, ModelUpdate, RosterReader,
+    ScanSample, SlamReport, SwarmRuntime, names,
 };
 use shoal_physics::legged::Param;
 use shoal_physics::{Command, MotionModel, Pose, Scenario};
@@ -110,6 +110,8 @@ fn run(args: Args) -> Result<()> {
     let roster = RosterReader::new(&bus)?;
     let particles_out = robot_streams::slam_particles_publisher(&bus)?;
     let maps_out = robot_streams::slam_map_publisher(&bus)?;
+    let progress = robot_streams::progress_publisher(&bus, "slam")?;
+    let mut newest_scan = 0;
     let mut followed: BTreeMap<u32, Followed> = BTreeMap::new();
     for &id in &args.follow {
         followed.insert(
@@ -156,6 +158,7 @@ fn run(args: Args) -> Result<()> {
             robot.scans.receive(|scan| scans.push(scan))?;
             for scan in scans {
                 idle = false;
+                newest_scan = newest_scan.max(scan.tick);
                 robot.last_scan = Some(std::time::Instant::now());
                 let mut ranges: Vec<f64> = scan.ranges().iter().map(|r| f64::from(*r)).collect();
                 if let Some(filter) = &robot.filter {
@@ -216,6 +219,8 @@ fn run(args: Args) -> Result<()> {
                 }
             }
         }
+        // A lockstep launcher paces its clock to this, so no scan is dropped.
+        progress.publish(&HelperProgress { tick: newest_scan })?;
         if last_report.elapsed() >= REPORT_EVERY {
             last_report = std::time::Instant::now();
             let report = report(&followed, &initial);

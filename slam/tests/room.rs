@@ -50,6 +50,7 @@ fn follow_changing(
         pose: start,
         radius: 0.15,
         model: true_model.clone(),
+        sim_time: 0.0,
     };
     let config = FilterConfig {
         learning,

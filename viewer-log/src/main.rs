@@ -42,7 +42,7 @@ fn run(args: Args) -> Result<()> {
         BusLimits::default(),
     )?;
     let roster = RosterReader::new(&bus)?;
-    let progress = shoal_broker::robot_streams::recorder_progress_publisher(&bus)?;
+    let progress = shoal_broker::robot_streams::progress_publisher(&bus, "recorder")?;
     let mut slam_views = shoal_viewer_log::slam::SlamViews::new(&bus)?;
     // Chunks are cut once a second rather than every few milliseconds: each
     // chunk carries overhead, and a second is what the flush promises anyway.
@@ -87,7 +87,7 @@ fn run(args: Args) -> Result<()> {
             }
         })?;
         // A lockstep launcher paces its clock to this, so no tick is missed.
-        progress.publish(&shoal_broker::RecorderProgress { tick: newest_tick })?;
+        progress.publish(&shoal_broker::HelperProgress { tick: newest_tick })?;
         recorder.log_complete()?;
         for _ in 0..slam_views.poll(&bus, recorder.stream())? {
             recorder.count_rejected();
