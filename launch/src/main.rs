@@ -141,6 +141,17 @@ enum ExperimentKind {
         #[arg(long, default_value_t = 90.0)]
         max_seconds: f64,
     },
+    /// Online model learning: a wandering robot and a SLAM process, learning on and off.
+    Learning {
+        /// Simulated seconds per run.
+        #[arg(long, default_value_t = 60.0)]
+        seconds: f64,
+        /// How many perturbed initial models (the thesis used 19).
+        #[arg(long, default_value_t = 19)]
+        perturbed: u64,
+        #[arg(long, default_value_t = 500)]
+        particles: usize,
+    },
     /// Concealed effects, null runs and pairs diagnosed blind (see `shoal-diagnose experiment --help`).
     Diagnose {
         /// Arguments for `shoal-diagnose experiment`, e.g. --seeds 5.
@@ -249,6 +260,14 @@ fn run(cli: Cli) -> Result<()> {
             ExperimentKind::Scale { sizes, max_seconds } => {
                 report::print(&experiment::scale::run(&sizes, max_seconds)?, json)?
             }
+            ExperimentKind::Learning {
+                seconds,
+                perturbed,
+                particles,
+            } => report::print(
+                &experiment::learning::run(seconds, perturbed, particles)?,
+                json,
+            )?,
             ExperimentKind::Diagnose { mut args } => {
                 args.insert(0, "experiment".into());
                 if json {

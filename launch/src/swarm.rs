@@ -195,15 +195,17 @@ impl RunningSwarm {
         Ok(())
     }
 
-    /// Starts a SLAM process following robots `ids`.
-    pub fn follow_with_slam(&mut self, ids: &[u32]) -> Result<()> {
+    /// Starts a SLAM process following robots `ids`, with more `options`
+    /// of `shoal-slam` (particles, learning, initial model).
+    pub fn follow_with_slam(&mut self, ids: &[u32], options: &[String]) -> Result<()> {
         let ids: Vec<String> = ids.iter().map(u32::to_string).collect();
-        let args = [
+        let mut args: Vec<std::ffi::OsString> = vec![
             "--swarm".into(),
             self.name.clone().into(),
             "--follow".into(),
             ids.join(",").into(),
         ];
+        args.extend(options.iter().map(Into::into));
         self.pace_to("slam")?;
         self.start_helper("shoal-slam", &args)
     }

@@ -76,7 +76,7 @@ pub fn up(options: UpOptions) -> Result<UpSummary> {
         swarm.record(out, options.tum.as_deref())?;
     }
     if !follow.is_empty() {
-        swarm.follow_with_slam(&follow)?;
+        swarm.follow_with_slam(&follow, &[])?;
     }
     let progress = if std::io::stderr().is_terminal() {
         let bar = ProgressBar::new_spinner();

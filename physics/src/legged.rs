@@ -199,9 +199,14 @@ impl MotionModel {
     /// parameters of the shift of the mixture mean in units of the
     /// reference's standard deviation.
     pub fn distance_from(&self, reference: &MotionModel) -> f64 {
+        self.distance_over(reference, &Command::ALL)
+    }
+
+    /// [`MotionModel::distance_from`] over `commands` only.
+    pub fn distance_over(&self, reference: &MotionModel, commands: &[Command]) -> f64 {
         let mut total = 0.0;
         let mut count = 0.0;
-        for command in Command::ALL {
+        for &command in commands {
             for param in Param::ALL {
                 let (a, b) = (
                     self.command(command).param(param),
@@ -211,7 +216,7 @@ impl MotionModel {
                 count += 1.0;
             }
         }
-        total / count
+        if count > 0.0 { total / count } else { 0.0 }
     }
 
     pub fn validate(&self) -> Result<(), String> {

@@ -26,7 +26,8 @@ pub fn wander_command(step: u64, ahead: f64, previous: Command) -> Command {
     if ahead < TOO_CLOSE_M || (matches!(previous, Command::Turn(_)) && ahead < CLEAR_M) {
         Command::Turn(2)
     } else if step % VEER_EVERY == 0 {
-        Command::Turn(-1)
+        // Veer right, then left: both small turns get used.
+        if (step / VEER_EVERY) % 2 == 0 { Command::Turn(-1) } else { Command::Turn(1) }
     } else {
         Command::Walk(2)
     }
@@ -41,6 +42,7 @@ mod tests {
         assert_eq!(wander_command(1, 0.5, Command::Walk(2)), Command::Turn(2));
         assert_eq!(wander_command(1, 1.0, Command::Turn(2)), Command::Turn(2));
         assert_eq!(wander_command(1, 1.0, Command::Walk(2)), Command::Walk(2));
-        assert_eq!(wander_command(9, 3.0, Command::Walk(2)), Command::Turn(-1));
+        assert_eq!(wander_command(9, 3.0, Command::Walk(2)), Command::Turn(1));
+        assert_eq!(wander_command(18, 3.0, Command::Walk(2)), Command::Turn(-1));
     }
 }

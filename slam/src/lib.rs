@@ -4,3 +4,4 @@
 pub mod filter;
 pub mod grid;
 pub mod learning;
+pub mod metrics;

@@ -3,6 +3,7 @@
 
 pub mod formation;
 pub mod healing;
+pub mod learning;
 pub mod obstacles;
 pub mod scale;
 

@@ -1,0 +1,370 @@
+//! Online motion-model learning (thesis IV.E): a real robot process wanders
+//! a small room in lockstep while a real `shoal-slam` process follows it;
+//! every case runs with learning on and off and is scored against the truth.
+
+use std::collections::BTreeMap;
+
+use anyhow::{Context, Result};
+use glam::DVec2;
+use rand::{Rng, SeedableRng};
+use serde::Serialize;
+use shoal_broker::robot_streams;
+use shoal_broker::{Bus, BusLimits, RosterReader, names};
+use shoal_physics::legged::Param;
+use shoal_physics::scenario::Behaviour;
+use shoal_physics::{Arena, Command, MotionModel, Obstacle, Pose, Scenario, Surface, wrap_angle};
+use shoal_slam::metrics::{CoarseMap, map_error};
+
+use super::swarm_name;
+use crate::swarm::RunningSwarm;
+
+/// The commands a wandering robot uses, where the learned model is scored.
+const USED: [Command; 4] = [Command::Walk(2), Command::Turn(2), Command::Turn(1), Command::Turn(-1)];
+/// Errors under this keep a robot localised (the "fewest particles" threshold).
+const POSE_THRESHOLD_M: f64 = 0.10;
+
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct Scores {
+    pub pos_rmse_m: f64,
+    pub theta_rmse_rad: f64,
+    /// Share of the observed map cells classified wrongly.
+    pub map_error: Option<f64>,
+    /// Mean shift of the learned model's means from the body's true ones,
+    /// in true standard deviations, over the commands the robot used.
+    pub param_error: f64,
+}
+
+#[derive(Debug, Serialize)]
+pub struct Case {
+    pub name: String,
+    pub particles: usize,
+    pub runs: usize,
+    pub learning: Scores,
+    pub no_learning: Scores,
+    /// Case-specific numbers (spread of perturbed models, fewest particles).
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub details: BTreeMap<String, f64>,
+}
+
+#[derive(Debug, Serialize)]
+pub struct Report {
+    pub cases: Vec<Case>,
+}
+
+/// One SLAM run: what it scored and the model it ended with.
+struct Outcome {
+    scores: Scores,
+    learned: MotionModel,
+}
+
+/// A 3 x 4 m room with two obstacles; one wandering robot.
+fn room(seed: u64) -> Scenario {
+    let mut scenario = Scenario::default_arena();
+    scenario.name = "learning-room".into();
+    scenario.arena = Arena {
+        width: 3.0,
+        height: 4.0,
+        walls: vec![],
+        obstacles: vec![
+            Obstacle::Box {
+                min: [2.0, 2.6],
+                max: [2.6, 3.0],
+            },
+            Obstacle::Disc {
+                center: [0.9, 1.2],
+                radius: 0.15,
+            },
+        ],
+        surfaces: vec![],
+    };
+    scenario.agents.count = 1;
+    scenario.agents.start_region = [1.3, 0.5, 1.7, 0.7];
+    scenario.agents.behaviour = Behaviour::Wander;
+    scenario.agents.seed = seed;
+    scenario
+}
+
+/// A floor covering the room from `from_s` seconds, scaling strides and turns.
+fn floor(along: f64, turn: f64, from_s: f64) -> Surface {
+    Surface {
+        name: "changed-floor".into(),
+        region: [0.0, 0.0, 3.0, 4.0],
+        along_scale: along,
+        across_scale: along,
+        turn_scale: turn,
+        from_s,
+    }
+}
+
+/// The motion the body truly makes on `surface` (or on the base floor).
+fn true_model(base: &MotionModel, surface: Option<&Surface>) -> MotionModel {
+    let mut model = base.clone();
+    if let Some(s) = surface {
+        for command in Command::ALL {
+            let m = model.command_mut(command);
+            m.d = m.d.scaled(s.along_scale);
+            m.c = m.c.scaled(s.across_scale);
+            m.t = m.t.scaled(s.turn_scale);
+        }
+    }
+    model
+}
+
+fn run_once(
+    label: &str,
+    index: usize,
+    scenario: &Scenario,
+    initial: &MotionModel,
+    learning: bool,
+    particles: usize,
+    seconds: f64,
+) -> Result<Outcome> {
+    let name = swarm_name("learning", index);
+    let mut swarm = RunningSwarm::launch(&name, scenario.clone(), true)?;
+    let model_file = swarm.runtime.dir.join("initial-model.toml");
+    std::fs::write(&model_file, toml::to_string(initial)?)
+        .with_context(|| format!("writing {}", model_file.display()))?;
+    let bus = Bus::join(&name, &names::tool_node(&name, "learning"), BusLimits::default())?;
+    let roster = RosterReader::new(&bus)?;
+    let estimates = robot_streams::estimate_subscriber(&bus, 0)?;
+    let models = robot_streams::model_subscriber(&bus, 0)?;
+    let maps = robot_streams::slam_map_subscriber(&bus)?;
+    swarm.follow_with_slam(
+        &[0],
+        &[
+            "--particles".into(),
+            particles.to_string(),
+            "--learning".into(),
+            if learning { "on" } else { "off" }.into(),
+            "--initial-model".into(),
+            model_file.display().to_string(),
+        ],
+    )?;
+    let mut truth: BTreeMap<u64, Pose> = BTreeMap::new();
+    let mut estimated: BTreeMap<u64, Pose> = BTreeMap::new();
+    let mut learned = initial.clone();
+    let mut last_map = None;
+    let ticks = (seconds / scenario.timing.period_s).round() as u64;
+    // A few ticks more, so the SLAM process's last estimates come in.
+    while swarm.clock.as_ref().map_or(0, |c| c.tick) < ticks + 6 {
+        swarm.advance()?;
+        roster.receive(|s| {
+            truth.insert(s.tick, Pose::new(s.x, s.y, s.theta));
+        })?;
+        estimates.receive(|e| {
+            estimated.insert(e.tick, Pose::new(e.x, e.y, e.theta));
+        })?;
+        models.receive(|u| {
+            let (Some(command), Some(param)) = (
+                Command::from_index(u.command as usize),
+                Param::ALL.get(u.param as usize),
+            ) else {
+                return;
+            };
+            let mixture = learned.command_mut(command).param_mut(*param);
+            mixture.weights = u.weights;
+            mixture.means = u.means;
+            mixture.variances = u.variances;
+        })?;
+        maps.receive(|m| last_map = Some(m))?;
+    }
+    swarm.shutdown()?;
+
+    let (mut pos, mut theta, mut n) = (0.0, 0.0, 0.0);
+    for (tick, e) in estimated.range(1..=ticks) {
+        if let Some(t) = truth.get(tick) {
+            pos += e.position().distance_squared(t.position());
+            theta += wrap_angle(e.theta - t.theta).powi(2);
+            n += 1.0;
+        }
+    }
+    let map_error = last_map.and_then(|m| {
+        let cells = (m.width * m.height) as usize;
+        map_error(
+            &CoarseMap {
+                width: m.width as usize,
+                height: m.height as usize,
+                cell_size: f64::from(m.cell_size),
+                origin: DVec2::new(f64::from(m.origin[0]), f64::from(m.origin[1])),
+                cells: &m.cells[..cells.min(m.cells.len())],
+            },
+            &scenario.arena,
+        )
+    });
+    let truth_now = true_model(&scenario.motion, scenario.arena.surfaces.last());
+    let scores = Scores {
+        pos_rmse_m: if n > 0.0 { (pos / n).sqrt() } else { f64::NAN },
+        theta_rmse_rad: if n > 0.0 { (theta / n).sqrt() } else { f64::NAN },
+        map_error,
+        param_error: learned.distance_over(&truth_now, &USED),
+    };
+    eprintln!(
+        "learning: {label} ({} learning, {particles} particles): {n} estimates, position rmse {:.3} m, heading {:.3} rad, map {:?}, model {:.2}",
+        if learning { "with" } else { "without" },
+        scores.pos_rmse_m,
+        scores.theta_rmse_rad,
+        scores.map_error.map(|e| (e * 1000.0).round() / 1000.0),
+        scores.param_error
+    );
+    Ok(Outcome { scores, learned })
+}
+
+/// Runs a case with learning on and off.
+fn both(
+    label: &str,
+    index: &mut usize,
+    scenario: &Scenario,
+    initial: &MotionModel,
+    particles: usize,
+    seconds: f64,
+) -> Result<(Outcome, Outcome)> {
+    *index += 2;
+    Ok((
+        run_once(label, *index - 2, scenario, initial, true, particles, seconds)?,
+        run_once(label, *index - 1, scenario, initial, false, particles, seconds)?,
+    ))
+}
+
+fn mean_scores(all: &[Scores]) -> Scores {
+    let n = all.len().max(1) as f64;
+    let maps: Vec<f64> = all.iter().filter_map(|s| s.map_error).collect();
+    Scores {
+        pos_rmse_m: all.iter().map(|s| s.pos_rmse_m).sum::<f64>() / n,
+        theta_rmse_rad: all.iter().map(|s| s.theta_rmse_rad).sum::<f64>() / n,
+        map_error: (!maps.is_empty()).then(|| maps.iter().sum::<f64>() / maps.len() as f64),
+        param_error: all.iter().map(|s| s.param_error).sum::<f64>() / n,
+    }
+}
+
+/// Each mixture's means and variances scaled at random, as a wrong guess.
+fn perturbed(model: &MotionModel, seed: u64) -> MotionModel {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    let mut out = model.clone();
+    for command in Command::ALL {
+        for param in Param::ALL {
+            let m = out.command_mut(command).param_mut(param);
+            let scale = rng.random_range(0.6..1.4);
+            m.means = m.means.map(|v| v * scale);
+            let spread = rng.random_range(0.5..2.0);
+            m.variances = m.variances.map(|v| v * spread);
+        }
+    }
+    out
+}
+
+fn case(name: &str, particles: usize, on: &Outcome, off: &Outcome) -> Case {
+    Case {
+        name: name.into(),
+        particles,
+        runs: 1,
+        learning: on.scores,
+        no_learning: off.scores,
+        details: BTreeMap::new(),
+    }
+}
+
+pub fn run(seconds: f64, perturbed_runs: u64, particles: usize) -> Result<Report> {
+    let mut cases = Vec::new();
+    let mut index = 0;
+    let base = room(1);
+    let truth = base.motion.clone();
+
+    // (1) The correct model.
+    let (on, off) = both("correct-model", &mut index, &base, &truth, particles, seconds)?;
+    cases.push(case("correct-model", particles, &on, &off));
+
+    // (2) Perturbed initial models.
+    let (mut on_all, mut off_all, mut walk, mut turn) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for seed in 1..=perturbed_runs {
+        let initial = perturbed(&truth, seed);
+        let (on, off) = both(&format!("perturbed-{seed}"), &mut index, &room(seed), &initial, particles, seconds)?;
+        walk.push(on.learned.command(Command::Walk(2)).d.mean() / truth.command(Command::Walk(2)).d.mean());
+        turn.push(on.learned.command(Command::Turn(2)).t.mean() / truth.command(Command::Turn(2)).t.mean());
+        on_all.push(on.scores);
+        off_all.push(off.scores);
+    }
+    let spread = |v: &[f64]| {
+        let n = v.len().max(1) as f64;
+        let mean = v.iter().sum::<f64>() / n;
+        (mean, (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n).sqrt())
+    };
+    let (walk_mean, walk_sd) = spread(&walk);
+    let (turn_mean, turn_sd) = spread(&turn);
+    let initial_error = (1..=perturbed_runs)
+        .map(|s| perturbed(&truth, s).distance_over(&truth, &USED))
+        .sum::<f64>()
+        / perturbed_runs.max(1) as f64;
+    cases.push(Case {
+        name: "perturbed-models".into(),
+        particles,
+        runs: perturbed_runs as usize,
+        learning: mean_scores(&on_all),
+        no_learning: mean_scores(&off_all),
+        details: BTreeMap::from([
+            ("initial_param_error".into(), initial_error),
+            ("learned_walk2_d_mean_over_true".into(), walk_mean),
+            ("learned_walk2_d_mean_over_true_sd".into(), walk_sd),
+            ("learned_turn2_t_mean_over_true".into(), turn_mean),
+            ("learned_turn2_t_mean_over_true_sd".into(), turn_sd),
+        ]),
+    });
+
+    // (3) turn(1) believed to be turn(2).
+    let mut initial = truth.clone();
+    *initial.command_mut(Command::Turn(1)) = *truth.command(Command::Turn(2));
+    let (on, off) = both("turn1-as-turn2", &mut index, &base, &initial, particles, seconds)?;
+    cases.push(case("turn1-as-turn2", particles, &on, &off));
+
+    // (4) The floor changes half-way: strides 40% shorter, turns 20% wider.
+    let mut changing = base.clone();
+    changing.arena.surfaces.push(floor(0.6, 1.2, seconds / 2.0));
+    let (on, off) = both("surface-change", &mut index, &changing, &truth, particles, seconds)?;
+    cases.push(case("surface-change", particles, &on, &off));
+
+    // (5) A model learned on one robot, used for another that moves differently.
+    let mut other = base.clone();
+    other.arena.surfaces.push(floor(0.8, 1.25, 0.0));
+    let mut first = base.clone();
+    first.agents.seed = 7;
+    let donor = run_once("transfer-donor", index, &first, &truth, true, particles, seconds)?;
+    index += 1;
+    let (on, off) = both("model-transfer", &mut index, &other, &donor.learned, particles, seconds)?;
+    cases.push(case("model-transfer", particles, &on, &off));
+
+    // (6) The fewest particles that keep the pose error under the threshold,
+    // starting from a model whose turns are 1.5 times too large.
+    let mut wide = truth.clone();
+    for command in Command::ALL {
+        if matches!(command, Command::Turn(_)) {
+            let m = wide.command_mut(command);
+            m.t = m.t.scaled(1.5);
+        }
+    }
+    let (mut fewest_on, mut fewest_off) = (None, None);
+    for count in [25, 50, 100, 200, 500] {
+        let (on, off) = both(&format!("fewest-{count}"), &mut index, &base, &wide, count, seconds)?;
+        if fewest_on.is_none() && on.scores.pos_rmse_m < POSE_THRESHOLD_M {
+            fewest_on = Some(count);
+        }
+        if fewest_off.is_none() && off.scores.pos_rmse_m < POSE_THRESHOLD_M {
+            fewest_off = Some(count);
+        }
+        let mut row = case(&format!("particles-{count}"), count, &on, &off);
+        row.details.insert("turns_scaled".into(), 1.5);
+        cases.push(row);
+    }
+    let as_number = |v: Option<usize>| v.map_or(f64::NAN, |c| c as f64);
+    cases.push(Case {
+        name: "fewest-particles".into(),
+        particles: fewest_on.unwrap_or(0),
+        runs: 5,
+        learning: Scores::default(),
+        no_learning: Scores::default(),
+        details: BTreeMap::from([
+            ("threshold_m".into(), POSE_THRESHOLD_M),
+            ("fewest_with_learning".into(), as_number(fewest_on)),
+            ("fewest_without_learning".into(), as_number(fewest_off)),
+        ]),
+    });
+    Ok(Report { cases })
+}
