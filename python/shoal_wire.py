@@ -7,6 +7,8 @@ import ctypes
 
 MAX_NEIGHBOURS = 16
 MAX_BEAMS = 361
+MAX_SHOWN_PARTICLES = 256
+MAX_MAP_SIDE = 128
 
 
 class Pose(ctypes.Structure):
@@ -111,3 +113,48 @@ assert ctypes.sizeof(ClockTick) == 24
 assert ctypes.sizeof(Scan) == 56 + 4 * MAX_BEAMS + 4
 assert ctypes.sizeof(Estimate) == 48
 assert ctypes.sizeof(ModelUpdate) == 72
+
+
+class SlamParticles(ctypes.Structure):
+    """`shoal.SlamParticles`: a followed robot's particles after a SLAM step."""
+
+    _fields_ = [
+        ("agent_id", ctypes.c_uint32),
+        ("count", ctypes.c_uint32),
+        ("tick", ctypes.c_uint64),
+        ("sim_time", ctypes.c_double),
+        ("xy", (ctypes.c_float * 2) * MAX_SHOWN_PARTICLES),
+    ]
+
+    @staticmethod
+    def type_name() -> str:
+        return "shoal.SlamParticles"
+
+
+class SlamMap(ctypes.Structure):
+    """`shoal.SlamMap`: a followed robot's coarse map (0 free, 100 occupied, 255 unknown)."""
+
+    _fields_ = [
+        ("agent_id", ctypes.c_uint32),
+        ("width", ctypes.c_uint32),
+        ("height", ctypes.c_uint32),
+        ("cell_size", ctypes.c_float),
+        ("origin", ctypes.c_float * 2),
+        ("tick", ctypes.c_uint64),
+        ("sim_time", ctypes.c_double),
+        ("cells", ctypes.c_uint8 * (MAX_MAP_SIDE * MAX_MAP_SIDE)),
+    ]
+
+    @staticmethod
+    def type_name() -> str:
+        return "shoal.SlamMap"
+
+
+class HelperProgress(ctypes.Structure):
+    """`shoal.HelperProgress`: the newest tick a recorder or SLAM process has read."""
+
+    _fields_ = [("tick", ctypes.c_uint64)]
+
+    @staticmethod
+    def type_name() -> str:
+        return "shoal.HelperProgress"
