@@ -211,7 +211,10 @@ mod tests {
         assert_eq!(core::mem::size_of::<ScanSample>(), 56 + 4 * MAX_BEAMS + 4);
         assert_eq!(core::mem::size_of::<EstimateSample>(), 48);
         assert_eq!(core::mem::size_of::<ModelUpdate>(), 72);
-        assert_eq!(core::mem::size_of::<SlamParticles>(), 24 + 8 * MAX_SHOWN_PARTICLES);
+        assert_eq!(
+            core::mem::size_of::<SlamParticles>(),
+            24 + 8 * MAX_SHOWN_PARTICLES
+        );
         assert_eq!(
             core::mem::size_of::<SlamMap>(),
             40 + MAX_MAP_SIDE * MAX_MAP_SIDE

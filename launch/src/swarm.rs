@@ -56,17 +56,22 @@ pub struct RunningSwarm {
 /// the buffers between robots and helpers (8 roster samples, 32 scans).
 struct Pace {
     helper: &'static str,
+    /// Ticks the clock may run ahead of this helper.
+    lag: u64,
     progress: StreamSubscriber<HelperProgress>,
     tick: Option<u64>,
 }
 
-/// Ticks a lockstep clock may run ahead of its helpers.
-const HELPER_LAG_TICKS: u64 = 4;
+/// Ticks a lockstep clock may run ahead of its recorder (within the
+/// roster's buffer); SLAM gets none, so its estimates reach the robot the
+/// next tick.
+const RECORDER_LAG_TICKS: u64 = 4;
+const SLAM_LAG_TICKS: u64 = 0;
 /// A helper silent this long is no longer waited for.
 const HELPER_PATIENCE: Duration = Duration::from_secs(10);
 
 impl Pace {
-    /// Waits until the helper has read up to `tick - HELPER_LAG_TICKS`;
+    /// Waits until the helper has read up to `tick - lag`;
     /// false when it stopped answering.
     fn wait_for(&mut self, tick: u64) -> Result<bool> {
         let started = Instant::now();
@@ -74,8 +79,13 @@ impl Pace {
             let mut newest = self.tick;
             self.progress
                 .receive(|p| newest = Some(newest.map_or(p.tick, |n: u64| n.max(p.tick))))?;
-            self.tick = newest;
-            if self.tick.is_some_and(|t| t + HELPER_LAG_TICKS >= tick) {
+            // A helper that just joined has missed nothing it could have
+            // read: it is caught up with the tick at which it first spoke.
+            self.tick = newest.map(|t| match self.tick {
+                None => t.max(tick),
+                Some(_) => t,
+            });
+            if self.tick.is_some_and(|t| t + self.lag >= tick) {
                 return Ok(true);
             }
             if started.elapsed() > HELPER_PATIENCE {
@@ -179,15 +189,16 @@ impl RunningSwarm {
         if let Some(tum) = tum {
             args.extend(["--tum".into(), tum.as_os_str().to_owned()]);
         }
-        self.pace_to("recorder")?;
+        self.pace_to("recorder", RECORDER_LAG_TICKS)?;
         self.start_helper("shoal-viewer-log", &args)
     }
 
     /// In lockstep, makes the clock wait for `helper`'s progress.
-    fn pace_to(&mut self, helper: &'static str) -> Result<()> {
+    fn pace_to(&mut self, helper: &'static str, lag: u64) -> Result<()> {
         if self.clock.is_some() {
             self.paces.push(Pace {
                 helper,
+                lag,
                 progress: robot_streams::progress_subscriber(&self.bus, helper)?,
                 tick: None,
             });
@@ -206,7 +217,7 @@ impl RunningSwarm {
             ids.join(",").into(),
         ];
         args.extend(options.iter().map(Into::into));
-        self.pace_to("slam")?;
+        self.pace_to("slam", SLAM_LAG_TICKS)?;
         self.start_helper("shoal-slam", &args)
     }
 

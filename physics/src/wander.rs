@@ -27,7 +27,11 @@ pub fn wander_command(step: u64, ahead: f64, previous: Command) -> Command {
         Command::Turn(2)
     } else if step % VEER_EVERY == 0 {
         // Veer right, then left: both small turns get used.
-        if (step / VEER_EVERY) % 2 == 0 { Command::Turn(-1) } else { Command::Turn(1) }
+        if (step / VEER_EVERY) % 2 == 0 {
+            Command::Turn(-1)
+        } else {
+            Command::Turn(1)
+        }
     } else {
         Command::Walk(2)
     }

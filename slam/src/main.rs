@@ -111,7 +111,11 @@ fn run(args: Args) -> Result<()> {
     let particles_out = robot_streams::slam_particles_publisher(&bus)?;
     let maps_out = robot_streams::slam_map_publisher(&bus)?;
     let progress = robot_streams::progress_publisher(&bus, "slam")?;
-    let mut newest_scan = 0;
+    let mut newest_roster: u64 = 0;
+    // The newest tick each followed robot announced on the roster: it
+    // publishes its scan before its pose, so once the pose is read and the
+    // scans after it processed, that tick is done.
+    let mut seen_ticks: BTreeMap<u32, u64> = BTreeMap::new();
     let mut followed: BTreeMap<u32, Followed> = BTreeMap::new();
     for &id in &args.follow {
         followed.insert(
@@ -147,6 +151,11 @@ fn run(args: Args) -> Result<()> {
             if !(s.x.is_finite() && s.y.is_finite() && s.theta.is_finite()) {
                 return;
             }
+            newest_roster = newest_roster.max(s.tick);
+            if followed.contains_key(&s.agent_id) {
+                let seen = seen_ticks.entry(s.agent_id).or_insert(0);
+                *seen = (*seen).max(s.tick);
+            }
             if followed.contains_key(&s.agent_id) {
                 anchors.insert(s.agent_id, Pose::new(s.x, s.y, s.theta));
             }
@@ -158,7 +167,6 @@ fn run(args: Args) -> Result<()> {
             robot.scans.receive(|scan| scans.push(scan))?;
             for scan in scans {
                 idle = false;
-                newest_scan = newest_scan.max(scan.tick);
                 robot.last_scan = Some(std::time::Instant::now());
                 let mut ranges: Vec<f64> = scan.ranges().iter().map(|r| f64::from(*r)).collect();
                 if let Some(filter) = &robot.filter {
@@ -220,7 +228,15 @@ fn run(args: Args) -> Result<()> {
             }
         }
         // A lockstep launcher paces its clock to this, so no scan is dropped.
-        progress.publish(&HelperProgress { tick: newest_scan })?;
+        // Done up to the oldest tick of the followed robots still stepping;
+        // a robot that is gone (two ticks behind the swarm) is not waited for.
+        let done = seen_ticks
+            .values()
+            .copied()
+            .filter(|&t| t + 2 >= newest_roster)
+            .min()
+            .unwrap_or(newest_roster);
+        progress.publish(&HelperProgress { tick: done })?;
         if last_report.elapsed() >= REPORT_EVERY {
             last_report = std::time::Instant::now();
             let report = report(&followed, &initial);

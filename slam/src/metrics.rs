@@ -30,7 +30,9 @@ pub fn map_error(map: &CoarseMap, arena: &Arena) -> Option<f64> {
             let corner = map.origin + DVec2::new(col as f64, row as f64) * map.cell_size;
             let occupied = (0..3).any(|i| {
                 (0..3).any(|j| {
-                    let p = corner + DVec2::new(0.25 + 0.25 * i as f64, 0.25 + 0.25 * j as f64) * map.cell_size;
+                    let p = corner
+                        + DVec2::new(0.25 + 0.25 * i as f64, 0.25 + 0.25 * j as f64)
+                            * map.cell_size;
                     arena.blocks(p, 1e-9)
                 })
             });
@@ -67,7 +69,10 @@ mod tests {
             origin: DVec2::ZERO,
             cells,
         };
-        assert_eq!(map_error(&map(&[0, 0, 100, 100, 0, 0, 100, 100]), &arena), Some(0.0));
+        assert_eq!(
+            map_error(&map(&[0, 0, 100, 100, 0, 0, 100, 100]), &arena),
+            Some(0.0)
+        );
         // One free cell taken for occupied, one cell never seen.
         let error = map_error(&map(&[100, 0, 100, 100, 0, 0, 100, 255]), &arena);
         assert_eq!(error, Some(1.0 / 7.0));

@@ -141,3 +141,80 @@ fn slam_pauses_with_its_robot_and_the_swarm_outlives_slam() {
     let (exit, said) = swarm.interrupt();
     assert!(exit.success(), "{said}");
 }
+
+/// Position errors of robot 0's believed pose against its true pose, from the
+/// TUM files the recorder writes.
+fn belief_errors(tum: &std::path::Path) -> Vec<f64> {
+    let read = |kind: &str| -> std::collections::BTreeMap<String, (f64, f64)> {
+        std::fs::read_to_string(tum.join(format!("robot-0-{kind}.tum")))
+            .expect("a TUM file")
+            .lines()
+            .filter_map(|l| {
+                let v: Vec<&str> = l.split_whitespace().collect();
+                Some((
+                    v.first()?.to_string(),
+                    (v.get(1)?.parse().ok()?, v.get(2)?.parse().ok()?),
+                ))
+            })
+            .collect()
+    };
+    let (truth, believed) = (read("true"), read("estimated"));
+    truth
+        .iter()
+        .filter_map(|(t, (x, y))| believed.get(t).map(|(bx, by)| (x - bx).hypot(y - by)))
+        .collect()
+}
+
+/// A robot that adopts SLAM's estimates and learned model knows where it is
+/// far better than one that only dead-reckons.
+#[test]
+fn a_robot_followed_by_slam_knows_where_it_is_better_than_dead_reckoning() {
+    let _turn = serial();
+    let scenario = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/room.toml");
+    let dir = std::env::temp_dir().join(format!("shoal-e2e-belief-{}", std::process::id()));
+    let run = |slam: bool| {
+        let tum = dir.join(if slam { "slam" } else { "alone" });
+        let mut args = vec![
+            "up".to_owned(),
+            "--swarm".into(),
+            "e2e-belief".into(),
+            "--scenario".into(),
+            scenario.display().to_string(),
+            "--lockstep".into(),
+            "--duration".into(),
+            "60".into(),
+            "--record".into(),
+            tum.join("run.rrd").display().to_string(),
+            "--tum".into(),
+            tum.display().to_string(),
+        ];
+        if slam {
+            args.extend(["--slam".into(), "0".into()]);
+        }
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let output = shoal(&args);
+        assert!(
+            output.status.success(),
+            "{}",
+            String::from_utf8_lossy(&output.stderr)
+        );
+        belief_errors(&tum)
+    };
+    let rmse = |e: &[f64]| (e.iter().map(|x| x * x).sum::<f64>() / e.len().max(1) as f64).sqrt();
+    let (with_slam, alone) = (run(true), run(false));
+    assert!(
+        with_slam.len() >= 290 && alone.len() >= 290,
+        "{} and {} poses",
+        with_slam.len(),
+        alone.len()
+    );
+    let (late_slam, late_alone) = (rmse(&with_slam[150..]), rmse(&alone[150..]));
+    eprintln!(
+        "believed pose, last 150 ticks: rmse {late_slam:.3} m with SLAM, {late_alone:.3} m dead reckoning"
+    );
+    assert!(
+        late_slam < 0.15 && late_slam * 4.0 < late_alone,
+        "with SLAM {late_slam:.3} m, dead reckoning {late_alone:.3} m"
+    );
+    let _ = std::fs::remove_dir_all(dir);
+}

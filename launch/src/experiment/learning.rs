@@ -19,7 +19,12 @@ use super::swarm_name;
 use crate::swarm::RunningSwarm;
 
 /// The commands a wandering robot uses, where the learned model is scored.
-const USED: [Command; 4] = [Command::Walk(2), Command::Turn(2), Command::Turn(1), Command::Turn(-1)];
+const USED: [Command; 4] = [
+    Command::Walk(2),
+    Command::Turn(2),
+    Command::Turn(1),
+    Command::Turn(-1),
+];
 /// Errors under this keep a robot localised (the "fewest particles" threshold).
 const POSE_THRESHOLD_M: f64 = 0.10;
 
@@ -124,7 +129,11 @@ fn run_once(
     let model_file = swarm.runtime.dir.join("initial-model.toml");
     std::fs::write(&model_file, toml::to_string(initial)?)
         .with_context(|| format!("writing {}", model_file.display()))?;
-    let bus = Bus::join(&name, &names::tool_node(&name, "learning"), BusLimits::default())?;
+    let bus = Bus::join(
+        &name,
+        &names::tool_node(&name, "learning"),
+        BusLimits::default(),
+    )?;
     let roster = RosterReader::new(&bus)?;
     let estimates = robot_streams::estimate_subscriber(&bus, 0)?;
     let models = robot_streams::model_subscriber(&bus, 0)?;
@@ -194,7 +203,11 @@ fn run_once(
     let truth_now = true_model(&scenario.motion, scenario.arena.surfaces.last());
     let scores = Scores {
         pos_rmse_m: if n > 0.0 { (pos / n).sqrt() } else { f64::NAN },
-        theta_rmse_rad: if n > 0.0 { (theta / n).sqrt() } else { f64::NAN },
+        theta_rmse_rad: if n > 0.0 {
+            (theta / n).sqrt()
+        } else {
+            f64::NAN
+        },
         map_error,
         param_error: learned.distance_over(&truth_now, &USED),
     };
@@ -220,8 +233,24 @@ fn both(
 ) -> Result<(Outcome, Outcome)> {
     *index += 2;
     Ok((
-        run_once(label, *index - 2, scenario, initial, true, particles, seconds)?,
-        run_once(label, *index - 1, scenario, initial, false, particles, seconds)?,
+        run_once(
+            label,
+            *index - 2,
+            scenario,
+            initial,
+            true,
+            particles,
+            seconds,
+        )?,
+        run_once(
+            label,
+            *index - 1,
+            scenario,
+            initial,
+            false,
+            particles,
+            seconds,
+        )?,
     ))
 }
 
@@ -270,23 +299,47 @@ pub fn run(seconds: f64, perturbed_runs: u64, particles: usize) -> Result<Report
     let truth = base.motion.clone();
 
     // (1) The correct model.
-    let (on, off) = both("correct-model", &mut index, &base, &truth, particles, seconds)?;
+    let (on, off) = both(
+        "correct-model",
+        &mut index,
+        &base,
+        &truth,
+        particles,
+        seconds,
+    )?;
     cases.push(case("correct-model", particles, &on, &off));
 
     // (2) Perturbed initial models.
-    let (mut on_all, mut off_all, mut walk, mut turn) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let (mut on_all, mut off_all, mut walk, mut turn) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for seed in 1..=perturbed_runs {
         let initial = perturbed(&truth, seed);
-        let (on, off) = both(&format!("perturbed-{seed}"), &mut index, &room(seed), &initial, particles, seconds)?;
-        walk.push(on.learned.command(Command::Walk(2)).d.mean() / truth.command(Command::Walk(2)).d.mean());
-        turn.push(on.learned.command(Command::Turn(2)).t.mean() / truth.command(Command::Turn(2)).t.mean());
+        let (on, off) = both(
+            &format!("perturbed-{seed}"),
+            &mut index,
+            &room(seed),
+            &initial,
+            particles,
+            seconds,
+        )?;
+        walk.push(
+            on.learned.command(Command::Walk(2)).d.mean()
+                / truth.command(Command::Walk(2)).d.mean(),
+        );
+        turn.push(
+            on.learned.command(Command::Turn(2)).t.mean()
+                / truth.command(Command::Turn(2)).t.mean(),
+        );
         on_all.push(on.scores);
         off_all.push(off.scores);
     }
     let spread = |v: &[f64]| {
         let n = v.len().max(1) as f64;
         let mean = v.iter().sum::<f64>() / n;
-        (mean, (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n).sqrt())
+        (
+            mean,
+            (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n).sqrt(),
+        )
     };
     let (walk_mean, walk_sd) = spread(&walk);
     let (turn_mean, turn_sd) = spread(&turn);
@@ -312,13 +365,27 @@ pub fn run(seconds: f64, perturbed_runs: u64, particles: usize) -> Result<Report
     // (3) turn(1) believed to be turn(2).
     let mut initial = truth.clone();
     *initial.command_mut(Command::Turn(1)) = *truth.command(Command::Turn(2));
-    let (on, off) = both("turn1-as-turn2", &mut index, &base, &initial, particles, seconds)?;
+    let (on, off) = both(
+        "turn1-as-turn2",
+        &mut index,
+        &base,
+        &initial,
+        particles,
+        seconds,
+    )?;
     cases.push(case("turn1-as-turn2", particles, &on, &off));
 
     // (4) The floor changes half-way: strides 40% shorter, turns 20% wider.
     let mut changing = base.clone();
     changing.arena.surfaces.push(floor(0.6, 1.2, seconds / 2.0));
-    let (on, off) = both("surface-change", &mut index, &changing, &truth, particles, seconds)?;
+    let (on, off) = both(
+        "surface-change",
+        &mut index,
+        &changing,
+        &truth,
+        particles,
+        seconds,
+    )?;
     cases.push(case("surface-change", particles, &on, &off));
 
     // (5) A model learned on one robot, used for another that moves differently.
@@ -326,9 +393,24 @@ pub fn run(seconds: f64, perturbed_runs: u64, particles: usize) -> Result<Report
     other.arena.surfaces.push(floor(0.8, 1.25, 0.0));
     let mut first = base.clone();
     first.agents.seed = 7;
-    let donor = run_once("transfer-donor", index, &first, &truth, true, particles, seconds)?;
+    let donor = run_once(
+        "transfer-donor",
+        index,
+        &first,
+        &truth,
+        true,
+        particles,
+        seconds,
+    )?;
     index += 1;
-    let (on, off) = both("model-transfer", &mut index, &other, &donor.learned, particles, seconds)?;
+    let (on, off) = both(
+        "model-transfer",
+        &mut index,
+        &other,
+        &donor.learned,
+        particles,
+        seconds,
+    )?;
     cases.push(case("model-transfer", particles, &on, &off));
 
     // (6) The fewest particles that keep the pose error under the threshold,
@@ -342,7 +424,14 @@ pub fn run(seconds: f64, perturbed_runs: u64, particles: usize) -> Result<Report
     }
     let (mut fewest_on, mut fewest_off) = (None, None);
     for count in [25, 50, 100, 200, 500] {
-        let (on, off) = both(&format!("fewest-{count}"), &mut index, &base, &wide, count, seconds)?;
+        let (on, off) = both(
+            &format!("fewest-{count}"),
+            &mut index,
+            &base,
+            &wide,
+            count,
+            seconds,
+        )?;
         if fewest_on.is_none() && on.scores.pos_rmse_m < POSE_THRESHOLD_M {
             fewest_on = Some(count);
         }
