@@ -454,34 +454,30 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
         if let Some(scoped) = narrower_scope(grid, &screen, &base, &chosen, duration, options)
             .filter(|_| varies_in_time)
         {
-            let full = fit(
-                grid,
-                segs,
-                &base,
-                std::slice::from_ref(&scoped),
-                options.max_iters / 2,
-            );
-            let scoped_gain = gain(&full, &scoped, current, log_n);
+            let confirm = |candidate: &ScopedEffect| {
+                let full = fit(
+                    grid,
+                    segs,
+                    &base,
+                    std::slice::from_ref(candidate),
+                    options.max_iters / 2,
+                );
+                let g = gain(&full, candidate, current, log_n);
+                (full.effects[0].clone(), g)
+            };
+            let (scoped_fit, scoped_gain) = confirm(&scoped);
             if scoped_gain < delta_bic - options.min_bic_gain {
-                (chosen, delta_bic) = (full.effects[0].clone(), scoped_gain);
+                (chosen, delta_bic) = (scoped_fit, scoped_gain);
                 // A robot that drives into a zone and stays there shows a speed
                 // change in time that is as much a change in place: try the
                 // region it drove in over that span as a surface zone.
                 if let Some(zone) = zone_of_span(segs, &chosen)
                     && let Some(zone_effect) = Effect::identity("surface_zone", zone)
                 {
-                    let zone_candidate = ScopedEffect::always(zone_effect);
-                    let zone_fit = fit(
-                        grid,
-                        segs,
-                        &base,
-                        std::slice::from_ref(&zone_candidate),
-                        options.max_iters / 2,
-                    );
-                    let zone_gain = gain(&zone_fit, &zone_candidate, current, log_n);
+                    let (zone_fit, zone_gain) = confirm(&ScopedEffect::always(zone_effect));
                     if zone_gain < delta_bic + 2.0 {
                         tied.push(chosen.effect.kind());
-                        (chosen, delta_bic) = (zone_fit.effects[0].clone(), zone_gain);
+                        (chosen, delta_bic) = (zone_fit, zone_gain);
                     }
                 }
             }

@@ -151,6 +151,33 @@ impl fmt::Display for ScenarioError {
 }
 
 impl Scenario {
+    /// A 3 x 4 m room with a box and a post, and one robot that wanders
+    /// near the bottom wall: where SLAM is tested and measured.
+    pub fn room() -> Self {
+        let mut scenario = Self::default_arena();
+        scenario.name = "room".into();
+        scenario.arena = Arena {
+            width: 3.0,
+            height: 4.0,
+            walls: vec![],
+            obstacles: vec![
+                Obstacle::Box {
+                    min: [2.0, 2.6],
+                    max: [2.6, 3.0],
+                },
+                Obstacle::Disc {
+                    center: [0.9, 1.2],
+                    radius: 0.15,
+                },
+            ],
+            surfaces: vec![],
+        };
+        scenario.agents.count = 1;
+        scenario.agents.start_region = [1.3, 0.5, 1.7, 0.7];
+        scenario.agents.behaviour = Behaviour::Wander;
+        scenario
+    }
+
     /// The default world: a walled 20 x 20 m arena with a few obstacles, an
     /// interior wall and two surfaces (carpet and a slippery tile patch).
     pub fn default_arena() -> Self {

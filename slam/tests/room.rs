@@ -2,26 +2,11 @@
 
 use rand::SeedableRng;
 use shoal_physics::range::RangeSensor;
-use shoal_physics::{Arena, Body, Command, MotionModel, Obstacle, Pose};
+use shoal_physics::{Arena, Body, Command, MotionModel, Pose, Scenario};
 use shoal_slam::filter::{FilterConfig, ParticleFilter};
 
 fn room() -> Arena {
-    Arena {
-        width: 3.0,
-        height: 4.0,
-        walls: vec![],
-        obstacles: vec![
-            Obstacle::Box {
-                min: [2.0, 2.6],
-                max: [2.6, 3.0],
-            },
-            Obstacle::Disc {
-                center: [0.9, 1.2],
-                radius: 0.15,
-            },
-        ],
-        surfaces: vec![],
-    }
+    Scenario::room().arena
 }
 
 /// Drives the body around the room for `steps` steps and returns the

@@ -122,8 +122,9 @@ fn slam_pauses_with_its_robot_and_the_swarm_outlives_slam() {
         "a dead SLAM process still reports: {after}"
     );
 
-    let mut again = std::process::Command::new(bin("shoal"))
-        .args(["slam", "--swarm", &name, "--follow", "0"])
+    // The SLAM binary itself, so that killing it below leaves nothing behind.
+    let mut again = std::process::Command::new(bin("shoal-slam"))
+        .args(["--swarm", &name, "--follow", "0"])
         .stdout(std::process::Stdio::null())
         .stderr(std::process::Stdio::null())
         .spawn()

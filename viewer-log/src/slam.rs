@@ -19,6 +19,12 @@ pub struct SlamViews {
     ticks: BTreeMap<u32, (u64, f64)>,
 }
 
+/// Logs what follows at a SLAM step's tick.
+fn at(rec: &RecordingStream, tick: u64, sim_time: f64) {
+    rec.set_time_sequence("tick", tick as i64);
+    rec.set_duration_secs("sim_time", sim_time);
+}
+
 fn finite(values: &[f32]) -> bool {
     values.iter().all(|v| v.is_finite())
 }
@@ -44,8 +50,7 @@ impl SlamViews {
                 rejected += 1;
                 continue;
             }
-            rec.set_time_sequence("tick", p.tick as i64);
-            rec.set_duration_secs("sim_time", p.sim_time);
+            at(rec, p.tick, p.sim_time);
             rec.log(
                 format!("world/slam/{}/particles", p.agent_id),
                 &rerun::Points2D::new(p.xy[..count].iter().copied())
@@ -68,8 +73,7 @@ impl SlamViews {
                 rejected += 1;
                 continue;
             }
-            rec.set_time_sequence("tick", m.tick as i64);
-            rec.set_duration_secs("sim_time", m.sim_time);
+            at(rec, m.tick, m.sim_time);
             rec.log(
                 format!("world/slam/{}/map", m.agent_id),
                 &rerun::GridMap::new(
@@ -112,8 +116,7 @@ impl SlamViews {
                     rejected += 1;
                     continue;
                 }
-                rec.set_time_sequence("tick", tick as i64);
-                rec.set_duration_secs("sim_time", sim_time);
+                at(rec, tick, sim_time);
                 // Entity paths keep to letters, digits and underscores.
                 let name: String = command
                     .to_string()

@@ -11,8 +11,7 @@ use serde::Serialize;
 use shoal_broker::robot_streams;
 use shoal_broker::{Bus, BusLimits, RosterReader, names};
 use shoal_physics::legged::Param;
-use shoal_physics::scenario::Behaviour;
-use shoal_physics::{Arena, Command, MotionModel, Obstacle, Pose, Scenario, Surface, wrap_angle};
+use shoal_physics::{Command, MotionModel, Pose, Scenario, Surface, wrap_angle};
 use shoal_slam::metrics::{CoarseMap, map_error};
 
 use super::swarm_name;
@@ -62,29 +61,9 @@ struct Outcome {
     learned: MotionModel,
 }
 
-/// A 3 x 4 m room with two obstacles; one wandering robot.
+/// The room of the SLAM tests with its wandering robot, seeded.
 fn room(seed: u64) -> Scenario {
-    let mut scenario = Scenario::default_arena();
-    scenario.name = "learning-room".into();
-    scenario.arena = Arena {
-        width: 3.0,
-        height: 4.0,
-        walls: vec![],
-        obstacles: vec![
-            Obstacle::Box {
-                min: [2.0, 2.6],
-                max: [2.6, 3.0],
-            },
-            Obstacle::Disc {
-                center: [0.9, 1.2],
-                radius: 0.15,
-            },
-        ],
-        surfaces: vec![],
-    };
-    scenario.agents.count = 1;
-    scenario.agents.start_region = [1.3, 0.5, 1.7, 0.7];
-    scenario.agents.behaviour = Behaviour::Wander;
+    let mut scenario = Scenario::room();
     scenario.agents.seed = seed;
     scenario
 }
@@ -423,6 +402,7 @@ pub fn run(seconds: f64, perturbed_runs: u64, particles: usize) -> Result<Report
         }
     }
     let (mut fewest_on, mut fewest_off) = (None, None);
+    let mut scores_at: BTreeMap<usize, (Scores, Scores)> = BTreeMap::new();
     for count in [25, 50, 100, 200, 500] {
         let (on, off) = both(
             &format!("fewest-{count}"),
@@ -438,17 +418,26 @@ pub fn run(seconds: f64, perturbed_runs: u64, particles: usize) -> Result<Report
         if fewest_off.is_none() && off.scores.pos_rmse_m < POSE_THRESHOLD_M {
             fewest_off = Some(count);
         }
+        scores_at.insert(count, (on.scores, off.scores));
         let mut row = case(&format!("particles-{count}"), count, &on, &off);
         row.details.insert("turns_scaled".into(), 1.5);
         cases.push(row);
     }
     let as_number = |v: Option<usize>| v.map_or(f64::NAN, |c| c as f64);
+    // The scores where each mode first stayed under the threshold (or at
+    // the most particles tried, where it never did).
+    let at = |fewest: Option<usize>| {
+        fewest
+            .or_else(|| scores_at.keys().last().copied())
+            .and_then(|c| scores_at.get(&c).copied())
+            .unwrap_or_default()
+    };
     cases.push(Case {
         name: "fewest-particles".into(),
         particles: fewest_on.unwrap_or(0),
-        runs: 5,
-        learning: Scores::default(),
-        no_learning: Scores::default(),
+        runs: scores_at.len(),
+        learning: at(fewest_on).0,
+        no_learning: at(fewest_off).1,
         details: BTreeMap::from([
             ("threshold_m".into(), POSE_THRESHOLD_M),
             ("fewest_with_learning".into(), as_number(fewest_on)),
