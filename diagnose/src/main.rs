@@ -82,6 +82,9 @@ enum Commands {
     },
 }
 
+/// Fewer segments than this say nothing either way.
+const MIN_SEGMENTS: usize = 20;
+
 fn read(path: &Path) -> Result<String> {
     std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))
 }
@@ -180,6 +183,14 @@ fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
         ..Options::default()
     };
     let diagnosis = diagnose(&recording, &model, &options);
+    if diagnosis.segments < MIN_SEGMENTS {
+        bail!(
+            "too little to compare: {} segments of {} s with observed poses at both ends (at least {MIN_SEGMENTS} needed); \
+             do the commands and the poses cover the same stretch of time?",
+            diagnosis.segments,
+            options.horizon_s
+        );
+    }
     let (mut model_out, mut plot_out) = (None, None);
     if let Some(dir) = &args.out {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;

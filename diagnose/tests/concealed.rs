@@ -205,3 +205,17 @@ fn a_real_mrclam_robot_shows_a_mismatch_that_the_fit_reduces() {
     let after = d["improved"]["heldout_rmse_pos_m"].as_f64().expect("rmse");
     assert!(after < before, "{before} -> {after}");
 }
+
+#[test]
+fn too_little_data_is_an_error_not_a_verdict() {
+    let dir = scratch("tiny");
+    std::fs::write(dir.join("commands.csv"), "t,v,omega\n0,0.1,0\n1,0.1,0\n").expect("write");
+    std::fs::write(
+        dir.join("poses.csv"),
+        "t,x,y,theta\n0,0,0,0\n0.9,0.09,0,0\n",
+    )
+    .expect("write");
+    let output = Command::new(binary()).arg(&dir).output().expect("run");
+    assert!(!output.status.success());
+    assert!(String::from_utf8_lossy(&output.stderr).contains("too little to compare"));
+}
