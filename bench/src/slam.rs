@@ -1,5 +1,5 @@
 //! SLAM's cost: steps and particle-beam evaluations per second for a robot
-//! walking a room, by particle count, against 100 particles as the baseline.
+//! walking the SLAM tests' room, by particle count, against 100 particles as the baseline.
 
 use std::time::Instant;
 
@@ -7,7 +7,8 @@ use anyhow::Result;
 use rand::SeedableRng;
 use serde::Serialize;
 use shoal_physics::range::RangeSensor;
-use shoal_physics::{Arena, Body, Command, MotionModel, Obstacle, Pose};
+use shoal_physics::wander::{range_ahead, wander_command};
+use shoal_physics::{Body, Command, MotionModel, Pose, Scenario};
 use shoal_slam::filter::{FilterConfig, ParticleFilter};
 
 #[derive(Debug, Serialize)]
@@ -28,28 +29,15 @@ struct Report {
     rows: Vec<Row>,
 }
 
-fn room() -> Arena {
-    Arena {
-        width: 6.0,
-        height: 5.0,
-        walls: vec![],
-        obstacles: vec![Obstacle::Box {
-            min: [3.5, 2.0],
-            max: [4.2, 2.6],
-        }],
-        surfaces: vec![],
-    }
-}
-
 /// Seconds per step of a filter with `particles` following a wandering robot.
 fn seconds_per_step(particles: usize, steps: usize) -> (f64, usize) {
-    let arena = room();
+    let arena = Scenario::room().arena;
     let sensor = RangeSensor {
         beams: 180,
         ..RangeSensor::default()
     };
     let model = MotionModel::legged_default();
-    let start = Pose::new(1.5, 1.5, 0.3);
+    let start = Pose::new(1.5, 0.6, std::f64::consts::FRAC_PI_2);
     let mut body = Body {
         pose: start,
         radius: 0.15,
@@ -64,19 +52,14 @@ fn seconds_per_step(particles: usize, steps: usize) -> (f64, usize) {
     let scored = sensor.beams.div_ceil(config.score_stride.max(1));
     let mut filter = ParticleFilter::new(start, model, config, arena.width, arena.height, 3);
     let mut rng = rand::rngs::StdRng::seed_from_u64(9);
-    filter.observe_start(&sensor.read(&arena, &body.pose, &[], 0.15, &mut rng));
+    let mut ranges = sensor.read(&arena, &body.pose, &[], 0.15, &mut rng);
+    filter.observe_start(&ranges);
+    let mut command = Command::Stand;
     let mut elapsed = 0.0;
     for step in 0..steps {
-        let ahead = sensor.cast_exact(&arena, &body.pose, &[], 0.15)[sensor.beams / 2];
-        let command = if ahead < 0.8 {
-            Command::Turn(2)
-        } else if step % 7 == 0 {
-            Command::Turn(-1)
-        } else {
-            Command::Walk(2)
-        };
+        command = wander_command(step as u64 + 1, range_ahead(&ranges, &sensor), command);
         let outcome = body.step(command, &arena, &[], &mut rng);
-        let ranges = sensor.read(&arena, &body.pose, &[], 0.15, &mut rng);
+        ranges = sensor.read(&arena, &body.pose, &[], 0.15, &mut rng);
         let started = Instant::now();
         filter.step(command, outcome.bumped, &ranges);
         elapsed += started.elapsed().as_secs_f64();
