@@ -8,7 +8,7 @@ use anyhow::{Context, Result, bail};
 use serde::Serialize;
 use shoal_diagnose::generate::{Settings, generate};
 use shoal_diagnose::input::{commands_csv, poses_csv};
-use shoal_physics::{Effect, ScopedEffect, UnicycleModel, wrap_angle};
+use shoal_physics::{Effect, ScopedEffect, UnicycleModel};
 
 #[derive(Debug, Serialize)]
 struct Row {
@@ -43,23 +43,10 @@ fn write_csvs(dir: &Path, minutes: f64) -> Result<(usize, usize)> {
         },
     );
     std::fs::create_dir_all(dir)?;
-    let c = &recording.commands;
-    let mut text = String::from("t,v,omega\n");
-    for i in 0..c.t.len() {
-        text.push_str(&format!("{:.3},{:.6},{:.6}\n", c.t[i], c.v[i], c.omega[i]));
-    }
-    std::fs::write(dir.join("commands.csv"), text)?;
-    let p = &recording.poses;
-    let mut text = String::from("t,x,y,theta\n");
-    for i in 0..p.t.len() {
-        let theta = wrap_angle(p.theta[i]);
-        text.push_str(&format!(
-            "{:.4},{:.6},{:.6},{theta:.6}\n",
-            p.t[i], p.x[i], p.y[i]
-        ));
-    }
-    std::fs::write(dir.join("poses.csv"), text)?;
-    Ok((c.t.len(), p.t.len()))
+    let (commands, poses) = recording.to_csv();
+    std::fs::write(dir.join("commands.csv"), commands)?;
+    std::fs::write(dir.join("poses.csv"), poses)?;
+    Ok((recording.commands.t.len(), recording.poses.t.len()))
 }
 
 pub fn run(minutes: &[f64], json: bool) -> Result<()> {

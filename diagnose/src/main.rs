@@ -230,22 +230,7 @@ fn run_generate(truth: Option<&Path>, out: &Path, seed: u64, duration: f64) -> R
         },
     );
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
-    let c = &recording.commands;
-    let mut commands = String::from("t,v,omega\n");
-    for i in 0..c.t.len() {
-        commands.push_str(&format!("{:.3},{:.6},{:.6}\n", c.t[i], c.v[i], c.omega[i]));
-    }
-    let p = &recording.poses;
-    let mut poses = String::from("t,x,y,theta\n");
-    for i in 0..p.t.len() {
-        poses.push_str(&format!(
-            "{:.4},{:.6},{:.6},{:.6}\n",
-            p.t[i],
-            p.x[i],
-            p.y[i],
-            shoal_physics::wrap_angle(p.theta[i])
-        ));
-    }
+    let (commands, poses) = recording.to_csv();
     std::fs::write(out.join("commands.csv"), commands)?;
     std::fs::write(out.join("poses.csv"), poses)?;
     std::fs::write(out.join("truth.toml"), model.to_toml())?;

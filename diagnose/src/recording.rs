@@ -88,6 +88,28 @@ impl Recording {
         }
     }
 
+    /// The run as the two CSV files diagnosis reads: commands (`t,v,omega`)
+    /// and poses (`t,x,y,theta`, headings wrapped).
+    pub fn to_csv(&self) -> (String, String) {
+        use std::fmt::Write as _;
+        let c = &self.commands;
+        let mut commands = String::from("t,v,omega\n");
+        for i in 0..c.t.len() {
+            let _ = writeln!(commands, "{:.3},{:.6},{:.6}", c.t[i], c.v[i], c.omega[i]);
+        }
+        let p = &self.poses;
+        let mut poses = String::from("t,x,y,theta\n");
+        for i in 0..p.t.len() {
+            let theta = wrap_angle(p.theta[i]);
+            let _ = writeln!(
+                poses,
+                "{:.4},{:.6},{:.6},{theta:.6}",
+                p.t[i], p.x[i], p.y[i]
+            );
+        }
+        (commands, poses)
+    }
+
     pub fn duration(&self) -> f64 {
         self.commands.t.last().copied().unwrap_or(0.0)
     }
