@@ -15,8 +15,6 @@ pub struct SwarmMeta {
     /// The shared time origin of a real-time swarm, ms since the Unix epoch.
     pub epoch_unix_ms: u64,
     pub period_s: f64,
-    /// The pid of the `shoal up` that started the swarm.
-    pub launcher_pid: u32,
 }
 
 /// The SLAM process's view of each robot it follows.

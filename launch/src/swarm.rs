@@ -122,7 +122,6 @@ impl RunningSwarm {
             lockstep,
             epoch_unix_ms,
             period_s: scenario.timing.period_s,
-            launcher_pid: std::process::id(),
         };
         runtime
             .create(&scenario.to_toml(), &meta)

@@ -195,6 +195,26 @@ impl MotionModel {
         }
     }
 
+    /// Parses a model file (tables keyed by command, as `["walk(2)"]`, each
+    /// with `d`, `c` and `t` mixtures); errors name `file`, the line and the entry.
+    pub fn from_toml(text: &str, file: &str) -> Result<Self, crate::ScenarioError> {
+        toml::from_str(text).map_err(|e: toml::de::Error| {
+            // A model that parses but breaks an invariant is checked as a
+            // whole; its message names `command.param`, which leads back to
+            // the line.
+            let line = line_of_entry(text, e.message()).or_else(|| {
+                e.span()
+                    .map(|s| text[..s.start.min(text.len())].matches('\n').count() + 1)
+            });
+            crate::ScenarioError {
+                file: file.to_owned(),
+                line,
+                field: None,
+                message: e.message().to_owned(),
+            }
+        })
+    }
+
     /// How far this model lies from `reference`: the mean over commands and
     /// parameters of the shift of the mixture mean in units of the
     /// reference's standard deviation.
@@ -231,6 +251,22 @@ impl MotionModel {
     }
 }
 
+/// The line of `param = ...` under the `["command"]` table that a message
+/// like `turn(1).t: ...` names.
+fn line_of_entry(text: &str, message: &str) -> Option<usize> {
+    let (command, param) = message.split(':').next()?.rsplit_once('.')?;
+    let mut inside = false;
+    for (index, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.starts_with('[') {
+            inside = line.contains(command);
+        } else if inside && line.split('=').next().map(str::trim) == Some(param) {
+            return Some(index + 1);
+        }
+    }
+    None
+}
+
 impl TryFrom<BTreeMap<String, CommandModel>> for MotionModel {
     type Error = String;
 
@@ -261,6 +297,20 @@ impl From<MotionModel> for BTreeMap<String, CommandModel> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_model_file_with_bad_weights_names_the_line_of_the_entry() {
+        let text = "[\"turn(1)\"]\n\
+            d = { weights = [0.5, 0.5], means = [0.0, 0.0], variances = [1e-4, 1e-4] }\n\
+            c = { weights = [0.5, 0.5], means = [0.0, 0.0], variances = [1e-4, 1e-4] }\n\
+            t = { weights = [0.5, 0.7], means = [0.1, 0.2], variances = [1e-4, 1e-4] }\n";
+        let error = MotionModel::from_toml(text, "m.toml").expect_err("weights sum to 1.2");
+        assert_eq!(error.line, Some(4), "{error}");
+        assert!(
+            error.to_string().contains("turn(1).t: weights sum to 1.2"),
+            "{error}"
+        );
+    }
 
     #[test]
     fn a_model_is_as_far_from_another_as_its_means_moved_in_standard_deviations() {

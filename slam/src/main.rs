@@ -55,32 +55,7 @@ enum Learning {
 fn read_model(path: &PathBuf) -> Result<MotionModel> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    toml::from_str(&text).map_err(|e| {
-        // A model that parses but breaks an invariant is checked as a whole;
-        // its message names `command.param`, which leads back to the line.
-        let line = line_of_entry(&text, e.message()).or_else(|| {
-            e.span()
-                .map(|s| text[..s.start.min(text.len())].matches('\n').count() + 1)
-        });
-        let place = line.map_or_else(String::new, |l| format!(":{l}"));
-        anyhow::anyhow!("{}{place}: {}", path.display(), e.message())
-    })
-}
-
-/// The line of `param = ...` under the `["command"]` table a message like
-/// `turn(1).t: ...` names.
-fn line_of_entry(text: &str, message: &str) -> Option<usize> {
-    let (command, param) = message.split(':').next()?.rsplit_once('.')?;
-    let mut inside = false;
-    for (index, line) in text.lines().enumerate() {
-        let line = line.trim();
-        if line.starts_with('[') {
-            inside = line.contains(command);
-        } else if inside && line.split('=').next().map(str::trim) == Some(param) {
-            return Some(index + 1);
-        }
-    }
-    None
+    Ok(MotionModel::from_toml(&text, &path.display().to_string())?)
 }
 
 struct Followed {
