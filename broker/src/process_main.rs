@@ -15,6 +15,8 @@ pub fn run_main(
                 .unwrap_or_else(|_| default_level.into()),
         )
         .with_writer(std::io::stderr)
+        // Logs that go to a file (a robot's log) stay readable text.
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .init();
     match body() {
         Ok(()) => ExitCode::SUCCESS,

@@ -40,22 +40,176 @@ pub struct FollowedReport {
 
 #[derive(Clone, Debug)]
 pub struct SwarmRuntime {
+    /// The per-user root all swarms' folders live in.
+    pub root: PathBuf,
     pub dir: PathBuf,
 }
+
+/// The file that marks a folder as one Shoal created for a swarm. Shoal only
+/// ever removes a folder that holds it, so a `--swarm` or
+/// `SHOAL_RUNTIME_DIR` that names a user's own folder is refused, not
+/// emptied.
+const OWNER_MARK: &str = ".shoal-swarm";
+const OWNER_MARK_TEXT: &str =
+    "This folder was created by Shoal for one swarm and is removed when the swarm stops.\n";
 
 impl SwarmRuntime {
     /// `$SHOAL_RUNTIME_DIR/<swarm>`, or `<tmp>/shoal-<uid>/<swarm>`.
     pub fn locate(swarm: &str) -> Self {
-        let base = std::env::var_os("SHOAL_RUNTIME_DIR")
+        let root = std::env::var_os("SHOAL_RUNTIME_DIR")
             .map(PathBuf::from)
-            .unwrap_or_else(|| {
-                // SAFETY: getuid has no preconditions and cannot fail.
-                let uid = unsafe { libc::getuid() };
-                std::env::temp_dir().join(format!("shoal-{uid}"))
-            });
+            .unwrap_or_else(|| std::env::temp_dir().join(format!("shoal-{}", current_uid())));
         Self {
-            dir: base.join(swarm),
+            dir: root.join(swarm),
+            root,
         }
+    }
+
+    /// Creates the per-user root (mode 0700) if it is missing, and refuses a
+    /// root that is a symlink, belongs to someone else, or that others may
+    /// write to: anyone who can write there could make Shoal write, or
+    /// remove, through a link of theirs.
+    pub fn check_root(&self) -> io::Result<()> {
+        use std::os::unix::fs::{DirBuilderExt, MetadataExt};
+        match std::fs::symlink_metadata(&self.root) {
+            Err(e) if e.kind() == io::ErrorKind::NotFound => std::fs::DirBuilder::new()
+                .recursive(true)
+                .mode(0o700)
+                .create(&self.root)
+                .map_err(|e| with_path(e, &self.root, "cannot create Shoal's runtime folder")),
+            Err(e) => Err(with_path(
+                e,
+                &self.root,
+                "cannot inspect Shoal's runtime folder",
+            )),
+            Ok(meta) => {
+                let refuse = |why: String| {
+                    io::Error::new(
+                        io::ErrorKind::PermissionDenied,
+                        format!(
+                            "{}: refusing to use it as Shoal's runtime folder: {why} (set SHOAL_RUNTIME_DIR to a folder of your own)",
+                            self.root.display()
+                        ),
+                    )
+                };
+                if meta.file_type().is_symlink() {
+                    return Err(refuse("it is a symbolic link".into()));
+                }
+                if !meta.is_dir() {
+                    return Err(refuse("it is not a folder".into()));
+                }
+                if meta.uid() != current_uid() {
+                    return Err(refuse(format!(
+                        "it belongs to uid {}, not to you (uid {})",
+                        meta.uid(),
+                        current_uid()
+                    )));
+                }
+                if meta.mode() & 0o022 != 0 {
+                    return Err(refuse(format!(
+                        "others may write to it (mode {:o})",
+                        meta.mode() & 0o7777
+                    )));
+                }
+                Ok(())
+            }
+        }
+    }
+
+    /// Whether the swarm's folder is one Shoal made (holds the owner mark and
+    /// is a real folder, not a link to one).
+    fn is_ours(&self) -> io::Result<bool> {
+        match std::fs::symlink_metadata(&self.dir) {
+            Err(e) if e.kind() == io::ErrorKind::NotFound => Ok(false),
+            Err(e) => Err(e),
+            Ok(meta) if !meta.is_dir() || meta.file_type().is_symlink() => Ok(false),
+            Ok(_) => {
+                Ok(read_no_follow(&self.dir.join(OWNER_MARK)).is_ok_and(|t| t == OWNER_MARK_TEXT))
+            }
+        }
+    }
+
+    /// Makes an empty folder for a new run of the swarm: removes the last
+    /// run's folder if Shoal made it, and refuses one it did not.
+    pub fn prepare(&self) -> io::Result<()> {
+        use std::os::unix::fs::DirBuilderExt;
+        self.check_root()?;
+        self.remove()?;
+        std::fs::DirBuilder::new()
+            .mode(0o700)
+            .create(&self.dir)
+            .map_err(|e| with_path(e, &self.dir, "cannot create the swarm's folder"))?;
+        write_atomically(&self.dir.join(OWNER_MARK), OWNER_MARK_TEXT)
+    }
+
+    /// Removes the swarm's folder, only if Shoal made it; anything else at
+    /// that path is left alone and named in the error.
+    pub fn remove(&self) -> io::Result<()> {
+        if std::fs::symlink_metadata(&self.dir).is_err_and(|e| e.kind() == io::ErrorKind::NotFound)
+        {
+            return Ok(());
+        }
+        if !self.is_ours()? {
+            return Err(io::Error::new(
+                io::ErrorKind::AlreadyExists,
+                format!(
+                    "{} exists and was not created by Shoal (it has no {OWNER_MARK} file); Shoal never removes what it did not create: pick another --swarm name or SHOAL_RUNTIME_DIR",
+                    self.dir.display()
+                ),
+            ));
+        }
+        std::fs::remove_dir_all(&self.dir)
+    }
+
+    /// Removes the swarm's state but keeps its logs, so the user can read
+    /// why a robot died after the swarm stopped.
+    pub fn remove_all_but_logs(&self) -> io::Result<()> {
+        if !self.is_ours()? {
+            return Ok(());
+        }
+        for entry in std::fs::read_dir(&self.dir)? {
+            let path = entry?.path();
+            let keep = path.extension().is_some_and(|e| e == "log")
+                || path.file_name().is_some_and(|n| n == OWNER_MARK);
+            if keep {
+                continue;
+            }
+            // Inside a folder Shoal made; remove_dir_all does not follow links.
+            if std::fs::symlink_metadata(&path)?.is_dir() {
+                std::fs::remove_dir_all(&path)?;
+            } else {
+                std::fs::remove_file(&path)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Creates (or empties) a log file in the swarm's folder, refusing to
+    /// write through a symlink someone put there.
+    pub fn create_log(&self, name: &str) -> io::Result<std::fs::File> {
+        let path = self.dir.join(name);
+        open_no_follow(&path, true).map_err(|e| with_path(e, &path, "cannot create log"))
+    }
+
+    /// The last `lines` lines of a log in the swarm's folder.
+    pub fn log_tail(&self, name: &str, lines: usize) -> Vec<String> {
+        let text = read_no_follow(&self.dir.join(name)).unwrap_or_default();
+        let all: Vec<&str> = text.lines().collect();
+        all[all.len().saturating_sub(lines)..]
+            .iter()
+            .map(|l| (*l).to_owned())
+            .collect()
+    }
+
+    /// Marks robot `id` as stopped on purpose by a user's command, so the
+    /// launcher does not report its death as a failure.
+    pub fn mark_stopped_by_user(&self, id: u32) -> io::Result<()> {
+        write_atomically(&self.dir.join(format!("agent-{id}.stopped")), "")
+    }
+
+    /// Whether robot `id` was stopped by a user's command; forgets it.
+    pub fn take_stopped_by_user(&self, id: u32) -> bool {
+        std::fs::remove_file(self.dir.join(format!("agent-{id}.stopped"))).is_ok()
     }
 
     pub fn scenario_path(&self) -> PathBuf {
@@ -74,8 +228,9 @@ impl SwarmRuntime {
         self.dir.join(format!("agent-{id}.pose"))
     }
 
+    /// A fresh folder for the swarm holding its scenario and clock mode.
     pub fn create(&self, scenario_toml: &str, meta: &SwarmMeta) -> io::Result<()> {
-        std::fs::create_dir_all(&self.dir)?;
+        self.prepare()?;
         write_atomically(&self.scenario_path(), scenario_toml)?;
         let meta = toml::to_string(meta).map_err(io::Error::other)?;
         write_atomically(&self.meta_path(), &meta)
@@ -83,7 +238,7 @@ impl SwarmRuntime {
 
     pub fn read_meta(&self) -> io::Result<SwarmMeta> {
         let path = self.meta_path();
-        let text = std::fs::read_to_string(&path).map_err(|e| {
+        let text = read_no_follow(&path).map_err(|e| {
             io::Error::new(
                 e.kind(),
                 format!("{}: {e} (is the swarm running?)", path.display()),
@@ -108,7 +263,7 @@ impl SwarmRuntime {
     }
 
     pub fn read_slam_report(&self) -> Option<SlamReport> {
-        let text = std::fs::read_to_string(self.slam_report_path()).ok()?;
+        let text = read_no_follow(&self.slam_report_path()).ok()?;
         toml::from_str(&text).ok()
     }
 
@@ -120,7 +275,7 @@ impl SwarmRuntime {
     }
 
     pub fn read_last_pose(&self, id: u32) -> Option<[f64; 3]> {
-        let text = std::fs::read_to_string(self.pose_path(id)).ok()?;
+        let text = read_no_follow(&self.pose_path(id)).ok()?;
         let values: Vec<f64> = text
             .split_whitespace()
             .filter_map(|v| v.parse().ok())
@@ -147,18 +302,151 @@ impl SwarmRuntime {
             })
             .collect()
     }
-
-    pub fn remove(&self) -> io::Result<()> {
-        match std::fs::remove_dir_all(&self.dir) {
-            Err(e) if e.kind() != io::ErrorKind::NotFound => Err(e),
-            _ => Ok(()),
-        }
-    }
 }
 
-/// Readers never see half a file: write beside, then rename.
+/// Readers never see half a file: write beside, then rename (a rename
+/// replaces a link at `path`, never what it points to).
 fn write_atomically(path: &Path, text: &str) -> io::Result<()> {
+    use std::io::Write;
     let partial = path.with_extension("partial");
-    std::fs::write(&partial, text)?;
+    open_no_follow(&partial, true)?.write_all(text.as_bytes())?;
     std::fs::rename(&partial, path)
+}
+
+fn current_uid() -> u32 {
+    // SAFETY: getuid has no preconditions and cannot fail.
+    unsafe { libc::getuid() }
+}
+
+fn with_path(e: io::Error, path: &Path, what: &str) -> io::Error {
+    io::Error::new(e.kind(), format!("{}: {what}: {e}", path.display()))
+}
+
+/// Opens `path` for writing (created 0600, emptied), or for reading, and
+/// fails instead of following a symbolic link.
+fn open_no_follow(path: &Path, write: bool) -> io::Result<std::fs::File> {
+    use std::os::unix::fs::OpenOptionsExt;
+    let mut options = std::fs::OpenOptions::new();
+    if write {
+        options.write(true).create(true).truncate(true).mode(0o600);
+    } else {
+        options.read(true);
+    }
+    options.custom_flags(libc::O_NOFOLLOW).open(path)
+}
+
+fn read_no_follow(path: &Path) -> io::Result<String> {
+    use std::io::Read;
+    let mut text = String::new();
+    open_no_follow(path, false)?.read_to_string(&mut text)?;
+    Ok(text)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::os::unix::fs::PermissionsExt;
+
+    fn runtime_in(root: &Path, swarm: &str) -> SwarmRuntime {
+        SwarmRuntime {
+            root: root.to_owned(),
+            dir: root.join(swarm),
+        }
+    }
+
+    fn scratch(name: &str) -> PathBuf {
+        let dir =
+            std::env::temp_dir().join(format!("shoal-runtime-test-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("scratch folder");
+        std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o700)).expect("chmod");
+        dir
+    }
+
+    fn meta() -> SwarmMeta {
+        SwarmMeta {
+            lockstep: false,
+            epoch_unix_ms: 0,
+            period_s: 0.2,
+        }
+    }
+
+    #[test]
+    fn a_folder_shoal_did_not_make_is_never_removed() {
+        let root = scratch("foreign");
+        let documents = root.join("Documents");
+        std::fs::create_dir(&documents).expect("user folder");
+        std::fs::write(documents.join("thesis.txt"), "years of work").expect("user file");
+        let runtime = runtime_in(&root, "Documents");
+        let error = runtime.create("", &meta()).unwrap_err();
+        assert!(
+            error.to_string().contains("not created by Shoal"),
+            "{error}"
+        );
+        assert!(runtime.remove().is_err());
+        assert_eq!(
+            std::fs::read_to_string(documents.join("thesis.txt")).expect("still there"),
+            "years of work"
+        );
+        std::fs::remove_dir_all(&root).expect("cleanup");
+    }
+
+    #[test]
+    fn a_symlinked_swarm_folder_is_neither_followed_nor_removed() {
+        let root = scratch("link");
+        let target = scratch("link-target");
+        std::fs::write(target.join(OWNER_MARK), OWNER_MARK_TEXT).expect("a forged mark");
+        std::fs::write(target.join("keep.txt"), "mine").expect("user file");
+        std::os::unix::fs::symlink(&target, root.join("lab")).expect("symlink");
+        let runtime = runtime_in(&root, "lab");
+        assert!(runtime.create("", &meta()).is_err());
+        assert!(target.join("keep.txt").exists());
+        std::fs::remove_dir_all(&root).expect("cleanup");
+        std::fs::remove_dir_all(&target).expect("cleanup");
+    }
+
+    #[test]
+    fn shoal_removes_its_own_folder_and_keeps_logs_when_asked() {
+        let root = scratch("own");
+        let runtime = runtime_in(&root, "lab");
+        runtime.create("name = 'x'", &meta()).expect("created");
+        std::io::Write::write_all(
+            &mut runtime.create_log("agent-1.log").expect("log"),
+            b"one\ntwo\nthree\n",
+        )
+        .expect("write");
+        runtime.write_last_pose(1, [1.0, 2.0, 0.0]).expect("pose");
+        runtime.remove_all_but_logs().expect("state removed");
+        assert!(runtime.log_path(1).exists());
+        assert!(!runtime.scenario_path().exists());
+        assert_eq!(runtime.log_tail("agent-1.log", 2), ["two", "three"]);
+        runtime
+            .create("name = 'x'", &meta())
+            .expect("a new run replaces our own folder");
+        runtime.remove().expect("removed");
+        assert!(!runtime.dir.exists());
+        std::fs::remove_dir_all(&root).expect("cleanup");
+    }
+
+    #[test]
+    fn a_root_others_may_write_to_is_refused() {
+        let root = scratch("open-root");
+        std::fs::set_permissions(&root, std::fs::Permissions::from_mode(0o777)).expect("chmod");
+        let error = runtime_in(&root, "lab").check_root().unwrap_err();
+        assert!(error.to_string().contains("others may write"), "{error}");
+        std::fs::remove_dir_all(&root).expect("cleanup");
+    }
+
+    #[test]
+    fn a_missing_root_is_created_private() {
+        let parent = scratch("new-root");
+        let root = parent.join("shoal");
+        runtime_in(&root, "lab").check_root().expect("created");
+        let mode = std::fs::metadata(&root)
+            .expect("exists")
+            .permissions()
+            .mode();
+        assert_eq!(mode & 0o777, 0o700);
+        std::fs::remove_dir_all(&parent).expect("cleanup");
+    }
 }

@@ -9,7 +9,10 @@ use shoal_physics::effects::EFFECT_KINDS;
 use shoal_physics::{CommandGrid, Effect, ScopedEffect, UnicycleModel};
 
 use crate::fit::{Fitted, fit, nll_of};
-use crate::likelihood::{Residual, estimate_noise, residuals, rmse, segment_nll, standardised};
+use crate::likelihood::{
+    Residual, component_nll, estimate_noise, long_run_factors, residuals, rmse, segment_nll,
+    standardised,
+};
 use crate::locate::{Located, locate};
 use crate::recording::Recording;
 use crate::segments::{Segment, command_grid, segments};
@@ -65,10 +68,34 @@ pub struct FoundEffect {
     pub place: Where,
     pub delta_bic: f64,
     pub sentence: String,
-    /// Other kinds that explain the run as well (within 2 of BIC).
+    /// Other kinds that explain the run as well (within 2 of BIC): this
+    /// data cannot tell them apart, so they are one finding.
     pub indistinguishable_from: Vec<&'static str>,
+    /// The same, with each alternative's fitted parameters and sentence.
+    pub alternatives: Vec<Alternative>,
+    /// Held-out (time-blocked) gain in log-likelihood from adding it.
+    pub heldout_gain: f64,
     #[serde(skip)]
     pub scoped: ScopedEffect,
+}
+
+/// Another effect that explains the same mismatch about as well.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Alternative {
+    pub kind: &'static str,
+    pub params: BTreeMap<&'static str, f64>,
+    pub delta_bic: f64,
+    pub sentence: String,
+}
+
+/// A mismatch the library could only fit with a parameter on the edge of
+/// what is physical: not reported as physics.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Unexplained {
+    /// The effect that was tried, and where its fit ended.
+    pub tried: &'static str,
+    pub params: BTreeMap<&'static str, f64>,
+    pub reason: String,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -84,6 +111,15 @@ pub struct Diagnosis {
     pub mismatch: bool,
     pub located: Vec<Located>,
     pub effects: Vec<FoundEffect>,
+    /// Mismatches no effect of the library explains physically.
+    pub unexplained: Vec<Unexplained>,
+    /// How much the plain model's residuals' correlation in time inflates
+    /// the variance of sums (along, across, heading): 1 for white noise.
+    pub noise_correlation: [f64; 3],
+    /// Observed poses set aside as gross outliers (see `Poses::without_outliers`).
+    pub pose_outliers: usize,
+    /// Candidates that passed BIC but did not improve held-out prediction.
+    pub rejected_heldout: Vec<&'static str>,
     pub baseline: Heldout,
     pub improved: Heldout,
     pub segments: usize,
@@ -292,6 +328,8 @@ fn describe(scoped: &ScopedEffect, stderr: &[f64], delta_bic: f64, duration: f64
         delta_bic,
         sentence,
         indistinguishable_from: Vec::new(),
+        alternatives: Vec::new(),
+        heldout_gain: 0.0,
         scoped: scoped.clone(),
     }
 }
@@ -375,6 +413,110 @@ fn zone_of_span(segments: &[Segment], scoped: &ScopedEffect) -> Option<[f64; 4]>
     Some(region)
 }
 
+/// BIC gain of adding `candidate` (already fitted) to `base`, with the
+/// likelihood gain of each component divided by how much that component's
+/// correlation in time inflates it (see [`long_run_factors`]), and the
+/// penalty counted on the effective number of observations. Negative is
+/// better. The correlation is estimated from the residuals of the model
+/// *with* the candidate, so an effect that is there does not count as
+/// correlated noise against itself.
+fn calibrated_gain(
+    grid: &CommandGrid,
+    segs: &[Segment],
+    base_nll: [f64; 3],
+    base: &[ScopedEffect],
+    candidate: &ScopedEffect,
+) -> f64 {
+    let model =
+        UnicycleModel::with_effects(base.iter().cloned().chain([candidate.clone()]).collect());
+    let r = residuals(&model, grid, segs);
+    let noise = estimate_noise(&model, segs, &r);
+    let nll = component_nll(&model, segs, &r);
+    let factors = long_run_factors(segs, &standardised(&model, &noise, segs, &r));
+    let n_eff = 3.0 * segs.len() as f64 / (factors.iter().sum::<f64>() / 3.0);
+    let gain: f64 = (0..3).map(|c| (nll[c] - base_nll[c]) / factors[c]).sum();
+    2.0 * gain + extra_params(candidate) as f64 * n_eff.max(2.0).ln()
+}
+
+fn components_of(grid: &CommandGrid, segs: &[Segment], effects: &[ScopedEffect]) -> [f64; 3] {
+    let model = UnicycleModel::with_effects(effects.to_vec());
+    component_nll(&model, segs, &residuals(&model, grid, segs))
+}
+
+/// Held-out check of one more effect: on time-blocked folds, `candidate`
+/// is refitted on the training blocks and both models predict the held-out
+/// block. Returns the total gain in held-out log-likelihood (positive: the
+/// effect predicts unseen data better).
+fn heldout_gain(
+    prepared: &Prepared,
+    base: &[ScopedEffect],
+    candidate: &ScopedEffect,
+    options: &Options,
+) -> f64 {
+    let n = prepared.segments.len();
+    let folds = options.folds.clamp(2, n.max(2));
+    let one_fold = |f: usize| -> f64 {
+        let (lo, hi) = (f * n / folds, (f + 1) * n / folds);
+        let train: Vec<Segment> = prepared.segments[..lo]
+            .iter()
+            .chain(&prepared.segments[hi..])
+            .cloned()
+            .collect();
+        let test = &prepared.segments[lo..hi];
+        let train_screen = subsample(&train, 2 * options.screen_segments);
+        let refit = fit(
+            &prepared.grid,
+            &train_screen,
+            base,
+            std::slice::from_ref(candidate),
+            options.max_iters / 2,
+        );
+        let test_nll = |effects: Vec<ScopedEffect>| {
+            let model = UnicycleModel::with_effects(effects);
+            let noise = estimate_noise(&model, &train, &residuals(&model, &prepared.grid, &train));
+            let r = residuals(&model, &prepared.grid, test);
+            segment_nll(&model, &noise, test, &r).iter().sum::<f64>()
+        };
+        test_nll(base.to_vec()) - test_nll(base.iter().cloned().chain(refit.effects).collect())
+    };
+    let gains: Vec<f64> = std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..folds)
+            .map(|f| scope.spawn(move || one_fold(f)))
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| h.join().unwrap_or(f64::NAN))
+            .collect()
+    });
+    // A panicked fold makes the sum NaN, which never passes the check.
+    gains.iter().sum()
+}
+
+/// A fitted parameter this close to an edge of its physical range (as a
+/// share of the scale on which the parameter matters), where the edge is not
+/// the plain model, is the fitter pushing against physics, not a measurement.
+const ON_BOUND: f64 = 0.1;
+
+/// Why `scoped`'s fit is not physics, if it ended on an edge of its range.
+fn on_bound(scoped: &ScopedEffect) -> Option<String> {
+    let identity = Effect::identity(scoped.effect.kind(), [0.0; 4])?;
+    let plain: Vec<f64> = identity.params().into_iter().map(|(_, v)| v).collect();
+    let ranges = scoped.effect.ranges();
+    for (((name, value), (lo, hi)), plain) in
+        scoped.effect.params().into_iter().zip(ranges).zip(plain)
+    {
+        let margin = ON_BOUND * crate::fit::step_of(&scoped.effect, name);
+        for edge in [lo, hi] {
+            if (value - edge).abs() <= margin && (plain - edge).abs() > margin {
+                return Some(format!(
+                    "{name} = {value:.4} ended on the edge of its physical range [{lo}, {hi}]"
+                ));
+            }
+        }
+    }
+    None
+}
+
 /// Every k-th segment, at most `count` of them.
 fn subsample(segments: &[Segment], count: usize) -> Vec<Segment> {
     let every = segments.len().div_ceil(count.max(1)).max(1);
@@ -383,19 +525,21 @@ fn subsample(segments: &[Segment], count: usize) -> Vec<Segment> {
 
 /// Diagnoses `recording` against `model`.
 pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options) -> Diagnosis {
+    let (poses, pose_outliers) = recording.poses.without_outliers();
+    let recording = &Recording {
+        poses,
+        ..recording.clone()
+    };
     let prepared = prepare(recording, options);
     let (grid, segs) = (&prepared.grid, &prepared.segments);
     let duration = recording.duration();
     let fixed = model.effects.clone();
     let plain_residuals = residuals(model, grid, segs);
     let noise = estimate_noise(model, segs, &plain_residuals);
-    let located = locate(
-        segs,
-        &standardised(model, &noise, segs, &plain_residuals),
-        options.alpha,
-    );
+    let plain_standardised = standardised(model, &noise, segs, &plain_residuals);
+    let noise_correlation = long_run_factors(segs, &plain_standardised);
+    let located = locate(segs, &plain_standardised, noise_correlation, options.alpha);
 
-    let log_n = ((3 * segs.len()).max(2) as f64).ln();
     // Candidates are ranked on an even subsample, and only the best few are
     // fitted on every segment: the cost of a round stops growing with the
     // length of the run.
@@ -405,23 +549,25 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
     let mut found: Vec<ScopedEffect> = Vec::new();
     let mut gains: Vec<f64> = Vec::new();
     let mut ties: Vec<Vec<&'static str>> = Vec::new();
-    let mut current = nll_of(grid, segs, &fixed);
+    let mut alternatives: Vec<Vec<Alternative>> = Vec::new();
+    let mut heldout_gains: Vec<f64> = Vec::new();
+    let mut unexplained: Vec<Unexplained> = Vec::new();
+    let mut rejected_heldout: Vec<&'static str> = Vec::new();
     while found.len() < options.max_effects && !remaining.is_empty() && segs.len() >= 20 {
         let base: Vec<ScopedEffect> = fixed.iter().chain(&found).cloned().collect();
+        let base_nll = components_of(grid, segs, &base);
+        let judge = |c: &ScopedEffect| calibrated_gain(grid, segs, base_nll, &base, c);
         let screen_current = nll_of(grid, &screen, &base);
         let screened = fit_all(grid, &screen, &base, &remaining, options.max_iters);
-        let gain = |f: &Fitted, c: &ScopedEffect, now: f64, log_n: f64| {
-            2.0 * (f.nll - now) + extra_params(c) as f64 * log_n
+        // Ranking only: the screen's plain BIC orders the candidates; the
+        // decision below is made on all segments with calibrated gains.
+        let screen_gain = |f: &Fitted, c: &ScopedEffect| {
+            2.0 * (f.nll - screen_current) + extra_params(c) as f64 * screen_log_n
         };
         let mut ranked: Vec<(f64, ScopedEffect)> = screened
             .iter()
             .zip(&remaining)
-            .map(|(f, c)| {
-                (
-                    gain(f, c, screen_current, screen_log_n),
-                    f.effects[0].clone(),
-                )
-            })
+            .map(|(f, c)| (screen_gain(f, c), f.effects[0].clone()))
             .filter(|(g, _)| *g < 0.0)
             .collect();
         ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -433,19 +579,18 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
         let confirmed = fit_all(grid, segs, &base, &top, options.max_iters / 2);
         let mut confirmed: Vec<(f64, ScopedEffect)> = confirmed
             .iter()
-            .zip(&top)
-            .map(|(f, c)| (gain(f, c, current, log_n), f.effects[0].clone()))
+            .map(|f| (judge(&f.effects[0]), f.effects[0].clone()))
             .collect();
         confirmed.sort_by(|a, b| a.0.total_cmp(&b.0));
         let Some((mut delta_bic, mut chosen)) = confirmed.first().cloned() else {
             break;
         };
         // Explanations within 2 of BIC are not worth more than a bare
-        // mention apart (Kass and Raftery): name them beside the choice.
-        let mut tied: Vec<&'static str> = confirmed[1..]
+        // mention apart (Kass and Raftery): one finding, with alternatives.
+        let mut tied: Vec<(f64, ScopedEffect)> = confirmed[1..]
             .iter()
             .filter(|(g, c)| *g < delta_bic + 2.0 && c.effect.kind() != chosen.effect.kind())
-            .map(|(_, c)| c.effect.kind())
+            .cloned()
             .collect();
         if delta_bic > -options.min_bic_gain {
             break;
@@ -462,8 +607,9 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
                     std::slice::from_ref(candidate),
                     options.max_iters / 2,
                 );
-                let g = gain(&full, candidate, current, log_n);
-                (full.effects[0].clone(), g)
+                let fitted = full.effects[0].clone();
+                let g = judge(&fitted);
+                (fitted, g)
             };
             let (scoped_fit, scoped_gain) = confirm(&scoped);
             if scoped_gain < delta_bic - options.min_bic_gain {
@@ -476,29 +622,61 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
                 {
                     let (zone_fit, zone_gain) = confirm(&ScopedEffect::always(zone_effect));
                     if zone_gain < delta_bic + 2.0 {
-                        tied.push(chosen.effect.kind());
+                        tied.push((delta_bic, chosen.clone()));
                         (chosen, delta_bic) = (zone_fit, zone_gain);
                     }
                 }
             }
         }
-        // Later rounds only try what helped on its own: an effect that did
-        // not lower the likelihood alone is rarely needed in company.
+        let tied_kinds: Vec<&'static str> = tied.iter().map(|(_, c)| c.effect.kind()).collect();
+        // Later rounds only try what helped on its own (an effect that did
+        // not lower the likelihood alone is rarely needed in company), and
+        // never an alternative of what was found: that would name one
+        // mismatch twice.
         remaining = remaining
             .iter()
             .zip(&screened)
             .filter(|(c, f)| {
-                f.nll < screen_current - 1.0 && c.effect.kind() != chosen.effect.kind()
+                let kind = c.effect.kind();
+                f.nll < screen_current - 1.0
+                    && kind != chosen.effect.kind()
+                    && !tied_kinds.contains(&kind)
             })
             .map(|(c, _)| c.clone())
             .collect();
+        if let Some(reason) = on_bound(&chosen) {
+            unexplained.push(Unexplained {
+                tried: chosen.effect.kind(),
+                params: chosen.effect.params().into_iter().collect(),
+                reason: format!(
+                    "{reason}; the mismatch is real (BIC {delta_bic:.0}) but no effect of the library explains it within physical limits"
+                ),
+            });
+            continue;
+        }
+        let gain_heldout = heldout_gain(&prepared, &base, &chosen, options);
+        if !(gain_heldout > 0.0) {
+            rejected_heldout.push(chosen.effect.kind());
+            continue;
+        }
         found.push(chosen);
         gains.push(delta_bic);
-        ties.push(tied);
+        heldout_gains.push(gain_heldout);
+        ties.push(tied_kinds);
+        alternatives.push(
+            tied.iter()
+                .filter(|(_, c)| on_bound(c).is_none())
+                .map(|(g, c)| Alternative {
+                    kind: c.effect.kind(),
+                    params: c.effect.params().into_iter().collect(),
+                    delta_bic: *g,
+                    sentence: c.effect.sentence(),
+                })
+                .collect(),
+        );
         // Effects found earlier may now be estimated differently: refit together.
         let joint = fit(grid, segs, &fixed, &found, options.max_iters * 2);
         found = joint.effects;
-        current = joint.nll;
     }
     let stderr = if found.is_empty() {
         Vec::new()
@@ -517,6 +695,12 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
             found.indistinguishable_from = tied.clone();
             found
         })
+        .zip(alternatives.into_iter().zip(heldout_gains))
+        .map(|(mut found, (alternatives, heldout))| {
+            found.alternatives = alternatives;
+            found.heldout_gain = heldout;
+            found
+        })
         .collect();
     let (baseline, plain_errors) = heldout(&prepared, &fixed, &[], options);
     let (improved, improved_errors) = if found.is_empty() {
@@ -525,9 +709,13 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
         heldout(&prepared, &fixed, &found, options)
     };
     Diagnosis {
-        mismatch: !effects.is_empty() || !located.is_empty(),
+        mismatch: !effects.is_empty() || !located.is_empty() || !unexplained.is_empty(),
         located,
         effects,
+        unexplained,
+        noise_correlation,
+        pose_outliers,
+        rejected_heldout,
         baseline,
         improved,
         segments: segs.len(),

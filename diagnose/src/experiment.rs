@@ -5,7 +5,7 @@
 use serde::Serialize;
 use shoal_physics::{Effect, ScopedEffect, UnicycleModel};
 
-use crate::generate::{Settings, generate};
+use crate::generate::{ColouredNoise, Settings, generate};
 use crate::{Options, diagnose};
 
 pub struct Case {
@@ -136,9 +136,79 @@ pub fn cases(duration_s: f64) -> Vec<Case> {
     ]
 }
 
+/// Motion and observation noise the runs are generated with. Only `white`
+/// is what diagnosis assumes (a random walk); the others are coloured, with
+/// the time constants real robots show, and observed through motion
+/// capture with dropped frames, timestamp jitter and marker swaps.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NoiseColour {
+    pub name: &'static str,
+    pub coloured: Vec<ColouredNoise>,
+    pub dropout: f64,
+    pub timestamp_jitter_s: f64,
+    pub outliers: f64,
+}
+
+pub const NOISE_COLOURS: [&str; 5] = ["white", "ou-0.2s", "ou-2s", "ou-5s", "mixed"];
+
+impl NoiseColour {
+    pub fn named(name: &str) -> Option<Self> {
+        let ou = |time_constant_s: f64, along_m_per_s: f64, turn_rad_per_s: f64| ColouredNoise {
+            time_constant_s,
+            along_m_per_s,
+            turn_rad_per_s,
+        };
+        let plain = |name, coloured| Self {
+            name,
+            coloured,
+            dropout: 0.02,
+            timestamp_jitter_s: 0.001,
+            outliers: 0.0,
+        };
+        Some(match name {
+            "white" => Self {
+                dropout: 0.0,
+                timestamp_jitter_s: 0.0,
+                ..plain("white", vec![])
+            },
+            "ou-0.2s" => plain("ou-0.2s", vec![ou(0.2, 0.02, 0.04)]),
+            "ou-2s" => plain("ou-2s", vec![ou(2.0, 0.01, 0.02)]),
+            "ou-5s" => plain("ou-5s", vec![ou(5.0, 0.008, 0.015)]),
+            "mixed" => Self {
+                outliers: 0.002,
+                ..plain("mixed", vec![ou(0.3, 0.01, 0.02), ou(3.0, 0.008, 0.015)])
+            },
+            _ => return None,
+        })
+    }
+
+    fn apply(&self, settings: Settings) -> Settings {
+        Settings {
+            coloured: self.coloured.clone(),
+            dropout: self.dropout,
+            timestamp_jitter_s: self.timestamp_jitter_s,
+            outliers: self.outliers,
+            ..settings
+        }
+    }
+}
+
+/// Wilson's 95% interval for `k` successes in `n` trials.
+pub fn wilson_interval(k: usize, n: usize) -> [f64; 2] {
+    if n == 0 {
+        return [0.0, 1.0];
+    }
+    let (n, p, z) = (n as f64, k as f64 / n as f64, 1.959_964);
+    let centre = (p + z * z / (2.0 * n)) / (1.0 + z * z / n);
+    let half = z * (p * (1.0 - p) / n + z * z / (4.0 * n * n)).sqrt() / (1.0 + z * z / n);
+    [(centre - half).max(0.0), (centre + half).min(1.0)]
+}
+
 #[derive(Clone, Debug, Serialize)]
 pub struct Row {
     pub name: String,
+    /// The noise colour the runs were generated with.
+    pub noise: String,
     pub concealment: String,
     pub runs: usize,
     /// Share of runs in which every true effect was named.
@@ -148,6 +218,8 @@ pub struct Row {
     pub named_or_tied_rate: f64,
     /// Share of runs naming an effect that is not there.
     pub false_positive_rate: f64,
+    /// Wilson's 95% interval of that share.
+    pub false_positive_interval: [f64; 2],
     /// Mean relative error of the true effects' parameters, where found.
     pub param_error: Option<f64>,
     pub heldout_rmse_pos_m_before: f64,
@@ -179,7 +251,12 @@ fn param_error(truth: &Effect, found: &Effect) -> f64 {
         / size
 }
 
-pub fn run_case(case: &Case, seeds: std::ops::Range<u64>, duration_s: f64) -> Row {
+pub fn run_case(
+    case: &Case,
+    noise: &NoiseColour,
+    seeds: std::ops::Range<u64>,
+    duration_s: f64,
+) -> Row {
     let truth = UnicycleModel::with_effects(case.truth.clone());
     let true_kinds: Vec<&str> = case.truth.iter().map(|e| e.effect.kind()).collect();
     let (mut detected, mut false_positive, mut errors) = (0, 0, Vec::new());
@@ -188,12 +265,12 @@ pub fn run_case(case: &Case, seeds: std::ops::Range<u64>, duration_s: f64) -> Ro
     let mut named = std::collections::BTreeMap::new();
     let runs = seeds.clone().count();
     for seed in seeds {
-        let settings = Settings {
+        let settings = noise.apply(Settings {
             duration_s,
             seed,
             turn_inside: case.turn_inside,
             ..Settings::default()
-        };
+        });
         let recording = generate(&truth, &settings);
         let started = std::time::Instant::now();
         let diagnosis = diagnose(&recording, &UnicycleModel::plain(), &Options::default());
@@ -231,15 +308,34 @@ pub fn run_case(case: &Case, seeds: std::ops::Range<u64>, duration_s: f64) -> Ro
     let n = runs.max(1) as f64;
     Row {
         name: case.name.to_owned(),
+        noise: noise.name.to_owned(),
         concealment: case.concealment.to_owned(),
         runs,
         detection_rate: detected as f64 / n,
         named_or_tied_rate: named_or_tied as f64 / n,
         false_positive_rate: false_positive as f64 / n,
+        false_positive_interval: wilson_interval(false_positive, runs),
         param_error: (!errors.is_empty()).then(|| errors.iter().sum::<f64>() / errors.len() as f64),
         heldout_rmse_pos_m_before: before / n,
         heldout_rmse_pos_m_after: after / n,
         seconds_per_run: seconds / n,
         named,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::wilson_interval;
+
+    #[test]
+    fn wilson_interval_matches_published_values() {
+        // 0 of 40: [0, 0.0876]; 2 of 40: [0.0138, 0.1650].
+        let [lo, hi] = wilson_interval(0, 40);
+        assert!(lo == 0.0 && (hi - 0.0876).abs() < 1e-3, "{lo} {hi}");
+        let [lo, hi] = wilson_interval(2, 40);
+        assert!(
+            (lo - 0.0138).abs() < 1e-3 && (hi - 0.1650).abs() < 1e-3,
+            "{lo} {hi}"
+        );
     }
 }

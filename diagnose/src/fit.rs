@@ -20,7 +20,7 @@ pub struct Fitted {
 }
 
 /// The simplex step of a parameter: the scale on which it matters.
-fn step_of(effect: &Effect, name: &str) -> f64 {
+pub fn step_of(effect: &Effect, name: &str) -> f64 {
     match (effect, name) {
         (Effect::Latency { .. }, _) => 0.05,
         (Effect::SpeedScale { .. } | Effect::TurnScale { .. }, _) => 0.05,

@@ -27,7 +27,37 @@ pub struct Settings {
     pub observation_noise_rad: f64,
     /// Where the operator turns rather than drives straight (a confound).
     pub turn_inside: Option<[f64; 4]>,
+    /// Coloured motion noise, which diagnosis does not assume: each term an
+    /// Ornstein-Uhlenbeck process added to the executed speed and turn rate.
+    pub coloured: Vec<ColouredNoise>,
+    /// Share of motion-capture frames lost.
+    pub dropout: f64,
+    /// Standard deviation of the observation timestamps' error, seconds.
+    pub timestamp_jitter_s: f64,
+    /// Share of frames that are gross outliers (a marker swap: 5-30 cm off).
+    pub outliers: f64,
     pub seed: u64,
+}
+
+/// One Ornstein-Uhlenbeck term of motion noise: correlated over
+/// `time_constant_s`, with these stationary standard deviations.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct ColouredNoise {
+    pub time_constant_s: f64,
+    pub along_m_per_s: f64,
+    pub turn_rad_per_s: f64,
+}
+
+impl ColouredNoise {
+    /// The value after `dt`, from `now`, drawing with `unit` normals.
+    fn step(&self, now: [f64; 2], dt: f64, unit: [f64; 2]) -> [f64; 2] {
+        let decay = (-dt / self.time_constant_s).exp();
+        let spread = (1.0 - decay * decay).sqrt();
+        [
+            now[0] * decay + self.along_m_per_s * spread * unit[0],
+            now[1] * decay + self.turn_rad_per_s * spread * unit[1],
+        ]
+    }
 }
 
 impl Default for Settings {
@@ -44,6 +74,10 @@ impl Default for Settings {
             observation_noise_m: 0.002,
             observation_noise_rad: 0.005,
             turn_inside: None,
+            coloured: Vec::new(),
+            dropout: 0.0,
+            timestamp_jitter_s: 0.0,
+            outliers: 0.0,
             seed: 1,
         }
     }
@@ -73,6 +107,7 @@ pub fn generate(truth: &UnicycleModel, settings: &Settings) -> Recording {
     let (mut v, mut omega) = (0.0, 0.0);
     let mut actuators = Actuators::default();
     let mut next_observation = rng.random_range(0.0..pose_every);
+    let mut colour = vec![[0.0; 2]; settings.coloured.len()];
     // The body executes on its own fine grid, extended as commands arrive.
     let mut grid = CommandGrid {
         t0: 0.0,
@@ -113,16 +148,42 @@ pub fn generate(truth: &UnicycleModel, settings: &Settings) -> Recording {
         grid.omega.push(omega);
         let (ev, eomega) = actuators.execute(truth, &grid, i);
         let m = truth.noise_multiplier(ev, t).sqrt();
-        let noisy_v = ev + m * settings.along_noise * unit.sample(&mut rng) / BODY_DT.sqrt();
-        let noisy_omega = eomega + m * settings.turn_noise * unit.sample(&mut rng) / BODY_DT.sqrt();
+        let (mut coloured_v, mut coloured_omega) = (0.0, 0.0);
+        for (term, now) in settings.coloured.iter().zip(colour.iter_mut()) {
+            *now = term.step(
+                *now,
+                BODY_DT,
+                [unit.sample(&mut rng), unit.sample(&mut rng)],
+            );
+            coloured_v += now[0];
+            coloured_omega += now[1];
+        }
+        let noisy_v =
+            ev + m * (settings.along_noise * unit.sample(&mut rng) / BODY_DT.sqrt() + coloured_v);
+        let noisy_omega = eomega
+            + m * (settings.turn_noise * unit.sample(&mut rng) / BODY_DT.sqrt() + coloured_omega);
         pose = truth.step(pose, noisy_v, noisy_omega, t, BODY_DT);
         while next_observation <= t + BODY_DT {
-            observed.push(
-                next_observation,
+            let stamp = next_observation + settings.timestamp_jitter_s * unit.sample(&mut rng);
+            let (mut x, mut y) = (
                 pose.x + settings.observation_noise_m * unit.sample(&mut rng),
                 pose.y + settings.observation_noise_m * unit.sample(&mut rng),
-                pose.theta + settings.observation_noise_rad * unit.sample(&mut rng),
             );
+            if settings.outliers > 0.0 && rng.random_bool(settings.outliers) {
+                let (off, angle) = (rng.random_range(0.05..0.3), rng.random_range(-3.14..3.14));
+                x += off * f64::cos(angle);
+                y += off * f64::sin(angle);
+            }
+            let dropped = settings.dropout > 0.0 && rng.random_bool(settings.dropout);
+            // Jittered stamps may fall out of order; a real logger keeps order.
+            if !dropped && observed.t.last().is_none_or(|&last| stamp > last) {
+                observed.push(
+                    stamp,
+                    x,
+                    y,
+                    pose.theta + settings.observation_noise_rad * unit.sample(&mut rng),
+                );
+            }
             next_observation += pose_every;
         }
     }

@@ -148,7 +148,17 @@ pub fn holm(p: &[f64]) -> Vec<f64> {
 
 /// Tests `standardised` residuals (one per segment) and returns what is
 /// significant at `alpha` after correction, most significant first.
-pub fn locate(segments: &[Segment], standardised: &[[f64; 3]], alpha: f64) -> Vec<Located> {
+///
+/// `long_run` is how much the residuals' correlation in time inflates the
+/// variance of a sum over segments (per component, see
+/// [`crate::likelihood::long_run_factors`]); groups are mostly runs of
+/// consecutive segments, so their sums are scaled by it.
+pub fn locate(
+    segments: &[Segment],
+    standardised: &[[f64; 3]],
+    long_run: [f64; 3],
+    alpha: f64,
+) -> Vec<Located> {
     let normal = Normal::standard();
     let groups = groups(segments);
     let mut tests: Vec<(usize, usize, f64, f64)> = Vec::new();
@@ -160,7 +170,7 @@ pub fn locate(segments: &[Segment], standardised: &[[f64; 3]], alpha: f64) -> Ve
                 .iter()
                 .map(|&i| standardised[i][c])
                 .sum::<f64>()
-                / n.sqrt();
+                / (n * long_run[c]).sqrt();
             tests.push((g, c, z, 2.0 * normal.sf(z.abs())));
         }
         // Spread: are the residuals larger (or smaller) than the noise says?
@@ -170,9 +180,18 @@ pub fn locate(segments: &[Segment], standardised: &[[f64; 3]], alpha: f64) -> Ve
             .iter()
             .map(|&i| standardised[i].iter().map(|z| z * z).sum::<f64>())
             .sum();
-        if let Ok(chi) = ChiSquared::new(dof) {
-            let p = 2.0 * chi.cdf(sum).min(chi.sf(sum));
-            tests.push((g, 3, (sum - dof) / (2.0 * dof).sqrt(), p.min(1.0)));
+        // Correlated residuals make the sum of squares vary more; for
+        // Gaussian ones squares correlate with rho^2 <= rho, so the mean
+        // inflation of the components bounds it.
+        let inflation = long_run.iter().sum::<f64>() / 3.0;
+        if inflation <= 1.0 + 1e-9 {
+            if let Ok(chi) = ChiSquared::new(dof) {
+                let p = 2.0 * chi.cdf(sum).min(chi.sf(sum));
+                tests.push((g, 3, (sum - dof) / (2.0 * dof).sqrt(), p.min(1.0)));
+            }
+        } else {
+            let z = (sum - dof) / (2.0 * dof * inflation).sqrt();
+            tests.push((g, 3, z, (2.0 * normal.sf(z.abs())).min(1.0)));
         }
     }
     let adjusted = holm(&tests.iter().map(|t| t.3).collect::<Vec<_>>());

@@ -7,7 +7,7 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
-use shoal_diagnose::experiment::{cases, run_case};
+use shoal_diagnose::experiment::{NOISE_COLOURS, NoiseColour, cases, run_case};
 use shoal_diagnose::generate::{Settings, generate};
 use shoal_diagnose::input::{commands_csv, mrclam_groundtruth, mrclam_odometry, poses_csv};
 use shoal_diagnose::{Diagnosis, Options, Recording, diagnose};
@@ -73,10 +73,26 @@ enum Commands {
     },
     /// Detection, false positives and parameter error over many seeds, per effect.
     Experiment {
+        /// Runs per concealed effect and noise colour.
         #[arg(long, default_value_t = 5)]
         seeds: u64,
+        /// Null runs (no effect) per noise colour: the false-positive rate.
+        #[arg(long, default_value_t = 40)]
+        nulls: u64,
         #[arg(long, default_value_t = 600.0)]
         duration: f64,
+        /// Noise colours: white (what diagnosis assumes), ou-0.2s, ou-2s,
+        /// ou-5s (coloured motion noise with 2% dropped frames and 1 ms
+        /// jitter), mixed (two time constants and marker swaps).
+        #[arg(
+            long,
+            value_delimiter = ',',
+            default_value = "white,ou-0.2s,ou-2s,ou-5s,mixed"
+        )]
+        noise: Vec<String>,
+        /// Only these cases (e.g. null,latency); default: all.
+        #[arg(long, value_delimiter = ',')]
+        cases: Vec<String>,
         #[arg(long)]
         json: bool,
     },
@@ -237,50 +253,73 @@ fn run_generate(truth: Option<&Path>, out: &Path, seed: u64, duration: f64) -> R
     Ok(())
 }
 
-fn run_experiment(seeds: u64, duration: f64, json: bool) -> Result<()> {
+struct ExperimentArgs<'a> {
+    seeds: u64,
+    nulls: u64,
+    duration: f64,
+    noise: &'a [String],
+    cases: &'a [String],
+    json: bool,
+}
+
+fn run_experiment(args: ExperimentArgs) -> Result<()> {
     let mut rows = Vec::new();
-    for case in cases(duration) {
-        // Null runs measure the false-positive rate: give them more seeds.
-        let n = if case.truth.is_empty() {
-            seeds * 4
-        } else {
-            seeds
-        };
-        let row = run_case(&case, 1000..1000 + n, duration);
-        eprintln!(
-            "{}: detected {:.0}%, false positives {:.0}%",
-            row.name,
-            row.detection_rate * 100.0,
-            row.false_positive_rate * 100.0
-        );
-        rows.push(row);
+    for colour in args.noise {
+        let noise = NoiseColour::named(colour).with_context(|| {
+            format!(
+                "unknown noise colour `{colour}`; known: {}",
+                NOISE_COLOURS.join(", ")
+            )
+        })?;
+        for case in cases(args.duration) {
+            if !args.cases.is_empty() && !args.cases.iter().any(|c| c == case.name) {
+                continue;
+            }
+            let n = if case.truth.is_empty() {
+                args.nulls
+            } else {
+                args.seeds
+            };
+            let row = run_case(&case, &noise, 1000..1000 + n, args.duration);
+            eprintln!(
+                "{} / {}: detected {:.0}%, runs naming an effect not there {:.0}%",
+                row.noise,
+                row.name,
+                row.detection_rate * 100.0,
+                row.false_positive_rate * 100.0
+            );
+            rows.push(row);
+        }
     }
-    if json {
+    if args.json {
         println!(
             "{}",
-            serde_json::json!({ "duration_s": duration, "cases": rows })
+            serde_json::json!({ "duration_s": args.duration, "cases": rows })
         );
-    } else {
+        return Ok(());
+    }
+    println!(
+        "| noise | case | concealed | runs | named | named or tied | runs naming an effect not there (95% CI) | param error | held-out pos RMSE before → after | s/run |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|");
+    for r in rows {
         println!(
-            "| case | concealed | runs | detected | false positives | param error | held-out pos RMSE before → after | s/run |"
+            "| {} | {} | {} | {} | {:.0}% | {:.0}% | {:.0}% ({:.0}-{:.0}%) | {} | {:.1} → {:.1} mm | {:.1} |",
+            r.noise,
+            r.name,
+            r.concealment,
+            r.runs,
+            r.detection_rate * 100.0,
+            r.named_or_tied_rate * 100.0,
+            r.false_positive_rate * 100.0,
+            r.false_positive_interval[0] * 100.0,
+            r.false_positive_interval[1] * 100.0,
+            r.param_error
+                .map_or("-".into(), |e| format!("{:.0}%", e * 100.0)),
+            r.heldout_rmse_pos_m_before * 1e3,
+            r.heldout_rmse_pos_m_after * 1e3,
+            r.seconds_per_run
         );
-        println!("|---|---|---|---|---|---|---|---|");
-        for r in rows {
-            println!(
-                "| {} | {} | {} | {:.0}% | {:.0}% | {:.0}% | {} | {:.1} → {:.1} mm | {:.1} |",
-                r.name,
-                r.concealment,
-                r.runs,
-                r.detection_rate * 100.0,
-                r.named_or_tied_rate * 100.0,
-                r.false_positive_rate * 100.0,
-                r.param_error
-                    .map_or("-".into(), |e| format!("{:.0}%", e * 100.0)),
-                r.heldout_rmse_pos_m_before * 1e3,
-                r.heldout_rmse_pos_m_after * 1e3,
-                r.seconds_per_run
-            );
-        }
     }
     Ok(())
 }
@@ -296,9 +335,19 @@ fn main() -> ExitCode {
         }) => run_generate(truth.as_deref(), out, *seed, *duration),
         Some(Commands::Experiment {
             seeds,
+            nulls,
             duration,
+            noise,
+            cases,
             json,
-        }) => run_experiment(*seeds, *duration, *json),
+        }) => run_experiment(ExperimentArgs {
+            seeds: *seeds,
+            nulls: *nulls,
+            duration: *duration,
+            noise,
+            cases,
+            json: *json,
+        }),
         None => run_diagnose(&cli.diagnose),
     };
     match outcome {

@@ -70,6 +70,55 @@ impl Poses {
         Some(Pose::new(lerp(&self.x), lerp(&self.y), lerp(&self.theta)))
     }
 
+    /// The poses without gross observation outliers (a swapped marker, a
+    /// reflection), and how many were dropped. A body cannot jump within a
+    /// few frames, so a pose far from the median of its neighbours (a
+    /// Hampel filter: more than 8 robust standard deviations of all such
+    /// distances, and more than 2 cm) is the camera's error, not motion.
+    pub fn without_outliers(&self) -> (Poses, usize) {
+        const HALF_WINDOW: usize = 5;
+        const THRESHOLD: f64 = 8.0;
+        const FLOOR_M: f64 = 0.02;
+        let n = self.len();
+        if n < 2 * HALF_WINDOW + 1 {
+            return (self.clone(), 0);
+        }
+        let median = |values: &mut Vec<f64>| {
+            values.sort_by(f64::total_cmp);
+            let m = values.len() / 2;
+            if values.len() % 2 == 1 {
+                values[m]
+            } else {
+                0.5 * (values[m - 1] + values[m])
+            }
+        };
+        let mut window = Vec::with_capacity(2 * HALF_WINDOW);
+        let distances: Vec<f64> = (0..n)
+            .map(|i| {
+                let (lo, hi) = (i.saturating_sub(HALF_WINDOW), (i + HALF_WINDOW + 1).min(n));
+                let mut centre = [0.0; 2];
+                for (axis, values) in [&self.x, &self.y].into_iter().enumerate() {
+                    window.clear();
+                    window.extend((lo..hi).filter(|&j| j != i).map(|j| values[j]));
+                    centre[axis] = median(&mut window);
+                }
+                (self.x[i] - centre[0]).hypot(self.y[i] - centre[1])
+            })
+            .collect();
+        let scale = 1.4826 * median(&mut distances.clone());
+        let limit = (THRESHOLD * scale).max(FLOOR_M);
+        let mut kept = Poses::default();
+        let mut dropped = 0;
+        for i in 0..n {
+            if distances[i] > limit {
+                dropped += 1;
+            } else {
+                kept.push(self.t[i], self.x[i], self.y[i], self.theta[i]);
+            }
+        }
+        (kept, dropped)
+    }
+
     fn pose(&self, i: usize) -> Pose {
         Pose::new(self.x[i], self.y[i], self.theta[i])
     }
@@ -112,5 +161,23 @@ impl Recording {
 
     pub fn duration(&self) -> f64 {
         self.commands.t.last().copied().unwrap_or(0.0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_marker_swap_is_dropped_and_smooth_motion_kept() {
+        let mut poses = Poses::default();
+        for i in 0..1000 {
+            let t = i as f64 * 0.01;
+            let jump = if i == 500 || i == 730 { 0.15 } else { 0.0 };
+            poses.push(t, 0.3 * t + jump, 0.1 * (t * 2.0).sin(), 0.2 * t);
+        }
+        let (kept, dropped) = poses.without_outliers();
+        assert_eq!(dropped, 2);
+        assert_eq!(kept.len(), 998);
     }
 }

@@ -1,13 +1,18 @@
 //! `shoal kill`, `shoal restart`, `shoal spawn`: act on a running swarm from any terminal.
 
-use std::time::{Duration, Instant};
+use std::time::Duration;
+
+/// How long a robot being restarted gets to leave cleanly.
+const RESTART_GRACE: Duration = Duration::from_secs(5);
+/// How long `shoal down` gives a swarm's processes to leave cleanly.
+const DOWN_GRACE: Duration = Duration::from_secs(8);
 
 use anyhow::{Context, Result, bail};
 use shoal_broker::SwarmRuntime;
 use shoal_broker::liveness::{SwarmNode, SwarmNodeState, remove_dead_nodes, swarm_nodes};
 use shoal_physics::{Pose, Scenario};
 
-use crate::process::{pid_alive, signal, start_agent};
+use crate::process::{Tie, signal, start_agent, stop_processes};
 
 fn alive_robot(nodes: &[SwarmNode], id: u32) -> Option<&SwarmNode> {
     nodes
@@ -18,6 +23,7 @@ fn alive_robot(nodes: &[SwarmNode], id: u32) -> Option<&SwarmNode> {
 /// Signals robots by id: SIGKILL, or SIGTERM when `graceful`.
 pub fn kill(swarm: &str, ids: &[u32], graceful: bool) -> Result<()> {
     let nodes = swarm_nodes(swarm)?;
+    let runtime = SwarmRuntime::locate(swarm);
     let sig = if graceful {
         libc::SIGTERM
     } else {
@@ -27,6 +33,13 @@ pub fn kill(swarm: &str, ids: &[u32], graceful: bool) -> Result<()> {
     for &id in ids {
         match alive_robot(&nodes, id) {
             Some(node) => {
+                // The launcher reports robots that die unasked; this one was asked.
+                runtime.mark_stopped_by_user(id).with_context(|| {
+                    format!(
+                        "noting in {} that robot {id} is stopped on purpose",
+                        runtime.dir.display()
+                    )
+                })?;
                 signal(node.pid, sig)?;
                 println!(
                     "killed robot {id} (pid {}){}",
@@ -58,14 +71,8 @@ pub fn restart(swarm: &str, ids: &[u32], at: Option<[f64; 2]>) -> Result<()> {
     let nodes = swarm_nodes(swarm)?;
     for &id in ids {
         if let Some(node) = alive_robot(&nodes, id) {
-            signal(node.pid, libc::SIGTERM)?;
-            let deadline = Instant::now() + Duration::from_secs(5);
-            while pid_alive(node.pid) && Instant::now() < deadline {
-                std::thread::sleep(Duration::from_millis(20));
-            }
-            if pid_alive(node.pid) {
-                signal(node.pid, libc::SIGKILL)?;
-            }
+            runtime.mark_stopped_by_user(id)?;
+            stop_processes(&[node.pid], RESTART_GRACE);
         }
     }
     remove_dead_nodes(swarm)?;
@@ -77,7 +84,7 @@ pub fn restart(swarm: &str, ids: &[u32], at: Option<[f64; 2]>) -> Result<()> {
                 |[x, y, theta]| Pose::new(x, y, theta),
             ),
         };
-        let child = start_agent(swarm, id, pose, &runtime.log_path(id), true)?;
+        let child = start_agent(swarm, id, pose, &runtime, Tie::Detached)?;
         println!(
             "restarted robot {id} (pid {}) at ({:.2}, {:.2})",
             child.id(),
@@ -113,7 +120,7 @@ pub fn spawn(swarm: &str, count: usize, at: Option<[f64; 2]>) -> Result<Vec<u32>
             }
             None => scenario.start_poses(id, 1)[0],
         };
-        let child = start_agent(swarm, id, pose, &runtime.log_path(id), true)?;
+        let child = start_agent(swarm, id, pose, &runtime, Tie::Detached)?;
         println!(
             "spawned robot {id} (pid {}) at ({:.2}, {:.2})",
             child.id(),
@@ -123,4 +130,40 @@ pub fn spawn(swarm: &str, count: usize, at: Option<[f64; 2]>) -> Result<Vec<u32>
         ids.push(id);
     }
     Ok(ids)
+}
+
+/// Stops swarm `swarm` from any terminal: its launcher first (which stops
+/// what it started), then every other process on its bus (robots started by
+/// `shoal restart` or `spawn`, the recorder, SLAM); then what the processes
+/// of a killed swarm left (dead nodes, its folder). Returns how many
+/// processes were stopped.
+pub fn down(swarm: &str) -> Result<usize> {
+    let me = std::process::id() as i32;
+    let alive_pids = || -> Result<Vec<i32>> {
+        let mut pids: Vec<i32> = swarm_nodes(swarm)?
+            .into_iter()
+            .filter(|n| n.state == SwarmNodeState::Alive && n.pid != me)
+            .map(|n| n.pid)
+            .collect();
+        pids.sort_unstable();
+        pids.dedup();
+        Ok(pids)
+    };
+    let launcher = shoal_broker::names::tool_node(swarm, "launcher");
+    let launchers: Vec<i32> = swarm_nodes(swarm)?
+        .into_iter()
+        .filter(|n| n.state == SwarmNodeState::Alive && n.name == launcher)
+        .map(|n| n.pid)
+        .collect();
+    let before = alive_pids()?;
+    if !before.is_empty() {
+        stop_processes(&launchers, DOWN_GRACE);
+        stop_processes(&alive_pids()?, DOWN_GRACE);
+    }
+    remove_dead_nodes(swarm)?;
+    let runtime = SwarmRuntime::locate(swarm);
+    runtime
+        .remove()
+        .with_context(|| format!("removing {}", runtime.dir.display()))?;
+    Ok(before.len())
 }

@@ -54,18 +54,21 @@ enum Commands {
         slam: Vec<u32>,
     },
     /// Run particle-filter SLAM on robots of a running swarm (see `shoal-slam --help`).
+    #[command(disable_help_flag = true)]
     Slam {
         /// Arguments for shoal-slam, e.g. --follow 3 --learning off --particles 200.
         #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
         args: Vec<String>,
     },
     /// Find where a simulation and a real run differ and name the missing physics (see `shoal-diagnose --help`).
+    #[command(disable_help_flag = true)]
     Diagnose {
         /// Arguments for shoal-diagnose, e.g. --mrclam DIR --robot 3 --json --out diag.
         #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
         args: Vec<String>,
     },
     /// Record a running swarm into a Rerun file (.rrd) until Ctrl-C.
+    #[command(disable_help_flag = true)]
     Record {
         /// Arguments for shoal-viewer-log: OUT.rrd [--swarm NAME] [--tum DIR] [--duration SECS].
         #[arg(trailing_var_arg = true, allow_hyphen_values = true, required = true)]
@@ -101,6 +104,11 @@ enum Commands {
         /// Print JSON instead of a Markdown table.
         #[arg(long, global = true)]
         json: bool,
+    },
+    /// Stop a swarm from any terminal: its launcher, robots, recorder and SLAM.
+    Down {
+        #[arg(long, default_value = "default")]
+        swarm: String,
     },
     /// Add new robots to a running swarm.
     Spawn {
@@ -153,6 +161,7 @@ enum ExperimentKind {
         particles: usize,
     },
     /// Concealed effects, null runs and pairs diagnosed blind (see `shoal-diagnose experiment --help`).
+    #[command(disable_help_flag = true)]
     Diagnose {
         /// Arguments for `shoal-diagnose experiment`, e.g. --seeds 5.
         #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
@@ -187,16 +196,13 @@ fn parse_point(text: &str) -> Result<[f64; 2], String> {
     Ok([parse(x)?, parse(y)?])
 }
 
-/// Runs a sibling binary with `args` in the foreground; its failure is
-/// ours, with its exit code (it has already said why).
-fn forward(binary: &str, args: &[String]) -> Result<()> {
-    let status = std::process::Command::new(shoal::process::sibling_binary(binary)?)
-        .args(args)
-        .status()?;
-    if !status.success() {
-        std::process::exit(status.code().unwrap_or(1));
-    }
-    Ok(())
+/// Becomes the sibling binary (exec): one process, so the pid the user sees
+/// is the one doing the work, signals reach it, and `--help` is its own.
+fn become_binary(binary: &str, args: &[String]) -> Result<()> {
+    use std::os::unix::process::CommandExt;
+    let path = shoal::process::sibling_binary(binary)?;
+    let error = std::process::Command::new(&path).args(args).exec();
+    Err(anyhow::Error::new(error).context(format!("starting {}", path.display())))
 }
 
 fn run(cli: Cli) -> Result<()> {
@@ -226,9 +232,9 @@ fn run(cli: Cli) -> Result<()> {
                 slam,
             })?;
         }
-        Commands::Slam { args } => forward("shoal-slam", &args)?,
-        Commands::Record { args } => forward("shoal-viewer-log", &args)?,
-        Commands::Diagnose { args } => forward("shoal-diagnose", &args)?,
+        Commands::Slam { args } => become_binary("shoal-slam", &args)?,
+        Commands::Record { args } => become_binary("shoal-viewer-log", &args)?,
+        Commands::Diagnose { args } => become_binary("shoal-diagnose", &args)?,
         Commands::Status { swarm, json } => {
             let report = status::gather(&swarm)?;
             if json {
@@ -273,7 +279,7 @@ fn run(cli: Cli) -> Result<()> {
                 if json {
                     args.push("--json".into());
                 }
-                forward("shoal-diagnose", &args)?
+                become_binary("shoal-diagnose", &args)?
             }
         },
         Commands::Kill {
@@ -282,6 +288,10 @@ fn run(cli: Cli) -> Result<()> {
             graceful,
         } => control::kill(&swarm, &ids, graceful)?,
         Commands::Restart { ids, swarm, at } => control::restart(&swarm, &ids, at)?,
+        Commands::Down { swarm } => {
+            let stopped = control::down(&swarm)?;
+            println!("stopped swarm `{swarm}` ({stopped} processes)");
+        }
         Commands::Spawn { count, swarm, at } => {
             control::spawn(&swarm, count, at)?;
         }

@@ -19,18 +19,67 @@ pub fn sibling_binary(name: &str) -> Result<PathBuf> {
     Ok(path)
 }
 
-/// Starts robot `id` at `pose`, its log going to `log`. A `detached` robot
-/// gets a session of its own, so it outlives the command that started it and
-/// a Ctrl-C in that terminal does not reach it.
+/// How a started process is tied to the one that starts it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Tie {
+    /// A session of its own: it outlives the command that started it, and a
+    /// Ctrl-C in that terminal does not reach it (`shoal restart`, `spawn`).
+    Detached,
+    /// A plain child: a real-time swarm goes on without its launcher.
+    Child,
+    /// SIGTERM when the launcher dies, even by SIGKILL: a lockstep robot or
+    /// helper would otherwise wait forever for ticks that never come.
+    DiesWithLauncher,
+}
+
+/// Asks the kernel to send `command`'s process SIGTERM when this process
+/// dies (Linux's parent-death signal).
+pub fn die_with_parent(command: &mut Command) {
+    use std::os::unix::process::CommandExt;
+    // SAFETY: getpid is taken before the fork; in the child, prctl, getppid
+    // and kill are async-signal-safe and touch no memory of ours.
+    let parent = unsafe { libc::getpid() };
+    unsafe {
+        command.pre_exec(move || {
+            if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            // The parent may have died before the call above took effect.
+            if libc::getppid() != parent {
+                libc::kill(libc::getpid(), libc::SIGTERM);
+            }
+            Ok(())
+        });
+    }
+}
+
+/// Asks `pids` to stop (SIGTERM), waits up to `grace` for them, then kills
+/// those left (SIGKILL). Returns how many had to be killed.
+pub fn stop_processes(pids: &[i32], grace: std::time::Duration) -> usize {
+    for pid in pids {
+        let _ = signal(*pid, libc::SIGTERM);
+    }
+    let deadline = std::time::Instant::now() + grace;
+    while std::time::Instant::now() < deadline && pids.iter().any(|p| pid_alive(*p)) {
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let stubborn: Vec<i32> = pids.iter().copied().filter(|p| pid_alive(*p)).collect();
+    for pid in &stubborn {
+        tracing::warn!(pid, "process ignored SIGTERM; killing it");
+        let _ = signal(*pid, libc::SIGKILL);
+    }
+    stubborn.len()
+}
+
+/// Starts robot `id` at `pose`, its log going to the swarm's folder.
 pub fn start_agent(
     swarm: &str,
     id: u32,
     pose: Pose,
-    log: &std::path::Path,
-    detached: bool,
+    runtime: &shoal_broker::SwarmRuntime,
+    tie: Tie,
 ) -> Result<Child> {
-    let log_file =
-        std::fs::File::create(log).with_context(|| format!("creating {}", log.display()))?;
+    let log_file = runtime.create_log(&format!("agent-{id}.log"))?;
     let mut command = Command::new(sibling_binary("shoal-agent")?);
     command
         .args([
@@ -44,15 +93,19 @@ pub fn start_agent(
         .stdin(Stdio::null())
         .stdout(log_file.try_clone()?)
         .stderr(log_file);
-    if detached {
-        use std::os::unix::process::CommandExt;
-        // SAFETY: setsid is async-signal-safe and touches no memory of ours.
-        unsafe {
-            command.pre_exec(|| {
-                libc::setsid();
-                Ok(())
-            });
+    match tie {
+        Tie::Detached => {
+            use std::os::unix::process::CommandExt;
+            // SAFETY: setsid is async-signal-safe and touches no memory of ours.
+            unsafe {
+                command.pre_exec(|| {
+                    libc::setsid();
+                    Ok(())
+                });
+            }
         }
+        Tie::DiesWithLauncher => die_with_parent(&mut command),
+        Tie::Child => {}
     }
     command
         .spawn()

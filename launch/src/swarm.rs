@@ -16,7 +16,9 @@ use shoal_physics::{Pose, Scenario};
 
 use crate::clock::LockstepClock;
 use crate::observer::Observer;
-use crate::process::{pid_alive, sibling_binary, signal, start_agent};
+use crate::process::{
+    Tie, die_with_parent, pid_alive, sibling_binary, signal, start_agent, stop_processes,
+};
 
 /// How long robots get to leave cleanly before they are killed.
 const SHUTDOWN_GRACE: Duration = Duration::from_secs(5);
@@ -43,13 +45,17 @@ pub struct RunningSwarm {
     pub clock: Option<LockstepClock>,
     bus: Bus,
     roster: RosterReader,
-    children: BTreeMap<u32, Child>,
+    children: Children,
     /// Processes that serve the swarm (recorder, SLAM), by binary name.
     helpers: Vec<(String, Child)>,
     /// In lockstep, the clock waits for helpers (recorder, SLAM) to keep up.
     paces: Vec<Pace>,
     started: Instant,
     stopped: bool,
+    /// Deaths already handed to the caller by `take_deaths`.
+    reported_deaths: usize,
+    /// Keep the robots' logs when the swarm stops (a failed start).
+    keep_logs: bool,
 }
 
 /// A helper's progress, which a lockstep clock must not outrun by more than
@@ -112,9 +118,6 @@ impl RunningSwarm {
         }
         remove_dead_nodes(name)?;
         let runtime = SwarmRuntime::locate(name);
-        runtime
-            .remove()
-            .with_context(|| format!("clearing {}", runtime.dir.display()))?;
         let epoch_unix_ms = SystemTime::now()
             .duration_since(UNIX_EPOCH)
             .map_or(0, |d| d.as_millis() as u64);
@@ -145,11 +148,13 @@ impl RunningSwarm {
             clock,
             bus,
             roster,
-            children: BTreeMap::new(),
+            children: Children::default(),
             helpers: Vec::new(),
             paces: Vec::new(),
             started: Instant::now(),
             stopped: false,
+            reported_deaths: 0,
+            keep_logs: false,
         };
         let count = swarm.scenario.agents.count;
         let poses = swarm.scenario.start_poses(0, count);
@@ -162,8 +167,16 @@ impl RunningSwarm {
                 observer.record(s)
             })?;
             if joined < count {
+                swarm.children.reap(&swarm.runtime);
+                swarm.keep_logs = true;
                 bail!(
-                    "only {joined} of {count} robots started; see the logs in {}",
+                    "only {joined} of {count} robots started{}; their logs are kept in {}",
+                    swarm
+                        .children
+                        .deaths
+                        .first()
+                        .map(|d| format!("; {d}"))
+                        .unwrap_or_default(),
                     swarm.runtime.dir.display()
                 );
             }
@@ -173,8 +186,8 @@ impl RunningSwarm {
 
     /// Starts robot `id` at `pose` as a child of this process.
     pub fn start(&mut self, id: u32, pose: Pose) -> Result<()> {
-        let child = start_agent(&self.name, id, pose, &self.runtime.log_path(id), false)?;
-        self.children.insert(id, child);
+        let child = start_agent(&self.name, id, pose, &self.runtime, self.tie())?;
+        self.children.running.insert(id, child);
         Ok(())
     }
 
@@ -220,13 +233,27 @@ impl RunningSwarm {
         self.start_helper("shoal-slam", &args)
     }
 
+    /// Lockstep children cannot go on without the clock in this process.
+    fn tie(&self) -> Tie {
+        if self.lockstep() {
+            Tie::DiesWithLauncher
+        } else {
+            Tie::Child
+        }
+    }
+
     fn start_helper(&mut self, binary: &str, args: &[std::ffi::OsString]) -> Result<()> {
-        let log = std::fs::File::create(self.runtime.dir.join(format!("{binary}.log")))?;
-        let child = Command::new(sibling_binary(binary)?)
+        let log = self.runtime.create_log(&format!("{binary}.log"))?;
+        let mut command = Command::new(sibling_binary(binary)?);
+        command
             .args(args)
             .stdin(Stdio::null())
             .stdout(log.try_clone()?)
-            .stderr(log)
+            .stderr(log);
+        if self.tie() == Tie::DiesWithLauncher {
+            die_with_parent(&mut command);
+        }
+        let child = command
             .spawn()
             .with_context(|| format!("starting {binary}"))?;
         self.helpers.push((binary.to_owned(), child));
@@ -242,7 +269,29 @@ impl RunningSwarm {
 
     /// Pids of the robots this process started and that still run.
     pub fn agent_pids(&self) -> Vec<i32> {
-        self.children.values().map(|c| c.id() as i32).collect()
+        self.children
+            .running
+            .values()
+            .map(|c| c.id() as i32)
+            .collect()
+    }
+
+    /// Robots and helpers that died without being asked to, in order; each
+    /// is reported once.
+    pub fn take_deaths(&mut self) -> Vec<Death> {
+        let new = self.children.deaths[self.reported_deaths..].to_vec();
+        self.reported_deaths = self.children.deaths.len();
+        new
+    }
+
+    /// Every unasked-for death since the start.
+    pub fn deaths(&self) -> &[Death] {
+        &self.children.deaths
+    }
+
+    /// Robots this process started that still run.
+    pub fn running_children(&self) -> usize {
+        self.children.running.len()
     }
 
     pub fn lockstep(&self) -> bool {
@@ -260,7 +309,9 @@ impl RunningSwarm {
     /// Lockstep: one tick. Real time: a short wait. Either way the observer is
     /// brought up to date.
     pub fn advance(&mut self) -> Result<()> {
+        self.reap_helpers();
         let children = &mut self.children;
+        let runtime = &self.runtime;
         let observer = &mut self.observer;
         match &mut self.clock {
             Some(clock) => {
@@ -280,7 +331,7 @@ impl RunningSwarm {
                 clock.advance(
                     &self.roster,
                     |pid| {
-                        reap(children);
+                        children.reap(runtime);
                         pid_alive(pid)
                     },
                     |s| observer.record(s),
@@ -292,7 +343,7 @@ impl RunningSwarm {
             None => {
                 std::thread::sleep(Duration::from_millis(50));
                 self.roster.receive(|s| observer.record(s))?;
-                reap(children);
+                children.reap(runtime);
                 let period = self.scenario.timing.period_s;
                 observer.expire(Duration::from_secs_f64(
                     period * self.scenario.timing.stale_periods.max(2.0),
@@ -308,13 +359,14 @@ impl RunningSwarm {
 
     /// Sends `sig` to robot `id`.
     pub fn signal_robot(&mut self, id: u32, sig: i32) -> Result<()> {
-        let pid = match self.children.get(&id) {
+        let pid = match self.children.running.get(&id) {
             Some(child) => child.id() as i32,
             None => match self.observer.get(id) {
                 Some(sample) => sample.pid as i32,
                 None => bail!("robot {id} is not in swarm `{}`", self.name),
             },
         };
+        self.runtime.mark_stopped_by_user(id)?;
         signal(pid, sig)
     }
 
@@ -325,6 +377,9 @@ impl RunningSwarm {
             return Ok(());
         }
         self.stopped = true;
+        // What died before the stop is reported; what the stop ends is not.
+        self.children.reap(&self.runtime);
+        self.reap_helpers();
         // Helpers go first: the recorder then does not log every robot
         // leaving, and gets time to write the recording's footer.
         for (_, mut helper) in self.helpers.drain(..) {
@@ -336,7 +391,7 @@ impl RunningSwarm {
             let _ = helper.kill();
             let _ = helper.wait();
         }
-        let mut pids: Vec<i32> = self.children.values().map(|c| c.id() as i32).collect();
+        let mut pids: Vec<i32> = self.agent_pids();
         for node in swarm_nodes(&self.name)? {
             if node.agent_id.is_some()
                 && node.state == SwarmNodeState::Alive
@@ -345,29 +400,23 @@ impl RunningSwarm {
                 pids.push(node.pid);
             }
         }
-        for pid in &pids {
-            let _ = signal(*pid, libc::SIGTERM);
-        }
-        let deadline = Instant::now() + SHUTDOWN_GRACE;
-        while Instant::now() < deadline {
-            reap(&mut self.children);
-            if pids.iter().all(|p| !pid_alive(*p)) {
-                break;
-            }
-            std::thread::sleep(Duration::from_millis(20));
-        }
-        for pid in pids.iter().filter(|p| pid_alive(**p)) {
-            tracing::warn!(pid, "robot ignored SIGTERM; killing it");
-            let _ = signal(*pid, libc::SIGKILL);
-        }
-        for child in self.children.values_mut() {
+        // Our own children are zombies once they exit, and a zombie's pid
+        // is not reused, so signalling by pid cannot hit another process.
+        stop_processes(&pids, SHUTDOWN_GRACE);
+        for child in self.children.running.values_mut() {
             let _ = child.wait();
         }
-        self.children.clear();
+        self.children.running.clear();
         remove_dead_nodes(&self.name)?;
-        self.runtime
-            .remove()
-            .with_context(|| format!("removing {}", self.runtime.dir.display()))?;
+        if self.keep_logs || !self.children.deaths.is_empty() {
+            self.runtime
+                .remove_all_but_logs()
+                .with_context(|| format!("clearing {}", self.runtime.dir.display()))?;
+        } else {
+            self.runtime
+                .remove()
+                .with_context(|| format!("removing {}", self.runtime.dir.display()))?;
+        }
         Ok(())
     }
 }
@@ -380,7 +429,117 @@ impl Drop for RunningSwarm {
     }
 }
 
-/// Collects exited children so they do not linger as zombies.
-fn reap(children: &mut BTreeMap<u32, Child>) {
-    children.retain(|_, child| matches!(child.try_wait(), Ok(None)));
+/// The robots this process started, and how those that ended did.
+#[derive(Default)]
+struct Children {
+    running: BTreeMap<u32, Child>,
+    deaths: Vec<Death>,
+}
+
+/// A robot or helper that ended without a user or the launcher asking it to.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Death {
+    /// `robot 3`, or the helper's binary.
+    pub who: String,
+    pub status: String,
+    /// The last lines of its log, which say why.
+    pub log_tail: Vec<String>,
+    /// A crash (an error exit, a panic, a fault), not a kill from outside.
+    pub crashed: bool,
+}
+
+impl std::fmt::Display for Death {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} {}", self.who, self.status)?;
+        for line in &self.log_tail {
+            write!(f, "\n    | {line}")?;
+        }
+        Ok(())
+    }
+}
+
+/// Lines of a dead process's log shown to the user.
+const LOG_TAIL_LINES: usize = 6;
+
+impl Death {
+    fn of(who: String, status: std::process::ExitStatus, log_tail: Vec<String>) -> Self {
+        use std::os::unix::process::ExitStatusExt;
+        let (status, crashed) = match (status.code(), status.signal()) {
+            (Some(code), _) => (format!("exited with status {code}"), code != 0),
+            // Killed from outside (kill -9, SIGTERM, a closed terminal, the
+            // kernel's OOM killer): said, but not a crash of ours.
+            (_, Some(sig))
+                if [libc::SIGKILL, libc::SIGTERM, libc::SIGINT, libc::SIGHUP].contains(&sig) =>
+            {
+                (
+                    format!("was killed by signal {sig} ({})", signal_name(sig)),
+                    false,
+                )
+            }
+            (_, Some(sig)) => (format!("died of signal {sig} ({})", signal_name(sig)), true),
+            _ => (format!("ended: {status}"), true),
+        };
+        Self {
+            who,
+            status,
+            log_tail,
+            crashed,
+        }
+    }
+}
+
+fn signal_name(sig: i32) -> &'static str {
+    match sig {
+        libc::SIGKILL => "SIGKILL",
+        libc::SIGTERM => "SIGTERM",
+        libc::SIGINT => "SIGINT",
+        libc::SIGHUP => "SIGHUP",
+        libc::SIGSEGV => "SIGSEGV",
+        libc::SIGABRT => "SIGABRT",
+        libc::SIGBUS => "SIGBUS",
+        libc::SIGFPE => "SIGFPE",
+        libc::SIGILL => "SIGILL",
+        _ => "signal",
+    }
+}
+
+impl Children {
+    /// Collects exited robots so they do not linger as zombies, and notes
+    /// those that nobody asked to stop.
+    fn reap(&mut self, runtime: &SwarmRuntime) {
+        let mut ended = Vec::new();
+        self.running.retain(|id, child| match child.try_wait() {
+            Ok(None) => true,
+            Ok(Some(status)) => {
+                ended.push((*id, status));
+                false
+            }
+            Err(_) => false,
+        });
+        for (id, status) in ended {
+            if !runtime.take_stopped_by_user(id) {
+                let tail = runtime.log_tail(&format!("agent-{id}.log"), LOG_TAIL_LINES);
+                self.deaths
+                    .push(Death::of(format!("robot {id}"), status, tail));
+            }
+        }
+    }
+}
+
+impl RunningSwarm {
+    /// Notes helpers (recorder, SLAM) that ended on their own.
+    fn reap_helpers(&mut self) {
+        let runtime = &self.runtime;
+        let deaths = &mut self.children.deaths;
+        self.helpers
+            .retain_mut(|(binary, child)| match child.try_wait() {
+                Ok(None) => true,
+                Ok(Some(status)) => {
+                    let tail = runtime.log_tail(&format!("{binary}.log"), LOG_TAIL_LINES);
+                    deaths.push(Death::of(binary.clone(), status, tail));
+                    false
+                }
+                Err(_) => false,
+            });
+    }
 }

@@ -4,7 +4,7 @@ use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use anyhow::Result;
+use anyhow::{Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 use shoal_physics::Scenario;
@@ -110,6 +110,18 @@ pub fn up(options: UpOptions) -> Result<UpSummary> {
             break;
         }
         swarm.advance()?;
+        for death in swarm.take_deaths() {
+            if let Some(bar) = &progress {
+                bar.suspend(|| eprintln!("shoal: {death}"));
+            } else {
+                eprintln!("shoal: {death}");
+            }
+        }
+        if swarm.running_children() == 0 && swarm.observer.len() == 0 && !swarm.deaths().is_empty()
+        {
+            eprintln!("shoal: every robot of swarm `{}` has stopped", swarm.name);
+            break;
+        }
         let metrics = swarm.observer.metrics(spread);
         match (is_formed(&metrics), converged_since) {
             (true, None) => converged_since = Some(swarm.sim_time()),
@@ -158,6 +170,9 @@ pub fn up(options: UpOptions) -> Result<UpSummary> {
     };
     eprintln!("shoal: stopping swarm `{}`", swarm.name);
     swarm.shutdown()?;
+    for death in swarm.take_deaths() {
+        eprintln!("shoal: {death}");
+    }
     if let Some(out) = &options.record {
         eprintln!(
             "shoal: recording in {}; to watch it: pip install rerun-sdk, then rerun {}",
@@ -177,6 +192,30 @@ pub fn up(options: UpOptions) -> Result<UpSummary> {
             summary
                 .converge_s
                 .map_or_else(|| "never".to_owned(), |t| format!("{t:.1} s"))
+        );
+    }
+    let crashed: Vec<&str> = swarm
+        .deaths()
+        .iter()
+        .filter(|d| d.crashed)
+        .map(|d| d.who.as_str())
+        .collect();
+    if !crashed.is_empty() {
+        bail!(
+            "{} died during the run ({}); their logs are kept in {}",
+            crashed.join(", "),
+            if crashed.len() == 1 {
+                "see above"
+            } else {
+                "see each above"
+            },
+            swarm.runtime.dir.display()
+        );
+    }
+    if !swarm.deaths().is_empty() {
+        eprintln!(
+            "shoal: the logs of robots killed during the run are kept in {}",
+            swarm.runtime.dir.display()
         );
     }
     Ok(summary)

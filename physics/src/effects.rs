@@ -138,23 +138,32 @@ impl Effect {
         })
     }
 
-    /// Where the parameters may lie; outside, the effect is not physical.
-    pub fn in_bounds(&self) -> bool {
+    /// The physical range of each parameter, in the order of
+    /// [`Effect::params`]. Signs are physics: a battery only loses charge,
+    /// slip only loses speed, noise only grows with speed. A fit that ends
+    /// on an edge is reported as unexplained, not as physics.
+    pub fn ranges(&self) -> Vec<(f64, f64)> {
         match *self {
-            Effect::Latency { seconds } => (0.0..=2.0).contains(&seconds),
-            Effect::SpeedScale { factor } | Effect::TurnScale { factor } => {
-                (0.2..=5.0).contains(&factor)
-            }
-            Effect::TurnBias { rad_per_s } => rad_per_s.abs() <= 2.0,
-            Effect::HeadingDrift { rad_per_m } => rad_per_m.abs() <= 2.0,
-            Effect::AccelLimit { m_per_s2 } => (0.01..=50.0).contains(&m_per_s2),
-            Effect::Slip { per_m_per_s } => (-1.0..=3.0).contains(&per_m_per_s),
-            Effect::BatteryFade { per_minute } => (-0.5..=0.5).contains(&per_minute),
-            Effect::SurfaceZone { speed_factor, .. } => (0.0..=3.0).contains(&speed_factor),
-            Effect::ExternalFlow { vx, vy } => vx.hypot(vy) <= 2.0,
-            Effect::Hysteresis { play_rad_per_s } => (0.0..=2.0).contains(&play_rad_per_s),
-            Effect::SpeedNoise { per_m_per_s } => (0.0..=1000.0).contains(&per_m_per_s),
+            Effect::Latency { .. } => vec![(0.0, 1.0)],
+            Effect::SpeedScale { .. } | Effect::TurnScale { .. } => vec![(0.2, 5.0)],
+            Effect::TurnBias { .. } => vec![(-2.0, 2.0)],
+            Effect::HeadingDrift { .. } => vec![(-2.0, 2.0)],
+            Effect::AccelLimit { .. } => vec![(0.01, 50.0)],
+            Effect::Slip { .. } => vec![(0.0, 3.0)],
+            Effect::BatteryFade { .. } => vec![(0.0, 0.5)],
+            Effect::SurfaceZone { .. } => vec![(0.05, 3.0)],
+            Effect::ExternalFlow { .. } => vec![(-2.0, 2.0), (-2.0, 2.0)],
+            Effect::Hysteresis { .. } => vec![(0.0, 2.0)],
+            Effect::SpeedNoise { .. } => vec![(0.0, 100.0)],
         }
+    }
+
+    /// Whether every parameter lies in its physical range.
+    pub fn in_bounds(&self) -> bool {
+        self.params()
+            .iter()
+            .zip(self.ranges())
+            .all(|((_, v), (lo, hi))| (lo..=hi).contains(v))
     }
 
     /// One sentence for the user.

@@ -13,6 +13,10 @@ pub struct Mixture2 {
     pub variances: [f64; 2],
 }
 
+/// Bounds on one step's motion (metres or radians) that a model may state.
+pub const MAX_STEP_MEAN: f64 = 10.0;
+pub const MAX_STEP_VARIANCE: f64 = 100.0;
+
 impl Mixture2 {
     /// A single Gaussian written as a mixture of two equal halves.
     pub fn gaussian(mean: f64, std_dev: f64) -> Self {
@@ -89,9 +93,14 @@ impl Mixture2 {
 
     /// Checks the invariants a model file must respect.
     pub fn validate(&self) -> Result<(), String> {
+        // One step of a robot moves it metres and turns it radians, not
+        // kilometres: larger values are typos, or a bus message that would
+        // push a believed pose to infinity.
         for (j, v) in self.variances.iter().enumerate() {
-            if !v.is_finite() || *v <= 0.0 {
-                return Err(format!("variance {j} is {v}; it must be positive"));
+            if !v.is_finite() || *v <= 0.0 || *v > MAX_STEP_VARIANCE {
+                return Err(format!(
+                    "variance {j} is {v}; it must be positive, at most {MAX_STEP_VARIANCE}"
+                ));
             }
         }
         for (j, w) in self.weights.iter().enumerate() {
@@ -103,8 +112,14 @@ impl Mixture2 {
         if (total - 1.0).abs() > 1e-6 {
             return Err(format!("weights sum to {total}; they must sum to 1"));
         }
-        if self.means.iter().any(|m| !m.is_finite()) {
-            return Err("a mean is not finite".to_owned());
+        if let Some(m) = self
+            .means
+            .iter()
+            .find(|m| !m.is_finite() || m.abs() > MAX_STEP_MEAN)
+        {
+            return Err(format!(
+                "a mean is {m}; it must be finite, at most {MAX_STEP_MEAN} in size"
+            ));
         }
         Ok(())
     }

@@ -268,61 +268,128 @@ impl Scenario {
         toml::to_string_pretty(self).unwrap_or_default()
     }
 
-    /// Checks what the types alone cannot; errors name the field.
+    /// Checks what the types alone cannot: every number lies in a range a
+    /// real swarm can have (finite, signed right, not absurdly large), so a
+    /// bad file is refused here instead of killing every robot at start.
+    /// Errors name the field.
     pub fn validate(&self) -> Result<(), (String, String)> {
-        let positive = |field: &str, value: f64| {
-            if value.is_finite() && value > 0.0 {
-                Ok(())
-            } else {
-                Err((
-                    field.to_owned(),
-                    format!("{value} must be a positive number"),
-                ))
+        let mut check = RangeCheck::default();
+        let arena = &self.arena;
+        check.number("arena.width", arena.width, 0.0, false, MAX_ARENA_M);
+        check.number("arena.height", arena.height, 0.0, false, MAX_ARENA_M);
+        for (i, wall) in arena.walls.iter().enumerate() {
+            check.point(&format!("arena.walls[{i}].from"), wall.from);
+            check.point(&format!("arena.walls[{i}].to"), wall.to);
+        }
+        for (i, obstacle) in arena.obstacles.iter().enumerate() {
+            let field = format!("arena.obstacles[{i}]");
+            match obstacle {
+                Obstacle::Disc { center, radius } => {
+                    check.point(&format!("{field}.center"), *center);
+                    check.number(&format!("{field}.radius"), *radius, 0.0, false, MAX_ARENA_M);
+                }
+                Obstacle::Box { min, max } => {
+                    check.region(&format!("{field}.min"), [min[0], min[1], max[0], max[1]]);
+                }
             }
-        };
-        positive("arena.width", self.arena.width)?;
-        positive("arena.height", self.arena.height)?;
-        positive("agents.radius", self.agents.radius)?;
-        positive("timing.period_s", self.timing.period_s)?;
-        positive("timing.stale_periods", self.timing.stale_periods)?;
-        positive("bus.cell_size", self.bus.cell_size)?;
-        if self.bus.max_per_cell == 0 {
-            return Err(("bus.max_per_cell".into(), "must be at least 1".into()));
         }
-        if self.bus.max_listeners_per_cell < self.bus.max_per_cell {
-            return Err((
-                "bus.max_listeners_per_cell".into(),
-                "must be at least bus.max_per_cell".into(),
-            ));
+        for (i, surface) in arena.surfaces.iter().enumerate() {
+            let field = format!("arena.surfaces[{i}]");
+            check.region(&format!("{field}.region"), surface.region);
+            for (name, scale) in [
+                ("along_scale", surface.along_scale),
+                ("across_scale", surface.across_scale),
+                ("turn_scale", surface.turn_scale),
+            ] {
+                check.number(
+                    &format!("{field}.{name}"),
+                    scale,
+                    0.0,
+                    true,
+                    MAX_SURFACE_SCALE,
+                );
+            }
+            check.number(
+                &format!("{field}.from_s"),
+                surface.from_s,
+                0.0,
+                true,
+                MAX_SECONDS,
+            );
         }
-        let [x0, y0, x1, y1] = self.agents.start_region;
-        if !(x0 < x1
-            && y0 < y1
-            && x0 >= 0.0
-            && y0 >= 0.0
-            && x1 <= self.arena.width
-            && y1 <= self.arena.height)
-        {
-            return Err((
-                "agents.start_region".into(),
+        let agents = &self.agents;
+        check.count("agents.count", agents.count, 1, MAX_AGENTS);
+        check.number("agents.radius", agents.radius, 0.0, false, MAX_RADIUS_M);
+        let [x0, y0, x1, y1] = agents.start_region;
+        let inside =
+            x0 < x1 && y0 < y1 && x0 >= 0.0 && y0 >= 0.0 && x1 <= arena.width && y1 <= arena.height;
+        if !inside {
+            check.fail(
+                "agents.start_region",
                 format!(
                     "{:?} must be [xmin, ymin, xmax, ymax] inside the arena",
-                    self.agents.start_region
+                    agents.start_region
                 ),
-            ));
+            );
         }
-        for (i, surface) in self.arena.surfaces.iter().enumerate() {
-            let scales = [
-                surface.along_scale,
-                surface.across_scale,
-                surface.turn_scale,
-            ];
-            if scales.iter().any(|s| !s.is_finite() || *s < 0.0) {
-                return Err((
-                    format!("arena.surfaces[{i}]"),
-                    "scales must be finite and not negative".into(),
-                ));
-            }
+        let timing = &self.timing;
+        check.number(
+            "timing.period_s",
+            timing.period_s,
+            MIN_PERIOD_S,
+            true,
+            MAX_PERIOD_S,
+        );
+        check.number(
+            "timing.stale_periods",
+            timing.stale_periods,
+            1.0,
+            true,
+            MAX_STALE_PERIODS,
+        );
+        let bus = &self.bus;
+        check.number(
+            "bus.cell_size",
+            bus.cell_size,
+            MIN_CELL_M,
+            true,
+            MAX_ARENA_M,
+        );
+        check.count("bus.max_ring", bus.max_ring as usize, 0, MAX_RING);
+        check.count("bus.max_per_cell", bus.max_per_cell, 1, MAX_PER_CELL);
+        check.count(
+            "bus.max_listeners_per_cell",
+            bus.max_listeners_per_cell,
+            bus.max_per_cell,
+            MAX_LISTENERS_PER_CELL,
+        );
+        let sensor = &self.sensor;
+        check.count("sensor.beams", sensor.beams, 1, MAX_BEAMS);
+        check.number(
+            "sensor.field_of_view",
+            sensor.field_of_view,
+            0.0,
+            false,
+            std::f64::consts::TAU,
+        );
+        check.number(
+            "sensor.max_range",
+            sensor.max_range,
+            0.0,
+            false,
+            MAX_SENSOR_RANGE_M,
+        );
+        check.number(
+            "sensor.noise_per_m",
+            sensor.noise_per_m,
+            0.0,
+            true,
+            MAX_SENSOR_NOISE,
+        );
+        check.number("sensor.dropout", sensor.dropout, 0.0, true, 1.0);
+        check.count("slam.follow", self.slam.follow.len(), 0, MAX_FOLLOWED);
+        if let Some(error) = check.first {
+            return Err(error);
         }
         self.formation
             .validate()
@@ -358,6 +425,86 @@ impl Scenario {
             }
         }
         poses
+    }
+}
+
+/// Upper bounds on what a scenario may ask for. They are far beyond any
+/// swarm Shoal runs, and only there to refuse typos and overflow (a period of
+/// 1e300 s, a billion beams) with a clear message.
+const MAX_ARENA_M: f64 = 100_000.0;
+const MAX_RADIUS_M: f64 = 10.0;
+const MAX_SURFACE_SCALE: f64 = 100.0;
+const MAX_SECONDS: f64 = 1.0e7;
+const MAX_AGENTS: usize = 10_000;
+const MIN_PERIOD_S: f64 = 0.001;
+const MAX_PERIOD_S: f64 = 60.0;
+const MAX_STALE_PERIODS: f64 = 1000.0;
+const MIN_CELL_M: f64 = 0.1;
+const MAX_RING: usize = 16;
+const MAX_PER_CELL: usize = 1024;
+const MAX_LISTENERS_PER_CELL: usize = 16_384;
+const MAX_BEAMS: usize = 4096;
+const MAX_SENSOR_RANGE_M: f64 = 1000.0;
+const MAX_SENSOR_NOISE: f64 = 10.0;
+const MAX_FOLLOWED: usize = 64;
+
+/// Collects the first out-of-range field of a scenario.
+#[derive(Default)]
+struct RangeCheck {
+    first: Option<(String, String)>,
+}
+
+impl RangeCheck {
+    fn fail(&mut self, field: &str, message: String) {
+        if self.first.is_none() {
+            self.first = Some((field.to_owned(), message));
+        }
+    }
+
+    /// `value` must be finite, above `low` (or equal to it when
+    /// `low_allowed`) and at most `high`.
+    fn number(&mut self, field: &str, value: f64, low: f64, low_allowed: bool, high: f64) {
+        let above = if low_allowed {
+            value >= low
+        } else {
+            value > low
+        };
+        if !(value.is_finite() && above && value <= high) {
+            let bracket = if low_allowed { '[' } else { '(' };
+            self.fail(field, format!("{value} is outside {bracket}{low}, {high}]"));
+        }
+    }
+
+    fn count(&mut self, field: &str, value: usize, low: usize, high: usize) {
+        if !(low..=high).contains(&value) {
+            self.fail(field, format!("{value} is outside {low}..={high}"));
+        }
+    }
+
+    fn point(&mut self, field: &str, point: [f64; 2]) {
+        if point
+            .iter()
+            .any(|v| !v.is_finite() || v.abs() > MAX_ARENA_M)
+        {
+            self.fail(
+                field,
+                format!("{point:?} must be finite coordinates in metres"),
+            );
+        }
+    }
+
+    /// `[xmin, ymin, xmax, ymax]` with finite corners, min below max.
+    fn region(&mut self, field: &str, region: [f64; 4]) {
+        let [x0, y0, x1, y1] = region;
+        let finite = region
+            .iter()
+            .all(|v| v.is_finite() && v.abs() <= MAX_ARENA_M);
+        if !(finite && x0 < x1 && y0 < y1) {
+            self.fail(
+                field,
+                format!("{region:?} must be [xmin, ymin, xmax, ymax] with min below max"),
+            );
+        }
     }
 }
 
@@ -408,6 +555,22 @@ pub(crate) fn line_of_field(text: &str, field: &str) -> Option<usize> {
         Some((section, key)) => (section, key),
         None => ("", field),
     };
+    // `arena.surfaces[1].region`: the key inside the second `[[arena.surfaces]]`.
+    if let Some((table, index)) = section
+        .strip_suffix(']')
+        .and_then(|s| s.rsplit_once('['))
+        .and_then(|(table, index)| Some((table, index.parse::<usize>().ok()?)))
+    {
+        let header = line_of_nth_table(text, table, index)?;
+        let found = text
+            .lines()
+            .enumerate()
+            .skip(header)
+            .take_while(|(_, line)| !line.trim_start().starts_with('['))
+            .find(|(_, line)| line.split('=').next().map(str::trim) == Some(key))
+            .map(|(number, _)| number + 1);
+        return found.or(Some(header));
+    }
     let key = key.split('[').next().unwrap_or(key);
     let mut current = String::new();
     let mut section_line = None;
@@ -481,6 +644,37 @@ mod tests {
         let broken = "[arena]\nwidth = 10.0\nheight = \n";
         let error = Scenario::from_toml(broken, "cut.toml").unwrap_err();
         assert_eq!(error.line, Some(3), "{error}");
+    }
+
+    #[test]
+    fn every_number_is_range_checked_naming_its_line() {
+        let base = "[arena]\nwidth = 10.0\nheight = 10.0\n[agents]\ncount = 3\nstart_region = [1.0, 1.0, 9.0, 9.0]\n";
+        let cases = [
+            ("[sensor]\nmax_range = nan\n", "sensor.max_range", 8),
+            ("[sensor]\nbeams = 100000000\n", "sensor.beams", 8),
+            ("[timing]\nperiod_s = inf\n", "timing.period_s", 8),
+            (
+                "[timing]\nstale_periods = -2.0\n",
+                "timing.stale_periods",
+                8,
+            ),
+            ("[bus]\ncell_size = 1e-9\n", "bus.cell_size", 8),
+            ("[bus]\nmax_per_cell = 0\n", "bus.max_per_cell", 8),
+            (
+                "[[arena.surfaces]]\nname = \"a\"\nregion = [0.0, 0.0, 1.0, 1.0]\n[[arena.surfaces]]\nname = \"b\"\nregion = [0.0, 0.0, 1.0, 1.0]\nturn_scale = nan\n",
+                "arena.surfaces[1].turn_scale",
+                13,
+            ),
+        ];
+        for (extra, field, line) in cases {
+            let text = format!("{base}{extra}");
+            let error = Scenario::from_toml(&text, "s.toml").unwrap_err();
+            assert_eq!(error.field.as_deref(), Some(field), "{error}");
+            assert_eq!(error.line, Some(line), "{error}");
+        }
+        let many = format!("{base}").replace("count = 3", "count = 100000000");
+        let error = Scenario::from_toml(&many, "s.toml").unwrap_err();
+        assert_eq!(error.field.as_deref(), Some("agents.count"), "{error}");
     }
 
     #[test]

@@ -154,6 +154,14 @@ impl BackgroundSwarm {
         self.child.as_ref().map_or(0, |c| c.id() as i32)
     }
 
+    /// Waits for `shoal up` to end by itself (or by a signal the test sent)
+    /// and returns how it ended and what it printed.
+    pub fn wait_end(&mut self) -> (std::process::ExitStatus, String) {
+        let mut child = self.child.take().expect("running");
+        let status = child.wait().expect("wait for shoal up");
+        (status, self.log())
+    }
+
     /// Sends Ctrl-C to `shoal up`, waits for it and returns what it printed.
     pub fn interrupt(&mut self) -> (std::process::ExitStatus, String) {
         let mut child = self.child.take().expect("running");

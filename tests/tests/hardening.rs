@@ -1,0 +1,236 @@
+//! Nothing a user owns is deleted, no robot dies silently, nothing outlives
+//! its swarm: real `shoal` processes against real folders and shared memory.
+
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+use shoal_e2e::*;
+
+fn scratch(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("shoal-e2e-{name}-{}", std::process::id()));
+    if dir.exists() {
+        std::fs::remove_dir_all(&dir).expect("clear the scratch folder of an earlier run");
+    }
+    std::fs::create_dir_all(&dir).expect("scratch folder");
+    dir
+}
+
+fn pid_alive(pid: i32) -> bool {
+    std::fs::read_to_string(format!("/proc/{pid}/stat")).is_ok_and(|stat| {
+        stat.rsplit_once(')')
+            .and_then(|(_, rest)| rest.trim_start().chars().next())
+            .is_some_and(|s| s != 'Z' && s != 'X')
+    })
+}
+
+#[test]
+fn a_swarm_named_like_a_users_folder_leaves_that_folder_alone() {
+    let _turn = serial();
+    let root = scratch("victim");
+    let documents = root.join("Documents");
+    std::fs::create_dir(&documents).expect("user folder");
+    std::fs::write(documents.join("thesis.txt"), "years of work").expect("user file");
+    let output = Command::new(bin("shoal"))
+        .args(["up", "--swarm", "Documents", "--duration", "3"])
+        .env("SHOAL_RUNTIME_DIR", &root)
+        .output()
+        .expect("run shoal up");
+    let said = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success(), "{said}");
+    assert!(said.contains("not created by Shoal"), "{said}");
+    assert_eq!(
+        std::fs::read_to_string(documents.join("thesis.txt"))
+            .expect("the user's file is still there"),
+        "years of work"
+    );
+    std::fs::remove_dir_all(&root).expect("cleanup");
+}
+
+#[test]
+fn a_scenario_with_a_nan_range_is_refused_naming_file_line_and_field() {
+    let dir = scratch("nan");
+    let path = dir.join("nan.toml");
+    std::fs::write(
+        &path,
+        "[arena]\nwidth = 10.0\nheight = 10.0\n[agents]\ncount = 3\nstart_region = [1.0, 1.0, 9.0, 9.0]\n[sensor]\nmax_range = nan\n",
+    )
+    .expect("scenario");
+    let output = shoal(&[
+        "up",
+        "--swarm",
+        "e2e-nan",
+        "--scenario",
+        path.to_str().expect("utf-8 path"),
+        "--duration",
+        "3",
+    ]);
+    let said = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success(), "{said}");
+    assert!(
+        said.contains("nan.toml:8: field `sensor.max_range`"),
+        "{said}"
+    );
+    std::fs::remove_dir_all(&dir).expect("cleanup");
+}
+
+#[test]
+fn a_robot_that_fails_is_reported_with_its_log_and_fails_the_run() {
+    let _turn = serial();
+    let name = "e2e-crash";
+    let mut swarm = BackgroundSwarm::start(name, &["--agents", "3", "--duration", "12"]);
+    swarm.wait_alive(3, Duration::from_secs(30));
+    let robot = alive_agents(&status(name))
+        .into_iter()
+        .find(|a| a["id"] == 1)
+        .map(|a| a["pid"].as_i64().expect("pid") as i32)
+        .expect("robot 1");
+    // Robot 1 cannot note its last pose on the way out (a folder stands
+    // where its file goes), so its exit fails: a real error exit.
+    let runtime = shoal_broker::SwarmRuntime::locate(name);
+    let pose = runtime.dir.join("agent-1.pose");
+    let _ = std::fs::remove_file(&pose);
+    std::fs::create_dir(&pose).expect("block the pose file");
+    std::fs::create_dir(pose.join("keep")).expect("a non-empty folder");
+    // SAFETY: plain kill(2) on a robot of this test's swarm.
+    unsafe { libc::kill(robot, libc::SIGTERM) };
+    let reported = wait_until(Duration::from_secs(15), || {
+        swarm.log().contains("robot 1 exited with status 1")
+    });
+    assert!(
+        reported,
+        "the launcher did not report robot 1:\n{}",
+        swarm.log()
+    );
+    let (exit, said) = swarm.wait_end();
+    assert!(
+        !exit.success(),
+        "shoal up exited 0 after a robot failed:\n{said}"
+    );
+    assert!(
+        said.contains("noting the last pose on the way out"),
+        "no log tail:\n{said}"
+    );
+    let log =
+        std::fs::read_to_string(runtime.dir.join("agent-1.log")).expect("the robot's log is kept");
+    assert!(log.contains("noting the last pose"), "{log}");
+    std::fs::remove_dir_all(&runtime.dir).expect("cleanup");
+}
+
+#[test]
+fn forwarding_commands_become_the_tool_so_help_and_signals_reach_it() {
+    let help = shoal(&["diagnose", "--help"]);
+    let text = String::from_utf8_lossy(&help.stdout);
+    assert!(help.status.success(), "{text}");
+    assert!(
+        text.contains("--mrclam"),
+        "shoal diagnose --help is not the tool's help:\n{text}"
+    );
+    let _turn = serial();
+    let name = "e2e-exec";
+    let mut swarm = BackgroundSwarm::start(name, &["--agents", "2"]);
+    swarm.wait_alive(2, Duration::from_secs(30));
+    let dir = scratch("exec");
+    let mut recorder = Command::new(bin("shoal"))
+        .args([
+            "record",
+            dir.join("r.rrd").to_str().expect("utf-8"),
+            "--swarm",
+            name,
+        ])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("start shoal record");
+    let pid = recorder.id() as i32;
+    let exe = wait_until(Duration::from_secs(10), || {
+        std::fs::read_link(format!("/proc/{pid}/exe"))
+            .is_ok_and(|p| p.file_name().is_some_and(|n| n == "shoal-viewer-log"))
+    });
+    assert!(exe, "the pid shoal record shows is not the recorder");
+    // SAFETY: plain kill(2) on our own child.
+    unsafe { libc::kill(pid, libc::SIGKILL) };
+    recorder.wait().expect("reap");
+    assert!(!pid_alive(pid));
+    let recorders = Command::new("pgrep")
+        .args(["-f", "shoal-viewer-log.*e2e-exec"])
+        .output()
+        .expect("pgrep");
+    assert!(
+        recorders.stdout.is_empty(),
+        "a recorder outlived kill -9 of shoal record"
+    );
+    swarm.interrupt();
+    std::fs::remove_dir_all(&dir).expect("cleanup");
+}
+
+#[test]
+fn a_lockstep_swarm_ends_when_its_launcher_is_killed_and_shoal_down_stops_the_rest() {
+    let _turn = serial();
+    let name = "e2e-orphan-lockstep";
+    let dir = scratch("orphan");
+    let out = dir.join("r.rrd");
+    let mut swarm = BackgroundSwarm::start(
+        name,
+        &[
+            "--agents",
+            "4",
+            "--lockstep",
+            "--slam",
+            "0",
+            "--record",
+            out.to_str().expect("utf-8"),
+        ],
+    );
+    swarm.wait_alive(4, Duration::from_secs(60));
+    let pids: Vec<i32> = shoal_broker::liveness::swarm_nodes(name)
+        .expect("nodes")
+        .iter()
+        .map(|n| n.pid)
+        .filter(|p| *p != swarm.pid())
+        .collect();
+    assert!(pids.len() >= 6, "robots, recorder and SLAM: {pids:?}");
+    // SAFETY: plain kill(2) on our own child.
+    unsafe { libc::kill(swarm.pid(), libc::SIGKILL) };
+    let _ = swarm.wait_end();
+    let gone = wait_until(Duration::from_secs(10), || {
+        pids.iter().all(|p| !pid_alive(*p))
+    });
+    assert!(
+        gone,
+        "children outlived their lockstep launcher: {:?}",
+        pids.iter().filter(|p| pid_alive(**p)).collect::<Vec<_>>()
+    );
+    let cleaned = shoal(&["down", "--swarm", name]);
+    assert!(
+        cleaned.status.success(),
+        "{}",
+        String::from_utf8_lossy(&cleaned.stderr)
+    );
+    assert_eq!(residue(name), (0, vec![]), "nodes or services left behind");
+
+    // A real-time swarm goes on without its launcher; `shoal down` stops it.
+    let name = "e2e-down";
+    let mut swarm = BackgroundSwarm::start(name, &["--agents", "3"]);
+    swarm.wait_alive(3, Duration::from_secs(30));
+    let spawned = shoal(&["spawn", "--swarm", name]);
+    assert!(
+        spawned.status.success(),
+        "{}",
+        String::from_utf8_lossy(&spawned.stderr)
+    );
+    let down = shoal(&["down", "--swarm", name]);
+    assert!(
+        down.status.success(),
+        "{}",
+        String::from_utf8_lossy(&down.stderr)
+    );
+    let (_, said) = swarm.wait_end();
+    assert!(
+        wait_until(Duration::from_secs(5), || alive_agents(&status(name))
+            .is_empty()),
+        "robots still alive after shoal down:\n{said}"
+    );
+    assert_eq!(residue(name), (0, vec![]), "nodes or services left behind");
+    assert!(!shoal_broker::SwarmRuntime::locate(name).dir.exists());
+    std::fs::remove_dir_all(&dir).expect("cleanup");
+}
