@@ -10,8 +10,8 @@ use shoal_physics::{CommandGrid, Effect, ScopedEffect, UnicycleModel};
 
 use crate::fit::{Fitted, fit, nll_of};
 use crate::likelihood::{
-    Residual, component_nll, estimate_noise, long_run_factors, residuals, rmse, segment_nll,
-    standardised,
+    Residual, component_nll, estimate_noise, long_run_factors, long_run_factors_of_noise,
+    residuals, rmse, segment_nll, standardised,
 };
 use crate::locate::{Located, locate};
 use crate::recording::Recording;
@@ -116,6 +116,8 @@ pub struct Diagnosis {
     /// How much the plain model's residuals' correlation in time inflates
     /// the variance of sums (along, across, heading): 1 for white noise.
     pub noise_correlation: [f64; 3],
+    /// Where the robot usually drives; sentences state effects there.
+    pub operating_point: OperatingPoint,
     /// Observed poses set aside as gross outliers (see `Poses::without_outliers`).
     pub pose_outliers: usize,
     /// Candidates that passed BIC but did not improve held-out prediction.
@@ -298,14 +300,55 @@ fn heldout(
     )
 }
 
-fn describe(scoped: &ScopedEffect, stderr: &[f64], delta_bic: f64, duration: f64) -> FoundEffect {
+/// Where the robot usually drives: the median commanded speed and turn
+/// rate of the segments in which it moves.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct OperatingPoint {
+    pub speed_m_per_s: f64,
+    pub turn_rad_per_s: f64,
+}
+
+impl OperatingPoint {
+    fn of(segments: &[Segment]) -> Self {
+        let median = |mut values: Vec<f64>| {
+            values.sort_by(f64::total_cmp);
+            values.get(values.len() / 2).copied().unwrap_or(0.0)
+        };
+        Self {
+            speed_m_per_s: median(
+                segments
+                    .iter()
+                    .filter(|s| s.speed >= 0.01)
+                    .map(|s| s.speed)
+                    .collect(),
+            ),
+            turn_rad_per_s: median(
+                segments
+                    .iter()
+                    .filter(|s| s.turn.abs() >= 0.02)
+                    .map(|s| s.turn.abs())
+                    .collect(),
+            ),
+        }
+    }
+}
+
+fn describe(
+    scoped: &ScopedEffect,
+    stderr: &[f64],
+    delta_bic: f64,
+    duration: f64,
+    at: OperatingPoint,
+) -> FoundEffect {
     let params = scoped.effect.params();
     let region = match scoped.effect {
         Effect::SurfaceZone { region, .. } => Some(region),
         _ => None,
     };
     let [t_start, t_end] = scoped.during.unwrap_or([0.0, duration]);
-    let mut sentence = scoped.effect.sentence();
+    let mut sentence = scoped
+        .effect
+        .sentence_at(at.speed_m_per_s, at.turn_rad_per_s, duration);
     if let Some([a, b]) = scoped.during {
         sentence = format!(
             "{}, only from {a:.0} s to {b:.0} s.",
@@ -517,6 +560,54 @@ fn on_bound(scoped: &ScopedEffect) -> Option<String> {
     None
 }
 
+/// Fits a surface zone's region edge by edge: each edge in turn moves to
+/// where the likelihood is best (steps of a tenth of the zone's size, then
+/// finer), the speed factor held. A box of where the robot drove, or of
+/// coarse located cells, becomes the zone's own edges.
+fn refine_zone(
+    grid: &CommandGrid,
+    segs: &[Segment],
+    base: &[ScopedEffect],
+    zone: ScopedEffect,
+) -> ScopedEffect {
+    let Effect::SurfaceZone {
+        mut region,
+        speed_factor,
+    } = zone.effect
+    else {
+        return zone;
+    };
+    let with = |region: [f64; 4]| {
+        let mut effects = base.to_vec();
+        effects.push(ScopedEffect::always(Effect::SurfaceZone {
+            region,
+            speed_factor,
+        }));
+        nll_of(grid, segs, &effects)
+    };
+    let mut best = with(region);
+    let size = (region[2] - region[0]).max(region[3] - region[1]).max(0.1);
+    for step in [0.1 * size, 0.03 * size] {
+        for edge in 0..4 {
+            for shift in [-3.0, -2.0, -1.0, 1.0, 2.0, 3.0] {
+                let mut moved = region;
+                moved[edge] += shift * step;
+                if moved[0] >= moved[2] || moved[1] >= moved[3] {
+                    continue;
+                }
+                let nll = with(moved);
+                if nll < best {
+                    (best, region) = (nll, moved);
+                }
+            }
+        }
+    }
+    ScopedEffect::always(Effect::SurfaceZone {
+        region,
+        speed_factor,
+    })
+}
+
 /// Every k-th segment, at most `count` of them.
 fn subsample(segments: &[Segment], count: usize) -> Vec<Segment> {
     let every = segments.len().div_ceil(count.max(1)).max(1);
@@ -537,7 +628,8 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
     let plain_residuals = residuals(model, grid, segs);
     let noise = estimate_noise(model, segs, &plain_residuals);
     let plain_standardised = standardised(model, &noise, segs, &plain_residuals);
-    let noise_correlation = long_run_factors(segs, &plain_standardised);
+    let noise_correlation = long_run_factors_of_noise(segs, &plain_standardised);
+    let operating_point = OperatingPoint::of(segs);
     let located = locate(segs, &plain_standardised, noise_correlation, options.alpha);
 
     // Candidates are ranked on an even subsample, and only the best few are
@@ -595,10 +687,10 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
         if delta_bic > -options.min_bic_gain {
             break;
         }
-        let varies_in_time = located.iter().any(|l| l.family == "time");
-        if let Some(scoped) = narrower_scope(grid, &screen, &base, &chosen, duration, options)
-            .filter(|_| varies_in_time)
-        {
+        // An effect may act in part of the run only. Trying that is not
+        // left to the locating tests alone: the held-out check below keeps
+        // a narrower scope from fitting noise.
+        if let Some(scoped) = narrower_scope(grid, &screen, &base, &chosen, duration, options) {
             let confirm = |candidate: &ScopedEffect| {
                 let full = fit(
                     grid,
@@ -620,7 +712,9 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
                 if let Some(zone) = zone_of_span(segs, &chosen)
                     && let Some(zone_effect) = Effect::identity("surface_zone", zone)
                 {
-                    let (zone_fit, zone_gain) = confirm(&ScopedEffect::always(zone_effect));
+                    let (zone_fit, _) = confirm(&ScopedEffect::always(zone_effect));
+                    let zone_fit = refine_zone(grid, segs, &base, zone_fit);
+                    let zone_gain = judge(&zone_fit);
                     if zone_gain < delta_bic + 2.0 {
                         tied.push((delta_bic, chosen.clone()));
                         (chosen, delta_bic) = (zone_fit, zone_gain);
@@ -670,13 +764,49 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
                     kind: c.effect.kind(),
                     params: c.effect.params().into_iter().collect(),
                     delta_bic: *g,
-                    sentence: c.effect.sentence(),
+                    sentence: c.effect.sentence_at(
+                        operating_point.speed_m_per_s,
+                        operating_point.turn_rad_per_s,
+                        duration,
+                    ),
                 })
                 .collect(),
         );
         // Effects found earlier may now be estimated differently: refit together.
         let joint = fit(grid, segs, &fixed, &found, options.max_iters * 2);
         found = joint.effects;
+        // And one found early may no longer be needed once a better
+        // explanation joined (a turn scale standing in for steering play):
+        // drop any effect the others, refitted, do as well without.
+        let mut k = 0;
+        while found.len() >= 2 && k < found.len() {
+            let others: Vec<ScopedEffect> = found
+                .iter()
+                .enumerate()
+                .filter(|(j, _)| *j != k)
+                .map(|(_, e)| e.clone())
+                .collect();
+            let refit = fit(grid, segs, &fixed, &others, options.max_iters);
+            let rest: Vec<ScopedEffect> =
+                fixed.iter().cloned().chain(refit.effects.clone()).collect();
+            let needed = calibrated_gain(
+                grid,
+                segs,
+                components_of(grid, segs, &rest),
+                &rest,
+                &found[k],
+            );
+            if needed > -options.min_bic_gain {
+                found = refit.effects;
+                for list in [&mut gains, &mut heldout_gains] {
+                    list.remove(k);
+                }
+                ties.remove(k);
+                alternatives.remove(k);
+            } else {
+                k += 1;
+            }
+        }
     }
     let stderr = if found.is_empty() {
         Vec::new()
@@ -691,7 +821,7 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
             let count = scoped.effect.params().len();
             let se = &stderr[offset.min(stderr.len())..(offset + count).min(stderr.len())];
             offset += count;
-            let mut found = describe(scoped, se, gain, duration);
+            let mut found = describe(scoped, se, gain, duration, operating_point);
             found.indistinguishable_from = tied.clone();
             found
         })
@@ -714,6 +844,7 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
         effects,
         unexplained,
         noise_correlation,
+        operating_point,
         pose_outliers,
         rejected_heldout,
         baseline,

@@ -22,7 +22,7 @@ pub struct Fitted {
 /// The simplex step of a parameter: the scale on which it matters.
 pub fn step_of(effect: &Effect, name: &str) -> f64 {
     match (effect, name) {
-        (Effect::Latency { .. }, _) => 0.05,
+        (Effect::Latency { .. } | Effect::ActuatorLag { .. }, _) => 0.05,
         (Effect::SpeedScale { .. } | Effect::TurnScale { .. }, _) => 0.05,
         (Effect::TurnBias { .. }, _) => 0.02,
         (Effect::HeadingDrift { .. }, _) => 0.05,

@@ -194,6 +194,27 @@ pub fn component_nll(
 /// gain by it keeps likelihood-ratio tests calibrated (a composite, or
 /// quasi-, likelihood with an effective sample size of n / factor).
 pub fn long_run_factors(segments: &[Segment], standardised: &[[f64; 3]]) -> [f64; 3] {
+    long_run_factors_around(segments, standardised, None)
+}
+
+/// Half-width, in segments, of the local mean that
+/// [`long_run_factors_of_noise`] removes.
+const LOCAL_MEAN_HALF_WIDTH: usize = 25;
+
+/// [`long_run_factors`] of the noise alone, for a model that may still miss
+/// an effect: a mismatch that comes and goes over minutes (a zone driven
+/// into, a fault that starts) would otherwise pass for correlated noise and
+/// hide itself. A local mean over about 50 segments is removed first, which
+/// keeps the correlation of noise over seconds.
+pub fn long_run_factors_of_noise(segments: &[Segment], standardised: &[[f64; 3]]) -> [f64; 3] {
+    long_run_factors_around(segments, standardised, Some(LOCAL_MEAN_HALF_WIDTH))
+}
+
+fn long_run_factors_around(
+    segments: &[Segment],
+    standardised: &[[f64; 3]],
+    local_mean: Option<usize>,
+) -> [f64; 3] {
     let n = standardised.len();
     let mut factors = [1.0; 3];
     if n < 20 {
@@ -202,7 +223,17 @@ pub fn long_run_factors(segments: &[Segment], standardised: &[[f64; 3]]) -> [f64
     let max_lag = (n / 10).clamp(1, 40);
     for (c, factor) in factors.iter_mut().enumerate() {
         let mean = standardised.iter().map(|z| z[c]).sum::<f64>() / n as f64;
-        let centred: Vec<f64> = standardised.iter().map(|z| z[c] - mean).collect();
+        let centred: Vec<f64> = match local_mean {
+            None => standardised.iter().map(|z| z[c] - mean).collect(),
+            Some(half) => (0..n)
+                .map(|i| {
+                    let (lo, hi) = (i.saturating_sub(half), (i + half + 1).min(n));
+                    let local =
+                        standardised[lo..hi].iter().map(|z| z[c]).sum::<f64>() / (hi - lo) as f64;
+                    standardised[i][c] - local
+                })
+                .collect(),
+        };
         let variance = centred.iter().map(|x| x * x).sum::<f64>() / n as f64;
         if variance <= 0.0 {
             continue;

@@ -10,6 +10,9 @@ use serde::{Deserialize, Serialize};
 pub enum Effect {
     /// Commands take effect this late.
     Latency { seconds: f64 },
+    /// Speed and turn rate follow the command as a first-order lag with
+    /// this time constant (motor and controller dynamics).
+    ActuatorLag { seconds: f64 },
     /// Forward speed is this multiple of the command.
     SpeedScale { factor: f64 },
     /// Turn rate is this multiple of the command.
@@ -36,8 +39,9 @@ pub enum Effect {
 }
 
 /// The kinds, in the order `shoal diagnose` tries them.
-pub const EFFECT_KINDS: [&str; 12] = [
+pub const EFFECT_KINDS: [&str; 13] = [
     "latency",
+    "actuator_lag",
     "speed_scale",
     "turn_scale",
     "turn_bias",
@@ -55,6 +59,7 @@ impl Effect {
     pub fn kind(&self) -> &'static str {
         match self {
             Effect::Latency { .. } => "latency",
+            Effect::ActuatorLag { .. } => "actuator_lag",
             Effect::SpeedScale { .. } => "speed_scale",
             Effect::TurnScale { .. } => "turn_scale",
             Effect::TurnBias { .. } => "turn_bias",
@@ -73,7 +78,9 @@ impl Effect {
     /// of a surface zone is located, not fitted, so it is not among them.
     pub fn params(&self) -> Vec<(&'static str, f64)> {
         match *self {
-            Effect::Latency { seconds } => vec![("seconds", seconds)],
+            Effect::Latency { seconds } | Effect::ActuatorLag { seconds } => {
+                vec![("seconds", seconds)]
+            }
             Effect::SpeedScale { factor } => vec![("factor", factor)],
             Effect::TurnScale { factor } => vec![("factor", factor)],
             Effect::TurnBias { rad_per_s } => vec![("rad_per_s", rad_per_s)],
@@ -94,6 +101,7 @@ impl Effect {
         let v = |i: usize| values.get(i).copied().unwrap_or(f64::NAN);
         match *self {
             Effect::Latency { .. } => Effect::Latency { seconds: v(0) },
+            Effect::ActuatorLag { .. } => Effect::ActuatorLag { seconds: v(0) },
             Effect::SpeedScale { .. } => Effect::SpeedScale { factor: v(0) },
             Effect::TurnScale { .. } => Effect::TurnScale { factor: v(0) },
             Effect::TurnBias { .. } => Effect::TurnBias { rad_per_s: v(0) },
@@ -118,6 +126,7 @@ impl Effect {
     pub fn identity(kind: &str, region: [f64; 4]) -> Option<Effect> {
         Some(match kind {
             "latency" => Effect::Latency { seconds: 0.0 },
+            "actuator_lag" => Effect::ActuatorLag { seconds: 0.0 },
             "speed_scale" => Effect::SpeedScale { factor: 1.0 },
             "turn_scale" => Effect::TurnScale { factor: 1.0 },
             "turn_bias" => Effect::TurnBias { rad_per_s: 0.0 },
@@ -145,6 +154,7 @@ impl Effect {
     pub fn ranges(&self) -> Vec<(f64, f64)> {
         match *self {
             Effect::Latency { .. } => vec![(0.0, 1.0)],
+            Effect::ActuatorLag { .. } => vec![(0.0, 2.0)],
             Effect::SpeedScale { .. } | Effect::TurnScale { .. } => vec![(0.2, 5.0)],
             Effect::TurnBias { .. } => vec![(-2.0, 2.0)],
             Effect::HeadingDrift { .. } => vec![(-2.0, 2.0)],
@@ -166,12 +176,57 @@ impl Effect {
             .all(|((_, v), (lo, hi))| (lo..=hi).contains(v))
     }
 
+    /// One sentence for the user, stated where the robot usually drives:
+    /// at `speed` m/s and `turn` rad/s, over a run of `duration_s` seconds.
+    /// Effects whose size depends on speed are given as what they do there,
+    /// not as a coefficient that means nothing on its own.
+    pub fn sentence_at(&self, speed: f64, turn: f64, duration_s: f64) -> String {
+        let percent = |fraction: f64| (fraction * 100.0).abs();
+        match *self {
+            Effect::SpeedScale { factor } => format!(
+                "At its usual {speed:.2} m/s the robot drives {:.0}% {} than commanded, at every speed (speed scale {factor:.3}).",
+                percent(1.0 - factor),
+                if factor < 1.0 { "slower" } else { "faster" }
+            ),
+            Effect::Slip { per_m_per_s } => format!(
+                "At its usual {speed:.2} m/s the robot drives {:.0}% slower than commanded, and the loss grows with speed ({:.0}% at {:.2} m/s) (slip).",
+                percent(per_m_per_s * speed),
+                percent(per_m_per_s * 2.0 * speed),
+                2.0 * speed
+            ),
+            Effect::TurnScale { factor } => format!(
+                "At its usual {turn:.2} rad/s the robot turns {:.0}% {} than commanded (turn scale {factor:.3}).",
+                percent(1.0 - factor),
+                if factor < 1.0 { "less" } else { "more" }
+            ),
+            Effect::BatteryFade { per_minute } => format!(
+                "Speed and turn gain fade as the run goes on: {:.1}% lost after {:.0} minutes (battery).",
+                percent(per_minute * duration_s / 60.0),
+                duration_s / 60.0
+            ),
+            Effect::SpeedNoise { per_m_per_s } => format!(
+                "At its usual {speed:.2} m/s the robot's motion noise is {:.2} times as large as when creeping (speed-dependent noise).",
+                (1.0 + per_m_per_s * speed).sqrt()
+            ),
+            Effect::HeadingDrift { rad_per_m } => format!(
+                "The heading drifts {:.1}° per metre driven, to the {} (unequal wheels); at its usual {speed:.2} m/s that is {:.1}° per minute.",
+                rad_per_m.abs().to_degrees(),
+                if rad_per_m > 0.0 { "left" } else { "right" },
+                (rad_per_m * speed * 60.0).abs().to_degrees()
+            ),
+            _ => self.sentence(),
+        }
+    }
+
     /// One sentence for the user.
     pub fn sentence(&self) -> String {
         match *self {
             Effect::Latency { seconds } => {
                 format!("Commands take effect {seconds:.2} s late (actuation latency).")
             }
+            Effect::ActuatorLag { seconds } => format!(
+                "Speed and turn rate follow a command with a time constant of {seconds:.2} s (first-order actuator lag)."
+            ),
             Effect::SpeedScale { factor } => format!(
                 "The robot drives at {:.0}% of the commanded speed (speed scale error).",
                 factor * 100.0

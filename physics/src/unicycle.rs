@@ -103,6 +103,8 @@ impl CommandGrid {
 pub struct Actuators {
     held_omega: f64,
     last_v: f64,
+    /// What a lagging actuator executes now (v, omega).
+    lagged: (f64, f64),
 }
 
 impl Actuators {
@@ -111,6 +113,7 @@ impl Actuators {
         Self {
             held_omega: omega,
             last_v: v,
+            lagged: (v, omega),
         }
     }
 
@@ -124,6 +127,16 @@ impl Actuators {
         for effect in model.active(run_s) {
             if let Effect::Latency { seconds } = *effect {
                 (v, omega) = grid.at(t - seconds);
+            }
+        }
+        for effect in model.active(run_s) {
+            if let Effect::ActuatorLag { seconds } = *effect
+                && seconds > 0.0
+            {
+                let follow = 1.0 - (-grid.dt / seconds).exp();
+                let (lv, lo) = self.lagged;
+                self.lagged = (lv + follow * (v - lv), lo + follow * (omega - lo));
+                (v, omega) = self.lagged;
             }
         }
         let moving = v != 0.0 || omega != 0.0;
