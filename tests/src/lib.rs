@@ -188,3 +188,12 @@ pub fn residue(swarm: &str) -> (usize, Vec<String>) {
     let services = shoal_broker::liveness::swarm_services(swarm).expect("list services");
     (nodes, services)
 }
+
+/// A fresh folder for one test's files, named after the test and this
+/// process so parallel runs never share one.
+pub fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("shoal-e2e-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("scratch folder");
+    dir
+}

@@ -6,15 +6,6 @@ use std::time::Duration;
 
 use shoal_e2e::*;
 
-fn scratch(name: &str) -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!("shoal-e2e-{name}-{}", std::process::id()));
-    if dir.exists() {
-        std::fs::remove_dir_all(&dir).expect("clear the scratch folder of an earlier run");
-    }
-    std::fs::create_dir_all(&dir).expect("scratch folder");
-    dir
-}
-
 fn pid_alive(pid: i32) -> bool {
     std::fs::read_to_string(format!("/proc/{pid}/stat")).is_ok_and(|stat| {
         stat.rsplit_once(')')

@@ -1,20 +1,13 @@
 //! Recordings, read back with the official Rerun tools (`pip install rerun-sdk`) and evo.
 
 use std::collections::HashMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 use std::time::{Duration, Instant};
 
 use serde_json::Value;
 use shoal_broker::{Bus, BusLimits, RosterReader, names};
 use shoal_e2e::*;
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("shoal-e2e-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch dir");
-    dir
-}
 
 /// What `tests/python/check_recording.py` finds in a recording.
 fn inspect(recording: &Path) -> Value {
