@@ -116,6 +116,53 @@ impl SwarmRuntime {
         }
     }
 
+    /// Takes the swarm's `role` lock (`launch`: one `shoal up` per swarm;
+    /// `ids`: one command picking new robot ids at a time). The lock lives
+    /// beside the swarm's folder, in the root, and is released when the
+    /// returned file is dropped or the process dies. With `wait` false a
+    /// held lock is an error naming it.
+    pub fn lock(&self, role: &str, wait: bool) -> io::Result<std::fs::File> {
+        use std::os::fd::AsRawFd;
+        self.check_root()?;
+        let name = self
+            .dir
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let path = self.root.join(format!("{name}.{role}.lock"));
+        let file = {
+            use std::os::unix::fs::OpenOptionsExt;
+            std::fs::OpenOptions::new()
+                .write(true)
+                .create(true)
+                .truncate(false)
+                .mode(0o600)
+                .custom_flags(libc::O_NOFOLLOW)
+                .open(&path)
+                .map_err(|e| with_path(e, &path, "cannot open lock"))?
+        };
+        let operation = if wait {
+            libc::LOCK_EX
+        } else {
+            libc::LOCK_EX | libc::LOCK_NB
+        };
+        // SAFETY: flock on a descriptor this function owns.
+        if unsafe { libc::flock(file.as_raw_fd(), operation) } != 0 {
+            let e = io::Error::last_os_error();
+            if e.kind() == io::ErrorKind::WouldBlock {
+                return Err(io::Error::new(
+                    io::ErrorKind::WouldBlock,
+                    format!(
+                        "{}: another shoal command holds this swarm's {role} lock",
+                        path.display()
+                    ),
+                ));
+            }
+            return Err(with_path(e, &path, "cannot lock"));
+        }
+        Ok(file)
+    }
+
     /// Whether the swarm's folder is one Shoal made (holds the owner mark and
     /// is a real folder, not a link to one).
     fn is_ours(&self) -> io::Result<bool> {

@@ -118,6 +118,21 @@ fn read_rows(text: &str, file: &str, layout: Layout) -> Result<Vec<(usize, Vec<f
                 ),
             ));
         }
+        let first_time = rows
+            .first()
+            .map_or(values[0], |(_, r): &(usize, Vec<f64>)| r[0]);
+        if values[0] - first_time > MAX_SPAN_S {
+            return Err(error(
+                number,
+                format!(
+                    "`{}` = {} is {:.0} s after the first row; runs longer than {} h are not diagnosed (a time in the wrong unit?)",
+                    columns[0],
+                    values[0],
+                    values[0] - first_time,
+                    MAX_SPAN_S / 3600.0
+                ),
+            ));
+        }
         last_time = values[0];
         rows.push((number, values));
     }
@@ -130,6 +145,10 @@ fn read_rows(text: &str, file: &str, layout: Layout) -> Result<Vec<(usize, Vec<f
     }
     Ok(rows)
 }
+
+/// The longest run read: the command grid is sized from the time span, so a
+/// stray time (1e10) must be an error, not an allocation of terabytes.
+const MAX_SPAN_S: f64 = 24.0 * 3600.0;
 
 fn commands_from(rows: Vec<(usize, Vec<f64>)>) -> Commands {
     let mut commands = Commands::default();
@@ -206,6 +225,7 @@ mod tests {
                 "ends in the middle of a line",
             ),
             ("t,v,omega\n0,1,0\n1,x,0\n", 3, "not a number"),
+            ("t,v,omega\n0,1,0\n1e10,1,0\n", 3, "runs longer than 24 h"),
         ];
         for (text, line, message) in cases {
             let error = commands_csv(text, "cmds.csv").expect_err(text);

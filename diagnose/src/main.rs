@@ -211,14 +211,28 @@ fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
     if let Some(dir) = &args.out {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
         let path = dir.join("model.toml");
+        let png = dir.join("fit.png");
+        for earlier in [&path, &png].into_iter().filter(|p| p.exists()) {
+            eprintln!(
+                "shoal diagnose: replacing the earlier {}",
+                earlier.display()
+            );
+        }
         let text = format!(
             "# Written by shoal diagnose: the input model plus the effects it found.\n# Load it with --model, or as the body of a simulated robot.\n{}",
             diagnosis.model.to_toml()
         );
-        std::fs::write(&path, text).with_context(|| format!("cannot write {}", path.display()))?;
+        // Each file is written beside and renamed into place: an
+        // interrupted run leaves the earlier result whole, never half of one.
+        let partial = dir.join("model.toml.partial");
+        std::fs::write(&partial, text)
+            .and_then(|()| std::fs::rename(&partial, &path))
+            .with_context(|| format!("cannot write {}", path.display()))?;
         model_out = Some(path);
-        let png = dir.join("fit.png");
-        plot::fit_png(&png, &recording, &diagnosis)?;
+        let partial = dir.join("fit.partial.png");
+        plot::fit_png(&partial, &recording, &diagnosis)?;
+        std::fs::rename(&partial, &png)
+            .with_context(|| format!("cannot write {}", png.display()))?;
         plot_out = Some(png);
     }
     if args.json {

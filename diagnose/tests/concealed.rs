@@ -14,16 +14,39 @@ fn binary() -> PathBuf {
     PathBuf::from(env!("CARGO_BIN_EXE_shoal-diagnose"))
 }
 
-fn scratch(name: &str) -> PathBuf {
+/// A test's folder, removed when the test ends (passed or failed).
+struct Scratch(PathBuf);
+
+impl std::ops::Deref for Scratch {
+    type Target = PathBuf;
+
+    fn deref(&self) -> &PathBuf {
+        &self.0
+    }
+}
+
+impl AsRef<std::ffi::OsStr> for Scratch {
+    fn as_ref(&self) -> &std::ffi::OsStr {
+        self.0.as_os_str()
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+fn scratch(name: &str) -> Scratch {
     let dir =
         std::env::temp_dir().join(format!("shoal-diagnose-test-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).expect("scratch dir");
-    dir
+    Scratch(dir)
 }
 
 /// Writes a run with `truth`'s effects and diagnoses it; returns the JSON.
-fn diagnose_generated(name: &str, truth: &str, extra: &[&str]) -> (Value, PathBuf) {
+fn diagnose_generated(name: &str, truth: &str, extra: &[&str]) -> (Value, Scratch) {
     let dir = scratch(name);
     let truth_file = dir.join("truth.in.toml");
     std::fs::write(&truth_file, truth).expect("write truth");

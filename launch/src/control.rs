@@ -98,6 +98,8 @@ pub fn restart(swarm: &str, ids: &[u32], at: Option<[f64; 2]>) -> Result<()> {
 /// Adds `count` robots with fresh ids, around `at` or in the start region.
 pub fn spawn(swarm: &str, count: usize, at: Option<[f64; 2]>) -> Result<Vec<u32>> {
     let (runtime, scenario) = open_swarm(swarm)?;
+    // Back-to-back spawns would otherwise pick the same ids: one at a time.
+    let _ids_lock = runtime.lock("ids", true)?;
     let highest_node = swarm_nodes(swarm)?.iter().filter_map(|n| n.agent_id).max();
     let highest_file = runtime.known_agent_ids().into_iter().max();
     let first = highest_node
@@ -120,6 +122,9 @@ pub fn spawn(swarm: &str, count: usize, at: Option<[f64; 2]>) -> Result<Vec<u32>
             }
             None => scenario.start_poses(id, 1)[0],
         };
+        // Noting its pose now takes the id before the lock is let go, even
+        // if the robot is not yet on the bus.
+        runtime.write_last_pose(id, [pose.x, pose.y, pose.theta])?;
         let child = start_agent(swarm, id, pose, &runtime, Tie::Detached)?;
         println!(
             "spawned robot {id} (pid {}) at ({:.2}, {:.2})",

@@ -56,6 +56,8 @@ pub struct RunningSwarm {
     reported_deaths: usize,
     /// Keep the robots' logs when the swarm stops (a failed start).
     keep_logs: bool,
+    /// Held while this launcher runs the swarm.
+    _launch_lock: std::fs::File,
 }
 
 /// A helper's progress, which a lockstep clock must not outrun by more than
@@ -106,6 +108,11 @@ impl RunningSwarm {
     /// Starts `scenario.agents.count` robots in swarm `name`.
     pub fn launch(name: &str, scenario: Scenario, lockstep: bool) -> Result<Self> {
         names::validate_swarm(name)?;
+        // Two launchers of one swarm started together would both pass the
+        // check below; the lock makes the second one fail.
+        let launch_lock = SwarmRuntime::locate(name)
+            .lock("launch", false)
+            .with_context(|| format!("swarm `{name}` is already being started or run"))?;
         let alive: Vec<i32> = swarm_nodes(name)?
             .iter()
             .filter(|n| n.state == SwarmNodeState::Alive)
@@ -155,6 +162,7 @@ impl RunningSwarm {
             stopped: false,
             reported_deaths: 0,
             keep_logs: false,
+            _launch_lock: launch_lock,
         };
         let count = swarm.scenario.agents.count;
         let poses = swarm.scenario.start_poses(0, count);

@@ -225,3 +225,40 @@ fn a_lockstep_swarm_ends_when_its_launcher_is_killed_and_shoal_down_stops_the_re
     assert!(!shoal_broker::SwarmRuntime::locate(name).dir.exists());
     std::fs::remove_dir_all(&dir).expect("cleanup");
 }
+
+#[test]
+fn a_second_launcher_of_a_running_swarm_is_refused_and_spawns_never_share_ids() {
+    let _turn = serial();
+    let name = "e2e-lock";
+    let mut swarm = BackgroundSwarm::start(name, &["--agents", "2"]);
+    swarm.wait_alive(2, Duration::from_secs(30));
+    let second = shoal(&["up", "--swarm", name, "--agents", "2", "--duration", "2"]);
+    let said = String::from_utf8_lossy(&second.stderr);
+    assert!(!second.status.success(), "{said}");
+    assert!(said.contains("already"), "{said}");
+    let spawns: Vec<std::process::Child> = (0..3)
+        .map(|_| {
+            Command::new(bin("shoal"))
+                .args(["spawn", "--swarm", name])
+                .stdout(Stdio::piped())
+                .spawn()
+                .expect("spawn")
+        })
+        .collect();
+    let mut ids: Vec<String> = spawns
+        .into_iter()
+        .map(|c| String::from_utf8_lossy(&c.wait_with_output().expect("wait").stdout).into_owned())
+        .filter_map(|out| out.split_whitespace().nth(2).map(str::to_owned))
+        .collect();
+    ids.sort();
+    ids.dedup();
+    assert_eq!(ids.len(), 3, "three spawns at once picked ids {ids:?}");
+    swarm.wait_alive(5, Duration::from_secs(30));
+    let down = shoal(&["down", "--swarm", name]);
+    assert!(
+        down.status.success(),
+        "{}",
+        String::from_utf8_lossy(&down.stderr)
+    );
+    let _ = swarm.wait_end();
+}
