@@ -65,8 +65,15 @@ fn open_swarm(swarm: &str) -> Result<(SwarmRuntime, Scenario)> {
     Ok((runtime, scenario))
 }
 
+/// The highest robot id a command accepts: ids index start poses, which
+/// are drawn in order, so an id of a million would take minutes to place.
+const MAX_ROBOT_ID: u32 = 65_535;
+
 /// Starts a new process for each id, at its last pose or at `at`.
 pub fn restart(swarm: &str, ids: &[u32], at: Option<[f64; 2]>) -> Result<()> {
+    if let Some(id) = ids.iter().find(|id| **id > MAX_ROBOT_ID) {
+        bail!("robot id {id} is above the highest id Shoal runs, {MAX_ROBOT_ID}");
+    }
     let (runtime, scenario) = open_swarm(swarm)?;
     let nodes = swarm_nodes(swarm)?;
     for &id in ids {
@@ -106,6 +113,11 @@ pub fn spawn(swarm: &str, count: usize, at: Option<[f64; 2]>) -> Result<Vec<u32>
         .max(highest_file)
         .map_or(0, |h| h + 1)
         .max(scenario.agents.count as u32);
+    if u64::from(first) + count as u64 > u64::from(MAX_ROBOT_ID) + 1 {
+        bail!(
+            "{count} more robots from id {first} would pass the highest id Shoal runs, {MAX_ROBOT_ID}"
+        );
+    }
     let mut ids = Vec::new();
     for k in 0..count {
         let id = first + k as u32;

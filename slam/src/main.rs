@@ -67,6 +67,9 @@ struct Followed {
     last_scan: Option<std::time::Instant>,
 }
 
+const MIN_GRID_M: f64 = 0.01;
+const MAX_GRID_M: f64 = 1.0;
+
 fn run(args: Args) -> Result<()> {
     // A bad model file is reported before anything else, swarm or not.
     let from_file = args.initial_model.as_ref().map(read_model).transpose()?;
@@ -74,8 +77,13 @@ fn run(args: Args) -> Result<()> {
     runtime.read_meta()?;
     let scenario = Scenario::from_file(&runtime.scenario_path())?;
     let initial = from_file.unwrap_or_else(|| scenario.motion.clone());
-    if !(args.grid > 0.0 && args.grid.is_finite()) {
-        bail!("--grid must be a positive cell size in metres");
+    // The map has (arena / grid)^2 cells per particle: a cell far below a
+    // centimetre would ask for more memory than any machine has.
+    if !(MIN_GRID_M..=MAX_GRID_M).contains(&args.grid) {
+        bail!(
+            "--grid {} is outside [{MIN_GRID_M}, {MAX_GRID_M}] metres per cell",
+            args.grid
+        );
     }
     let bus = Bus::join(
         &args.swarm,

@@ -262,3 +262,13 @@ fn a_second_launcher_of_a_running_swarm_is_refused_and_spawns_never_share_ids() 
     );
     let _ = swarm.wait_end();
 }
+
+#[test]
+fn an_absurd_robot_id_is_refused_at_once() {
+    let started = std::time::Instant::now();
+    let output = shoal(&["restart", "1000000", "--swarm", "e2e-absurd"]);
+    let said = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success(), "{said}");
+    assert!(said.contains("highest id"), "{said}");
+    assert!(started.elapsed() < Duration::from_secs(5));
+}
