@@ -456,26 +456,46 @@ fn zone_of_span(segments: &[Segment], scoped: &ScopedEffect) -> Option<[f64; 4]>
     Some(region)
 }
 
+/// How much correlation in time inflates each residual component of the
+/// model `base` plus `candidate` (see [`long_run_factors`]).
+fn factors_with(
+    grid: &CommandGrid,
+    segs: &[Segment],
+    base: &[ScopedEffect],
+    candidate: &ScopedEffect,
+) -> [f64; 3] {
+    let model =
+        UnicycleModel::with_effects(base.iter().cloned().chain([candidate.clone()]).collect());
+    let r = residuals(&model, grid, segs);
+    let noise = estimate_noise(&model, segs, &r);
+    long_run_factors(segs, &standardised(&model, &noise, segs, &r))
+}
+
 /// BIC gain of adding `candidate` (already fitted) to `base`, with the
 /// likelihood gain of each component divided by how much that component's
-/// correlation in time inflates it (see [`long_run_factors`]), and the
-/// penalty counted on the effective number of observations. Negative is
-/// better. The correlation is estimated from the residuals of the model
-/// *with* the candidate, so an effect that is there does not count as
-/// correlated noise against itself.
+/// correlation in time inflates it (`factors`, see [`long_run_factors`]),
+/// and the penalty counted on the effective number of observations.
+/// Negative is better. One round judges all its candidates with the same
+/// factors, estimated from the residuals of its best-fitting candidate: an
+/// effect that is there does not count as correlated noise against itself,
+/// and rival explanations of one mismatch are weighed on one scale.
 fn calibrated_gain(
     grid: &CommandGrid,
     segs: &[Segment],
     base_nll: [f64; 3],
     base: &[ScopedEffect],
     candidate: &ScopedEffect,
+    factors: [f64; 3],
 ) -> f64 {
-    let model =
-        UnicycleModel::with_effects(base.iter().cloned().chain([candidate.clone()]).collect());
-    let r = residuals(&model, grid, segs);
-    let noise = estimate_noise(&model, segs, &r);
-    let nll = component_nll(&model, segs, &r);
-    let factors = long_run_factors(segs, &standardised(&model, &noise, segs, &r));
+    let nll = components_of(
+        grid,
+        segs,
+        &base
+            .iter()
+            .cloned()
+            .chain([candidate.clone()])
+            .collect::<Vec<_>>(),
+    );
     let n_eff = 3.0 * segs.len() as f64 / (factors.iter().sum::<f64>() / 3.0);
     let gain: f64 = (0..3).map(|c| (nll[c] - base_nll[c]) / factors[c]).sum();
     2.0 * gain + extra_params(candidate) as f64 * n_eff.max(2.0).ln()
@@ -648,7 +668,6 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
     while found.len() < options.max_effects && !remaining.is_empty() && segs.len() >= 20 {
         let base: Vec<ScopedEffect> = fixed.iter().chain(&found).cloned().collect();
         let base_nll = components_of(grid, segs, &base);
-        let judge = |c: &ScopedEffect| calibrated_gain(grid, segs, base_nll, &base, c);
         let screen_current = nll_of(grid, &screen, &base);
         let screened = fit_all(grid, &screen, &base, &remaining, options.max_iters);
         // Ranking only: the screen's plain BIC orders the candidates; the
@@ -669,6 +688,11 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
         }
         let top: Vec<ScopedEffect> = ranked.into_iter().map(|(_, c)| c).collect();
         let confirmed = fit_all(grid, segs, &base, &top, options.max_iters / 2);
+        let Some(best_fit) = confirmed.iter().min_by(|a, b| a.nll.total_cmp(&b.nll)) else {
+            break;
+        };
+        let factors = factors_with(grid, segs, &base, &best_fit.effects[0]);
+        let judge = |c: &ScopedEffect| calibrated_gain(grid, segs, base_nll, &base, c, factors);
         let mut confirmed: Vec<(f64, ScopedEffect)> = confirmed
             .iter()
             .map(|f| (judge(&f.effects[0]), f.effects[0].clone()))
@@ -789,12 +813,14 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
             let refit = fit(grid, segs, &fixed, &others, options.max_iters);
             let rest: Vec<ScopedEffect> =
                 fixed.iter().cloned().chain(refit.effects.clone()).collect();
+            let factors = factors_with(grid, segs, &rest, &found[k]);
             let needed = calibrated_gain(
                 grid,
                 segs,
                 components_of(grid, segs, &rest),
                 &rest,
                 &found[k],
+                factors,
             );
             if needed > -options.min_bic_gain {
                 found = refit.effects;
