@@ -525,7 +525,10 @@ impl Children {
             Err(_) => false,
         });
         for (id, status) in ended {
-            if !runtime.take_stopped_by_user(id) {
+            let asked = runtime.take_stopped_by_user(id);
+            // A robot leaves with status 0 only when asked to (SIGTERM, or
+            // the Ctrl-C that reaches the whole terminal's process group).
+            if !asked && !status.success() {
                 let tail = runtime.log_tail(&format!("agent-{id}.log"), LOG_TAIL_LINES);
                 self.deaths
                     .push(Death::of(format!("robot {id}"), status, tail));
@@ -543,8 +546,10 @@ impl RunningSwarm {
             .retain_mut(|(binary, child)| match child.try_wait() {
                 Ok(None) => true,
                 Ok(Some(status)) => {
-                    let tail = runtime.log_tail(&format!("{binary}.log"), LOG_TAIL_LINES);
-                    deaths.push(Death::of(binary.clone(), status, tail));
+                    if !status.success() {
+                        let tail = runtime.log_tail(&format!("{binary}.log"), LOG_TAIL_LINES);
+                        deaths.push(Death::of(binary.clone(), status, tail));
+                    }
                     false
                 }
                 Err(_) => false,
