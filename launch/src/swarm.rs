@@ -113,14 +113,18 @@ impl RunningSwarm {
         let launch_lock = SwarmRuntime::locate(name)
             .lock("launch", false)
             .with_context(|| format!("swarm `{name}` is already being started or run"))?;
-        let alive: Vec<i32> = swarm_nodes(name)?
+        // A node "alive" under this very process's pid is a stale one of an
+        // earlier run whose pid the system has since given to us.
+        let me = std::process::id() as i32;
+        let alive: Vec<String> = swarm_nodes(name)?
             .iter()
-            .filter(|n| n.state == SwarmNodeState::Alive)
-            .map(|n| n.pid)
+            .filter(|n| n.state == SwarmNodeState::Alive && n.pid != me)
+            .map(|n| format!("{} (pid {})", n.name, n.pid))
             .collect();
         if !alive.is_empty() {
             bail!(
-                "swarm `{name}` is already running (pids {alive:?}); stop it first or pick another --swarm"
+                "swarm `{name}` is already running: {}; stop it first (shoal down --swarm {name}) or pick another --swarm",
+                alive.join(", ")
             );
         }
         remove_dead_nodes(name)?;
@@ -400,9 +404,11 @@ impl RunningSwarm {
             let _ = helper.wait();
         }
         let mut pids: Vec<i32> = self.agent_pids();
+        let me = std::process::id() as i32;
         for node in swarm_nodes(&self.name)? {
             if node.agent_id.is_some()
                 && node.state == SwarmNodeState::Alive
+                && node.pid != me
                 && !pids.contains(&node.pid)
             {
                 pids.push(node.pid);
