@@ -113,12 +113,15 @@ impl RunningSwarm {
         let launch_lock = SwarmRuntime::locate(name)
             .lock("launch", false)
             .with_context(|| format!("swarm `{name}` is already being started or run"))?;
-        // A node "alive" under this very process's pid is a stale one of an
-        // earlier run whose pid the system has since given to us.
+        // Robots and a launcher mean the swarm runs; a `shoal status` that
+        // happens to be looking (a node of its own for a moment) does not. A
+        // node under this very process's pid cannot be another launcher.
         let me = std::process::id() as i32;
+        let launcher = names::tool_node(name, "launcher");
         let alive: Vec<String> = swarm_nodes(name)?
             .iter()
             .filter(|n| n.state == SwarmNodeState::Alive && n.pid != me)
+            .filter(|n| n.agent_id.is_some() || n.name == launcher)
             .map(|n| format!("{} (pid {})", n.name, n.pid))
             .collect();
         if !alive.is_empty() {
