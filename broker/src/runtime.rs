@@ -251,12 +251,16 @@ impl SwarmRuntime {
     /// Marks robot `id` as stopped on purpose by a user's command, so the
     /// launcher does not report its death as a failure.
     pub fn mark_stopped_by_user(&self, id: u32) -> io::Result<()> {
-        write_atomically(&self.dir.join(format!("agent-{id}.stopped")), "")
+        write_atomically(&self.stopped_path(id), "")
     }
 
     /// Whether robot `id` was stopped by a user's command; forgets it.
     pub fn take_stopped_by_user(&self, id: u32) -> bool {
-        std::fs::remove_file(self.dir.join(format!("agent-{id}.stopped"))).is_ok()
+        std::fs::remove_file(self.stopped_path(id)).is_ok()
+    }
+
+    fn stopped_path(&self, id: u32) -> PathBuf {
+        self.dir.join(format!("agent-{id}.stopped"))
     }
 
     pub fn scenario_path(&self) -> PathBuf {
@@ -267,8 +271,13 @@ impl SwarmRuntime {
         self.dir.join("swarm.toml")
     }
 
+    /// The name of robot `id`'s log in the swarm's folder.
+    pub fn agent_log_name(id: u32) -> String {
+        format!("agent-{id}.log")
+    }
+
     pub fn log_path(&self, id: u32) -> PathBuf {
-        self.dir.join(format!("agent-{id}.log"))
+        self.dir.join(Self::agent_log_name(id))
     }
 
     fn pose_path(&self, id: u32) -> PathBuf {

@@ -32,9 +32,29 @@ pub enum Tie {
     DiesWithLauncher,
 }
 
+impl Tie {
+    /// Ties the process `command` will start accordingly.
+    pub fn apply(self, command: &mut Command) {
+        match self {
+            Tie::Detached => {
+                use std::os::unix::process::CommandExt;
+                // SAFETY: setsid is async-signal-safe and touches no memory of ours.
+                unsafe {
+                    command.pre_exec(|| {
+                        libc::setsid();
+                        Ok(())
+                    });
+                }
+            }
+            Tie::DiesWithLauncher => die_with_parent(command),
+            Tie::Child => {}
+        }
+    }
+}
+
 /// Asks the kernel to send `command`'s process SIGTERM when this process
 /// dies (Linux's parent-death signal).
-pub fn die_with_parent(command: &mut Command) {
+fn die_with_parent(command: &mut Command) {
     use std::os::unix::process::CommandExt;
     // SAFETY: getpid is taken before the fork; in the child, prctl, getppid
     // and kill are async-signal-safe and touch no memory of ours.
@@ -79,7 +99,7 @@ pub fn start_agent(
     runtime: &shoal_broker::SwarmRuntime,
     tie: Tie,
 ) -> Result<Child> {
-    let log_file = runtime.create_log(&format!("agent-{id}.log"))?;
+    let log_file = runtime.create_log(&shoal_broker::SwarmRuntime::agent_log_name(id))?;
     let mut command = Command::new(sibling_binary("shoal-agent")?);
     command
         .args([
@@ -93,20 +113,7 @@ pub fn start_agent(
         .stdin(Stdio::null())
         .stdout(log_file.try_clone()?)
         .stderr(log_file);
-    match tie {
-        Tie::Detached => {
-            use std::os::unix::process::CommandExt;
-            // SAFETY: setsid is async-signal-safe and touches no memory of ours.
-            unsafe {
-                command.pre_exec(|| {
-                    libc::setsid();
-                    Ok(())
-                });
-            }
-        }
-        Tie::DiesWithLauncher => die_with_parent(&mut command),
-        Tie::Child => {}
-    }
+    tie.apply(&mut command);
     command
         .spawn()
         .with_context(|| format!("starting robot {id}"))

@@ -16,12 +16,12 @@ use shoal_physics::{Pose, Scenario};
 
 use crate::clock::LockstepClock;
 use crate::observer::Observer;
-use crate::process::{
-    Tie, die_with_parent, pid_alive, sibling_binary, signal, start_agent, stop_processes,
-};
+use crate::process::{Tie, pid_alive, sibling_binary, signal, start_agent, stop_processes};
 
 /// How long robots get to leave cleanly before they are killed.
 const SHUTDOWN_GRACE: Duration = Duration::from_secs(5);
+/// How long a helper (the recorder writing its footer) gets to leave cleanly.
+const HELPER_GRACE: Duration = Duration::from_secs(10);
 /// How long the launcher waits for its robots to announce themselves.
 const STARTUP_TIMEOUT: Duration = Duration::from_secs(30);
 
@@ -265,9 +265,7 @@ impl RunningSwarm {
             .stdin(Stdio::null())
             .stdout(log.try_clone()?)
             .stderr(log);
-        if self.tie() == Tie::DiesWithLauncher {
-            die_with_parent(&mut command);
-        }
+        self.tie().apply(&mut command);
         let child = command
             .spawn()
             .with_context(|| format!("starting {binary}"))?;
@@ -398,12 +396,7 @@ impl RunningSwarm {
         // Helpers go first: the recorder then does not log every robot
         // leaving, and gets time to write the recording's footer.
         for (_, mut helper) in self.helpers.drain(..) {
-            let _ = signal(helper.id() as i32, libc::SIGTERM);
-            let deadline = Instant::now() + Duration::from_secs(10);
-            while matches!(helper.try_wait(), Ok(None)) && Instant::now() < deadline {
-                std::thread::sleep(Duration::from_millis(20));
-            }
-            let _ = helper.kill();
+            stop_processes(&[helper.id() as i32], HELPER_GRACE);
             let _ = helper.wait();
         }
         let mut pids: Vec<i32> = self.agent_pids();
@@ -538,7 +531,7 @@ impl Children {
             // A robot leaves with status 0 only when asked to (SIGTERM, or
             // the Ctrl-C that reaches the whole terminal's process group).
             if !asked && !status.success() {
-                let tail = runtime.log_tail(&format!("agent-{id}.log"), LOG_TAIL_LINES);
+                let tail = runtime.log_tail(&SwarmRuntime::agent_log_name(id), LOG_TAIL_LINES);
                 self.deaths
                     .push(Death::of(format!("robot {id}"), status, tail));
             }

@@ -59,43 +59,6 @@ impl Default for FormationParams {
 }
 
 impl FormationParams {
-    pub fn validate(&self) -> Result<(), (&'static str, String)> {
-        if self.neighbours == 0 || self.neighbours > 16 {
-            return Err((
-                "neighbours",
-                format!("{} is outside 1..=16", self.neighbours),
-            ));
-        }
-        if !(self.spread.is_finite() && self.spread > 0.0 && self.spread <= 1000.0) {
-            return Err((
-                "spread",
-                format!(
-                    "{} must be a positive number of metres, at most 1000",
-                    self.spread
-                ),
-            ));
-        }
-        if !(self.gain.is_finite() && self.gain > 0.0 && self.gain <= 1.0e6) {
-            return Err((
-                "gain",
-                format!("{} must be positive, at most 1e6", self.gain),
-            ));
-        }
-        if !(self.dead_band.is_finite() && self.dead_band >= 0.0 && self.dead_band <= 1.0e6) {
-            return Err((
-                "dead_band",
-                format!("{} must be zero or positive", self.dead_band),
-            ));
-        }
-        if !(self.goal_gain.is_finite() && self.goal_gain >= 0.0 && self.goal_gain <= 1.0e6) {
-            return Err((
-                "goal_gain",
-                format!("{} must be zero or positive", self.goal_gain),
-            ));
-        }
-        Ok(())
-    }
-
     /// Signed force magnitude between two agents `distance` apart.
     pub fn pair_force(&self, distance: f64) -> f64 {
         let d = distance.max(1e-3);

@@ -388,12 +388,38 @@ impl Scenario {
         );
         check.number("sensor.dropout", sensor.dropout, 0.0, true, 1.0);
         check.count("slam.follow", self.slam.follow.len(), 0, MAX_FOLLOWED);
+        let formation = &self.formation;
+        check.count(
+            "formation.neighbours",
+            formation.neighbours,
+            1,
+            MAX_NEIGHBOURS,
+        );
+        check.number(
+            "formation.spread",
+            formation.spread,
+            0.0,
+            false,
+            MAX_SPREAD_M,
+        );
+        check.number("formation.gain", formation.gain, 0.0, false, MAX_GAIN);
+        check.number(
+            "formation.dead_band",
+            formation.dead_band,
+            0.0,
+            true,
+            MAX_GAIN,
+        );
+        check.number(
+            "formation.goal_gain",
+            formation.goal_gain,
+            0.0,
+            true,
+            MAX_GAIN,
+        );
         if let Some(error) = check.first {
             return Err(error);
         }
-        self.formation
-            .validate()
-            .map_err(|(field, message)| (format!("formation.{field}"), message))?;
         self.motion
             .validate()
             .map_err(|message| ("motion".to_owned(), message))?;
@@ -447,6 +473,9 @@ const MAX_BEAMS: usize = 4096;
 const MAX_SENSOR_RANGE_M: f64 = 1000.0;
 const MAX_SENSOR_NOISE: f64 = 10.0;
 const MAX_FOLLOWED: usize = 64;
+const MAX_NEIGHBOURS: usize = 16;
+const MAX_SPREAD_M: f64 = 1000.0;
+const MAX_GAIN: f64 = 1.0e6;
 
 /// Collects the first out-of-range field of a scenario.
 #[derive(Default)]

@@ -4,15 +4,8 @@
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
+use shoal::process::pid_alive;
 use shoal_e2e::*;
-
-fn pid_alive(pid: i32) -> bool {
-    std::fs::read_to_string(format!("/proc/{pid}/stat")).is_ok_and(|stat| {
-        stat.rsplit_once(')')
-            .and_then(|(_, rest)| rest.trim_start().chars().next())
-            .is_some_and(|s| s != 'Z' && s != 'X')
-    })
-}
 
 #[test]
 fn a_swarm_named_like_a_users_folder_leaves_that_folder_alone() {
