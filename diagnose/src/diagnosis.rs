@@ -69,7 +69,8 @@ pub struct FoundEffect {
     pub delta_bic: f64,
     pub sentence: String,
     /// Other kinds that explain the run as well (within 2 of BIC): this
-    /// data cannot tell them apart, so they are one finding.
+    /// data cannot tell them apart, so they are one finding. The kinds of
+    /// `alternatives`, kept for readers of the earlier JSON.
     pub indistinguishable_from: Vec<&'static str>,
     /// The same, with each alternative's fitted parameters and sentence.
     pub alternatives: Vec<Alternative>,
@@ -235,6 +236,71 @@ fn fit_all(
     results.into_iter().flatten().collect()
 }
 
+/// Runs `per_fold(train, test)` on each of the time-blocked folds, in
+/// parallel; results in fold order, `None` for a fold whose worker panicked.
+fn on_folds<T: Send>(
+    prepared: &Prepared,
+    options: &Options,
+    per_fold: impl Fn(&[Segment], &[Segment]) -> T + Sync,
+) -> Vec<Option<T>> {
+    let n = prepared.segments.len();
+    let folds = options.folds.clamp(2, n.max(2));
+    let per_fold = &per_fold;
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..folds)
+            .map(|f| {
+                scope.spawn(move || {
+                    let (lo, hi) = (f * n / folds, (f + 1) * n / folds);
+                    let train: Vec<Segment> = prepared.segments[..lo]
+                        .iter()
+                        .chain(&prepared.segments[hi..])
+                        .cloned()
+                        .collect();
+                    per_fold(&train, &prepared.segments[lo..hi])
+                })
+            })
+            .collect();
+        handles.into_iter().map(|h| h.join().ok()).collect()
+    })
+}
+
+/// `fixed` plus `free` refitted on part of `train` only: the full-data fit
+/// is a close start, and held-out data are never seen.
+fn refit_on(
+    prepared: &Prepared,
+    train: &[Segment],
+    fixed: &[ScopedEffect],
+    free: &[ScopedEffect],
+    options: &Options,
+) -> Vec<ScopedEffect> {
+    if free.is_empty() {
+        return fixed.to_vec();
+    }
+    let train_screen = subsample(train, 2 * options.screen_segments);
+    let refit = fit(
+        &prepared.grid,
+        &train_screen,
+        fixed,
+        free,
+        options.max_iters / 2,
+    );
+    fixed.iter().cloned().chain(refit.effects).collect()
+}
+
+/// How `effects` predict `test`, with the noise estimated on `train`: the
+/// negative log-likelihood and the residuals.
+fn predict_heldout(
+    prepared: &Prepared,
+    train: &[Segment],
+    test: &[Segment],
+    effects: Vec<ScopedEffect>,
+) -> (f64, Vec<Residual>) {
+    let model = UnicycleModel::with_effects(effects);
+    let noise = estimate_noise(&model, train, &residuals(&model, &prepared.grid, train));
+    let r = residuals(&model, &prepared.grid, test);
+    (segment_nll(&model, &noise, test, &r).iter().sum(), r)
+}
+
 /// Held-out fit of `fixed` plus `found` (refitted per fold) on time-blocked folds.
 fn heldout(
     prepared: &Prepared,
@@ -243,44 +309,13 @@ fn heldout(
     options: &Options,
 ) -> (Heldout, Vec<(f64, f64)>) {
     let n = prepared.segments.len();
-    let folds = options.folds.clamp(2, n.max(2));
-    let one_fold = |f: usize| -> (f64, Vec<Residual>) {
-        let (lo, hi) = (f * n / folds, (f + 1) * n / folds);
-        let train: Vec<Segment> = prepared.segments[..lo]
-            .iter()
-            .chain(&prepared.segments[hi..])
-            .cloned()
-            .collect();
-        let test = &prepared.segments[lo..hi];
-        let effects: Vec<ScopedEffect> = if found.is_empty() {
-            fixed.to_vec()
-        } else {
-            // Refit on part of the training folds only: the full-data fit is
-            // a close start, and held-out data are never seen.
-            let train_screen = subsample(&train, 2 * options.screen_segments);
-            let refit = fit(
-                &prepared.grid,
-                &train_screen,
-                fixed,
-                found,
-                options.max_iters / 2,
-            );
-            fixed.iter().cloned().chain(refit.effects).collect()
-        };
-        let model = UnicycleModel::with_effects(effects);
-        let noise = estimate_noise(&model, &train, &residuals(&model, &prepared.grid, &train));
-        let r = residuals(&model, &prepared.grid, test);
-        (segment_nll(&model, &noise, test, &r).iter().sum::<f64>(), r)
-    };
-    let per_fold: Vec<(f64, Vec<Residual>)> = std::thread::scope(|scope| {
-        let handles: Vec<_> = (0..folds)
-            .map(|f| scope.spawn(move || one_fold(f)))
-            .collect();
-        handles
-            .into_iter()
-            .map(|h| h.join().unwrap_or((f64::NAN, Vec::new())))
-            .collect()
-    });
+    let per_fold: Vec<(f64, Vec<Residual>)> = on_folds(prepared, options, |train, test| {
+        let effects = refit_on(prepared, train, fixed, found, options);
+        predict_heldout(prepared, train, test, effects)
+    })
+    .into_iter()
+    .map(|fold| fold.unwrap_or((f64::NAN, Vec::new())))
+    .collect();
     let nll: f64 = per_fold.iter().map(|(nll, _)| nll).sum();
     let all_residuals: Vec<Residual> = per_fold.into_iter().flat_map(|(_, r)| r).collect();
     let errors: Vec<(f64, f64)> = prepared
@@ -309,6 +344,11 @@ pub struct OperatingPoint {
 }
 
 impl OperatingPoint {
+    /// `effect` in one sentence, stated here.
+    fn sentence(&self, effect: &Effect, duration: f64) -> String {
+        effect.sentence_at(self.speed_m_per_s, self.turn_rad_per_s, duration)
+    }
+
     fn of(segments: &[Segment]) -> Self {
         let median = |mut values: Vec<f64>| {
             values.sort_by(f64::total_cmp);
@@ -333,10 +373,17 @@ impl OperatingPoint {
     }
 }
 
+/// What selection learned of an effect it accepted.
+struct Evidence {
+    delta_bic: f64,
+    heldout_gain: f64,
+    alternatives: Vec<Alternative>,
+}
+
 fn describe(
     scoped: &ScopedEffect,
     stderr: &[f64],
-    delta_bic: f64,
+    evidence: Evidence,
     duration: f64,
     at: OperatingPoint,
 ) -> FoundEffect {
@@ -346,9 +393,7 @@ fn describe(
         _ => None,
     };
     let [t_start, t_end] = scoped.during.unwrap_or([0.0, duration]);
-    let mut sentence = scoped
-        .effect
-        .sentence_at(at.speed_m_per_s, at.turn_rad_per_s, duration);
+    let mut sentence = at.sentence(&scoped.effect, duration);
     if let Some([a, b]) = scoped.during {
         sentence = format!(
             "{}, only from {a:.0} s to {b:.0} s.",
@@ -368,11 +413,11 @@ fn describe(
             t_end,
             region,
         },
-        delta_bic,
+        delta_bic: evidence.delta_bic,
         sentence,
-        indistinguishable_from: Vec::new(),
-        alternatives: Vec::new(),
-        heldout_gain: 0.0,
+        indistinguishable_from: evidence.alternatives.iter().map(|a| a.kind).collect(),
+        alternatives: evidence.alternatives,
+        heldout_gain: evidence.heldout_gain,
         scoped: scoped.clone(),
     }
 }
@@ -516,43 +561,21 @@ fn heldout_gain(
     candidate: &ScopedEffect,
     options: &Options,
 ) -> f64 {
-    let n = prepared.segments.len();
-    let folds = options.folds.clamp(2, n.max(2));
-    let one_fold = |f: usize| -> f64 {
-        let (lo, hi) = (f * n / folds, (f + 1) * n / folds);
-        let train: Vec<Segment> = prepared.segments[..lo]
-            .iter()
-            .chain(&prepared.segments[hi..])
-            .cloned()
-            .collect();
-        let test = &prepared.segments[lo..hi];
-        let train_screen = subsample(&train, 2 * options.screen_segments);
-        let refit = fit(
-            &prepared.grid,
-            &train_screen,
+    on_folds(prepared, options, |train, test| {
+        let with = refit_on(
+            prepared,
+            train,
             base,
             std::slice::from_ref(candidate),
-            options.max_iters / 2,
+            options,
         );
-        let test_nll = |effects: Vec<ScopedEffect>| {
-            let model = UnicycleModel::with_effects(effects);
-            let noise = estimate_noise(&model, &train, &residuals(&model, &prepared.grid, &train));
-            let r = residuals(&model, &prepared.grid, test);
-            segment_nll(&model, &noise, test, &r).iter().sum::<f64>()
-        };
-        test_nll(base.to_vec()) - test_nll(base.iter().cloned().chain(refit.effects).collect())
-    };
-    let gains: Vec<f64> = std::thread::scope(|scope| {
-        let handles: Vec<_> = (0..folds)
-            .map(|f| scope.spawn(move || one_fold(f)))
-            .collect();
-        handles
-            .into_iter()
-            .map(|h| h.join().unwrap_or(f64::NAN))
-            .collect()
-    });
+        predict_heldout(prepared, train, test, base.to_vec()).0
+            - predict_heldout(prepared, train, test, with).0
+    })
+    .into_iter()
     // A panicked fold makes the sum NaN, which never passes the check.
-    gains.iter().sum()
+    .map(|gain| gain.unwrap_or(f64::NAN))
+    .sum()
 }
 
 /// A fitted parameter this close to an edge of its physical range (as a
@@ -659,10 +682,8 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
     let screen_log_n = ((3 * screen.len()).max(2) as f64).ln();
     let mut remaining = candidates(&located, duration);
     let mut found: Vec<ScopedEffect> = Vec::new();
-    let mut gains: Vec<f64> = Vec::new();
-    let mut ties: Vec<Vec<&'static str>> = Vec::new();
-    let mut alternatives: Vec<Vec<Alternative>> = Vec::new();
-    let mut heldout_gains: Vec<f64> = Vec::new();
+    // What selection learned of each effect in `found`, index for index.
+    let mut evidence: Vec<Evidence> = Vec::new();
     let mut unexplained: Vec<Unexplained> = Vec::new();
     let mut rejected_heldout: Vec<&'static str> = Vec::new();
     while found.len() < options.max_effects && !remaining.is_empty() && segs.len() >= 20 {
@@ -778,24 +799,21 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
             continue;
         }
         found.push(chosen);
-        gains.push(delta_bic);
-        heldout_gains.push(gain_heldout);
-        ties.push(tied_kinds);
-        alternatives.push(
-            tied.iter()
+        evidence.push(Evidence {
+            delta_bic,
+            heldout_gain: gain_heldout,
+            // An alternative fitted onto a physical edge is no explanation.
+            alternatives: tied
+                .iter()
                 .filter(|(_, c)| on_bound(c).is_none())
                 .map(|(g, c)| Alternative {
                     kind: c.effect.kind(),
                     params: c.effect.params().into_iter().collect(),
                     delta_bic: *g,
-                    sentence: c.effect.sentence_at(
-                        operating_point.speed_m_per_s,
-                        operating_point.turn_rad_per_s,
-                        duration,
-                    ),
+                    sentence: operating_point.sentence(&c.effect, duration),
                 })
                 .collect(),
-        );
+        });
         // Effects found earlier may now be estimated differently: refit together.
         let joint = fit(grid, segs, &fixed, &found, options.max_iters * 2);
         found = joint.effects;
@@ -824,11 +842,7 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
             );
             if needed > -options.min_bic_gain {
                 found = refit.effects;
-                for list in [&mut gains, &mut heldout_gains] {
-                    list.remove(k);
-                }
-                ties.remove(k);
-                alternatives.remove(k);
+                evidence.remove(k);
             } else {
                 k += 1;
             }
@@ -842,20 +856,12 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
     let mut offset = 0;
     let effects: Vec<FoundEffect> = found
         .iter()
-        .zip(gains.iter().zip(&ties))
-        .map(|(scoped, (&gain, tied))| {
+        .zip(evidence)
+        .map(|(scoped, evidence)| {
             let count = scoped.effect.params().len();
             let se = &stderr[offset.min(stderr.len())..(offset + count).min(stderr.len())];
             offset += count;
-            let mut found = describe(scoped, se, gain, duration, operating_point);
-            found.indistinguishable_from = tied.clone();
-            found
-        })
-        .zip(alternatives.into_iter().zip(heldout_gains))
-        .map(|(mut found, (alternatives, heldout))| {
-            found.alternatives = alternatives;
-            found.heldout_gain = heldout;
-            found
+            describe(scoped, se, evidence, duration, operating_point)
         })
         .collect();
     let (baseline, plain_errors) = heldout(&prepared, &fixed, &[], options);

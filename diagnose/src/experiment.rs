@@ -149,10 +149,9 @@ pub struct NoiseColour {
     pub outliers: f64,
 }
 
-pub const NOISE_COLOURS: [&str; 5] = ["white", "ou-0.2s", "ou-2s", "ou-5s", "mixed"];
-
 impl NoiseColour {
-    pub fn named(name: &str) -> Option<Self> {
+    /// Every colour the bench knows, the tool's own assumption first.
+    pub fn all() -> Vec<Self> {
         let ou = |time_constant_s: f64, along_m_per_s: f64, turn_rad_per_s: f64| ColouredNoise {
             time_constant_s,
             along_m_per_s,
@@ -165,21 +164,31 @@ impl NoiseColour {
             timestamp_jitter_s: 0.001,
             outliers: 0.0,
         };
-        Some(match name {
-            "white" => Self {
+        vec![
+            Self {
                 dropout: 0.0,
                 timestamp_jitter_s: 0.0,
                 ..plain("white", vec![])
             },
-            "ou-0.2s" => plain("ou-0.2s", vec![ou(0.2, 0.02, 0.04)]),
-            "ou-2s" => plain("ou-2s", vec![ou(2.0, 0.01, 0.02)]),
-            "ou-5s" => plain("ou-5s", vec![ou(5.0, 0.008, 0.015)]),
-            "mixed" => Self {
+            plain("ou-0.2s", vec![ou(0.2, 0.02, 0.04)]),
+            plain("ou-2s", vec![ou(2.0, 0.01, 0.02)]),
+            plain("ou-5s", vec![ou(5.0, 0.008, 0.015)]),
+            Self {
                 outliers: 0.002,
                 ..plain("mixed", vec![ou(0.3, 0.01, 0.02), ou(3.0, 0.008, 0.015)])
             },
-            _ => return None,
-        })
+        ]
+    }
+
+    /// The colour called `name`, for the command line; the error lists the
+    /// known ones.
+    pub fn parse(name: &str) -> Result<Self, String> {
+        let all = Self::all();
+        let known: Vec<&str> = all.iter().map(|c| c.name).collect();
+        let known = known.join(", ");
+        all.into_iter()
+            .find(|c| c.name == name)
+            .ok_or_else(|| format!("unknown noise colour `{name}`; known: {known}"))
     }
 
     fn apply(&self, settings: Settings) -> Settings {

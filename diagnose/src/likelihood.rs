@@ -92,6 +92,16 @@ pub fn estimate_noise(
     }
 }
 
+/// Negative log-likelihood of one segment's residual, by component (along,
+/// across, heading).
+fn nll_by_component(model: &UnicycleModel, noise: &Noise, s: &Segment, r: &Residual) -> [f64; 3] {
+    let var = variances(noise, s, model.noise_multiplier(s.speed, s.t_start));
+    let values = [r[0], decorrelated(s, r), r[2]];
+    std::array::from_fn(|c| {
+        0.5 * ((2.0 * std::f64::consts::PI * var[c]).ln() + values[c] * values[c] / var[c])
+    })
+}
+
 /// Negative log-likelihood of each segment's residual.
 pub fn segment_nll(
     model: &UnicycleModel,
@@ -102,16 +112,7 @@ pub fn segment_nll(
     segments
         .iter()
         .zip(residuals)
-        .map(|(s, r)| {
-            let m = model.noise_multiplier(s.speed, s.t_start);
-            let var = variances(noise, s, m);
-            let values = [r[0], decorrelated(s, r), r[2]];
-            values
-                .iter()
-                .zip(var)
-                .map(|(x, v)| 0.5 * ((2.0 * std::f64::consts::PI * v).ln() + x * x / v))
-                .sum()
-        })
+        .map(|(s, r)| nll_by_component(model, noise, s, r).iter().sum())
         .collect()
 }
 
@@ -170,11 +171,9 @@ pub fn component_nll(
     let noise = estimate_noise(model, segments, residuals);
     let mut total = [0.0; 3];
     for (s, r) in segments.iter().zip(residuals) {
-        let var = variances(&noise, s, model.noise_multiplier(s.speed, s.t_start));
-        let values = [r[0], decorrelated(s, r), r[2]];
+        let nll = nll_by_component(model, &noise, s, r);
         for c in 0..3 {
-            total[c] +=
-                0.5 * ((2.0 * std::f64::consts::PI * var[c]).ln() + values[c] * values[c] / var[c]);
+            total[c] += nll[c];
         }
     }
     total

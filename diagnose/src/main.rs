@@ -7,7 +7,7 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
-use shoal_diagnose::experiment::{NOISE_COLOURS, NoiseColour, cases, run_case};
+use shoal_diagnose::experiment::{NoiseColour, cases, run_case};
 use shoal_diagnose::generate::{Settings, generate};
 use shoal_diagnose::input::{commands_csv, mrclam_groundtruth, mrclam_odometry, poses_csv};
 use shoal_diagnose::{Diagnosis, Options, Recording, diagnose};
@@ -72,30 +72,7 @@ enum Commands {
         duration: f64,
     },
     /// Detection, false positives and parameter error over many seeds, per effect.
-    Experiment {
-        /// Runs per concealed effect and noise colour.
-        #[arg(long, default_value_t = 5)]
-        seeds: u64,
-        /// Null runs (no effect) per noise colour: the false-positive rate.
-        #[arg(long, default_value_t = 40)]
-        nulls: u64,
-        #[arg(long, default_value_t = 600.0)]
-        duration: f64,
-        /// Noise colours: white (what diagnosis assumes), ou-0.2s, ou-2s,
-        /// ou-5s (coloured motion noise with 2% dropped frames and 1 ms
-        /// jitter), mixed (two time constants and marker swaps).
-        #[arg(
-            long,
-            value_delimiter = ',',
-            default_value = "white,ou-0.2s,ou-2s,ou-5s,mixed"
-        )]
-        noise: Vec<String>,
-        /// Only these cases (e.g. null,latency); default: all.
-        #[arg(long, value_delimiter = ',')]
-        cases: Vec<String>,
-        #[arg(long)]
-        json: bool,
-    },
+    Experiment(ExperimentArgs),
 }
 
 /// Fewer segments than this say nothing either way.
@@ -267,24 +244,36 @@ fn run_generate(truth: Option<&Path>, out: &Path, seed: u64, duration: f64) -> R
     Ok(())
 }
 
-struct ExperimentArgs<'a> {
+#[derive(clap::Args)]
+struct ExperimentArgs {
+    /// Runs per concealed effect and noise colour.
+    #[arg(long, default_value_t = 5)]
     seeds: u64,
+    /// Null runs (no effect) per noise colour: the false-positive rate.
+    #[arg(long, default_value_t = 40)]
     nulls: u64,
+    #[arg(long, default_value_t = 600.0)]
     duration: f64,
-    noise: &'a [String],
-    cases: &'a [String],
+    /// Noise colours: white (what diagnosis assumes), ou-0.2s, ou-2s,
+    /// ou-5s (coloured motion noise with 2% dropped frames and 1 ms
+    /// jitter), mixed (two time constants and marker swaps).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_parser = NoiseColour::parse,
+        default_value = "white,ou-0.2s,ou-2s,ou-5s,mixed"
+    )]
+    noise: Vec<NoiseColour>,
+    /// Only these cases (e.g. null,latency); default: all.
+    #[arg(long, value_delimiter = ',')]
+    cases: Vec<String>,
+    #[arg(long)]
     json: bool,
 }
 
-fn run_experiment(args: ExperimentArgs) -> Result<()> {
+fn run_experiment(args: &ExperimentArgs) -> Result<()> {
     let mut rows = Vec::new();
-    for colour in args.noise {
-        let noise = NoiseColour::named(colour).with_context(|| {
-            format!(
-                "unknown noise colour `{colour}`; known: {}",
-                NOISE_COLOURS.join(", ")
-            )
-        })?;
+    for noise in &args.noise {
         for case in cases(args.duration) {
             if !args.cases.is_empty() && !args.cases.iter().any(|c| c == case.name) {
                 continue;
@@ -294,7 +283,7 @@ fn run_experiment(args: ExperimentArgs) -> Result<()> {
             } else {
                 args.seeds
             };
-            let row = run_case(&case, &noise, 1000..1000 + n, args.duration);
+            let row = run_case(&case, noise, 1000..1000 + n, args.duration);
             eprintln!(
                 "{} / {}: detected {:.0}%, runs naming an effect not there {:.0}%",
                 row.noise,
@@ -347,21 +336,7 @@ fn main() -> ExitCode {
             seed,
             duration,
         }) => run_generate(truth.as_deref(), out, *seed, *duration),
-        Some(Commands::Experiment {
-            seeds,
-            nulls,
-            duration,
-            noise,
-            cases,
-            json,
-        }) => run_experiment(ExperimentArgs {
-            seeds: *seeds,
-            nulls: *nulls,
-            duration: *duration,
-            noise,
-            cases,
-            json: *json,
-        }),
+        Some(Commands::Experiment(args)) => run_experiment(args),
         None => run_diagnose(&cli.diagnose),
     };
     match outcome {

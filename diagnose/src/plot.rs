@@ -7,6 +7,7 @@ use std::path::Path;
 use std::sync::Once;
 
 use anyhow::{Result, anyhow};
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use plotters::style::{FontStyle, register_font};
 use shoal_diagnose::{Diagnosis, Recording};
@@ -52,15 +53,7 @@ pub fn fit_png(path: &Path, recording: &Recording, diagnosis: &Diagnosis) -> Res
         .y_label_area_size(60)
         .build_cartesian_2d(xr.start..xr.start + side, yr.start..yr.start + side)
         .map_err(|e| error(&e))?;
-    path_chart
-        .configure_mesh()
-        .x_desc("x (m)")
-        .y_desc("y (m)")
-        .label_style((FONT, 13))
-        .axis_desc_style((FONT, 15))
-        .light_line_style(WHITE.mix(0.0))
-        .draw()
-        .map_err(|e| error(&e))?;
+    draw_axes(&mut path_chart, "x (m)", "y (m)").map_err(|e| error(&e))?;
     let zone_colour = RGBColor(255, 200, 120);
     let mut zone_labelled = false;
     for effect in &diagnosis.effects {
@@ -89,14 +82,7 @@ pub fn fit_png(path: &Path, recording: &Recording, diagnosis: &Diagnosis) -> Res
         .map_err(|e| error(&e))?
         .label("observed path")
         .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLACK.stroke_width(2)));
-    path_chart
-        .configure_series_labels()
-        .label_font((FONT, 13))
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .position(SeriesLabelPosition::UpperRight)
-        .draw()
-        .map_err(|e| error(&e))?;
+    draw_legend(&mut path_chart).map_err(|e| error(&e))?;
 
     let errors = &diagnosis.heldout_errors;
     let t_end = errors.last().map_or(1.0, |e| e.0).max(1.0);
@@ -121,15 +107,12 @@ pub fn fit_png(path: &Path, recording: &Recording, diagnosis: &Diagnosis) -> Res
         .y_label_area_size(60)
         .build_cartesian_2d(0.0..t_end, 0.0..e_max_mm * 1.05)
         .map_err(|e| error(&e))?;
-    error_chart
-        .configure_mesh()
-        .x_desc("time into the run (s)")
-        .y_desc("position error of the segment (mm)")
-        .label_style((FONT, 13))
-        .axis_desc_style((FONT, 15))
-        .light_line_style(WHITE.mix(0.0))
-        .draw()
-        .map_err(|e| error(&e))?;
+    draw_axes(
+        &mut error_chart,
+        "time into the run (s)",
+        "position error of the segment (mm)",
+    )
+    .map_err(|e| error(&e))?;
     error_chart
         .draw_series(
             errors
@@ -148,14 +131,36 @@ pub fn fit_png(path: &Path, recording: &Recording, diagnosis: &Diagnosis) -> Res
         .map_err(|e| error(&e))?
         .label("with the effects found")
         .legend(|(x, y)| Circle::new((x + 8, y), 4, BLUE.filled()));
-    error_chart
+    draw_legend(&mut error_chart).map_err(|e| error(&e))?;
+    root.present().map_err(|e| error(&e))?;
+    Ok(())
+}
+
+/// Both charts plot metres or seconds against millimetres or metres.
+type Chart<'a, 'b> =
+    ChartContext<'a, BitMapBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+type DrawResult =
+    Result<(), DrawingAreaErrorKind<<BitMapBackend<'static> as DrawingBackend>::ErrorType>>;
+
+/// Axes with tick labels and their descriptions, no inner grid.
+fn draw_axes<'a, 'b: 'a>(chart: &mut Chart<'a, 'b>, x: &str, y: &str) -> DrawResult {
+    chart
+        .configure_mesh()
+        .x_desc(x)
+        .y_desc(y)
+        .label_style((FONT, 13))
+        .axis_desc_style((FONT, 15))
+        .light_line_style(WHITE.mix(0.0))
+        .draw()
+}
+
+/// The legend of the series drawn with labels, top right.
+fn draw_legend<'a, 'b: 'a>(chart: &mut Chart<'a, 'b>) -> DrawResult {
+    chart
         .configure_series_labels()
         .label_font((FONT, 13))
         .background_style(WHITE.mix(0.85))
         .border_style(BLACK)
         .position(SeriesLabelPosition::UpperRight)
         .draw()
-        .map_err(|e| error(&e))?;
-    root.present().map_err(|e| error(&e))?;
-    Ok(())
 }
