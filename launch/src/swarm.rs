@@ -258,7 +258,7 @@ impl RunningSwarm {
     }
 
     fn start_helper(&mut self, binary: &str, args: &[std::ffi::OsString]) -> Result<()> {
-        let log = self.runtime.create_log(&format!("{binary}.log"))?;
+        let log = self.runtime.create_log(&helper_log_name(binary))?;
         let mut command = Command::new(sibling_binary(binary)?);
         command
             .args(args)
@@ -471,7 +471,24 @@ impl std::fmt::Display for Death {
 /// Lines of a dead process's log shown to the user.
 const LOG_TAIL_LINES: usize = 6;
 
+/// The log of helper `binary` in the swarm's folder.
+fn helper_log_name(binary: &str) -> String {
+    format!("{binary}.log")
+}
+
 impl Death {
+    /// The death of `who`, with the end of its log `log`; none for a clean
+    /// exit (status 0), which a process makes only when asked to (SIGTERM,
+    /// or the Ctrl-C that reaches the whole terminal's process group).
+    fn unless_clean(
+        who: String,
+        status: std::process::ExitStatus,
+        runtime: &SwarmRuntime,
+        log: &str,
+    ) -> Option<Self> {
+        (!status.success()).then(|| Self::of(who, status, runtime.log_tail(log, LOG_TAIL_LINES)))
+    }
+
     fn of(who: String, status: std::process::ExitStatus, log_tail: Vec<String>) -> Self {
         use std::os::unix::process::ExitStatusExt;
         let (status, crashed) = match (status.code(), status.signal()) {
@@ -528,12 +545,14 @@ impl Children {
         });
         for (id, status) in ended {
             let asked = runtime.take_stopped_by_user(id);
-            // A robot leaves with status 0 only when asked to (SIGTERM, or
-            // the Ctrl-C that reaches the whole terminal's process group).
-            if !asked && !status.success() {
-                let tail = runtime.log_tail(&SwarmRuntime::agent_log_name(id), LOG_TAIL_LINES);
-                self.deaths
-                    .push(Death::of(format!("robot {id}"), status, tail));
+            if !asked {
+                let log = SwarmRuntime::agent_log_name(id);
+                self.deaths.extend(Death::unless_clean(
+                    format!("robot {id}"),
+                    status,
+                    runtime,
+                    &log,
+                ));
             }
         }
     }
@@ -548,10 +567,8 @@ impl RunningSwarm {
             .retain_mut(|(binary, child)| match child.try_wait() {
                 Ok(None) => true,
                 Ok(Some(status)) => {
-                    if !status.success() {
-                        let tail = runtime.log_tail(&format!("{binary}.log"), LOG_TAIL_LINES);
-                        deaths.push(Death::of(binary.clone(), status, tail));
-                    }
+                    let log = helper_log_name(binary);
+                    deaths.extend(Death::unless_clean(binary.clone(), status, runtime, &log));
                     false
                 }
                 Err(_) => false,
