@@ -317,4 +317,31 @@ mod tests {
         let f = long_run_factors(&segments, &ar);
         assert!(f.iter().all(|f| (2.8..=4.6).contains(f)), "{f:?}");
     }
+
+    #[test]
+    fn a_mismatch_that_comes_and_goes_is_not_taken_for_correlated_noise() {
+        // White noise plus a shift of 1.5 standard deviations in the middle
+        // third of the run: an effect, not coloured noise.
+        let n = 3000;
+        let segments = chain(n);
+        let mut rng = rand::rngs::StdRng::seed_from_u64(5);
+        let shifted: Vec<[f64; 3]> = (0..n)
+            .map(|i| {
+                let shift = if (n / 3..2 * n / 3).contains(&i) {
+                    1.5
+                } else {
+                    0.0
+                };
+                let z: f64 = rng.sample(rand_distr::StandardNormal);
+                [z + shift; 3]
+            })
+            .collect();
+        let whole = long_run_factors(&segments, &shifted);
+        let noise = long_run_factors_of_noise(&segments, &shifted);
+        assert!(
+            whole[0] > 3.0,
+            "the shift inflates the plain factor: {whole:?}"
+        );
+        assert!(noise[0] < 1.4, "the noise alone is white: {noise:?}");
+    }
 }
