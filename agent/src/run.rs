@@ -160,19 +160,11 @@ pub fn run(options: AgentOptions) -> Result<()> {
             .count();
 
         // What a SLAM process learned about this robot replaces its own guesses.
-        model_updates.receive(|update| {
-            if let Err(reason) = apply_model_update(&mut robot.belief, &update) {
-                check.rejected += 1;
-                tracing::warn!("rejected a model update: {reason}");
-            }
-        })?;
+        // The subscriber passes only updates that pass `ModelUpdate::check`.
+        model_updates.receive(|update| apply_model_update(&mut robot.belief, &update))?;
         // An estimate is of a past tick: keep the motion believed since then.
         estimates.receive(|e| {
             let estimate = Pose::new(e.x, e.y, e.theta);
-            if !estimate.is_finite() {
-                check.rejected += 1;
-                return;
-            }
             // Dead reckoning is never corrected, so the motion since the
             // estimate's tick is the same however many corrections came in between.
             if let Some((_, then)) = odometry_history.iter().find(|(t, _)| *t == e.tick) {
@@ -210,7 +202,12 @@ pub fn run(options: AgentOptions) -> Result<()> {
         if sensed.is_empty() {
             health |= Health::ISOLATED;
         }
-        if check.rejected > 0 {
+        let rejected = check.rejected
+            + cells.rejected()
+            + model_updates.rejected()
+            + estimates.rejected()
+            + clock.as_ref().map_or(0, |c| c.rejected());
+        if rejected > 0 {
             health |= Health::REJECTED_INPUT;
         }
         let mut neighbours = [0; MAX_NEIGHBOURS];
@@ -279,24 +276,14 @@ pub fn run(options: AgentOptions) -> Result<()> {
     Ok(())
 }
 
-/// Adopts one learned mixture, if it is a valid one for a known command.
-fn apply_model_update(
-    model: &mut shoal_physics::MotionModel,
-    update: &shoal_broker::ModelUpdate,
-) -> Result<(), String> {
-    let command = shoal_physics::Command::from_index(update.command as usize)
-        .ok_or_else(|| format!("unknown command index {}", update.command))?;
-    let param = *shoal_physics::legged::Param::ALL
-        .get(update.param as usize)
-        .ok_or_else(|| format!("unknown parameter index {}", update.param))?;
-    let mixture = shoal_physics::Mixture2 {
-        weights: update.weights,
-        means: update.means,
-        variances: update.variances,
-    };
-    mixture.validate()?;
-    *model.command_mut(command).param_mut(param) = mixture;
-    Ok(())
+/// Adopts one learned mixture; the update has passed its wire check, so
+/// its command and parameter name something.
+fn apply_model_update(model: &mut shoal_physics::MotionModel, update: &shoal_broker::ModelUpdate) {
+    let command = shoal_physics::Command::from_index(update.command as usize);
+    let param = shoal_physics::legged::Param::ALL.get(update.param as usize);
+    if let (Some(command), Some(param)) = (command, param) {
+        *model.command_mut(command).param_mut(*param) = update.mixture();
+    }
 }
 
 fn publish(

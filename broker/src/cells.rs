@@ -10,6 +10,7 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 
 use crate::bus::{Bus, BusError};
+use crate::check::Rejected;
 use crate::names;
 use crate::wire::PoseSample;
 
@@ -35,6 +36,7 @@ pub struct CellExchange {
     failed: HashMap<CellKey, Instant>,
     /// Cells this robot could not join (full, or the bus refused); retried next period.
     pub failures: u64,
+    rejected: Rejected,
 }
 
 impl CellExchange {
@@ -45,6 +47,7 @@ impl CellExchange {
             subscribers: HashMap::new(),
             failed: HashMap::new(),
             failures: 0,
+            rejected: Rejected::default(),
         }
     }
 
@@ -144,16 +147,24 @@ impl CellExchange {
         first_error.map_or(Ok(()), Err)
     }
 
-    /// Hands every sample waiting in the listened cells to `on_sample`.
+    /// Hands every sample waiting in the listened cells that passes its
+    /// check to `on_sample`.
     pub fn receive(&self, mut on_sample: impl FnMut(PoseSample)) -> Result<(), BusError> {
         for subscriber in self.subscribers.values() {
             while let Some(sample) = subscriber
                 .receive()
                 .map_err(|e| BusError::iceoryx("receive pose", e))?
             {
-                on_sample(*sample);
+                if self.rejected.filter("neighbour pose", &*sample) {
+                    on_sample(*sample);
+                }
             }
         }
         Ok(())
+    }
+
+    /// Poses that failed their check since this exchange was made.
+    pub fn rejected(&self) -> u64 {
+        self.rejected.count()
     }
 }

@@ -23,6 +23,7 @@ fn waited(result: Result<u64, ListenerWaitError>, what: &str) -> Result<(), BusE
         Err(e) => Err(BusError::iceoryx(what, e)),
     }
 }
+use crate::check::Rejected;
 use crate::names;
 use crate::wire::ClockTick;
 
@@ -113,7 +114,15 @@ pub struct ClockListener {
     subscriber: Subscriber<ipc::Service, ClockTick, ()>,
     listener: Listener<ipc::Service>,
     ack: Notifier<ipc::Service>,
+    rejected: Rejected,
+    /// The newest tick accepted, to refuse one that leaps impossibly far.
+    newest: core::cell::Cell<Option<u64>>,
 }
+
+/// The clock steps one tick at a time and a robot reads every few ticks at
+/// worst; a tick this far past the newest one seen is a forgery that would
+/// leave the robot waiting for ticks that never come.
+const MAX_TICK_LEAP: u64 = 100_000;
 
 impl ClockListener {
     pub fn new(bus: &Bus) -> Result<Self, BusError> {
@@ -133,10 +142,12 @@ impl ClockListener {
             subscriber,
             listener,
             ack,
+            rejected: Rejected::default(),
+            newest: core::cell::Cell::new(None),
         })
     }
 
-    /// The newest tick already published, without waiting.
+    /// The newest valid tick already published, without waiting.
     pub fn latest(&self) -> Result<Option<ClockTick>, BusError> {
         let mut latest = None;
         while let Some(sample) = self
@@ -144,9 +155,28 @@ impl ClockListener {
             .receive()
             .map_err(|e| BusError::iceoryx("receive tick", e))?
         {
-            latest = Some(*sample);
+            let leaps = self
+                .newest
+                .get()
+                .is_some_and(|newest| sample.tick > newest.saturating_add(MAX_TICK_LEAP));
+            if leaps {
+                self.rejected
+                    .count_one("clock tick", "it leaps too far ahead");
+            } else if self.rejected.filter("clock tick", &*sample) {
+                self.newest.set(Some(
+                    self.newest
+                        .get()
+                        .map_or(sample.tick, |n| n.max(sample.tick)),
+                ));
+                latest = Some(*sample);
+            }
         }
         Ok(latest)
+    }
+
+    /// Ticks that failed their check since this listener was made.
+    pub fn rejected(&self) -> u64 {
+        self.rejected.count()
     }
 
     /// The newest tick later than `after`, waiting up to `timeout` for one.

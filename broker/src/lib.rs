@@ -17,7 +17,7 @@ pub mod wire;
 
 pub use bus::{Bus, BusError, BusLimits};
 pub use cells::{CellExchange, CellKey};
-pub use check::{Rejection, SampleCheck};
+pub use check::{Rejected, Rejection, SampleCheck, Wire};
 pub use clock::{ClockListener, ClockSource};
 pub use liveness::{SwarmNode, SwarmNodeState};
 pub use roster::{RosterPublisher, RosterReader};

@@ -9,6 +9,7 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 
 use crate::bus::{Bus, BusError};
+use crate::check::{Rejected, Wire};
 use crate::names;
 use crate::wire::{
     EstimateSample, HelperProgress, ModelUpdate, ScanSample, SlamMap, SlamParticles,
@@ -52,26 +53,38 @@ impl<T: Debug + ZeroCopySend + Copy + 'static> StreamPublisher<T> {
 /// The receiving end of one robot's stream of `T`.
 pub struct StreamSubscriber<T: Debug + ZeroCopySend + 'static> {
     subscriber: Subscriber<ipc::Service, T, ()>,
+    rejected: Rejected,
 }
 
-impl<T: Debug + ZeroCopySend + Copy + 'static> StreamSubscriber<T> {
+impl<T: Debug + ZeroCopySend + Copy + Wire + 'static> StreamSubscriber<T> {
     fn new(bus: &Bus, name: &str) -> Result<Self, BusError> {
         let subscriber = open::<T>(bus, name)?
             .subscriber_builder()
             .create()
             .map_err(|e| BusError::iceoryx(format!("follow {name}"), e))?;
-        Ok(Self { subscriber })
+        Ok(Self {
+            subscriber,
+            rejected: Rejected::default(),
+        })
     }
 
+    /// Hands every waiting sample that passes its [`Wire::check`] to `on_value`.
     pub fn receive(&self, mut on_value: impl FnMut(T)) -> Result<(), BusError> {
         while let Some(sample) = self
             .subscriber
             .receive()
             .map_err(|e| BusError::iceoryx("receive", e))?
         {
-            on_value(*sample);
+            if self.rejected.filter(core::any::type_name::<T>(), &*sample) {
+                on_value(*sample);
+            }
         }
         Ok(())
+    }
+
+    /// Samples that failed their check since this subscriber was made.
+    pub fn rejected(&self) -> u64 {
+        self.rejected.count()
     }
 }
 

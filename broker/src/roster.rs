@@ -7,6 +7,7 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 
 use crate::bus::{Bus, BusError};
+use crate::check::Rejected;
 use crate::names;
 use crate::wire::PoseSample;
 
@@ -51,6 +52,7 @@ impl RosterPublisher {
 
 pub struct RosterReader {
     subscriber: Subscriber<ipc::Service, PoseSample, ()>,
+    rejected: Rejected,
 }
 
 impl RosterReader {
@@ -59,17 +61,28 @@ impl RosterReader {
             .subscriber_builder()
             .create()
             .map_err(|e| BusError::iceoryx("read roster", e))?;
-        Ok(Self { subscriber })
+        Ok(Self {
+            subscriber,
+            rejected: Rejected::default(),
+        })
     }
 
+    /// Hands every waiting pose that passes its check to `on_sample`.
     pub fn receive(&self, mut on_sample: impl FnMut(PoseSample)) -> Result<(), BusError> {
         while let Some(sample) = self
             .subscriber
             .receive()
             .map_err(|e| BusError::iceoryx("receive roster", e))?
         {
-            on_sample(*sample);
+            if self.rejected.filter("roster pose", &*sample) {
+                on_sample(*sample);
+            }
         }
         Ok(())
+    }
+
+    /// Poses that failed their check since this reader was made.
+    pub fn rejected(&self) -> u64 {
+        self.rejected.count()
     }
 }

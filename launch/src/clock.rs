@@ -44,33 +44,34 @@ impl LockstepClock {
     }
 
     /// Waits until `count` robots announced themselves (or `timeout`).
+    /// `on_sample` judges each sample; one it refuses never joins the swarm.
     pub fn await_robots(
         &mut self,
         roster: &RosterReader,
         count: usize,
         timeout: Duration,
-        mut on_sample: impl FnMut(PoseSample),
+        mut on_sample: impl FnMut(PoseSample) -> bool,
     ) -> Result<usize> {
         let started = Instant::now();
         while self.joining.len() + self.expected.len() < count && started.elapsed() < timeout {
             self.source.wait_for_acks(LIVENESS_POLL)?;
             roster.receive(|s| {
-                if !self.expected.contains_key(&s.agent_id) {
+                if on_sample(s) && !self.expected.contains_key(&s.agent_id) {
                     self.joining.insert(s.agent_id, s.pid as i32);
                 }
-                on_sample(s);
             })?;
         }
         Ok(self.joining.len() + self.expected.len())
     }
 
     /// Runs one tick: publishes it and waits until every live robot stepped.
-    /// `alive` tells whether a pid still runs.
+    /// `alive` tells whether a pid still runs; `on_sample` judges each
+    /// sample, and one it refuses neither counts as a step nor joins.
     pub fn advance(
         &mut self,
         roster: &RosterReader,
         mut alive: impl FnMut(i32) -> bool,
-        mut on_sample: impl FnMut(PoseSample),
+        mut on_sample: impl FnMut(PoseSample) -> bool,
     ) -> Result<()> {
         self.expected.extend(self.joining.drain());
         self.tick += 1;
@@ -85,6 +86,9 @@ impl LockstepClock {
         let mut done: HashSet<u32> = HashSet::new();
         loop {
             roster.receive(|s| {
+                if !on_sample(s) {
+                    return;
+                }
                 match self.expected.get_mut(&s.agent_id) {
                     Some(pid) if *pid == s.pid as i32 => {
                         if s.tick >= tick {
@@ -96,7 +100,6 @@ impl LockstepClock {
                         self.joining.insert(s.agent_id, s.pid as i32);
                     }
                 }
-                on_sample(s);
             })?;
             if self.expected.keys().all(|id| done.contains(id)) {
                 return Ok(());

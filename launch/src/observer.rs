@@ -24,14 +24,16 @@ impl Observer {
         }
     }
 
-    pub fn record(&mut self, sample: PoseSample) {
+    /// Keeps a plausible sample; false (and counted) for one that is not.
+    pub fn record(&mut self, sample: PoseSample) -> bool {
         if !self.check.accept(&sample) {
-            return;
+            return false;
         }
         self.newest_tick = self.newest_tick.max(sample.tick);
         self.newest_time = self.newest_time.max(sample.sim_time);
         self.latest
             .insert(sample.agent_id, (sample, Instant::now()));
+        true
     }
 
     pub fn forget(&mut self, id: u32) {

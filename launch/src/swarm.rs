@@ -50,6 +50,9 @@ pub struct RunningSwarm {
     helpers: Vec<(String, Child)>,
     /// In lockstep, the clock waits for helpers (recorder, SLAM) to keep up.
     paces: Vec<Pace>,
+    /// Helper progress reports rejected, by helpers no longer paced or as
+    /// reports of ticks not yet sent.
+    rejected_progress: u64,
     started: Instant,
     stopped: bool,
     /// Deaths already handed to the caller by `take_deaths`.
@@ -80,13 +83,19 @@ const HELPER_PATIENCE: Duration = Duration::from_secs(10);
 
 impl Pace {
     /// Waits until the helper has read up to `tick - lag`;
-    /// false when it stopped answering.
-    fn wait_for(&mut self, tick: u64) -> Result<bool> {
+    /// false when it stopped answering. Reports it rejects are added to `rejected`.
+    fn wait_for(&mut self, tick: u64, rejected: &mut u64) -> Result<bool> {
         let started = Instant::now();
         loop {
             let mut newest = self.tick;
-            self.progress
-                .receive(|p| newest = Some(newest.map_or(p.tick, |n: u64| n.max(p.tick))))?;
+            self.progress.receive(|p| {
+                // A helper cannot have read a tick the clock has not sent yet.
+                if p.tick > tick {
+                    *rejected += 1;
+                } else {
+                    newest = Some(newest.map_or(p.tick, |n: u64| n.max(p.tick)));
+                }
+            })?;
             // A helper that just joined has missed nothing it could have
             // read: it is caught up with the tick at which it first spoke.
             self.tick = newest.map(|t| match self.tick {
@@ -165,6 +174,7 @@ impl RunningSwarm {
             children: Children::default(),
             helpers: Vec::new(),
             paces: Vec::new(),
+            rejected_progress: 0,
             started: Instant::now(),
             stopped: false,
             reported_deaths: 0,
@@ -319,6 +329,19 @@ impl RunningSwarm {
         }
     }
 
+    /// Bus samples rejected so far: malformed or implausible poses and
+    /// helper progress reports.
+    pub fn rejected_samples(&self) -> u64 {
+        self.observer.rejected()
+            + self.roster.rejected()
+            + self.rejected_progress
+            + self
+                .paces
+                .iter()
+                .map(|p| p.progress.rejected())
+                .sum::<u64>()
+    }
+
     /// Lockstep: one tick. Real time: a short wait. Either way the observer is
     /// brought up to date.
     pub fn advance(&mut self) -> Result<()> {
@@ -330,7 +353,7 @@ impl RunningSwarm {
             Some(clock) => {
                 let mut silent = Vec::new();
                 for (index, pace) in self.paces.iter_mut().enumerate() {
-                    if !pace.wait_for(clock.tick)? {
+                    if !pace.wait_for(clock.tick, &mut self.rejected_progress)? {
                         tracing::warn!(
                             helper = pace.helper,
                             "a helper stopped answering; the clock no longer waits for it"
@@ -339,7 +362,8 @@ impl RunningSwarm {
                     }
                 }
                 for index in silent.into_iter().rev() {
-                    self.paces.remove(index);
+                    let pace = self.paces.remove(index);
+                    self.rejected_progress += pace.progress.rejected();
                 }
                 clock.advance(
                     &self.roster,
@@ -355,7 +379,9 @@ impl RunningSwarm {
             }
             None => {
                 std::thread::sleep(Duration::from_millis(50));
-                self.roster.receive(|s| observer.record(s))?;
+                self.roster.receive(|s| {
+                    observer.record(s);
+                })?;
                 children.reap(runtime);
                 let period = self.scenario.timing.period_s;
                 observer.expire(Duration::from_secs_f64(

@@ -166,7 +166,7 @@ pub fn up(options: UpOptions) -> Result<UpSummary> {
         spacing_ratio: metrics.spacing_ratio,
         spacing_cv: metrics.spacing_cv,
         converge_s: converged_since,
-        rejected_samples: swarm.observer.rejected(),
+        rejected_samples: swarm.rejected_samples(),
     };
     eprintln!("shoal: stopping swarm `{}`", swarm.name);
     swarm.shutdown()?;

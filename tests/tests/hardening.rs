@@ -265,3 +265,109 @@ fn an_absurd_robot_id_is_refused_at_once() {
     assert!(said.contains("highest id"), "{said}");
     assert!(started.elapsed() < Duration::from_secs(5));
 }
+
+/// Issue 9, item 6: forged clock ticks and model updates on the real bus
+/// are rejected and counted; the swarm keeps stepping and no robot's pose
+/// goes to infinity.
+#[test]
+fn forged_clock_ticks_and_model_updates_are_rejected_and_the_swarm_keeps_stepping() {
+    use shoal_broker::{Bus, BusLimits, ClockSource, ClockTick, Health, ModelUpdate, names};
+    use shoal_physics::Command as Motion;
+    use shoal_physics::legged::Param;
+
+    let _turn = serial();
+    let mut swarm = BackgroundSwarm::start("e2e-forger", &["--agents", "4", "--lockstep"]);
+    swarm.wait_alive(4, Duration::from_secs(60));
+    let bus = Bus::join(
+        &swarm.name,
+        &names::tool_node(&swarm.name, "forger"),
+        BusLimits::default(),
+    )
+    .expect("join");
+    let ticks = |status: &serde_json::Value| -> Vec<u64> {
+        alive_agents(status)
+            .iter()
+            .filter_map(|a| a["tick"].as_u64())
+            .collect()
+    };
+    let before = status(&swarm.name);
+    let target = alive_ids(&before)[0] as u32;
+    let clock = ClockSource::new(&bus).expect("a second clock publisher");
+    let models = shoal_broker::robot_streams::model_publisher(&bus, target).expect("model stream");
+    let newest = ticks(&before).into_iter().max().expect("ticks");
+    let forged_ticks = [
+        // Past every tick the real clock will send: robots would wait forever.
+        ClockTick {
+            tick: u64::MAX,
+            sim_time: 1.0,
+            period_s: 0.1,
+        },
+        // Self-consistent, but a leap no clock makes.
+        ClockTick {
+            tick: newest + 1_000_000_000,
+            sim_time: (newest + 1_000_000_000) as f64 * 0.1,
+            period_s: 0.1,
+        },
+        ClockTick {
+            tick: newest + 1,
+            sim_time: f64::NAN,
+            period_s: 0.1,
+        },
+    ];
+    for round in 0..10 {
+        clock
+            .tick(forged_ticks[round % forged_ticks.len()])
+            .expect("forge a tick");
+        for (command, _) in Motion::ALL.iter().enumerate() {
+            for (param, _) in Param::ALL.iter().enumerate() {
+                models
+                    .publish(&ModelUpdate {
+                        agent_id: target,
+                        command: command as u32,
+                        param: param as u32,
+                        reserved: 0,
+                        step: round as u64,
+                        weights: [0.5, 0.5],
+                        means: [1e308, -1e308],
+                        variances: [1e-3, 1e-3],
+                    })
+                    .expect("forge a model update");
+            }
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    // Let the swarm run on a while after the forgeries.
+    let moved_on = wait_until(Duration::from_secs(20), || {
+        let now = status(&swarm.name);
+        let now_ticks = ticks(&now);
+        now_ticks.len() == 4 && now_ticks.iter().all(|t| *t > newest + 20)
+    });
+    let after = status(&swarm.name);
+    assert!(
+        moved_on,
+        "the swarm stopped stepping after forged ticks: {after}\n{}",
+        swarm.log()
+    );
+    let agents = alive_agents(&after);
+    assert_eq!(agents.len(), 4, "a robot vanished: {after}");
+    for agent in &agents {
+        for field in ["x", "y"] {
+            assert!(
+                agent[field].as_f64().is_some_and(|v| v.abs() < 1e3),
+                "{field} of {agent}"
+            );
+        }
+        assert!(
+            agent["health"]
+                .as_u64()
+                .is_some_and(|h| h & u64::from(Health::REJECTED_INPUT) != 0),
+            "robot {} did not report the forgeries it rejected: {agent}",
+            agent["id"]
+        );
+    }
+    drop(models);
+    drop(clock);
+    drop(bus);
+    let (exit, said) = swarm.interrupt();
+    assert!(exit.success(), "{said}");
+}

@@ -68,7 +68,7 @@ fn run(args: Args) -> Result<()> {
             "real time"
         }
     ))?;
-    let check = SampleCheck::for_map(scenario.arena.width, scenario.arena.height, 1.0);
+    let mut check = SampleCheck::for_map(scenario.arena.width, scenario.arena.height, 1.0);
     let silent_ticks = (scenario.timing.stale_periods.ceil() as u64).max(1) + 1;
     let started = Instant::now();
     let mut last_flush = Instant::now();
@@ -79,19 +79,16 @@ fn run(args: Args) -> Result<()> {
             .is_none_or(|d| started.elapsed().as_secs_f64() < d)
     {
         roster.receive(|sample| {
-            if check.inspect(&sample).is_ok() {
+            if check.accept(&sample) {
                 newest_tick = newest_tick.max(sample.tick);
                 recorder.add(sample);
-            } else {
-                recorder.count_rejected();
             }
         })?;
         // A lockstep launcher paces its clock to this, so no tick is missed.
         progress.publish(&shoal_broker::HelperProgress { tick: newest_tick })?;
         recorder.log_complete()?;
-        for _ in 0..slam_views.poll(&bus, recorder.stream())? {
-            recorder.count_rejected();
-        }
+        slam_views.poll(&bus, recorder.stream())?;
+        recorder.set_rejected(check.rejected + roster.rejected() + slam_views.rejected());
         recorder.forget_silent(newest_tick, silent_ticks)?;
         if last_flush.elapsed() >= FLUSH_EVERY {
             last_flush = Instant::now();

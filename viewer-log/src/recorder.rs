@@ -75,8 +75,9 @@ impl Recorder {
         &self.rec
     }
 
-    pub fn count_rejected(&mut self) {
-        self.stats.rejected += 1;
+    /// Notes how many samples the bus readers have rejected so far.
+    pub fn set_rejected(&mut self, rejected: u64) {
+        self.stats.rejected = rejected;
     }
 
     /// Logs every tick older than the newest one seen (those are complete).

@@ -25,10 +25,6 @@ fn at(rec: &RecordingStream, tick: u64, sim_time: f64) {
     rec.set_duration_secs("sim_time", sim_time);
 }
 
-fn finite(values: &[f32]) -> bool {
-    values.iter().all(|v| v.is_finite())
-}
-
 impl SlamViews {
     pub fn new(bus: &Bus) -> anyhow::Result<Self> {
         Ok(Self {
@@ -39,17 +35,20 @@ impl SlamViews {
         })
     }
 
-    /// Logs what arrived; returns how many samples were malformed and skipped.
-    pub fn poll(&mut self, bus: &Bus, rec: &RecordingStream) -> anyhow::Result<u64> {
-        let mut rejected = 0;
+    /// Samples that failed their wire check so far.
+    pub fn rejected(&self) -> u64 {
+        self.particles.rejected()
+            + self.maps.rejected()
+            + self.models.values().map(|m| m.rejected()).sum::<u64>()
+    }
+
+    /// Logs what arrived. The subscribers pass only samples that pass their
+    /// wire check, so counts and values here are within bounds.
+    pub fn poll(&mut self, bus: &Bus, rec: &RecordingStream) -> anyhow::Result<()> {
         let mut batches = Vec::new();
         self.particles.receive(|p| batches.push(p))?;
         for p in batches {
-            let count = (p.count as usize).min(p.xy.len());
-            if !finite(&p.xy[..count].concat()) || !p.sim_time.is_finite() {
-                rejected += 1;
-                continue;
-            }
+            let count = p.count as usize;
             at(rec, p.tick, p.sim_time);
             rec.log(
                 format!("world/slam/{}/particles", p.agent_id),
@@ -69,10 +68,6 @@ impl SlamViews {
         self.maps.receive(|m| maps.push(m))?;
         for m in maps {
             let cells = (m.width as usize) * (m.height as usize);
-            if cells == 0 || cells > m.cells.len() || !(m.cell_size > 0.0) || !finite(&m.origin) {
-                rejected += 1;
-                continue;
-            }
             at(rec, m.tick, m.sim_time);
             rec.log(
                 format!("world/slam/{}/map", m.agent_id),
@@ -101,7 +96,6 @@ impl SlamViews {
                     Command::from_index(u.command as usize),
                     PARAM_NAMES.get(u.param as usize),
                 ) else {
-                    rejected += 1;
                     continue;
                 };
                 let values = [
@@ -112,10 +106,6 @@ impl SlamViews {
                     u.variances[0],
                     u.variances[1],
                 ];
-                if values.iter().any(|v| !v.is_finite()) {
-                    rejected += 1;
-                    continue;
-                }
                 at(rec, tick, sim_time);
                 // Entity paths keep to letters, digits and underscores.
                 let name: String = command
@@ -135,6 +125,6 @@ impl SlamViews {
                 )?;
             }
         }
-        Ok(rejected)
+        Ok(())
     }
 }
