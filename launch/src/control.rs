@@ -12,7 +12,7 @@ use shoal_broker::SwarmRuntime;
 use shoal_broker::liveness::{SwarmNode, SwarmNodeState, remove_dead_nodes, swarm_nodes};
 use shoal_physics::{Pose, Scenario};
 
-use crate::process::{Tie, signal, start_agent, stop_processes};
+use crate::process::{Pinned, Tie, start_agent, stop_processes};
 
 fn alive_robot(nodes: &[SwarmNode], id: u32) -> Option<&SwarmNode> {
     nodes
@@ -40,7 +40,11 @@ pub fn kill(swarm: &str, ids: &[u32], graceful: bool) -> Result<()> {
                         runtime.dir.display()
                     )
                 })?;
-                signal(node.pid, sig)?;
+                let Some(process) = Pinned::shoal_process(node.pid) else {
+                    missing.push(id);
+                    continue;
+                };
+                process.signal(sig)?;
                 println!(
                     "killed robot {id} (pid {}){}",
                     node.pid,
@@ -79,7 +83,12 @@ pub fn restart(swarm: &str, ids: &[u32], at: Option<[f64; 2]>) -> Result<()> {
     for &id in ids {
         if let Some(node) = alive_robot(&nodes, id) {
             runtime.mark_stopped_by_user(id)?;
-            stop_processes(&[node.pid], RESTART_GRACE);
+            stop_processes(
+                &Pinned::shoal_process(node.pid)
+                    .into_iter()
+                    .collect::<Vec<_>>(),
+                RESTART_GRACE,
+            );
         }
     }
     remove_dead_nodes(swarm)?;
@@ -156,26 +165,23 @@ pub fn spawn(swarm: &str, count: usize, at: Option<[f64; 2]>) -> Result<Vec<u32>
 /// processes were stopped.
 pub fn down(swarm: &str) -> Result<usize> {
     let me = std::process::id() as i32;
-    let alive_pids = || -> Result<Vec<i32>> {
+    // Only Shoal's own processes: a user's Python reader on the bus is not ours to stop.
+    let alive = |launcher_only: bool| -> Result<Vec<Pinned>> {
+        let launcher = shoal_broker::names::tool_node(swarm, "launcher");
         let mut pids: Vec<i32> = swarm_nodes(swarm)?
             .into_iter()
             .filter(|n| n.state == SwarmNodeState::Alive && n.pid != me)
+            .filter(|n| !launcher_only || n.name == launcher)
             .map(|n| n.pid)
             .collect();
         pids.sort_unstable();
         pids.dedup();
-        Ok(pids)
+        Ok(pids.into_iter().filter_map(Pinned::shoal_process).collect())
     };
-    let launcher = shoal_broker::names::tool_node(swarm, "launcher");
-    let launchers: Vec<i32> = swarm_nodes(swarm)?
-        .into_iter()
-        .filter(|n| n.state == SwarmNodeState::Alive && n.name == launcher)
-        .map(|n| n.pid)
-        .collect();
-    let before = alive_pids()?;
+    let before = alive(false)?;
     if !before.is_empty() {
-        stop_processes(&launchers, DOWN_GRACE);
-        stop_processes(&alive_pids()?, DOWN_GRACE);
+        stop_processes(&alive(true)?, DOWN_GRACE);
+        stop_processes(&alive(false)?, DOWN_GRACE);
     }
     remove_dead_nodes(swarm)?;
     let runtime = SwarmRuntime::locate(swarm);

@@ -73,20 +73,99 @@ fn die_with_parent(command: &mut Command) {
     }
 }
 
-/// Asks `pids` to stop (SIGTERM), waits up to `grace` for them, then kills
-/// those left (SIGKILL). Returns how many had to be killed.
-pub fn stop_processes(pids: &[i32], grace: std::time::Duration) -> usize {
-    for pid in pids {
-        let _ = signal(*pid, libc::SIGTERM);
+/// One process held by a pidfd: a signal sent through it reaches that
+/// process or nothing, never a later process that reuses its pid.
+pub struct Pinned {
+    pid: i32,
+    fd: std::os::fd::OwnedFd,
+}
+
+impl Pinned {
+    /// Pins `pid` if it runs a Shoal binary (`shoal`, `shoal-agent`, ...); a
+    /// pid from the bus may by now belong to anyone, and a Python reader on
+    /// the bus is the user's, not Shoal's to stop.
+    pub fn shoal_process(pid: i32) -> Option<Self> {
+        let pinned = Self::open(pid)?;
+        // Read after pinning: if the pid was reused in between, the pidfd
+        // names the old, dead process, and signalling it does nothing.
+        let exe = std::fs::read_link(format!("/proc/{pid}/exe")).ok()?;
+        let name = exe.file_name()?.to_str()?;
+        (name == "shoal" || name.starts_with("shoal-")).then_some(pinned)
+    }
+
+    /// Pins our own child, whose pid cannot be reused before we reap it.
+    pub fn child(child: &Child) -> Option<Self> {
+        Self::open(child.id() as i32)
+    }
+
+    fn open(pid: i32) -> Option<Self> {
+        use std::os::fd::FromRawFd;
+        if pid <= 0 {
+            return None;
+        }
+        // SAFETY: pidfd_open takes a pid and flags and returns a new fd or -1.
+        let fd = unsafe { libc::syscall(libc::SYS_pidfd_open, pid, 0) };
+        if fd < 0 {
+            return None;
+        }
+        // SAFETY: the fd was just opened and nothing else owns it.
+        let fd = unsafe { std::os::fd::OwnedFd::from_raw_fd(fd as i32) };
+        Some(Self { pid, fd })
+    }
+
+    pub fn pid(&self) -> i32 {
+        self.pid
+    }
+
+    pub fn signal(&self, signal: i32) -> Result<()> {
+        use std::os::fd::AsRawFd;
+        // SAFETY: pidfd_send_signal with a null siginfo behaves like kill(2).
+        let sent = unsafe {
+            libc::syscall(
+                libc::SYS_pidfd_send_signal,
+                self.fd.as_raw_fd(),
+                signal,
+                std::ptr::null::<libc::siginfo_t>(),
+                0,
+            )
+        };
+        if sent != 0 {
+            bail!(
+                "cannot signal pid {}: {}",
+                self.pid,
+                std::io::Error::last_os_error()
+            );
+        }
+        Ok(())
+    }
+
+    /// Whether the process has ended (a pidfd turns readable when it does).
+    pub fn ended(&self) -> bool {
+        use std::os::fd::AsRawFd;
+        let mut poll = libc::pollfd {
+            fd: self.fd.as_raw_fd(),
+            events: libc::POLLIN,
+            revents: 0,
+        };
+        // SAFETY: one valid pollfd, no wait.
+        unsafe { libc::poll(&mut poll, 1, 0) > 0 }
+    }
+}
+
+/// Asks `processes` to stop (SIGTERM), waits up to `grace` for them, then
+/// kills those left (SIGKILL). Returns how many had to be killed.
+pub fn stop_processes(processes: &[Pinned], grace: std::time::Duration) -> usize {
+    for process in processes {
+        let _ = process.signal(libc::SIGTERM);
     }
     let deadline = std::time::Instant::now() + grace;
-    while std::time::Instant::now() < deadline && pids.iter().any(|p| pid_alive(*p)) {
+    while std::time::Instant::now() < deadline && processes.iter().any(|p| !p.ended()) {
         std::thread::sleep(std::time::Duration::from_millis(20));
     }
-    let stubborn: Vec<i32> = pids.iter().copied().filter(|p| pid_alive(*p)).collect();
-    for pid in &stubborn {
-        tracing::warn!(pid, "process ignored SIGTERM; killing it");
-        let _ = signal(*pid, libc::SIGKILL);
+    let stubborn: Vec<&Pinned> = processes.iter().filter(|p| !p.ended()).collect();
+    for process in &stubborn {
+        tracing::warn!(pid = process.pid, "process ignored SIGTERM; killing it");
+        let _ = process.signal(libc::SIGKILL);
     }
     stubborn.len()
 }
@@ -181,4 +260,34 @@ pub fn usage(pid: i32) -> Option<ProcessUsage> {
         rss_mb: kb("VmRSS:") / 1024.0,
         private_mb: kb("RssAnon:") / 1024.0,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_pinned_process_is_signalled_until_it_ends_and_never_after() {
+        let mut child = Command::new("sleep")
+            .arg("30")
+            .spawn()
+            .expect("start sleep");
+        let pid = child.id() as i32;
+        // `sleep` is not a Shoal binary, so a pid from the bus naming it is left alone.
+        assert!(Pinned::shoal_process(pid).is_none());
+        let pinned = Pinned::child(&child).expect("pin our child");
+        assert!(!pinned.ended());
+        assert_eq!(
+            stop_processes(
+                std::slice::from_ref(&pinned),
+                std::time::Duration::from_secs(5)
+            ),
+            0
+        );
+        assert!(pinned.ended());
+        child.wait().expect("reap");
+        // Reaped, its pid may now be anyone's; the pidfd still names the
+        // dead process, so the signal goes nowhere.
+        assert!(pinned.signal(libc::SIGKILL).is_err());
+    }
 }

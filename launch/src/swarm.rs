@@ -16,7 +16,7 @@ use shoal_physics::{Pose, Scenario};
 
 use crate::clock::LockstepClock;
 use crate::observer::Observer;
-use crate::process::{Tie, pid_alive, sibling_binary, signal, start_agent, stop_processes};
+use crate::process::{Pinned, Tie, pid_alive, sibling_binary, start_agent, stop_processes};
 
 /// How long robots get to leave cleanly before they are killed.
 const SHUTDOWN_GRACE: Duration = Duration::from_secs(5);
@@ -398,15 +398,18 @@ impl RunningSwarm {
 
     /// Sends `sig` to robot `id`.
     pub fn signal_robot(&mut self, id: u32, sig: i32) -> Result<()> {
-        let pid = match self.children.running.get(&id) {
-            Some(child) => child.id() as i32,
+        let process = match self.children.running.get(&id) {
+            Some(child) => Pinned::child(child),
             None => match self.observer.get(id) {
-                Some(sample) => sample.pid as i32,
+                Some(sample) => Pinned::shoal_process(sample.pid as i32),
                 None => bail!("robot {id} is not in swarm `{}`", self.name),
             },
         };
+        let Some(process) = process else {
+            bail!("robot {id} of swarm `{}` has already ended", self.name);
+        };
         self.runtime.mark_stopped_by_user(id)?;
-        signal(pid, sig)
+        process.signal(sig)
     }
 
     /// Stops every robot of the swarm (also those started elsewhere), cleans
@@ -422,10 +425,21 @@ impl RunningSwarm {
         // Helpers go first: the recorder then does not log every robot
         // leaving, and gets time to write the recording's footer.
         for (_, mut helper) in self.helpers.drain(..) {
-            stop_processes(&[helper.id() as i32], HELPER_GRACE);
+            stop_processes(
+                &Pinned::child(&helper).into_iter().collect::<Vec<_>>(),
+                HELPER_GRACE,
+            );
             let _ = helper.wait();
         }
-        let mut pids: Vec<i32> = self.agent_pids();
+        let pids = self.agent_pids();
+        let mut processes: Vec<Pinned> = self
+            .children
+            .running
+            .values()
+            .filter_map(Pinned::child)
+            .collect();
+        // Robots started elsewhere (`shoal restart`, `spawn`) are known only
+        // by the pid their bus node names; pinning checks it is still one of ours.
         let me = std::process::id() as i32;
         for node in swarm_nodes(&self.name)? {
             if node.agent_id.is_some()
@@ -433,12 +447,10 @@ impl RunningSwarm {
                 && node.pid != me
                 && !pids.contains(&node.pid)
             {
-                pids.push(node.pid);
+                processes.extend(Pinned::shoal_process(node.pid));
             }
         }
-        // Our own children are zombies once they exit, and a zombie's pid
-        // is not reused, so signalling by pid cannot hit another process.
-        stop_processes(&pids, SHUTDOWN_GRACE);
+        stop_processes(&processes, SHUTDOWN_GRACE);
         for child in self.children.running.values_mut() {
             let _ = child.wait();
         }
