@@ -117,6 +117,9 @@ impl Recorder {
             .map(|(id, _)| *id)
             .collect();
         for id in gone {
+            if let Some(tum) = &mut self.tum {
+                tum.close(id)?;
+            }
             if let Some(robot) = self.robots.remove(&id) {
                 self.event(&format!(
                     "robot {id} (pid {}) fell silent after tick {}",
@@ -309,7 +312,11 @@ fn health_color(health: u32) -> rerun::Color {
 /// and `robot-<id>/poses.csv` (its true poses).
 struct TumWriter {
     dir: PathBuf,
+    /// Open only for robots heard from lately: a long run with many
+    /// restarts and spawns would otherwise run out of file descriptors.
     files: HashMap<(u32, &'static str), BufWriter<File>>,
+    /// Files this recording created; a robot that comes back appends to them.
+    created: std::collections::HashSet<(u32, &'static str)>,
     motion: shoal_physics::MotionModel,
     period_s: f64,
 }
@@ -321,6 +328,7 @@ impl TumWriter {
         Ok(Self {
             dir: dir.to_owned(),
             files: HashMap::new(),
+            created: std::collections::HashSet::new(),
             motion,
             period_s,
         })
@@ -345,10 +353,18 @@ impl TumWriter {
                     }
                     _ => (self.dir.join(format!("robot-{id}-{kind}.tum")), ""),
                 };
-                let file = File::create(&path)
-                    .map_err(|err| anyhow::anyhow!("creating {}: {err}", path.display()))?;
+                let again = !self.created.insert((id, kind));
+                let file = std::fs::OpenOptions::new()
+                    .write(true)
+                    .create(true)
+                    .append(again)
+                    .truncate(!again)
+                    .open(&path)
+                    .map_err(|err| anyhow::anyhow!("opening {}: {err}", path.display()))?;
                 let mut writer = BufWriter::new(file);
-                writer.write_all(header.as_bytes())?;
+                if !again {
+                    writer.write_all(header.as_bytes())?;
+                }
                 Ok(e.insert(writer))
             }
         }
@@ -384,5 +400,47 @@ impl TumWriter {
             file.flush()?;
         }
         Ok(())
+    }
+
+    /// Closes robot `id`'s files; they are reopened to append if it returns.
+    fn close(&mut self, id: u32) -> anyhow::Result<()> {
+        let keys: Vec<_> = self
+            .files
+            .keys()
+            .filter(|(i, _)| *i == id)
+            .copied()
+            .collect();
+        for key in keys {
+            if let Some(mut file) = self.files.remove(&key) {
+                file.flush()?;
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_robot_that_falls_silent_closes_its_files_and_appends_when_it_returns() {
+        let dir = std::env::temp_dir().join(format!("shoal-tum-test-{}", std::process::id()));
+        let mut tum = TumWriter::new(&dir, shoal_physics::MotionModel::legged_default(), 0.1)
+            .expect("writer");
+        // Many robots come and go; only those heard from lately hold files.
+        for id in 0..300 {
+            tum.write(&PoseSample::standing(id, 1, 1, 1.0, 2.0, 0.0))
+                .expect("write");
+            tum.close(id).expect("close");
+        }
+        assert!(tum.files.is_empty());
+        tum.write(&PoseSample::standing(7, 2, 5, 3.0, 4.0, 0.0))
+            .expect("write again");
+        tum.flush().expect("flush");
+        let poses = std::fs::read_to_string(dir.join("robot-7/poses.csv")).expect("poses");
+        assert_eq!(poses.lines().collect::<Vec<_>>().len(), 3, "{poses}");
+        assert_eq!(poses.matches("t,x,y,theta").count(), 1, "{poses}");
+        std::fs::remove_dir_all(&dir).expect("cleanup");
     }
 }
