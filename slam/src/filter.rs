@@ -314,6 +314,46 @@ pub fn mask_bodies(
     }
 }
 
+/// Where the swarm's robots stand, for [`mask_bodies`]. A robot silent for
+/// longer than `gone_after_ticks` has died or left: its body is forgotten,
+/// or it would hide that spot of the map for ever.
+#[derive(Debug)]
+pub struct Bodies {
+    last_seen: std::collections::BTreeMap<u32, (DVec2, u64)>,
+    newest_tick: u64,
+    gone_after_ticks: u64,
+}
+
+impl Bodies {
+    pub fn new(gone_after_ticks: u64) -> Self {
+        Self {
+            last_seen: Default::default(),
+            newest_tick: 0,
+            gone_after_ticks,
+        }
+    }
+
+    pub fn saw(&mut self, id: u32, at: DVec2, tick: u64) {
+        self.newest_tick = self.newest_tick.max(tick);
+        self.last_seen.insert(id, (at, tick));
+    }
+
+    /// Forgets the robots that fell silent.
+    pub fn forget_gone(&mut self) {
+        let (newest, after) = (self.newest_tick, self.gone_after_ticks);
+        self.last_seen
+            .retain(|_, (_, tick)| *tick + after >= newest);
+    }
+
+    /// Every robot's body but `id`'s.
+    pub fn others(&self, id: u32) -> impl Iterator<Item = DVec2> + '_ {
+        self.last_seen
+            .iter()
+            .filter(move |(other, _)| **other != id)
+            .map(|(_, (at, _))| *at)
+    }
+}
+
 /// Adds a scan taken at the particle's pose to its map.
 fn integrate(particle: &mut Particle, ranges: &[f64], config: &FilterConfig) {
     let sensor = &config.sensor;
@@ -338,6 +378,20 @@ fn beam_end(pose: &Pose, bearing: f64, range: f64) -> DVec2 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_body_of_a_robot_that_fell_silent_is_forgotten() {
+        let mut bodies = Bodies::new(3);
+        bodies.saw(1, DVec2::new(1.0, 1.0), 10);
+        bodies.saw(2, DVec2::new(2.0, 2.0), 10);
+        bodies.saw(2, DVec2::new(2.0, 2.5), 14);
+        bodies.forget_gone();
+        assert_eq!(
+            bodies.others(9).collect::<Vec<_>>(),
+            vec![DVec2::new(2.0, 2.5)]
+        );
+        assert_eq!(bodies.others(2).count(), 0);
+    }
 
     #[test]
     fn beams_ending_on_other_robots_are_masked() {

@@ -17,7 +17,7 @@ use shoal_broker::{
 };
 use shoal_physics::legged::Param;
 use shoal_physics::{Command, MotionModel, Pose, Scenario};
-use shoal_slam::filter::{FilterConfig, ParticleFilter, mask_bodies};
+use shoal_slam::filter::{Bodies, FilterConfig, ParticleFilter, mask_bodies};
 
 #[derive(Parser)]
 #[command(
@@ -124,16 +124,15 @@ fn run(args: Args) -> Result<()> {
     tracing::info!(follow = ?args.follow, learning = ?args.learning, "SLAM following");
     let mut anchors: BTreeMap<u32, Pose> = BTreeMap::new();
     let mut last_report = std::time::Instant::now();
-    // Where every robot stands, to drop beams that ended on one: robots move,
-    // so they do not belong in the map.
-    let mut bodies: BTreeMap<u32, glam::DVec2> = BTreeMap::new();
+    // Where every robot stands, and at which tick, to drop beams that ended
+    // on one: robots move, so they do not belong in the map. A robot silent
+    // for longer than the swarm's staleness is gone, and so is its body.
+    let mut bodies = Bodies::new((scenario.timing.stale_periods.ceil() as u64).max(1) + 1);
     while !bus.termination_requested() {
         // A filter starts at the robot's pose when following begins, so its
         // estimates and the robot's true pose share one frame.
+        // The roster passes only samples that pass their wire check.
         roster.receive(|s| {
-            if !(s.x.is_finite() && s.y.is_finite() && s.theta.is_finite()) {
-                return;
-            }
             newest_roster = newest_roster.max(s.tick);
             if followed.contains_key(&s.agent_id) {
                 let seen = seen_ticks.entry(s.agent_id).or_insert(0);
@@ -142,8 +141,9 @@ fn run(args: Args) -> Result<()> {
             if followed.contains_key(&s.agent_id) {
                 anchors.insert(s.agent_id, Pose::new(s.x, s.y, s.theta));
             }
-            bodies.insert(s.agent_id, glam::DVec2::new(s.x, s.y));
+            bodies.saw(s.agent_id, glam::DVec2::new(s.x, s.y), s.tick);
         })?;
+        bodies.forget_gone();
         let mut idle = true;
         for (id, robot) in &mut followed {
             let mut scans = Vec::new();
@@ -153,11 +153,12 @@ fn run(args: Args) -> Result<()> {
                 robot.last_scan = Some(std::time::Instant::now());
                 let mut ranges: Vec<f64> = scan.ranges().iter().map(|r| f64::from(*r)).collect();
                 if let Some(filter) = &robot.filter {
-                    let others = bodies
-                        .iter()
-                        .filter(|(other, _)| *other != id)
-                        .map(|(_, p)| *p);
-                    mask_bodies(&mut ranges, &filter.estimate(), &scenario.sensor, others);
+                    mask_bodies(
+                        &mut ranges,
+                        &filter.estimate(),
+                        &scenario.sensor,
+                        bodies.others(*id),
+                    );
                 }
                 let Some(command) = Command::from_index(scan.command as usize) else {
                     continue;
