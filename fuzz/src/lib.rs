@@ -1,0 +1,629 @@
+//! Fuzzing every parser of user files and every check of bus samples.
+//!
+//! Text inputs are made by mutating valid files (numbers swapped for NaN,
+//! infinities, huge and negative values; lines deleted, doubled and
+//! swapped; files cut short; random bytes inserted), so most inputs get
+//! past the first few bytes and reach the checks deep inside a parser. Bus
+//! samples are random bytes laid over the wire type, which is what a rogue
+//! publisher can put into shared memory. A target passes when no input
+//! panics and every rejection is a clear error: it names the file (text) or
+//! the field (bus).
+
+use std::panic::{AssertUnwindSafe, catch_unwind};
+
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+use serde::Serialize;
+use shoal_broker::Wire;
+
+/// What one input did.
+enum Outcome {
+    Accepted,
+    /// Rejected with a message; `clear` when it names what it must, and
+    /// `line` when it also names a line.
+    Rejected {
+        clear: bool,
+        line: bool,
+        message: String,
+    },
+}
+
+/// One parser or check, fed one kind of input.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Target {
+    /// `shoal up --scenario`: a scenario TOML.
+    Scenario,
+    /// `shoal slam --initial-model`: a legged motion model TOML.
+    MotionModel,
+    /// `shoal-diagnose generate --truth`: an effects model TOML.
+    EffectsModel,
+    /// `shoal diagnose --commands`: CSV `t,v,omega`.
+    CommandsCsv,
+    /// `shoal diagnose --poses`: CSV `t,x,y,theta`.
+    PosesCsv,
+    /// `shoal diagnose --mrclam`: `RobotN_Odometry.dat`.
+    MrclamOdometry,
+    /// `shoal diagnose --mrclam`: `RobotN_Groundtruth.dat`.
+    MrclamGroundtruth,
+    /// Every wire type's check, on random bytes.
+    Pose,
+    ClockTick,
+    HelperProgress,
+    Scan,
+    Estimate,
+    ModelUpdate,
+    SlamParticles,
+    SlamMap,
+}
+
+impl Target {
+    pub const ALL: [Target; 15] = [
+        Target::Scenario,
+        Target::MotionModel,
+        Target::EffectsModel,
+        Target::CommandsCsv,
+        Target::PosesCsv,
+        Target::MrclamOdometry,
+        Target::MrclamGroundtruth,
+        Target::Pose,
+        Target::ClockTick,
+        Target::HelperProgress,
+        Target::Scan,
+        Target::Estimate,
+        Target::ModelUpdate,
+        Target::SlamParticles,
+        Target::SlamMap,
+    ];
+
+    fn name(self) -> String {
+        format!("{self:?}")
+    }
+
+    /// The file name errors must carry.
+    const FILE: &'static str = "fuzzed-input";
+
+    fn run_one(self, rng: &mut StdRng, seeds: &Seeds) -> Outcome {
+        match self {
+            Target::Scenario => text_outcome(
+                shoal_physics::Scenario::from_toml(&mutate(rng, &seeds.scenario), Self::FILE)
+                    .map(|_| ()),
+            ),
+            Target::MotionModel => text_outcome(
+                shoal_physics::MotionModel::from_toml(
+                    &mutate(rng, &seeds.motion_model),
+                    Self::FILE,
+                )
+                .map(|_| ()),
+            ),
+            Target::EffectsModel => text_outcome(
+                shoal_physics::UnicycleModel::from_toml(
+                    &mutate(rng, &seeds.effects_model),
+                    Self::FILE,
+                )
+                .map(|_| ()),
+            ),
+            Target::CommandsCsv => text_outcome(
+                shoal_diagnose::input::commands_csv(&mutate(rng, &seeds.commands_csv), Self::FILE)
+                    .map(|_| ()),
+            ),
+            Target::PosesCsv => text_outcome(
+                shoal_diagnose::input::poses_csv(&mutate(rng, &seeds.poses_csv), Self::FILE).map(
+                    |poses| {
+                        // The outlier filter runs on whatever parsed.
+                        let _ = poses.without_outliers();
+                    },
+                ),
+            ),
+            Target::MrclamOdometry => text_outcome(
+                shoal_diagnose::input::mrclam_odometry(
+                    &mutate(rng, &seeds.mrclam_odometry),
+                    Self::FILE,
+                )
+                .map(|_| ()),
+            ),
+            Target::MrclamGroundtruth => text_outcome(
+                shoal_diagnose::input::mrclam_groundtruth(
+                    &mutate(rng, &seeds.mrclam_groundtruth),
+                    Self::FILE,
+                )
+                .map(|_| ()),
+            ),
+            Target::Pose => wire_outcome::<shoal_broker::PoseSample>(rng),
+            Target::ClockTick => wire_outcome::<shoal_broker::ClockTick>(rng),
+            Target::HelperProgress => wire_outcome::<shoal_broker::HelperProgress>(rng),
+            Target::Scan => wire_outcome::<shoal_broker::ScanSample>(rng),
+            Target::Estimate => wire_outcome::<shoal_broker::EstimateSample>(rng),
+            Target::ModelUpdate => wire_outcome::<shoal_broker::ModelUpdate>(rng),
+            Target::SlamParticles => wire_outcome::<shoal_broker::SlamParticles>(rng),
+            Target::SlamMap => wire_outcome::<shoal_broker::SlamMap>(rng),
+        }
+    }
+}
+
+/// Judges a parser's answer: a rejection must name the file it was given.
+fn text_outcome<E: std::fmt::Display>(result: Result<(), E>) -> Outcome {
+    match result {
+        Ok(()) => Outcome::Accepted,
+        Err(e) => {
+            let message = e.to_string();
+            let file = format!("{}", Target::FILE);
+            let after_file = message.strip_prefix(&file);
+            Outcome::Rejected {
+                clear: after_file.is_some_and(|rest| rest.len() > 2),
+                line: after_file.is_some_and(|rest| {
+                    rest.strip_prefix(':')
+                        .is_some_and(|r| r.starts_with(|c: char| c.is_ascii_digit()))
+                }),
+                message,
+            }
+        }
+    }
+}
+
+/// Random bytes laid over a wire type, then checked. Every Shoal wire type
+/// is plain old data (integers, floats and arrays of them), so any bytes
+/// are a value of it, just as any bytes in shared memory are.
+fn wire_outcome<T: Wire + Copy + Example>(rng: &mut StdRng) -> Outcome {
+    let size = std::mem::size_of::<T>();
+    let example = T::example();
+    // SAFETY: a T is plain old data, readable as its size_of bytes.
+    let mut bytes =
+        unsafe { std::slice::from_raw_parts((&raw const example).cast::<u8>(), size) }.to_vec();
+    if rng.random_bool(0.5) {
+        // A valid sample with a few bytes overwritten reaches every check.
+        for _ in 0..rng.random_range(1..=8) {
+            let at = rng.random_range(0..size);
+            bytes[at] = rng.random();
+        }
+    } else {
+        // Wholly random bytes, with a random share zeroed so counts are
+        // often small and floats often ordinary.
+        rng.fill(&mut bytes[..]);
+        let zeroed = rng.random_range(0.0..1.0);
+        for b in bytes.iter_mut() {
+            if rng.random_bool(zeroed) {
+                *b = 0;
+            }
+        }
+    }
+    // SAFETY: `bytes` holds size_of::<T>() bytes and T is plain old data
+    // (checked by the wire layout test), so every bit pattern is a T;
+    // read_unaligned makes no alignment assumption.
+    let sample: T = unsafe { std::ptr::read_unaligned(bytes.as_ptr().cast::<T>()) };
+    match sample.check() {
+        Ok(()) => Outcome::Accepted,
+        Err(rejection) => {
+            let message = rejection.to_string();
+            Outcome::Rejected {
+                clear: !message.is_empty(),
+                line: false,
+                message,
+            }
+        }
+    }
+}
+
+/// A valid sample of a wire type, the starting point of mutation.
+trait Example {
+    fn example() -> Self;
+}
+
+impl Example for shoal_broker::PoseSample {
+    fn example() -> Self {
+        let mut pose = Self::standing(3, 1234, 50, 2.0, 3.0, 0.5);
+        pose.sim_time = 5.0;
+        pose.neighbour_count = 2;
+        pose.neighbours[..2].copy_from_slice(&[1, 2]);
+        pose
+    }
+}
+
+impl Example for shoal_broker::ClockTick {
+    fn example() -> Self {
+        Self {
+            tick: 50,
+            sim_time: 5.0,
+            period_s: 0.1,
+        }
+    }
+}
+
+impl Example for shoal_broker::HelperProgress {
+    fn example() -> Self {
+        Self { tick: 50 }
+    }
+}
+
+impl Example for shoal_broker::ScanSample {
+    fn example() -> Self {
+        Self {
+            agent_id: 3,
+            pid: 1234,
+            tick: 50,
+            sim_time: 5.0,
+            command: 2,
+            bumped: 0,
+            beam_count: 181,
+            reserved: 0,
+            field_of_view: std::f64::consts::PI,
+            max_range: 4.0,
+            ranges: [1.5; shoal_broker::MAX_BEAMS],
+        }
+    }
+}
+
+impl Example for shoal_broker::EstimateSample {
+    fn example() -> Self {
+        Self {
+            agent_id: 3,
+            reserved: 0,
+            tick: 50,
+            x: 2.0,
+            y: 3.0,
+            theta: 0.5,
+            effective_particles: 80.0,
+        }
+    }
+}
+
+impl Example for shoal_broker::ModelUpdate {
+    fn example() -> Self {
+        Self {
+            agent_id: 3,
+            command: 2,
+            param: 0,
+            reserved: 0,
+            step: 7,
+            weights: [0.25, 0.75],
+            means: [0.12, 0.15],
+            variances: [1e-4, 2e-4],
+        }
+    }
+}
+
+impl Example for shoal_broker::SlamParticles {
+    fn example() -> Self {
+        Self {
+            agent_id: 3,
+            count: 200,
+            tick: 50,
+            sim_time: 5.0,
+            xy: [[2.0, 3.0]; shoal_broker::MAX_SHOWN_PARTICLES],
+        }
+    }
+}
+
+impl Example for shoal_broker::SlamMap {
+    fn example() -> Self {
+        Self {
+            agent_id: 3,
+            width: 60,
+            height: 80,
+            cell_size: 0.05,
+            origin: [0.0, 0.0],
+            tick: 50,
+            sim_time: 5.0,
+            cells: [255; shoal_broker::MAX_MAP_SIDE * shoal_broker::MAX_MAP_SIDE],
+        }
+    }
+}
+
+/// Values that break careless parsers.
+const NASTY: [&str; 18] = [
+    "nan",
+    "NaN",
+    "inf",
+    "-inf",
+    "1e308",
+    "-1e308",
+    "1e309",
+    "4.9e-324",
+    "-0",
+    "0",
+    "-1",
+    "18446744073709551616",
+    "9223372036854775807",
+    "-9223372036854775808",
+    "1e10",
+    "",
+    "\"x\"",
+    "[]",
+];
+
+/// One to four random edits of `seed`.
+fn mutate(rng: &mut StdRng, seed: &str) -> String {
+    let mut text = seed.to_owned();
+    for _ in 0..rng.random_range(1..=4) {
+        text = match rng.random_range(0..7) {
+            0 | 1 => replace_number(rng, &text),
+            2 => edit_lines(rng, &text),
+            3 => cut(rng, &text),
+            4 => insert_bytes(rng, &text),
+            5 => replace_char(rng, &text),
+            _ => duplicate_span(rng, &text),
+        };
+    }
+    text
+}
+
+fn char_boundary(text: &str, at: usize) -> usize {
+    (0..=at.min(text.len()))
+        .rev()
+        .find(|i| text.is_char_boundary(*i))
+        .unwrap_or(0)
+}
+
+/// Swaps one number of the text for a nasty value.
+fn replace_number(rng: &mut StdRng, text: &str) -> String {
+    let bytes = text.as_bytes();
+    let starts: Vec<usize> = (0..bytes.len())
+        .filter(|&i| bytes[i].is_ascii_digit() && (i == 0 || !bytes[i - 1].is_ascii_alphanumeric()))
+        .collect();
+    let Some(&start) = starts.get(rng.random_range(0..starts.len().max(1))) else {
+        return text.to_owned();
+    };
+    let end = (start..bytes.len())
+        .find(|&i| !(bytes[i].is_ascii_digit() || matches!(bytes[i], b'.' | b'e' | b'-' | b'+')))
+        .unwrap_or(bytes.len());
+    let nasty = NASTY[rng.random_range(0..NASTY.len())];
+    format!("{}{nasty}{}", &text[..start], &text[end..])
+}
+
+/// Deletes, doubles or swaps whole lines.
+fn edit_lines(rng: &mut StdRng, text: &str) -> String {
+    let mut lines: Vec<&str> = text.split_inclusive('\n').collect();
+    if lines.is_empty() {
+        return text.to_owned();
+    }
+    let a = rng.random_range(0..lines.len());
+    let b = rng.random_range(0..lines.len());
+    match rng.random_range(0..3) {
+        0 => {
+            lines.remove(a);
+        }
+        1 => {
+            let line = lines[a];
+            lines.insert(b, line);
+        }
+        _ => lines.swap(a, b),
+    }
+    lines.concat()
+}
+
+/// Cuts the file short.
+fn cut(rng: &mut StdRng, text: &str) -> String {
+    let at = char_boundary(text, rng.random_range(0..=text.len()));
+    text[..at].to_owned()
+}
+
+/// Inserts random bytes (mostly the characters a format gives meaning to).
+fn insert_bytes(rng: &mut StdRng, text: &str) -> String {
+    const MEANINGFUL: &[u8] = b"\n,=[]{}\"'#.-+eE0123456789 \t\r";
+    let at = char_boundary(text, rng.random_range(0..=text.len()));
+    let mut inserted = String::new();
+    for _ in 0..rng.random_range(1..8) {
+        if rng.random_bool(0.8) {
+            inserted.push(MEANINGFUL[rng.random_range(0..MEANINGFUL.len())] as char);
+        } else {
+            inserted.push(char::from_u32(rng.random_range(0..0x11000)).unwrap_or('\u{fffd}'));
+        }
+    }
+    format!("{}{inserted}{}", &text[..at], &text[at..])
+}
+
+fn replace_char(rng: &mut StdRng, text: &str) -> String {
+    if text.is_empty() {
+        return String::new();
+    }
+    let at = char_boundary(text, rng.random_range(0..text.len()));
+    let mut rest = text[at..].chars();
+    rest.next();
+    let new = char::from_u32(rng.random_range(0x20..0x7f)).unwrap_or('?');
+    format!("{}{new}{}", &text[..at], rest.as_str())
+}
+
+/// Repeats a span, growing counts and arrays.
+fn duplicate_span(rng: &mut StdRng, text: &str) -> String {
+    let a = char_boundary(text, rng.random_range(0..=text.len()));
+    let b = char_boundary(text, rng.random_range(a..=text.len()));
+    format!("{}{}", &text[..b], &text[a..])
+}
+
+/// Valid files of every format, the starting points of mutation.
+pub struct Seeds {
+    scenario: String,
+    motion_model: String,
+    effects_model: String,
+    commands_csv: String,
+    poses_csv: String,
+    mrclam_odometry: String,
+    mrclam_groundtruth: String,
+}
+
+impl Seeds {
+    pub fn new() -> Self {
+        use shoal_physics::{Effect, ScopedEffect, UnicycleModel};
+        let mut scenario = shoal_physics::Scenario::default_arena();
+        scenario.arena.surfaces.push(shoal_physics::Surface {
+            name: "mud".into(),
+            region: [1.0, 1.0, 3.0, 2.0],
+            along_scale: 0.5,
+            across_scale: 1.0,
+            turn_scale: 0.8,
+            from_s: 10.0,
+        });
+        let effects = UnicycleModel::with_effects(vec![
+            ScopedEffect::always(Effect::Latency { seconds: 0.18 }),
+            ScopedEffect {
+                effect: Effect::SurfaceZone {
+                    region: [1.0, 1.0, 2.0, 2.0],
+                    speed_factor: 0.7,
+                },
+                during: Some([10.0, 20.0]),
+            },
+        ]);
+        let mut commands = String::from("t,v,omega\n");
+        let mut poses = String::from("t,x,y,theta\n");
+        let mut odometry =
+            String::from("# Time [s]\tforward velocity [m/s]\tangular velocity[rad/s]\n");
+        let mut truth = String::from("# Time [s]\tx [m]\ty [m]\torientation [rad]\n");
+        for i in 0..40 {
+            let t = f64::from(i) * 0.1;
+            commands.push_str(&format!("{t:.2},0.2,0.1\n"));
+            poses.push_str(&format!(
+                "{t:.2},{:.4},{:.4},{:.4}\n",
+                0.02 * t,
+                0.001 * t,
+                0.01 * t
+            ));
+            odometry.push_str(&format!("{:.3}\t0.2\t-0.05\n", 1248272272.841 + t));
+            truth.push_str(&format!(
+                "{:.3}\t{:.4}\t{:.4}\t{:.4}\n",
+                1248272272.841 + t,
+                1.0 + 0.02 * t,
+                -2.0,
+                3.1
+            ));
+        }
+        Self {
+            scenario: scenario.to_toml(),
+            motion_model: toml::to_string(&shoal_physics::MotionModel::legged_default())
+                .unwrap_or_default(),
+            effects_model: effects.to_toml(),
+            commands_csv: commands,
+            poses_csv: poses,
+            mrclam_odometry: odometry,
+            mrclam_groundtruth: truth,
+        }
+    }
+}
+
+impl Default for Seeds {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// What fuzzing one target found.
+#[derive(Debug, Serialize)]
+pub struct TargetReport {
+    pub target: String,
+    pub inputs: u64,
+    pub accepted: u64,
+    pub rejected: u64,
+    pub panics: u64,
+    /// Rejections whose message does not name the file (text) or is empty (bus).
+    pub unclear: u64,
+    /// Text rejections that also name a line.
+    pub with_line: u64,
+    pub seconds: f64,
+    /// The first panic's message and input seed, to reproduce it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub first_panic: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub first_unclear: Option<String>,
+}
+
+impl TargetReport {
+    pub fn passed(&self) -> bool {
+        self.panics == 0 && self.unclear == 0
+    }
+}
+
+/// Feeds `inputs` generated inputs to `target`; input `i` comes from seed
+/// `seed + i`, so one failing input can be replayed alone.
+pub fn fuzz(target: Target, inputs: u64, seed: u64, seeds: &Seeds) -> TargetReport {
+    let started = std::time::Instant::now();
+    let mut report = TargetReport {
+        target: target.name(),
+        inputs,
+        accepted: 0,
+        rejected: 0,
+        panics: 0,
+        unclear: 0,
+        with_line: 0,
+        seconds: 0.0,
+        first_panic: None,
+        first_unclear: None,
+    };
+    for i in 0..inputs {
+        let input_seed = seed.wrapping_add(i);
+        let mut rng = StdRng::seed_from_u64(input_seed);
+        match catch_unwind(AssertUnwindSafe(|| target.run_one(&mut rng, seeds))) {
+            Ok(Outcome::Accepted) => report.accepted += 1,
+            Ok(Outcome::Rejected {
+                clear,
+                line,
+                message,
+            }) => {
+                report.rejected += 1;
+                report.with_line += u64::from(line);
+                if !clear {
+                    report.unclear += 1;
+                    report
+                        .first_unclear
+                        .get_or_insert_with(|| format!("input seed {input_seed}: {message:?}"));
+                }
+            }
+            Err(panic) => {
+                report.panics += 1;
+                let message = panic
+                    .downcast_ref::<String>()
+                    .cloned()
+                    .or_else(|| panic.downcast_ref::<&str>().map(|s| (*s).to_owned()))
+                    .unwrap_or_default();
+                report
+                    .first_panic
+                    .get_or_insert_with(|| format!("input seed {input_seed}: {message}"));
+            }
+        }
+    }
+    report.seconds = started.elapsed().as_secs_f64();
+    report
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_wire_example_passes_its_check() {
+        use shoal_broker::*;
+        assert_eq!(PoseSample::example().check(), Ok(()));
+        assert_eq!(ClockTick::example().check(), Ok(()));
+        assert_eq!(HelperProgress::example().check(), Ok(()));
+        assert_eq!(ScanSample::example().check(), Ok(()));
+        assert_eq!(EstimateSample::example().check(), Ok(()));
+        assert_eq!(ModelUpdate::example().check(), Ok(()));
+        assert_eq!(SlamParticles::example().check(), Ok(()));
+        assert_eq!(SlamMap::example().check(), Ok(()));
+    }
+
+    #[test]
+    fn every_seed_is_a_valid_file() {
+        let seeds = Seeds::new();
+        let file = Target::FILE;
+        shoal_physics::Scenario::from_toml(&seeds.scenario, file).expect("scenario");
+        shoal_physics::MotionModel::from_toml(&seeds.motion_model, file).expect("motion model");
+        shoal_physics::UnicycleModel::from_toml(&seeds.effects_model, file).expect("effects");
+        shoal_diagnose::input::commands_csv(&seeds.commands_csv, file).expect("commands");
+        shoal_diagnose::input::poses_csv(&seeds.poses_csv, file).expect("poses");
+        shoal_diagnose::input::mrclam_odometry(&seeds.mrclam_odometry, file).expect("odometry");
+        shoal_diagnose::input::mrclam_groundtruth(&seeds.mrclam_groundtruth, file).expect("truth");
+    }
+
+    #[test]
+    fn the_judge_tells_a_clear_error_from_an_unclear_one() {
+        let named = text_outcome::<String>(Err(format!("{}:3: field x: NaN", Target::FILE)));
+        assert!(matches!(
+            named,
+            Outcome::Rejected {
+                clear: true,
+                line: true,
+                ..
+            }
+        ));
+        let bare = text_outcome::<String>(Err("invalid float".into()));
+        assert!(matches!(bare, Outcome::Rejected { clear: false, .. }));
+    }
+}
