@@ -167,6 +167,8 @@ enum ExperimentKind {
         #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
         args: Vec<String>,
     },
+    /// A real-time swarm under kills, freezes and recorder crashes.
+    Chaos(experiment::chaos::ChaosArgs),
     /// From 3 to hundreds of robot processes.
     Scale {
         #[arg(long, value_delimiter = ',', default_value = "3,10,25,50,100,200")]
@@ -263,6 +265,7 @@ fn run(cli: Cli) -> Result<()> {
             ExperimentKind::Healing { seeds, max_seconds } => {
                 report::print(&experiment::healing::run(seeds, max_seconds)?, json)?
             }
+            ExperimentKind::Chaos(args) => report::print(&experiment::chaos::run(&args)?, json)?,
             ExperimentKind::Scale { sizes, max_seconds } => {
                 report::print(&experiment::scale::run(&sizes, max_seconds)?, json)?
             }

@@ -78,6 +78,7 @@ struct Pace {
 /// next tick.
 const RECORDER_LAG_TICKS: u64 = 4;
 const SLAM_LAG_TICKS: u64 = 0;
+const RECORDER_BINARY: &str = "shoal-viewer-log";
 /// A helper silent this long is no longer waited for.
 const HELPER_PATIENCE: Duration = Duration::from_secs(10);
 
@@ -227,7 +228,7 @@ impl RunningSwarm {
             args.extend(["--tum".into(), tum.as_os_str().to_owned()]);
         }
         self.pace_to("recorder", RECORDER_LAG_TICKS)?;
-        self.start_helper("shoal-viewer-log", &args)
+        self.start_helper(RECORDER_BINARY, &args)
     }
 
     /// In lockstep, makes the clock wait for `helper`'s progress.
@@ -286,7 +287,7 @@ impl RunningSwarm {
     pub fn recorder_pid(&self) -> Option<i32> {
         self.helpers
             .iter()
-            .find(|(name, _)| name == "shoal-viewer-log")
+            .find(|(name, _)| name == RECORDER_BINARY)
             .map(|(_, c)| c.id() as i32)
     }
 
@@ -365,10 +366,11 @@ impl RunningSwarm {
                     let pace = self.paces.remove(index);
                     self.rejected_progress += pace.progress.rejected();
                 }
+                let mut ended = 0;
                 clock.advance(
                     &self.roster,
                     |pid| {
-                        children.reap(runtime);
+                        ended += children.reap(runtime);
                         pid_alive(pid)
                     },
                     |s| observer.record(s),
@@ -376,13 +378,20 @@ impl RunningSwarm {
                 for id in clock.take_deaths() {
                     observer.forget(id);
                 }
+                if ended > 0 {
+                    remove_dead_nodes(&self.name)?;
+                }
             }
             None => {
                 std::thread::sleep(Duration::from_millis(50));
                 self.roster.receive(|s| {
                     observer.record(s);
                 })?;
-                children.reap(runtime);
+                // A robot of ours that ended leaves its node behind; sweep it
+                // now rather than wait for a neighbour to suspect it.
+                if children.reap(runtime) > 0 {
+                    remove_dead_nodes(&self.name)?;
+                }
                 let period = self.scenario.timing.period_s;
                 observer.expire(Duration::from_secs_f64(
                     period * self.scenario.timing.stale_periods.max(2.0),
@@ -396,8 +405,34 @@ impl RunningSwarm {
         self.bus.termination_requested()
     }
 
-    /// Sends `sig` to robot `id`.
+    /// Sends `sig` to robot `id`, which is expected to end by it.
     pub fn signal_robot(&mut self, id: u32, sig: i32) -> Result<()> {
+        let process = self.pin_robot(id)?;
+        self.runtime.mark_stopped_by_user(id)?;
+        process.signal(sig)
+    }
+
+    /// Freezes robot `id` (SIGSTOP) or lets it go on (SIGCONT).
+    pub fn pause_robot(&mut self, id: u32, pause: bool) -> Result<()> {
+        self.pin_robot(id)?
+            .signal(if pause { libc::SIGSTOP } else { libc::SIGCONT })
+    }
+
+    /// Kills the recorder as a crash would (SIGKILL); not reported as a death.
+    pub fn kill_recorder(&mut self) -> Result<()> {
+        if let Some(index) = self.helpers.iter().position(|(b, _)| b == RECORDER_BINARY) {
+            let (_, mut child) = self.helpers.remove(index);
+            if let Some(process) = Pinned::child(&child) {
+                process.signal(libc::SIGKILL)?;
+            }
+            child.wait().context("waiting for the killed recorder")?;
+            remove_dead_nodes(&self.name)?;
+        }
+        self.paces.retain(|p| p.helper != "recorder");
+        Ok(())
+    }
+
+    fn pin_robot(&self, id: u32) -> Result<Pinned> {
         let process = match self.children.running.get(&id) {
             Some(child) => Pinned::child(child),
             None => match self.observer.get(id) {
@@ -405,11 +440,7 @@ impl RunningSwarm {
                 None => bail!("robot {id} is not in swarm `{}`", self.name),
             },
         };
-        let Some(process) = process else {
-            bail!("robot {id} of swarm `{}` has already ended", self.name);
-        };
-        self.runtime.mark_stopped_by_user(id)?;
-        process.signal(sig)
+        process.with_context(|| format!("robot {id} of swarm `{}` has already ended", self.name))
     }
 
     /// Stops every robot of the swarm (also those started elsewhere), cleans
@@ -571,7 +602,8 @@ fn signal_name(sig: i32) -> &'static str {
 impl Children {
     /// Collects exited robots so they do not linger as zombies, and notes
     /// those that nobody asked to stop.
-    fn reap(&mut self, runtime: &SwarmRuntime) {
+    /// Returns how many ended.
+    fn reap(&mut self, runtime: &SwarmRuntime) -> usize {
         let mut ended = Vec::new();
         self.running.retain(|id, child| match child.try_wait() {
             Ok(None) => true,
@@ -581,6 +613,7 @@ impl Children {
             }
             Err(_) => false,
         });
+        let count = ended.len();
         for (id, status) in ended {
             let asked = runtime.take_stopped_by_user(id);
             if !asked {
@@ -593,6 +626,7 @@ impl Children {
                 ));
             }
         }
+        count
     }
 }
 

@@ -371,3 +371,57 @@ fn forged_clock_ticks_and_model_updates_are_rejected_and_the_swarm_keeps_steppin
     let (exit, said) = swarm.interrupt();
     assert!(exit.success(), "{said}");
 }
+
+/// Issue 9, the chaos figure in small: kills, freezes and recorder crashes
+/// on a real-time swarm leave no dead node, no crash, no lost second of
+/// recording and nothing behind; the recordings open in the Rerun reader.
+#[test]
+fn a_swarm_under_kills_freezes_and_recorder_crashes_heals_and_leaves_nothing() {
+    let _turn = serial();
+    let dir = scratch("chaos");
+    let output = shoal(&[
+        "experiment",
+        "chaos",
+        "--agents",
+        "12",
+        "--seconds",
+        "45",
+        "--recorder-every",
+        "15",
+        "--keep",
+        dir.to_str().expect("utf-8 path"),
+        "--json",
+    ]);
+    let said = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{said}");
+    let report: serde_json::Value =
+        serde_json::from_slice(&output.stdout).expect("chaos prints JSON");
+    assert!(report["robot_kills"].as_u64() >= Some(15), "{report}");
+    assert!(report["robot_freezes"].as_u64() >= Some(2), "{report}");
+    assert_eq!(report["recorder_kills"], 2, "{report}");
+    for figure in report["figures"].as_array().expect("figures") {
+        assert_eq!(figure["met"], true, "{figure}\n{report}\n{said}");
+    }
+    let script = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("python/check_recording.py");
+    for segment in 0..3 {
+        let rrd = dir.join(format!("recording-{segment}.rrd"));
+        let read = Command::new("python3")
+            .arg(&script)
+            .arg(&rrd)
+            .output()
+            .expect("python3");
+        assert!(
+            read.status.success(),
+            "{} does not open in the Rerun reader: {}",
+            rrd.display(),
+            String::from_utf8_lossy(&read.stderr)
+        );
+        let content: serde_json::Value = serde_json::from_slice(&read.stdout).expect("JSON");
+        assert!(
+            content["ticks"].as_u64() > Some(20),
+            "{}: {content}",
+            rrd.display()
+        );
+    }
+    std::fs::remove_dir_all(&dir).expect("cleanup");
+}

@@ -1,6 +1,7 @@
 //! `shoal experiment`: the thesis's results as numbers, with real robot
 //! processes in lockstep.
 
+pub mod chaos;
 pub mod formation;
 pub mod healing;
 pub mod learning;
