@@ -75,6 +75,10 @@ impl Target {
         Target::SlamMap,
     ];
 
+    fn is_text(self) -> bool {
+        (self as usize) < (Target::Pose as usize)
+    }
+
     fn name(self) -> String {
         format!("{self:?}")
     }
@@ -522,6 +526,9 @@ pub struct TargetReport {
     pub first_panic: Option<String>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub first_unclear: Option<String>,
+    /// One text rejection that names no line, to show what such errors are.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub example_without_line: Option<String>,
 }
 
 impl TargetReport {
@@ -545,6 +552,7 @@ pub fn fuzz(target: Target, inputs: u64, seed: u64, seeds: &Seeds) -> TargetRepo
         seconds: 0.0,
         first_panic: None,
         first_unclear: None,
+        example_without_line: None,
     };
     for i in 0..inputs {
         let input_seed = seed.wrapping_add(i);
@@ -558,6 +566,11 @@ pub fn fuzz(target: Target, inputs: u64, seed: u64, seeds: &Seeds) -> TargetRepo
             }) => {
                 report.rejected += 1;
                 report.with_line += u64::from(line);
+                if !line && target.is_text() {
+                    report
+                        .example_without_line
+                        .get_or_insert_with(|| format!("input seed {input_seed}: {message}"));
+                }
                 if !clear {
                     report.unclear += 1;
                     report

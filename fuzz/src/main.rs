@@ -48,9 +48,13 @@ fn main() -> std::process::ExitCode {
                 report.unclear,
                 report.seconds
             );
-            for problem in [&report.first_panic, &report.first_unclear]
-                .into_iter()
-                .flatten()
+            for problem in [
+                &report.first_panic,
+                &report.first_unclear,
+                &report.example_without_line,
+            ]
+            .into_iter()
+            .flatten()
             {
                 println!("    {problem}");
             }

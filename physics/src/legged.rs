@@ -255,16 +255,33 @@ impl MotionModel {
 /// like `turn(1).t: ...` names.
 fn line_of_entry(text: &str, message: &str) -> Option<usize> {
     let (command, param) = message.split(':').next()?.rsplit_once('.')?;
+    // The message names the array at fault ("weight 1 is ...").
+    let key = ["weights", "means", "variances"]
+        .into_iter()
+        .find(|k| message.contains(k.trim_end_matches('s')));
     let mut inside = false;
+    // A table of its own (`["walk(1)".t]`), as serialisers write it: its line.
+    let mut param_table: Option<usize> = None;
     for (index, line) in text.lines().enumerate() {
         let line = line.trim();
         if line.starts_with('[') {
+            if param_table.is_some() {
+                break;
+            }
             inside = line.contains(command);
+            let header = line.trim_end_matches(']').trim_end_matches('"');
+            if inside && header.ends_with(&format!(".{param}")) {
+                param_table = Some(index + 1);
+            }
+        } else if param_table.is_some() {
+            if key.is_some_and(|k| line.split('=').next().map(str::trim) == Some(k)) {
+                return Some(index + 1);
+            }
         } else if inside && line.split('=').next().map(str::trim) == Some(param) {
             return Some(index + 1);
         }
     }
-    None
+    param_table
 }
 
 impl TryFrom<BTreeMap<String, CommandModel>> for MotionModel {
@@ -305,6 +322,14 @@ mod tests {
             c = { weights = [0.5, 0.5], means = [0.0, 0.0], variances = [1e-4, 1e-4] }\n\
             t = { weights = [0.5, 0.7], means = [0.1, 0.2], variances = [1e-4, 1e-4] }\n";
         let error = MotionModel::from_toml(text, "m.toml").expect_err("weights sum to 1.2");
+        // Serialisers write each parameter as a table of its own; the line is still found.
+        let mixture = "weights = [0.5, 0.5]\nmeans = [0.0, 0.0]\nvariances = [0.1, 0.1]\n";
+        let tables = format!(
+            "[\"walk(1)\".d]\n{mixture}[\"walk(1)\".c]\n{mixture}[\"walk(1)\".t]\n{}",
+            mixture.replace("[0.1, 0.1]", "[-1.0, 0.1]")
+        );
+        let in_table = MotionModel::from_toml(&tables, "m.toml").expect_err("negative variance");
+        assert_eq!(in_table.line, Some(12), "{in_table}");
         assert_eq!(error.line, Some(4), "{error}");
         assert!(
             error.to_string().contains("turn(1).t: weights sum to 1.2"),
