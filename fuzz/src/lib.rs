@@ -456,15 +456,19 @@ impl Seeds {
             turn_scale: 0.8,
             from_s: 10.0,
         });
+        // One effect of every shape of parameter: scalars, a region, a vector, a span.
         let effects = UnicycleModel::with_effects(vec![
-            ScopedEffect::always(Effect::Latency { seconds: 0.18 }),
+            ScopedEffect::always(Effect::ActuatorLag { seconds: 0.12 }),
+            ScopedEffect::always(Effect::Slip { per_m_per_s: 0.3 }),
+            ScopedEffect::always(Effect::ExternalFlow { vx: 0.01, vy: -0.02 }),
             ScopedEffect {
                 effect: Effect::SurfaceZone {
-                    region: [1.0, 1.0, 2.0, 2.0],
-                    speed_factor: 0.7,
+                    region: [0.5, 0.5, 3.0, 2.5],
+                    speed_factor: 0.6,
                 },
-                during: Some([10.0, 20.0]),
+                during: Some([5.0, 30.0]),
             },
+            ScopedEffect::always(Effect::TurnBias { rad_per_s: 0.02 }),
         ]);
         let mut commands = String::from("t,v,omega\n");
         let mut poses = String::from("t,x,y,theta\n");
