@@ -153,7 +153,7 @@ pub fn prepare(recording: &Recording, options: &Options) -> Prepared {
 /// region was picked among a few, not fitted freely.
 const WHERE_PARAMS: usize = 2;
 
-fn candidates(located: &[Located], duration: f64) -> Vec<ScopedEffect> {
+fn candidates(located: &[Located], segments: &[Segment], duration: f64) -> Vec<ScopedEffect> {
     let mut out: Vec<ScopedEffect> = EFFECT_KINDS
         .iter()
         .filter(|k| **k != "surface_zone")
@@ -165,6 +165,14 @@ fn candidates(located: &[Located], duration: f64) -> Vec<ScopedEffect> {
         .filter(|l| l.family == "time" && l.t_end - l.t_start < 0.8 * duration)
         .take(2);
     for span in spans {
+        // A mismatch in one stretch of time may be a place the robot was
+        // in then: where it drove during the span is a zone to try, its
+        // edges fitted later.
+        if let Some(region) = region_driven(segments, [span.t_start, span.t_end])
+            && let Some(effect) = Effect::identity("surface_zone", region)
+        {
+            out.push(ScopedEffect::always(effect));
+        }
         for kind in [
             "speed_scale",
             "turn_scale",
@@ -470,16 +478,22 @@ fn narrower_scope(
     best.map(|(scoped, _)| scoped)
 }
 
-/// Where the robot drove during a speed effect's span, as a region; `None`
-/// for other effects.
+/// Where the robot drove during a speed or turn effect's span, as a
+/// region; `None` for other effects.
 fn zone_of_span(segments: &[Segment], scoped: &ScopedEffect) -> Option<[f64; 4]> {
-    let [a, b] = scoped.during?;
+    let during = scoped.during?;
     if !matches!(
         scoped.effect,
-        Effect::SpeedScale { .. } | Effect::Slip { .. }
+        Effect::SpeedScale { .. } | Effect::Slip { .. } | Effect::TurnScale { .. }
     ) {
         return None;
     }
+    region_driven(segments, during)
+}
+
+/// The box the robot drove in during `[a, b]` seconds, if it drove there
+/// for at least a few segments.
+fn region_driven(segments: &[Segment], [a, b]: [f64; 2]) -> Option<[f64; 4]> {
     let inside: Vec<&Segment> = segments
         .iter()
         .filter(|s| s.t_start >= a && s.t_end <= b && s.speed > 0.01)
@@ -604,51 +618,57 @@ fn on_bound(scoped: &ScopedEffect) -> Option<String> {
 }
 
 /// Fits a surface zone's region edge by edge: each edge in turn moves to
-/// where the likelihood is best (steps of a tenth of the zone's size, then
-/// finer), the speed factor held. A box of where the robot drove, or of
-/// coarse located cells, becomes the zone's own edges.
+/// where the likelihood is best, the factors held, then the factors are
+/// refitted inside the new edges; coarse steps (a tenth of the zone's
+/// size), then fine ones. A box of where the robot drove, or of coarse
+/// located cells, becomes the zone's own edges. Other effects pass through.
 fn refine_zone(
     grid: &CommandGrid,
     segs: &[Segment],
     base: &[ScopedEffect],
-    zone: ScopedEffect,
+    mut zone: ScopedEffect,
+    max_iters: u64,
 ) -> ScopedEffect {
-    let Effect::SurfaceZone {
-        mut region,
-        speed_factor,
-    } = zone.effect
-    else {
+    let Effect::SurfaceZone { region, .. } = zone.effect else {
         return zone;
     };
-    let with = |region: [f64; 4]| {
-        let mut effects = base.to_vec();
-        effects.push(ScopedEffect::always(Effect::SurfaceZone {
-            region,
-            speed_factor,
-        }));
-        nll_of(grid, segs, &effects)
-    };
-    let mut best = with(region);
     let size = (region[2] - region[0]).max(region[3] - region[1]).max(0.1);
     for step in [0.1 * size, 0.03 * size] {
+        let with = |effect: &Effect| {
+            let mut effects = base.to_vec();
+            effects.push(ScopedEffect::always(effect.clone()));
+            nll_of(grid, segs, &effects)
+        };
+        let mut best = with(&zone.effect);
         for edge in 0..4 {
             for shift in [-3.0, -2.0, -1.0, 1.0, 2.0, 3.0] {
+                let Effect::SurfaceZone {
+                    region,
+                    speed_factor,
+                    turn_factor,
+                } = zone.effect
+                else {
+                    return zone;
+                };
                 let mut moved = region;
                 moved[edge] += shift * step;
                 if moved[0] >= moved[2] || moved[1] >= moved[3] {
                     continue;
                 }
-                let nll = with(moved);
+                let candidate = Effect::SurfaceZone {
+                    region: moved,
+                    speed_factor,
+                    turn_factor,
+                };
+                let nll = with(&candidate);
                 if nll < best {
-                    (best, region) = (nll, moved);
+                    (best, zone.effect) = (nll, candidate);
                 }
             }
         }
+        zone = fit(grid, segs, base, std::slice::from_ref(&zone), max_iters).effects[0].clone();
     }
-    ScopedEffect::always(Effect::SurfaceZone {
-        region,
-        speed_factor,
-    })
+    zone
 }
 
 /// Every k-th segment, at most `count` of them.
@@ -680,7 +700,7 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
     // length of the run.
     let screen = subsample(segs, options.screen_segments);
     let screen_log_n = ((3 * screen.len()).max(2) as f64).ln();
-    let mut remaining = candidates(&located, duration);
+    let mut remaining = candidates(&located, segs, duration);
     let mut found: Vec<ScopedEffect> = Vec::new();
     // What selection learned of each effect in `found`, index for index.
     let mut evidence: Vec<Evidence> = Vec::new();
@@ -708,7 +728,15 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
             break;
         }
         let top: Vec<ScopedEffect> = ranked.into_iter().map(|(_, c)| c).collect();
-        let confirmed = fit_all(grid, segs, &base, &top, options.max_iters / 2);
+        let mut confirmed = fit_all(grid, segs, &base, &top, options.max_iters / 2);
+        for fitted in &mut confirmed {
+            let zone = refine_zone(grid, segs, &base, fitted.effects[0].clone(), options.max_iters / 2);
+            if zone != fitted.effects[0] {
+                let effects: Vec<ScopedEffect> = base.iter().cloned().chain([zone.clone()]).collect();
+                fitted.nll = nll_of(grid, segs, &effects);
+                fitted.effects = vec![zone];
+            }
+        }
         let Some(best_fit) = confirmed.iter().min_by(|a, b| a.nll.total_cmp(&b.nll)) else {
             break;
         };
@@ -758,7 +786,8 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
                     && let Some(zone_effect) = Effect::identity("surface_zone", zone)
                 {
                     let (zone_fit, _) = confirm(&ScopedEffect::always(zone_effect));
-                    let zone_fit = refine_zone(grid, segs, &base, zone_fit);
+                    let zone_fit =
+                        refine_zone(grid, segs, &base, zone_fit, options.max_iters / 2);
                     let zone_gain = judge(&zone_fit);
                     if zone_gain < delta_bic + 2.0 {
                         tied.push((delta_bic, chosen.clone()));

@@ -86,6 +86,7 @@ pub fn cases(duration_s: f64) -> Vec<Case> {
             truth: always(Effect::SurfaceZone {
                 region: ZONE,
                 speed_factor: 0.8,
+                turn_factor: 0.75,
             }),
             turn_inside: Some(ZONE),
         },
@@ -191,7 +192,8 @@ impl NoiseColour {
             .ok_or_else(|| format!("unknown noise colour `{name}`; known: {known}"))
     }
 
-    fn apply(&self, settings: Settings) -> Settings {
+    /// `settings` with this colour's noise.
+    pub fn apply(&self, settings: Settings) -> Settings {
         Settings {
             coloured: self.coloured.clone(),
             dropout: self.dropout,
@@ -236,6 +238,15 @@ pub struct Row {
     pub seconds_per_run: f64,
     /// How often each kind was named over the runs.
     pub named: std::collections::BTreeMap<String, usize>,
+    /// What each run named, seed by seed: a wrong finding can be reproduced.
+    pub per_run: Vec<RunFindings>,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct RunFindings {
+    pub seed: u64,
+    /// Each effect named, as `kind name=value ...`.
+    pub effects: Vec<String>,
 }
 
 /// Relative error of `found`'s parameters against `truth`'s.
@@ -272,6 +283,7 @@ pub fn run_case(
     let mut named_or_tied = 0;
     let (mut before, mut after, mut seconds) = (0.0, 0.0, 0.0);
     let mut named = std::collections::BTreeMap::new();
+    let mut per_run = Vec::new();
     let runs = seeds.clone().count();
     for seed in seeds {
         let settings = noise.apply(Settings {
@@ -287,6 +299,28 @@ pub fn run_case(
         before += diagnosis.baseline.heldout_rmse_pos_m;
         after += diagnosis.improved.heldout_rmse_pos_m;
         let kinds: Vec<&str> = diagnosis.effects.iter().map(|e| e.kind).collect();
+        per_run.push(RunFindings {
+            seed,
+            effects: diagnosis
+                .effects
+                .iter()
+                .map(|e| {
+                    let params: Vec<String> = e
+                        .scoped
+                        .effect
+                        .params()
+                        .iter()
+                        .map(|(name, value)| format!("{name}={value:.4}"))
+                        .collect();
+                    let during = e
+                        .scoped
+                        .during
+                        .map(|[a, b]| format!(" during {a:.0}-{b:.0} s"))
+                        .unwrap_or_default();
+                    format!("{} {}{during}", e.kind, params.join(" "))
+                })
+                .collect(),
+        });
         for k in &kinds {
             *named.entry((*k).to_owned()).or_insert(0) += 1;
         }
@@ -329,6 +363,7 @@ pub fn run_case(
         heldout_rmse_pos_m_after: after / n,
         seconds_per_run: seconds / n,
         named,
+        per_run,
     }
 }
 

@@ -62,8 +62,15 @@ enum Commands {
     /// Write a synthetic run (commands.csv, poses.csv) whose body has the effects of --truth.
     Generate {
         /// A model file with the true effects; default: none.
-        #[arg(long)]
+        #[arg(long, conflicts_with = "case")]
         truth: Option<PathBuf>,
+        /// One of the experiment's cases (e.g. surface_zone): its effects and
+        /// its operator, so a run of the experiment can be reproduced.
+        #[arg(long)]
+        case: Option<String>,
+        /// The experiment's noise colour to generate with.
+        #[arg(long, value_parser = NoiseColour::parse, default_value = "white")]
+        noise: NoiseColour,
         #[arg(long)]
         out: PathBuf,
         #[arg(long, default_value_t = 1)]
@@ -223,18 +230,35 @@ fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
     Ok(())
 }
 
-fn run_generate(truth: Option<&Path>, out: &Path, seed: u64, duration: f64) -> Result<()> {
-    let model = match truth {
-        Some(path) => UnicycleModel::from_toml(&read(path)?, &path.display().to_string())?,
-        None => UnicycleModel::plain(),
+fn run_generate(
+    truth: Option<&Path>,
+    case: Option<&str>,
+    noise: &NoiseColour,
+    out: &Path,
+    seed: u64,
+    duration: f64,
+) -> Result<()> {
+    let case = case
+        .map(|name| {
+            cases(duration).into_iter().find(|c| c.name == name).with_context(|| {
+                let known: Vec<&str> = cases(duration).iter().map(|c| c.name).collect();
+                format!("unknown case `{name}`; known: {}", known.join(", "))
+            })
+        })
+        .transpose()?;
+    let model = match (truth, &case) {
+        (Some(path), _) => UnicycleModel::from_toml(&read(path)?, &path.display().to_string())?,
+        (None, Some(case)) => UnicycleModel::with_effects(case.truth.clone()),
+        (None, None) => UnicycleModel::plain(),
     };
     let recording = generate(
         &model,
-        &Settings {
+        &noise.apply(Settings {
             seed,
             duration_s: duration,
+            turn_inside: case.and_then(|c| c.turn_inside),
             ..Settings::default()
-        },
+        }),
     );
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
     let (commands, poses) = recording.to_csv();
@@ -332,10 +356,12 @@ fn main() -> ExitCode {
     let outcome = match &cli.command {
         Some(Commands::Generate {
             truth,
+            case,
+            noise,
             out,
             seed,
             duration,
-        }) => run_generate(truth.as_deref(), out, *seed, *duration),
+        }) => run_generate(truth.as_deref(), case.as_deref(), noise, out, *seed, *duration),
         Some(Commands::Experiment(args)) => run_experiment(args),
         None => run_diagnose(&cli.diagnose),
     };

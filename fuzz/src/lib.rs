@@ -465,6 +465,7 @@ impl Seeds {
                 effect: Effect::SurfaceZone {
                     region: [0.5, 0.5, 3.0, 2.5],
                     speed_factor: 0.6,
+                    turn_factor: 0.8,
                 },
                 during: Some([5.0, 30.0]),
             },

@@ -27,8 +27,16 @@ pub enum Effect {
     Slip { per_m_per_s: f64 },
     /// Speed and turn gain lose this fraction per minute since the start.
     BatteryFade { per_minute: f64 },
-    /// Inside the region [xmin, ymin, xmax, ymax] speed is multiplied by the factor.
-    SurfaceZone { region: [f64; 4], speed_factor: f64 },
+    /// Inside the region [xmin, ymin, xmax, ymax] speed and turn rate are
+    /// multiplied by their factors (mud, carpet, a ramp: a soft floor slows
+    /// turning as well as driving). Model files written before the turn
+    /// factor existed load with turning unchanged.
+    SurfaceZone {
+        region: [f64; 4],
+        speed_factor: f64,
+        #[serde(default = "unchanged")]
+        turn_factor: f64,
+    },
     /// A constant drift in the world frame (slope, current, wind), m/s.
     ExternalFlow { vx: f64, vy: f64 },
     /// Play in the steering: the executed turn rate only follows the command
@@ -36,6 +44,10 @@ pub enum Effect {
     Hysteresis { play_rad_per_s: f64 },
     /// Motion noise variance grows by this fraction per m/s of speed.
     SpeedNoise { per_m_per_s: f64 },
+}
+
+fn unchanged() -> f64 {
+    1.0
 }
 
 /// The kinds, in the order `shoal diagnose` tries them.
@@ -88,7 +100,11 @@ impl Effect {
             Effect::AccelLimit { m_per_s2 } => vec![("m_per_s2", m_per_s2)],
             Effect::Slip { per_m_per_s } => vec![("per_m_per_s", per_m_per_s)],
             Effect::BatteryFade { per_minute } => vec![("per_minute", per_minute)],
-            Effect::SurfaceZone { speed_factor, .. } => vec![("speed_factor", speed_factor)],
+            Effect::SurfaceZone {
+                speed_factor,
+                turn_factor,
+                ..
+            } => vec![("speed_factor", speed_factor), ("turn_factor", turn_factor)],
             Effect::ExternalFlow { vx, vy } => vec![("vx", vx), ("vy", vy)],
             Effect::Hysteresis { play_rad_per_s } => vec![("play_rad_per_s", play_rad_per_s)],
             Effect::SpeedNoise { per_m_per_s } => vec![("per_m_per_s", per_m_per_s)],
@@ -112,6 +128,7 @@ impl Effect {
             Effect::SurfaceZone { region, .. } => Effect::SurfaceZone {
                 region,
                 speed_factor: v(0),
+                turn_factor: v(1),
             },
             Effect::ExternalFlow { .. } => Effect::ExternalFlow { vx: v(0), vy: v(1) },
             Effect::Hysteresis { .. } => Effect::Hysteresis {
@@ -137,6 +154,7 @@ impl Effect {
             "surface_zone" => Effect::SurfaceZone {
                 region,
                 speed_factor: 1.0,
+                turn_factor: 1.0,
             },
             "external_flow" => Effect::ExternalFlow { vx: 0.0, vy: 0.0 },
             "hysteresis" => Effect::Hysteresis {
@@ -161,7 +179,7 @@ impl Effect {
             Effect::AccelLimit { .. } => vec![(0.01, 50.0)],
             Effect::Slip { .. } => vec![(0.0, 3.0)],
             Effect::BatteryFade { .. } => vec![(0.0, 0.5)],
-            Effect::SurfaceZone { .. } => vec![(0.05, 3.0)],
+            Effect::SurfaceZone { .. } => vec![(0.05, 3.0), (0.05, 3.0)],
             Effect::ExternalFlow { .. } => vec![(-2.0, 2.0), (-2.0, 2.0)],
             Effect::Hysteresis { .. } => vec![(0.0, 2.0)],
             Effect::SpeedNoise { .. } => vec![(0.0, 100.0)],
@@ -263,9 +281,11 @@ impl Effect {
             Effect::SurfaceZone {
                 region: [x0, y0, x1, y1],
                 speed_factor,
+                turn_factor,
             } => format!(
-                "In [{x0:.1}, {y0:.1}] to [{x1:.1}, {y1:.1}] m the robot drives at {:.0}% speed (surface zone).",
-                speed_factor * 100.0
+                "In [{x0:.1}, {y0:.1}] to [{x1:.1}, {y1:.1}] m the robot drives at {:.0}% of the commanded speed and turns at {:.0}% of the commanded rate (surface zone).",
+                speed_factor * 100.0,
+                turn_factor * 100.0
             ),
             Effect::ExternalFlow { vx, vy } => format!(
                 "The robot drifts at ({vx:.3}, {vy:.3}) m/s in the world frame (slope, current or wind)."

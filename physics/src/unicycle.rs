@@ -239,8 +239,10 @@ impl UnicycleModel {
                 Effect::SurfaceZone {
                     region: [x0, y0, x1, y1],
                     speed_factor,
+                    turn_factor,
                 } if pose.x >= x0 && pose.x <= x1 && pose.y >= y0 && pose.y <= y1 => {
                     speed *= speed_factor;
+                    turn *= turn_factor;
                 }
                 Effect::ExternalFlow { vx, vy } => flow = (vx, vy),
                 _ => {}
@@ -397,6 +399,7 @@ mod tests {
                 effect: Effect::SurfaceZone {
                     region: [1.0, 1.0, 2.0, 2.0],
                     speed_factor: 0.7,
+                    turn_factor: 0.9,
                 },
                 during: Some([10.0, 20.0]),
             },
@@ -406,6 +409,13 @@ mod tests {
         let bad = "[[effects]]\nkind = \"latency\"\nseconds = 0.1\n\n[[effects]]\nkind = \"speed_scale\"\nfactor = -3.0\n";
         let error = UnicycleModel::from_toml(bad, "m.toml").expect_err("negative scale");
         assert_eq!(error.line, Some(5), "{error}");
+        // Files written before zones slowed turning still load, turning as commanded.
+        let older = "[[effects]]\nkind = \"surface_zone\"\nregion = [0.0, 0.0, 1.0, 1.0]\nspeed_factor = 0.5\n";
+        let loaded = UnicycleModel::from_toml(older, "m.toml").expect("older zone");
+        assert_eq!(
+            loaded.effects[0].effect.params(),
+            vec![("speed_factor", 0.5), ("turn_factor", 1.0)]
+        );
         let unknown = "[[effects]]\nkind = \"teleport\"\n";
         let error = UnicycleModel::from_toml(unknown, "m.toml").expect_err("unknown kind");
         assert!(error.to_string().contains("teleport"), "{error}");
