@@ -32,16 +32,29 @@ pub struct Score {
 
 const VARIANCE_FLOOR: f64 = 1e-12;
 
-/// Seconds the actuators run before a segment starts, so that latency,
-/// inertia and play have their history.
+/// Seconds the actuators run before a segment that does not follow the
+/// previous one: enough for latency. Actuators with memory (lag, play,
+/// inertia) get longer, since play holds its state until the command next
+/// changes; consecutive segments carry the state on exactly.
 const WARMUP_S: f64 = 0.3;
+const MEMORY_WARMUP_S: f64 = 3.0;
 
 pub fn residuals(model: &UnicycleModel, grid: &CommandGrid, segments: &[Segment]) -> Vec<Residual> {
-    let warmup = (WARMUP_S / grid.dt).ceil() as usize;
+    let warmup_s = if model.has_actuator_memory() {
+        MEMORY_WARMUP_S
+    } else {
+        WARMUP_S
+    };
+    let warmup = (warmup_s / grid.dt).ceil() as usize;
+    let predicted = model.predict_stretches(
+        grid,
+        segments.iter().map(|s| (s.start, s.from, s.to)),
+        warmup,
+    );
     segments
         .iter()
-        .map(|s| {
-            let predicted = model.predict(grid, s.start, s.from, s.to, warmup);
+        .zip(predicted)
+        .map(|(s, predicted)| {
             let (dx, dy) = (s.end.x - predicted.x, s.end.y - predicted.y);
             let (sin, cos) = s.start.theta.sin_cos();
             [

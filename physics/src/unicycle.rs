@@ -294,6 +294,56 @@ impl UnicycleModel {
         pose
     }
 
+    /// Whether what the actuators execute depends on their history (a lag,
+    /// play in the steering, an acceleration limit), not only on the
+    /// commands at one time.
+    pub fn has_actuator_memory(&self) -> bool {
+        self.effects.iter().any(|e| {
+            matches!(
+                e.effect,
+                Effect::ActuatorLag { .. } | Effect::Hysteresis { .. } | Effect::AccelLimit { .. }
+            )
+        })
+    }
+
+    /// Predicts many stretches at once: for each `(start, from, to)` (in time
+    /// order) the pose at grid step `to` from `start` at step `from`. The
+    /// actuators run on through consecutive stretches, so their state is the
+    /// one the whole history gives; where stretches leave a gap (or overlap)
+    /// they are warmed up afresh over `warmup` steps.
+    pub fn predict_stretches(
+        &self,
+        grid: &CommandGrid,
+        stretches: impl IntoIterator<Item = (Pose, usize, usize)>,
+        warmup: usize,
+    ) -> Vec<Pose> {
+        let mut actuators = Actuators::default();
+        // The next grid step the actuators would execute.
+        let mut cursor = usize::MAX;
+        let mut out = Vec::new();
+        for (start, from, to) in stretches {
+            let to = to.min(grid.len());
+            let first = from.saturating_sub(warmup);
+            if cursor > from || cursor < first {
+                cursor = first;
+                if let (Some(&v), Some(&omega)) = (grid.v.get(first), grid.omega.get(first)) {
+                    actuators = Actuators::settled(v, omega);
+                }
+            }
+            let mut pose = start;
+            while cursor < to {
+                let (v, omega) = actuators.execute(self, grid, cursor);
+                if cursor >= from {
+                    pose = self.step_raw(pose, v, omega, grid.time(cursor) - grid.t0, grid.dt);
+                }
+                cursor += 1;
+            }
+            pose.theta = wrap_angle(pose.theta);
+            out.push(pose);
+        }
+        out
+    }
+
     /// Integrates from `start` at grid step `from` to grid step `to`.
     pub fn integrate(
         &self,
