@@ -114,6 +114,14 @@ pub fn cases(duration_s: f64) -> Vec<Case> {
             turn_inside: None,
         },
         Case {
+            name: "turn_speed_loss",
+            concealment: tiny,
+            truth: always(Effect::TurnSpeedLoss {
+                per_rad_per_s: 0.15,
+            }),
+            turn_inside: None,
+        },
+        Case {
             name: "latency+heading_drift",
             concealment: "two effects together",
             truth: vec![

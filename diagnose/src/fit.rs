@@ -33,6 +33,7 @@ pub fn step_of(effect: &Effect, name: &str) -> f64 {
         (Effect::ExternalFlow { .. }, _) => 0.01,
         (Effect::Hysteresis { .. }, _) => 0.05,
         (Effect::SpeedNoise { .. }, _) => 2.0,
+        (Effect::TurnSpeedLoss { .. }, _) => 0.1,
     }
 }
 

@@ -44,6 +44,10 @@ pub enum Effect {
     Hysteresis { play_rad_per_s: f64 },
     /// Motion noise variance grows by this fraction per m/s of speed.
     SpeedNoise { per_m_per_s: f64 },
+    /// Forward speed drops while turning: v (1 - k |omega|). A differential
+    /// drive whose wheels scrub, or whose controller slows both wheels to
+    /// keep the outer one within its limit, loses speed in every turn.
+    TurnSpeedLoss { per_rad_per_s: f64 },
 }
 
 fn unchanged() -> f64 {
@@ -51,7 +55,7 @@ fn unchanged() -> f64 {
 }
 
 /// The kinds, in the order `shoal diagnose` tries them.
-pub const EFFECT_KINDS: [&str; 13] = [
+pub const EFFECT_KINDS: [&str; 14] = [
     "latency",
     "actuator_lag",
     "speed_scale",
@@ -65,6 +69,7 @@ pub const EFFECT_KINDS: [&str; 13] = [
     "external_flow",
     "hysteresis",
     "speed_noise",
+    "turn_speed_loss",
 ];
 
 impl Effect {
@@ -83,6 +88,7 @@ impl Effect {
             Effect::ExternalFlow { .. } => "external_flow",
             Effect::Hysteresis { .. } => "hysteresis",
             Effect::SpeedNoise { .. } => "speed_noise",
+            Effect::TurnSpeedLoss { .. } => "turn_speed_loss",
         }
     }
 
@@ -108,6 +114,7 @@ impl Effect {
             Effect::ExternalFlow { vx, vy } => vec![("vx", vx), ("vy", vy)],
             Effect::Hysteresis { play_rad_per_s } => vec![("play_rad_per_s", play_rad_per_s)],
             Effect::SpeedNoise { per_m_per_s } => vec![("per_m_per_s", per_m_per_s)],
+            Effect::TurnSpeedLoss { per_rad_per_s } => vec![("per_rad_per_s", per_rad_per_s)],
         }
     }
 
@@ -135,6 +142,9 @@ impl Effect {
                 play_rad_per_s: v(0),
             },
             Effect::SpeedNoise { .. } => Effect::SpeedNoise { per_m_per_s: v(0) },
+            Effect::TurnSpeedLoss { .. } => Effect::TurnSpeedLoss {
+                per_rad_per_s: v(0),
+            },
         }
     }
 
@@ -161,6 +171,7 @@ impl Effect {
                 play_rad_per_s: 0.0,
             },
             "speed_noise" => Effect::SpeedNoise { per_m_per_s: 0.0 },
+            "turn_speed_loss" => Effect::TurnSpeedLoss { per_rad_per_s: 0.0 },
             _ => return None,
         })
     }
@@ -183,6 +194,8 @@ impl Effect {
             Effect::ExternalFlow { .. } => vec![(-2.0, 2.0), (-2.0, 2.0)],
             Effect::Hysteresis { .. } => vec![(0.0, 2.0)],
             Effect::SpeedNoise { .. } => vec![(0.0, 100.0)],
+            // At 3 per rad/s a robot turning at 0.33 rad/s stops driving.
+            Effect::TurnSpeedLoss { .. } => vec![(0.0, 3.0)],
         }
     }
 
@@ -225,6 +238,11 @@ impl Effect {
             Effect::SpeedNoise { per_m_per_s } => format!(
                 "At its usual {speed:.2} m/s the robot's motion noise is {:.2} times as large as when creeping (speed-dependent noise).",
                 (1.0 + per_m_per_s * speed).sqrt()
+            ),
+            Effect::TurnSpeedLoss { per_rad_per_s } => format!(
+                "While turning at its usual {turn:.2} rad/s the robot drives {:.0}% slower than commanded, {:.0}% at twice that rate; driving straight it loses nothing (speed lost in turns: wheel scrub or a wheel-speed limit).",
+                percent(per_rad_per_s * turn),
+                percent(per_rad_per_s * 2.0 * turn)
             ),
             Effect::HeadingDrift { rad_per_m } => format!(
                 "The heading drifts {:.1}° per metre driven, to the {} (unequal wheels); at its usual {speed:.2} m/s that is {:.1}° per minute.",
@@ -296,6 +314,10 @@ impl Effect {
             Effect::SpeedNoise { per_m_per_s } => format!(
                 "Motion noise variance grows by {:.0}% per m/s of speed (speed-dependent noise).",
                 per_m_per_s * 100.0
+            ),
+            Effect::TurnSpeedLoss { per_rad_per_s } => format!(
+                "Forward speed drops by {:.0}% per rad/s of turning (speed lost in turns).",
+                per_rad_per_s * 100.0
             ),
         }
     }

@@ -162,6 +162,12 @@ impl Actuators {
                 _ => {}
             }
         }
+        // The turn that costs speed is the one executed, after every gain.
+        for effect in model.active(run_s) {
+            if let Effect::TurnSpeedLoss { per_rad_per_s } = *effect {
+                v *= (1.0 - per_rad_per_s * omega.abs()).max(0.0);
+            }
+        }
         let max_change = accel_limit * grid.dt;
         v = self.last_v + (v - self.last_v).clamp(-max_change, max_change);
         self.last_v = v;
