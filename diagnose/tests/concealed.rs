@@ -249,9 +249,13 @@ fn a_real_mrclam_robot_shows_a_mismatch_that_the_fit_reduces() {
             .any(|k| k == "latency" || k == "actuator_lag"),
         "{d}"
     );
+    // Its speed drops in turns, which the plain unicycle leaves out.
+    assert!(kinds(&d).iter().any(|k| k == "turn_speed_loss"), "{d}");
+    // Physics that is really there predicts unseen stretches better: at
+    // least 15% lower held-out position error (measured: 11.3 -> 5.9 mm).
     let before = d["baseline"]["heldout_rmse_pos_m"].as_f64().expect("rmse");
     let after = d["improved"]["heldout_rmse_pos_m"].as_f64().expect("rmse");
-    assert!(after < before, "{before} -> {after}");
+    assert!(after < 0.85 * before, "{before} -> {after}");
 }
 
 #[test]

@@ -402,6 +402,43 @@ mod tests {
     }
 
     #[test]
+    fn turning_costs_speed_and_driving_straight_does_not() {
+        let model = UnicycleModel::with_effects(vec![ScopedEffect::always(
+            Effect::TurnSpeedLoss { per_rad_per_s: 0.5 },
+        )]);
+        let straight_on = model.execute(&straight(2.0, 0.2, 0.0));
+        assert_eq!(straight_on.v[100], 0.2);
+        let turning = model.execute(&straight(2.0, 0.2, 0.4));
+        assert!((turning.v[100] - 0.2 * 0.8).abs() < 1e-12, "{}", turning.v[100]);
+        let backwards_turn = model.execute(&straight(2.0, 0.2, -0.4));
+        assert_eq!(backwards_turn.v[100], turning.v[100]);
+    }
+
+    #[test]
+    fn a_play_in_the_steering_is_remembered_across_consecutive_stretches() {
+        // Play holds the turn rate until the command next changes, however
+        // long ago: stretches predicted one after another must carry that
+        // state, as one long prediction does.
+        let model = UnicycleModel::with_effects(vec![ScopedEffect::always(
+            Effect::Hysteresis {
+                play_rad_per_s: 0.1,
+            },
+        )]);
+        let grid = CommandGrid::from_held(&[0.0, 1.0, 6.0], &[0.2, 0.2, 0.2], &[0.0, 0.5, 0.5], 0.01);
+        let stretches: Vec<(Pose, usize, usize)> = (0..6)
+            .map(|k| (Pose::default(), k * 100, (k + 1) * 100))
+            .collect();
+        // One call over consecutive stretches: the last one turns at the
+        // held 0.4 rad/s, as the whole run does.
+        let carried = model.predict_stretches(&grid, stretches.iter().copied(), 0);
+        assert!((carried[5].theta - 0.4).abs() < 1e-9, "{:?}", carried[5]);
+        // The last stretch alone, without warm-up, cannot know the play
+        // and turns at the commanded 0.5.
+        let alone = model.predict_stretches(&grid, [stretches[5]], 0);
+        assert!((alone[0].theta - 0.5).abs() < 1e-9, "{:?}", alone[0]);
+    }
+
+    #[test]
     fn effects_change_the_motion_as_named() {
         let grid = straight(10.0, 0.2, 0.0);
         let plain = drive(&UnicycleModel::plain(), &grid);
