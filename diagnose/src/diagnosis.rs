@@ -679,11 +679,8 @@ fn subsample(segments: &[Segment], count: usize) -> Vec<Segment> {
 
 /// Diagnoses `recording` against `model`.
 pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options) -> Diagnosis {
-    let (poses, pose_outliers) = recording.poses.without_outliers();
-    let recording = &Recording {
-        poses,
-        ..recording.clone()
-    };
+    let (recording, pose_outliers) = recording.without_pose_outliers();
+    let recording = &recording;
     let prepared = prepare(recording, options);
     let (grid, segs) = (&prepared.grid, &prepared.segments);
     let duration = recording.duration();

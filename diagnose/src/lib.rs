@@ -2,6 +2,7 @@
 //! the simulation left out, and how much better the run is explained with it.
 //! Pure logic: inputs arrive as text or numbers, outputs leave as values.
 
+pub mod bag;
 pub mod diagnosis;
 pub mod fit;
 pub mod generate;
@@ -9,6 +10,7 @@ pub mod input;
 pub mod likelihood;
 pub mod locate;
 pub mod recording;
+pub mod replay;
 pub mod segments;
 
 pub use diagnosis::{Diagnosis, Options, diagnose};

@@ -7,7 +7,7 @@
 //! error; the noise model below accounts for both, so that a plain model on
 //! plain data does not look speed-dependent.
 
-use shoal_physics::{CommandGrid, UnicycleModel, wrap_angle};
+use shoal_physics::{CommandGrid, Pose, UnicycleModel, wrap_angle};
 
 use crate::segments::Segment;
 
@@ -39,31 +39,40 @@ const VARIANCE_FLOOR: f64 = 1e-12;
 const WARMUP_S: f64 = 0.3;
 const MEMORY_WARMUP_S: f64 = 3.0;
 
-pub fn residuals(model: &UnicycleModel, grid: &CommandGrid, segments: &[Segment]) -> Vec<Residual> {
+/// Grid steps the actuators run before a segment that does not follow the
+/// previous one, for `model`.
+pub fn warmup_steps(model: &UnicycleModel, grid: &CommandGrid) -> usize {
     let warmup_s = if model.has_actuator_memory() {
         MEMORY_WARMUP_S
     } else {
         WARMUP_S
     };
-    let warmup = (warmup_s / grid.dt).ceil() as usize;
+    (warmup_s / grid.dt).ceil() as usize
+}
+
+pub fn residuals(model: &UnicycleModel, grid: &CommandGrid, segments: &[Segment]) -> Vec<Residual> {
     let predicted = model.predict_stretches(
         grid,
         segments.iter().map(|s| (s.start, s.from, s.to)),
-        warmup,
+        warmup_steps(model, grid),
     );
     segments
         .iter()
         .zip(predicted)
-        .map(|(s, predicted)| {
-            let (dx, dy) = (s.end.x - predicted.x, s.end.y - predicted.y);
-            let (sin, cos) = s.start.theta.sin_cos();
-            [
-                dx * cos + dy * sin,
-                -dx * sin + dy * cos,
-                wrap_angle(s.end.theta - predicted.theta),
-            ]
-        })
+        .map(|(s, predicted)| residual_of(s, predicted))
         .collect()
+}
+
+/// Observed minus `predicted` at the segment's end, in the frame of its start.
+pub fn residual_of(segment: &Segment, predicted: Pose) -> Residual {
+    let end = segment.end;
+    let (dx, dy) = (end.x - predicted.x, end.y - predicted.y);
+    let (sin, cos) = segment.start.theta.sin_cos();
+    [
+        dx * cos + dy * sin,
+        -dx * sin + dy * cos,
+        wrap_angle(end.theta - predicted.theta),
+    ]
 }
 
 /// The across residual less the part a heading error accrued linearly over

@@ -125,6 +125,19 @@ impl Poses {
 }
 
 impl Recording {
+    /// The run with gross pose outliers set aside (see
+    /// [`Poses::without_outliers`]), and how many were.
+    pub fn without_pose_outliers(&self) -> (Self, usize) {
+        let (poses, outliers) = self.poses.without_outliers();
+        (
+            Self {
+                poses,
+                ..self.clone()
+            },
+            outliers,
+        )
+    }
+
     /// Shifts every time so the first command is at 0 s.
     pub fn from_absolute(mut commands: Commands, mut poses: Poses) -> Self {
         let t_origin = commands.t.first().copied().unwrap_or(0.0);

@@ -323,11 +323,24 @@ impl UnicycleModel {
         stretches: impl IntoIterator<Item = (Pose, usize, usize)>,
         warmup: usize,
     ) -> Vec<Pose> {
+        self.trace_stretches(grid, stretches, warmup, |_, _, _| {})
+    }
+
+    /// [`Self::predict_stretches`], also handing `on_step` every pose on the
+    /// way: the stretch's index, the grid step just executed and the pose
+    /// after it (for showing predictions, not only scoring their ends).
+    pub fn trace_stretches(
+        &self,
+        grid: &CommandGrid,
+        stretches: impl IntoIterator<Item = (Pose, usize, usize)>,
+        warmup: usize,
+        mut on_step: impl FnMut(usize, usize, Pose),
+    ) -> Vec<Pose> {
         let mut actuators = Actuators::default();
         // The next grid step the actuators would execute.
         let mut cursor = usize::MAX;
         let mut out = Vec::new();
-        for (start, from, to) in stretches {
+        for (index, (start, from, to)) in stretches.into_iter().enumerate() {
             let to = to.min(grid.len());
             let first = from.saturating_sub(warmup);
             if cursor > from || cursor < first {
@@ -341,6 +354,7 @@ impl UnicycleModel {
                 let (v, omega) = actuators.execute(self, grid, cursor);
                 if cursor >= from {
                     pose = self.step_raw(pose, v, omega, grid.time(cursor) - grid.t0, grid.dt);
+                    on_step(index, cursor, pose);
                 }
                 cursor += 1;
             }

@@ -1,6 +1,7 @@
 //! `shoal-diagnose`: why a simulator disagrees with a robot.
 
 mod plot;
+mod rrd;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -10,6 +11,8 @@ use clap::{Args, Parser, Subcommand};
 use shoal_diagnose::experiment::{NoiseColour, cases, run_case};
 use shoal_diagnose::generate::{Settings, generate};
 use shoal_diagnose::input::{commands_csv, mrclam_groundtruth, mrclam_odometry, poses_csv};
+use shoal_diagnose::bag;
+use shoal_diagnose::replay::replay;
 use shoal_diagnose::{Diagnosis, Options, Recording, diagnose};
 use shoal_physics::UnicycleModel;
 
@@ -43,6 +46,24 @@ struct DiagnoseArgs {
     /// Which MRCLAM robot, 1-5.
     #[arg(long)]
     robot: Option<u32>,
+    /// A ROS 2 bag (MCAP): commands from --commands-topic, poses from
+    /// --poses-topic. Without the topics, lists the bag's topics.
+    #[arg(long, value_name = "FILE.mcap", conflicts_with_all = ["run", "mrclam", "commands"])]
+    bag: Option<PathBuf>,
+    /// The bag's velocity commands: geometry_msgs/msg/Twist or TwistStamped.
+    #[arg(long, requires = "bag", value_name = "TOPIC")]
+    commands_topic: Option<String>,
+    /// The bag's observed poses: geometry_msgs/msg/PoseStamped,
+    /// PoseWithCovarianceStamped, nav_msgs/msg/Odometry, or
+    /// tf2_msgs/msg/TFMessage with --frame.
+    #[arg(long, requires = "bag", value_name = "TOPIC")]
+    poses_topic: Option<String>,
+    /// With a TF poses topic: the robot's frame (the transform's child).
+    #[arg(long, requires = "poses_topic", value_name = "CHILD")]
+    frame: Option<String>,
+    /// With a TF poses topic: only transforms from this parent frame.
+    #[arg(long, requires = "frame", value_name = "FRAME")]
+    parent: Option<String>,
     /// The simulation model (TOML); default: the plain unicycle.
     #[arg(long)]
     model: Option<PathBuf>,
@@ -52,6 +73,11 @@ struct DiagnoseArgs {
     /// Write model.toml and fit.png here.
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Write the diagnosis as a Rerun recording: the observed path, the
+    /// input and fitted models' predictions of every segment, located
+    /// regions as boxes, residuals and held-out errors over time.
+    #[arg(long, value_name = "FILE")]
+    rrd: Option<PathBuf>,
     /// Seconds each comparison predicts ahead.
     #[arg(long, default_value_t = 1.0)]
     horizon: f64,
@@ -95,9 +121,61 @@ fn load_csv_pair(commands: &Path, poses: &Path) -> Result<Recording> {
     Ok(Recording::from_absolute(c, p))
 }
 
+fn load_bag(path: &Path, args: &DiagnoseArgs) -> Result<Recording> {
+    let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let file = path.display().to_string();
+    let (Some(commands_topic), Some(poses_topic)) = (&args.commands_topic, &args.poses_topic)
+    else {
+        let topics = bag::topics(&bytes, &file)?;
+        let mut listing = format!("{file} holds {} topics:\n", topics.len());
+        for t in &topics {
+            listing.push_str(&format!("  {}  {}  ({} messages)\n", t.name, t.message_type, t.messages));
+        }
+        let of = |types: &[&str]| -> Vec<&str> {
+            topics
+                .iter()
+                .filter(|t| types.contains(&t.message_type.as_str()))
+                .map(|t| t.name.as_str())
+                .collect()
+        };
+        bail!(
+            "{listing}choose the commands with --commands-topic (Twist or TwistStamped: {}) and the poses with --poses-topic \
+             (PoseStamped, PoseWithCovarianceStamped, Odometry, or TFMessage with --frame CHILD: {})",
+            or_none(&of(&bag::COMMAND_TYPES)),
+            or_none(&of(&bag::POSE_TYPES)),
+        );
+    };
+    let run = bag::read_bag(
+        &bytes,
+        &file,
+        &bag::Selection {
+            commands_topic,
+            poses_topic,
+            frame: args.frame.as_deref(),
+            parent: args.parent.as_deref(),
+        },
+    )?;
+    eprintln!(
+        "shoal diagnose: times of {commands_topic} from {}, of {poses_topic} from {}",
+        run.command_times, run.pose_times
+    );
+    Ok(Recording::from_absolute(run.commands, run.poses))
+}
+
+fn or_none(names: &[&str]) -> String {
+    if names.is_empty() {
+        "none in this bag".to_owned()
+    } else {
+        names.join(", ")
+    }
+}
+
 fn load(args: &DiagnoseArgs) -> Result<Recording> {
     if let (Some(c), Some(p)) = (&args.commands, &args.poses) {
         return load_csv_pair(c, p);
+    }
+    if let Some(bag) = &args.bag {
+        return load_bag(bag, args);
     }
     if let Some(dir) = &args.mrclam {
         let robot = args.robot.context("--mrclam needs --robot N")?;
@@ -119,14 +197,21 @@ fn load(args: &DiagnoseArgs) -> Result<Recording> {
         return load_csv_pair(&run.join("commands.csv"), &run.join("poses.csv"));
     }
     bail!(
-        "nothing to diagnose: give a run directory, --commands and --poses, or --mrclam DIR --robot N"
+        "nothing to diagnose: give a run directory, --commands and --poses, --bag FILE.mcap, or --mrclam DIR --robot N"
     )
 }
 
-fn report(d: &Diagnosis, model_out: Option<&Path>, plot: Option<&Path>) {
-    println!("{} segments of {:.1} s compared.", d.segments, d.horizon_s);
+/// The report a person reads: printed, and the recording's document.
+fn report_text(d: &Diagnosis) -> String {
+    use std::fmt::Write as _;
+    let mut out = String::new();
+    // Writing into a String cannot fail.
+    let mut line = |text: String| {
+        let _ = writeln!(out, "{text}");
+    };
+    line(format!("{} segments of {:.1} s compared.", d.segments, d.horizon_s));
     if !d.mismatch {
-        println!("No significant mismatch: the model explains the run within its noise.");
+        line("No significant mismatch: the model explains the run within its noise.".into());
     }
     for l in d.located.iter().take(8) {
         let place = l
@@ -138,24 +223,24 @@ fn report(d: &Diagnosis, model_out: Option<&Path>, plot: Option<&Path>) {
                 )
             })
             .unwrap_or_default();
-        println!(
+        line(format!(
             "  differs by {}: {:.0}-{:.0} s{place}, {} ({} residual, z {:.1}, p {:.1e})",
             l.family, l.t_start, l.t_end, l.commands, l.component, l.z, l.significance
-        );
+        ));
     }
     if d.mismatch && d.effects.is_empty() {
-        println!("The mismatch is significant but no effect of the library explains it.");
+        line("The mismatch is significant but no effect of the library explains it.".into());
     }
     for e in &d.effects {
-        println!("  {} (ΔBIC {:.0})", e.sentence, e.delta_bic);
+        line(format!("  {} (ΔBIC {:.0})", e.sentence, e.delta_bic));
         if !e.indistinguishable_from.is_empty() {
-            println!(
+            line(format!(
                 "    these data explain it equally well as: {}",
                 e.indistinguishable_from.join(", ")
-            );
+            ));
         }
     }
-    println!(
+    line(format!(
         "Held-out position error {:.1} mm -> {:.1} mm, heading {:.2} -> {:.2} deg, NLL {:.2} -> {:.2} per segment.",
         d.baseline.heldout_rmse_pos_m * 1e3,
         d.improved.heldout_rmse_pos_m * 1e3,
@@ -163,13 +248,25 @@ fn report(d: &Diagnosis, model_out: Option<&Path>, plot: Option<&Path>) {
         d.improved.heldout_rmse_theta_rad.to_degrees(),
         d.baseline.heldout_nll,
         d.improved.heldout_nll
-    );
-    if let Some(m) = model_out {
-        println!("Model written to {}", m.display());
+    ));
+    out
+}
+
+/// Writes `path` by having `write` fill a file beside it and renaming that
+/// into place: an interrupted run leaves the earlier result whole, never
+/// half of one. Says so when it replaces an earlier file.
+fn write_into_place(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+    if path.exists() {
+        eprintln!("shoal diagnose: replacing the earlier {}", path.display());
     }
-    if let Some(p) = plot {
-        println!("Plot written to {}", p.display());
-    }
+    // The extension stays last: the PNG encoder picks its format by it.
+    let stem = path.file_stem().unwrap_or_default().to_string_lossy();
+    let partial = match path.extension() {
+        Some(ext) => path.with_file_name(format!("{stem}.partial.{}", ext.to_string_lossy())),
+        None => path.with_file_name(format!("{stem}.partial")),
+    };
+    write(&partial)?;
+    std::fs::rename(&partial, path).with_context(|| format!("cannot write {}", path.display()))
 }
 
 fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
@@ -191,41 +288,53 @@ fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
             options.horizon_s
         );
     }
-    let (mut model_out, mut plot_out) = (None, None);
+    let mut written: Vec<(&str, PathBuf)> = Vec::new();
     if let Some(dir) = &args.out {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
         let path = dir.join("model.toml");
-        let png = dir.join("fit.png");
-        for earlier in [&path, &png].into_iter().filter(|p| p.exists()) {
-            eprintln!(
-                "shoal diagnose: replacing the earlier {}",
-                earlier.display()
-            );
-        }
         let text = format!(
             "# Written by shoal diagnose: the input model plus the effects it found.\n# Load it with --model, or as the body of a simulated robot.\n{}",
             diagnosis.model.to_toml()
         );
-        // Each file is written beside and renamed into place: an
-        // interrupted run leaves the earlier result whole, never half of one.
-        let partial = dir.join("model.toml.partial");
-        std::fs::write(&partial, text)
-            .and_then(|()| std::fs::rename(&partial, &path))
-            .with_context(|| format!("cannot write {}", path.display()))?;
-        model_out = Some(path);
-        let partial = dir.join("fit.partial.png");
-        plot::fit_png(&partial, &recording, &diagnosis)?;
-        std::fs::rename(&partial, &png)
-            .with_context(|| format!("cannot write {}", png.display()))?;
-        plot_out = Some(png);
+        write_into_place(&path, |partial| {
+            std::fs::write(partial, text).with_context(|| format!("cannot write {}", partial.display()))
+        })?;
+        written.push(("model_out", path));
+        let png = dir.join("fit.png");
+        write_into_place(&png, |partial| plot::fit_png(partial, &recording, &diagnosis))?;
+        written.push(("plot", png));
     }
+    let report = report_text(&diagnosis);
+    if let Some(path) = &args.rrd {
+        if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+            std::fs::create_dir_all(parent)
+                .with_context(|| format!("cannot create {}", parent.display()))?;
+        }
+        let segments = replay(&recording, &model, &diagnosis.model, &options);
+        write_into_place(path, |partial| {
+            rrd::write(partial, &recording, &diagnosis, &segments, &report)
+        })?;
+        written.push(("rrd", path.clone()));
+    }
+    let written_path = |key: &str| {
+        written
+            .iter()
+            .find(|(k, _)| *k == key)
+            .map(|(_, p)| p.display().to_string())
+    };
     if args.json {
         let mut value = serde_json::to_value(&diagnosis)?;
-        value["model_out"] = serde_json::json!(model_out.as_ref().map(|p| p.display().to_string()));
-        value["plot"] = serde_json::json!(plot_out.as_ref().map(|p| p.display().to_string()));
+        for key in ["model_out", "plot", "rrd"] {
+            value[key] = serde_json::json!(written_path(key));
+        }
         println!("{value}");
     } else {
-        report(&diagnosis, model_out.as_deref(), plot_out.as_deref());
+        print!("{report}");
+        for (key, what) in [("model_out", "Model"), ("plot", "Plot"), ("rrd", "Recording")] {
+            if let Some(path) = written_path(key) {
+                println!("{what} written to {path}");
+            }
+        }
     }
     Ok(())
 }

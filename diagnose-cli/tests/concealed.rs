@@ -74,7 +74,9 @@ fn diagnose_generated(name: &str, truth: &str, extra: &[&str]) -> (Value, Scratc
 }
 
 fn diagnose_dir(dir: &Path, extra: &[&str]) -> Value {
+    // Run from the run's folder, so relative paths in `extra` land there.
     let output = Command::new(binary())
+        .current_dir(dir)
         .arg(dir)
         .args(["--json", "--out"])
         .arg(dir.join("out"))
@@ -154,13 +156,15 @@ fn two_effects_together_are_both_found_and_the_written_model_explains_the_run() 
         .into_iter()
         .find(|c| c.name == "speed_scale+external_flow")
         .expect("pair case");
-    let (d, dir) = diagnose_generated("pair", &truth_toml(&case), &[]);
+    let (d, dir) = diagnose_generated("pair", &truth_toml(&case), &["--rrd", "diagnosis.rrd"]);
     let found = kinds(&d);
     assert!(
         found.contains(&"speed_scale".to_owned()) && found.contains(&"external_flow".to_owned()),
         "{d}"
     );
     assert!(dir.join("out/fit.png").exists());
+    assert_eq!(d["rrd"], "diagnosis.rrd", "{d}");
+    the_recording_shows_the_fit(&d, &dir.join("diagnosis.rrd"));
     // The simulator loads the written model; with it the run has no mismatch left.
     let model = dir.join("out/model.toml");
     let again = diagnose_dir(&dir, &["--model", model.to_str().expect("utf-8")]);
@@ -173,6 +177,62 @@ fn two_effects_together_are_both_found_and_the_written_model_explains_the_run() 
         (reloaded - improved).abs() < 0.1 * improved,
         "{improved} vs {reloaded}"
     );
+}
+
+/// Reads `--rrd`'s recording back with the official Rerun reader: every
+/// compared segment is there with both models' predictions and residuals,
+/// the fitted model's residuals are the smaller, and the report is attached.
+fn the_recording_shows_the_fit(d: &Value, rrd: &Path) {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/read_diagnosis.py");
+    let output = Command::new("python3")
+        .arg(script)
+        .arg(rrd)
+        .output()
+        .expect("run python3");
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let read: Value = serde_json::from_slice(&output.stdout).expect("reader JSON");
+    let segments = d["segments"].as_u64().expect("segments") as usize;
+    let values = |entity: &str| -> Vec<f64> {
+        read["scalars"][entity]
+            .as_array()
+            .unwrap_or_else(|| panic!("{entity} missing: {}", read["entities"]))
+            .iter()
+            .filter_map(Value::as_f64)
+            .collect()
+    };
+    let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
+    for component in ["along_mm", "across_mm", "heading_deg"] {
+        let input = values(&format!("/residuals/{component}/input"));
+        let fitted = values(&format!("/residuals/{component}/fitted"));
+        assert_eq!(input.len(), segments, "{component}");
+        assert_eq!(fitted.len(), segments, "{component}");
+        if component == "along_mm" {
+            assert!(rms(&fitted) < 0.8 * rms(&input), "{} vs {}", rms(&fitted), rms(&input));
+        }
+    }
+    for entity in [
+        "/world/observed/path",
+        "/world/observed/pose",
+        "/world/segment/observed",
+        "/world/segment/input_model",
+        "/world/segment/fitted_model",
+        "/world/located",
+        "/heldout/position_error_mm/fitted",
+    ] {
+        assert!(read["entities"][entity].as_u64().unwrap_or(0) > 0, "{entity}: {}", read["entities"]);
+    }
+    assert_eq!(
+        read["entities"]["/world/segment/fitted_model"].as_u64(),
+        Some(segments as u64)
+    );
+    // A 1 s prediction is a path, not only its end: a pose per grid step.
+    assert!(read["strip_points"]["/world/segment/fitted_model"].as_u64().unwrap_or(0) > 10);
+    let report = read["report"].as_str().unwrap_or("");
+    assert!(report.contains("Held-out position error"), "{report}");
 }
 
 #[test]

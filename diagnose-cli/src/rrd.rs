@@ -1,0 +1,200 @@
+//! `--rrd FILE`: the diagnosis as a Rerun recording. On the `time` timeline
+//! (seconds into the run): the observed pose; at the end of each compared
+//! segment, the observed path over it beside where the input model and the
+//! fitted model predicted it, and the three residuals of each; the held-out
+//! position errors. Static: the whole observed path, the located regions and
+//! the fitted zones as boxes, the report as a document.
+
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use rerun::{Color, RecordingStream};
+use shoal_diagnose::replay::{Prediction, SegmentReplay};
+use shoal_diagnose::{Diagnosis, Recording};
+
+const TIMELINE: &str = "time";
+const OBSERVED: [u8; 3] = [30, 30, 30];
+const INPUT: [u8; 3] = [220, 50, 40];
+const FITTED: [u8; 3] = [30, 150, 60];
+const LOCATED: [u8; 3] = [255, 170, 60];
+const ZONE: [u8; 3] = [70, 130, 230];
+fn colour([r, g, b]: [u8; 3]) -> Color {
+    Color::from_rgb(r, g, b)
+}
+
+/// Observed poses are logged at most this often: enough to follow the
+/// robot, and a 10-minute run at 100 Hz stays a few megabytes.
+const POSE_EVERY_S: f64 = 0.05;
+
+/// Writes the recording to `path`; the caller renames it into place.
+pub fn write(
+    path: &Path,
+    recording: &Recording,
+    diagnosis: &Diagnosis,
+    segments: &[SegmentReplay],
+    report: &str,
+) -> Result<()> {
+    let rec = rerun::RecordingStreamBuilder::new("shoal-diagnose")
+        .save(path)
+        .with_context(|| format!("cannot create {}", path.display()))?;
+    log_all(&rec, recording, diagnosis, segments, report)
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    rec.flush_blocking()
+        .with_context(|| format!("cannot finish {}", path.display()))?;
+    Ok(())
+}
+
+fn log_all(
+    rec: &RecordingStream,
+    recording: &Recording,
+    diagnosis: &Diagnosis,
+    segments: &[SegmentReplay],
+    report: &str,
+) -> rerun::RecordingStreamResult<()> {
+    rec.log_static("diagnosis/report", &rerun::TextDocument::from_markdown(report))?;
+    log_regions(rec, diagnosis)?;
+    log_series_styles(rec)?;
+
+    let poses = &recording.poses;
+    let path: Vec<[f32; 2]> = poses
+        .x
+        .iter()
+        .zip(&poses.y)
+        .map(|(&x, &y)| [x as f32, y as f32])
+        .collect();
+    rec.log_static(
+        "world/observed/path",
+        &rerun::LineStrips2D::new([path]).with_colors([Color::from_rgb(170, 170, 170)]),
+    )?;
+    let mut next_pose_t = f64::MIN;
+    for i in 0..poses.t.len() {
+        if poses.t[i] < next_pose_t {
+            continue;
+        }
+        next_pose_t = poses.t[i] + POSE_EVERY_S;
+        rec.set_duration_secs(TIMELINE, poses.t[i]);
+        rec.log(
+            "world/observed/pose",
+            &rerun::Points2D::new([[poses.x[i] as f32, poses.y[i] as f32]])
+                .with_colors([colour(OBSERVED)])
+                .with_radii([0.03]),
+        )?;
+    }
+
+    for segment in segments {
+        rec.set_duration_secs(TIMELINE, segment.t_end);
+        rec.log(
+            "world/segment/observed",
+            &rerun::LineStrips2D::new([observed_over(recording, segment)]).with_colors([colour(OBSERVED)]),
+        )?;
+        for (name, prediction, rgb) in [
+            ("input", &segment.input, INPUT),
+            ("fitted", &segment.fitted, FITTED),
+        ] {
+            rec.log(
+                format!("world/segment/{name}_model"),
+                &rerun::LineStrips2D::new([strip(prediction)]).with_colors([colour(rgb)]),
+            )?;
+            let [along, across, heading] = prediction.residual;
+            rec.log(
+                format!("residuals/along_mm/{name}"),
+                &rerun::Scalars::new([along * 1e3]),
+            )?;
+            rec.log(
+                format!("residuals/across_mm/{name}"),
+                &rerun::Scalars::new([across * 1e3]),
+            )?;
+            rec.log(
+                format!("residuals/heading_deg/{name}"),
+                &rerun::Scalars::new([heading.to_degrees()]),
+            )?;
+        }
+    }
+    for &(t, input, fitted) in &diagnosis.heldout_errors {
+        rec.set_duration_secs(TIMELINE, t);
+        rec.log(
+            "heldout/position_error_mm/input",
+            &rerun::Scalars::new([input * 1e3]),
+        )?;
+        rec.log(
+            "heldout/position_error_mm/fitted",
+            &rerun::Scalars::new([fitted * 1e3]),
+        )?;
+    }
+    Ok(())
+}
+
+/// Each plotted series is named and coloured once, so the viewer's legends
+/// say which model a line belongs to.
+fn log_series_styles(rec: &RecordingStream) -> rerun::RecordingStreamResult<()> {
+    for parent in [
+        "residuals/along_mm",
+        "residuals/across_mm",
+        "residuals/heading_deg",
+        "heldout/position_error_mm",
+    ] {
+        for (name, label, rgb) in [
+            ("input", "input model", INPUT),
+            ("fitted", "fitted model", FITTED),
+        ] {
+            rec.log_static(
+                format!("{parent}/{name}"),
+                &rerun::SeriesLines::new()
+                    .with_names([label])
+                    .with_colors([colour(rgb)]),
+            )?;
+        }
+    }
+    Ok(())
+}
+
+/// Located regions (where the input model's residuals differ) and the
+/// regions of fitted effects, as labelled boxes.
+fn log_regions(rec: &RecordingStream, diagnosis: &Diagnosis) -> rerun::RecordingStreamResult<()> {
+    let (mut mins, mut sizes, mut labels) = (Vec::new(), Vec::new(), Vec::new());
+    for l in &diagnosis.located {
+        if let Some(r) = l.region {
+            mins.push([r[0] as f32, r[1] as f32]);
+            sizes.push([(r[2] - r[0]) as f32, (r[3] - r[1]) as f32]);
+            labels.push(format!("{} residual differs (z {:.1})", l.component, l.z));
+        }
+    }
+    rec.log_static(
+        "world/located",
+        &rerun::Boxes2D::from_mins_and_sizes(mins, sizes)
+            .with_labels(labels)
+            .with_colors([colour(LOCATED)]),
+    )?;
+    let (mut mins, mut sizes, mut labels) = (Vec::new(), Vec::new(), Vec::new());
+    for e in &diagnosis.effects {
+        if let Some(r) = e.place.region {
+            mins.push([r[0] as f32, r[1] as f32]);
+            sizes.push([(r[2] - r[0]) as f32, (r[3] - r[1]) as f32]);
+            labels.push(e.kind.to_string());
+        }
+    }
+    rec.log_static(
+        "world/fitted_zones",
+        &rerun::Boxes2D::from_mins_and_sizes(mins, sizes)
+            .with_labels(labels)
+            .with_colors([colour(ZONE)]),
+    )
+}
+
+fn strip(prediction: &Prediction) -> Vec<[f32; 2]> {
+    prediction
+        .path
+        .iter()
+        .map(|&[x, y]| [x as f32, y as f32])
+        .collect()
+}
+
+/// The observed positions within the segment's time span.
+fn observed_over(recording: &Recording, segment: &SegmentReplay) -> Vec<[f32; 2]> {
+    let p = &recording.poses;
+    let first = p.t.partition_point(|&t| t < segment.t_start);
+    let last = p.t.partition_point(|&t| t <= segment.t_end);
+    (first..last)
+        .map(|i| [p.x[i] as f32, p.y[i] as f32])
+        .collect()
+}

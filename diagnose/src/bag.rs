@@ -1,0 +1,491 @@
+//! ROS 2 bags (MCAP, CDR-encoded messages) as diagnosis input: velocity
+//! commands from one topic, observed poses from another. The container is
+//! read by the `mcap` crate and messages are decoded by the `cdr-encoding`
+//! crate against the ROS 2 message layouts below. Errors name the file, the
+//! topic and the message.
+
+use std::collections::BTreeMap;
+
+use serde::Deserialize;
+
+use crate::input::InputError;
+use crate::recording::{Commands, Poses};
+
+/// A topic of the bag: its name, message type and how many messages it has.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Topic {
+    pub name: String,
+    pub message_type: String,
+    pub messages: u64,
+}
+
+/// Which topics to read, and for `tf2_msgs/msg/TFMessage` which transform.
+#[derive(Clone, Debug, Default)]
+pub struct Selection<'a> {
+    pub commands_topic: &'a str,
+    pub poses_topic: &'a str,
+    /// The child frame whose transform is the robot's pose (TF topics only).
+    pub frame: Option<&'a str>,
+    /// Only transforms from this parent frame (TF topics only).
+    pub parent: Option<&'a str>,
+}
+
+/// Where a topic's times came from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TimeSource {
+    /// The messages' own `header.stamp`.
+    HeaderStamps,
+    /// The time the bag logged each message (the type has no header, or its
+    /// stamps were not set).
+    LogTimes,
+}
+
+impl std::fmt::Display for TimeSource {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            TimeSource::HeaderStamps => "the messages' header stamps",
+            TimeSource::LogTimes => "the bag's log times",
+        })
+    }
+}
+
+/// What a bag holds for diagnosis, and where each topic's times came from.
+#[derive(Clone, Debug)]
+pub struct BagRun {
+    pub commands: Commands,
+    pub poses: Poses,
+    pub command_times: TimeSource,
+    pub pose_times: TimeSource,
+}
+
+pub const COMMAND_TYPES: [&str; 2] = ["geometry_msgs/msg/Twist", "geometry_msgs/msg/TwistStamped"];
+pub const POSE_TYPES: [&str; 4] = [
+    "geometry_msgs/msg/PoseStamped",
+    "geometry_msgs/msg/PoseWithCovarianceStamped",
+    "nav_msgs/msg/Odometry",
+    "tf2_msgs/msg/TFMessage",
+];
+
+fn bag_error(file: &str, message: String) -> InputError {
+    InputError {
+        file: file.to_owned(),
+        line: None,
+        message,
+    }
+}
+
+fn messages<'a>(
+    bytes: &'a [u8],
+    file: &str,
+) -> Result<impl Iterator<Item = Result<mcap::Message<'a>, InputError>> + use<'a>, InputError> {
+    let owned = file.to_owned();
+    let stream = mcap::MessageStream::new(bytes).map_err(|e| {
+        bag_error(
+            file,
+            format!("not a readable MCAP file ({e}); ROS 2 bags must be recorded with the mcap storage plugin (`ros2 bag record -s mcap`)"),
+        )
+    })?;
+    Ok(stream.map(move |m| {
+        m.map_err(|e| bag_error(&owned, format!("the bag is damaged or cut short: {e}")))
+    }))
+}
+
+fn message_type(channel: &mcap::Channel) -> String {
+    channel
+        .schema
+        .as_ref()
+        .map_or_else(|| "(no schema)".to_owned(), |s| s.name.clone())
+}
+
+/// Every topic in the bag with its type and message count, by name.
+pub fn topics(bytes: &[u8], file: &str) -> Result<Vec<Topic>, InputError> {
+    let mut found: BTreeMap<String, Topic> = BTreeMap::new();
+    for message in messages(bytes, file)? {
+        let message = message?;
+        found
+            .entry(message.channel.topic.clone())
+            .or_insert_with(|| Topic {
+                name: message.channel.topic.clone(),
+                message_type: message_type(&message.channel),
+                messages: 0,
+            })
+            .messages += 1;
+    }
+    Ok(found.into_values().collect())
+}
+
+/// Reads the selected topics' commands and poses, sorted by time.
+pub fn read_bag(bytes: &[u8], file: &str, selection: &Selection) -> Result<BagRun, InputError> {
+    let mut commands: Vec<Stamped<(f64, f64)>> = Vec::new();
+    let mut poses: Vec<Stamped<(f64, f64, f64)>> = Vec::new();
+    let mut seen = [0_u64; 2];
+    for message in messages(bytes, file)? {
+        let message = message?;
+        let topic = message.channel.topic.as_str();
+        let index = if topic == selection.commands_topic {
+            0
+        } else if topic == selection.poses_topic {
+            1
+        } else {
+            continue;
+        };
+        seen[index] += 1;
+        let kind = message_type(&message.channel);
+        let at = |what: String| {
+            bag_error(
+                file,
+                format!("topic {topic}, message {} ({kind}): {what}", seen[index]),
+            )
+        };
+        if message.channel.message_encoding != "cdr" {
+            return Err(at(format!(
+                "messages are encoded as `{}`; ROS 2 bags use `cdr`",
+                message.channel.message_encoding
+            )));
+        }
+        let log_time = message.log_time as f64 * 1e-9;
+        if index == 0 {
+            commands.push(decode_command(&kind, &message.data, log_time).map_err(at)?);
+        } else {
+            poses.extend(decode_poses(&kind, &message.data, log_time, selection).map_err(at)?);
+        }
+    }
+    for (index, topic, types) in [
+        (0, selection.commands_topic, &COMMAND_TYPES[..]),
+        (1, selection.poses_topic, &POSE_TYPES[..]),
+    ] {
+        if seen[index] == 0 {
+            return Err(bag_error(
+                file,
+                format!(
+                    "no messages on topic {topic}; `shoal diagnose --bag {file}` lists the topics (expected one of type {})",
+                    types.join(", ")
+                ),
+            ));
+        }
+    }
+    if poses.is_empty() {
+        return Err(bag_error(
+            file,
+            format!(
+                "topic {} has no transform to child frame {}{}",
+                selection.poses_topic,
+                selection.frame.unwrap_or("?"),
+                selection
+                    .parent
+                    .map(|p| format!(" from parent {p}"))
+                    .unwrap_or_default()
+            ),
+        ));
+    }
+    let command_times = time_source(&commands);
+    let pose_times = time_source(&poses);
+    let mut run = BagRun {
+        commands: Commands::default(),
+        poses: Poses::default(),
+        command_times,
+        pose_times,
+    };
+    for (t, (v, omega)) in in_time_order(commands, command_times) {
+        // Two commands at one time: the later one is what the robot kept.
+        if run.commands.t.last() == Some(&t) {
+            run.commands.t.pop();
+            run.commands.v.pop();
+            run.commands.omega.pop();
+        }
+        run.commands.t.push(t);
+        run.commands.v.push(v);
+        run.commands.omega.push(omega);
+    }
+    for (t, (x, y, theta)) in in_time_order(poses, pose_times) {
+        if run.poses.t.last() != Some(&t) {
+            run.poses.push(t, x, y, theta);
+        }
+    }
+    Ok(run)
+}
+
+/// A decoded value with its header stamp (if the type has one and it was
+/// set) and the bag's log time.
+struct Stamped<T> {
+    stamp: Option<f64>,
+    log_time: f64,
+    value: T,
+}
+
+/// Header stamps if every message of the topic has one, else log times: one
+/// clock per topic, never a mix.
+fn time_source<T>(messages: &[Stamped<T>]) -> TimeSource {
+    if messages.iter().all(|m| m.stamp.is_some()) {
+        TimeSource::HeaderStamps
+    } else {
+        TimeSource::LogTimes
+    }
+}
+
+fn in_time_order<T>(messages: Vec<Stamped<T>>, source: TimeSource) -> Vec<(f64, T)> {
+    let mut timed: Vec<(f64, T)> = messages
+        .into_iter()
+        .map(|m| {
+            let t = match source {
+                TimeSource::HeaderStamps => m.stamp.unwrap_or(m.log_time),
+                TimeSource::LogTimes => m.log_time,
+            };
+            (t, m.value)
+        })
+        .collect();
+    timed.sort_by(|a, b| a.0.total_cmp(&b.0));
+    timed
+}
+
+/// Decodes a serialized ROS 2 message: a 4-byte encapsulation header (its
+/// second byte says the byte order) and the CDR body, whose alignment
+/// counts from the body's start.
+fn decode<'de, T: Deserialize<'de>>(data: &'de [u8]) -> Result<T, String> {
+    let (Some(&[_, representation, _, _]), Some(body)) = (data.first_chunk::<4>(), data.get(4..))
+    else {
+        return Err(format!("{} bytes, too short for a CDR message", data.len()));
+    };
+    let decoded = match representation {
+        0 => cdr_encoding::from_bytes::<T, byteorder::BigEndian>(body),
+        1 => cdr_encoding::from_bytes::<T, byteorder::LittleEndian>(body),
+        other => {
+            return Err(format!(
+                "encapsulation {other} is not plain CDR (0 or 1); XCDR2 and parameter lists are not read"
+            ));
+        }
+    };
+    decoded
+        .map(|(message, _)| message)
+        .map_err(|e| format!("cannot decode the message: {e}"))
+}
+
+fn finite(values: &[(&str, f64)]) -> Result<(), String> {
+    match values.iter().find(|(_, v)| !v.is_finite()) {
+        Some((name, v)) => Err(format!("field {name} is not finite: {v}")),
+        None => Ok(()),
+    }
+}
+
+fn decode_command(kind: &str, data: &[u8], log_time: f64) -> Result<Stamped<(f64, f64)>, String> {
+    let (stamp, twist) = match kind {
+        "geometry_msgs/msg/Twist" => (None, decode::<msg::Twist>(data)?),
+        "geometry_msgs/msg/TwistStamped" => {
+            let m = decode::<msg::TwistStamped>(data)?;
+            (m.header.stamp.seconds(), m.twist)
+        }
+        other => {
+            return Err(format!(
+                "commands must be {}, not {other}",
+                COMMAND_TYPES.join(" or ")
+            ));
+        }
+    };
+    finite(&[
+        ("linear.x", twist.linear.x),
+        ("angular.z", twist.angular.z),
+    ])?;
+    Ok(Stamped {
+        stamp,
+        log_time,
+        value: (twist.linear.x, twist.angular.z),
+    })
+}
+
+fn decode_poses(
+    kind: &str,
+    data: &[u8],
+    log_time: f64,
+    selection: &Selection,
+) -> Result<Vec<Stamped<(f64, f64, f64)>>, String> {
+    let one = |header: msg::Header, pose: msg::Pose| -> Result<Vec<_>, String> {
+        Ok(vec![planar(header.stamp.seconds(), log_time, &pose.position, &pose.orientation)?])
+    };
+    match kind {
+        "geometry_msgs/msg/PoseStamped" => {
+            let m = decode::<msg::PoseStamped>(data)?;
+            one(m.header, m.pose)
+        }
+        "geometry_msgs/msg/PoseWithCovarianceStamped" => {
+            let m = decode::<msg::PoseWithCovarianceStamped>(data)?;
+            one(m.header, m.pose.pose)
+        }
+        "nav_msgs/msg/Odometry" => {
+            let m = decode::<msg::Odometry>(data)?;
+            one(m.header, m.pose.pose)
+        }
+        "tf2_msgs/msg/TFMessage" => {
+            let frame = selection
+                .frame
+                .ok_or("a TF topic needs --frame CHILD: the robot's frame (e.g. base_link)")?;
+            let m = decode::<msg::TfMessage>(data)?;
+            let same = |a: &str, b: &str| a.trim_start_matches('/') == b.trim_start_matches('/');
+            m.transforms
+                .into_iter()
+                .filter(|t| same(&t.child_frame_id, frame))
+                .filter(|t| selection.parent.is_none_or(|p| same(&t.header.frame_id, p)))
+                .map(|t| {
+                    let position = msg::Vector3 {
+                        x: t.transform.translation.x,
+                        y: t.transform.translation.y,
+                        z: t.transform.translation.z,
+                    };
+                    planar(
+                        t.header.stamp.seconds(),
+                        log_time,
+                        &position,
+                        &t.transform.rotation,
+                    )
+                })
+                .collect()
+        }
+        other => Err(format!("poses must be {}, not {other}", POSE_TYPES.join(", "))),
+    }
+}
+
+/// A pose on the floor: position and yaw (heading about z).
+fn planar(
+    stamp: Option<f64>,
+    log_time: f64,
+    p: &msg::Vector3,
+    q: &msg::Quaternion,
+) -> Result<Stamped<(f64, f64, f64)>, String> {
+    finite(&[
+        ("position.x", p.x),
+        ("position.y", p.y),
+        ("orientation.x", q.x),
+        ("orientation.y", q.y),
+        ("orientation.z", q.z),
+        ("orientation.w", q.w),
+    ])?;
+    let norm = (q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w).sqrt();
+    if !(0.5..=1.5).contains(&norm) {
+        return Err(format!(
+            "orientation is not a rotation: its quaternion has norm {norm:.3}"
+        ));
+    }
+    let yaw = (2.0 * (q.w * q.z + q.x * q.y)).atan2(1.0 - 2.0 * (q.y * q.y + q.z * q.z));
+    Ok(Stamped {
+        stamp,
+        log_time,
+        value: (p.x, p.y, yaw),
+    })
+}
+
+/// The ROS 2 message layouts read here, field for field as CDR lays them out.
+mod msg {
+    use serde::Deserialize;
+
+    #[derive(Deserialize)]
+    pub struct Time {
+        pub sec: i32,
+        pub nanosec: u32,
+    }
+
+    impl Time {
+        /// Seconds, or `None` for an unset (zero) stamp.
+        pub fn seconds(&self) -> Option<f64> {
+            (self.sec != 0 || self.nanosec != 0)
+                .then(|| f64::from(self.sec) + f64::from(self.nanosec) * 1e-9)
+        }
+    }
+
+    #[derive(Deserialize)]
+    pub struct Header {
+        pub stamp: Time,
+        pub frame_id: String,
+    }
+
+    /// Also `geometry_msgs/msg/Point`: the same three doubles.
+    #[derive(Deserialize)]
+    pub struct Vector3 {
+        pub x: f64,
+        pub y: f64,
+        pub z: f64,
+    }
+
+    #[derive(Deserialize)]
+    pub struct Quaternion {
+        pub x: f64,
+        pub y: f64,
+        pub z: f64,
+        pub w: f64,
+    }
+
+    #[derive(Deserialize)]
+    pub struct Twist {
+        pub linear: Vector3,
+        pub angular: Vector3,
+    }
+
+    #[derive(Deserialize)]
+    pub struct TwistStamped {
+        pub header: Header,
+        pub twist: Twist,
+    }
+
+    #[derive(Deserialize)]
+    pub struct Pose {
+        pub position: Vector3,
+        pub orientation: Quaternion,
+    }
+
+    #[derive(Deserialize)]
+    pub struct PoseStamped {
+        pub header: Header,
+        pub pose: Pose,
+    }
+
+    /// A fixed `float64[36]`: CDR writes it without a length, as six rows
+    /// of six (serde derives arrays up to 32).
+    type Covariance = [[f64; 6]; 6];
+
+    #[derive(Deserialize)]
+    pub struct PoseWithCovariance {
+        pub pose: Pose,
+        #[allow(dead_code)]
+        covariance: Covariance,
+    }
+
+    #[derive(Deserialize)]
+    pub struct PoseWithCovarianceStamped {
+        pub header: Header,
+        pub pose: PoseWithCovariance,
+    }
+
+    #[derive(Deserialize)]
+    pub struct TwistWithCovariance {
+        #[allow(dead_code)]
+        twist: Twist,
+        #[allow(dead_code)]
+        covariance: Covariance,
+    }
+
+    #[derive(Deserialize)]
+    pub struct Odometry {
+        pub header: Header,
+        #[allow(dead_code)]
+        child_frame_id: String,
+        pub pose: PoseWithCovariance,
+        #[allow(dead_code)]
+        twist: TwistWithCovariance,
+    }
+
+    #[derive(Deserialize)]
+    pub struct Transform {
+        pub translation: Vector3,
+        pub rotation: Quaternion,
+    }
+
+    #[derive(Deserialize)]
+    pub struct TransformStamped {
+        pub header: Header,
+        pub child_frame_id: String,
+        pub transform: Transform,
+    }
+
+    #[derive(Deserialize)]
+    pub struct TfMessage {
+        pub transforms: Vec<TransformStamped>,
+    }
+}

@@ -1,0 +1,126 @@
+//! The comparison diagnosis made, segment by segment, as something to look
+//! at: where the input model and the fitted one predicted the robot would be
+//! over each segment, and how far from the observed end each was.
+
+use shoal_physics::{Pose, UnicycleModel};
+
+use crate::diagnosis::{Options, prepare};
+use crate::likelihood::{Residual, residual_of, warmup_steps};
+use crate::recording::Recording;
+
+/// One model's prediction over one segment.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Prediction {
+    /// Run seconds of each predicted pose.
+    pub t: Vec<f64>,
+    /// Predicted positions (m), the segment's observed start first.
+    pub path: Vec<[f64; 2]>,
+    /// Observed minus predicted at the end: along, across (m), heading (rad).
+    pub residual: Residual,
+}
+
+/// One segment: the input model's prediction and the fitted model's.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SegmentReplay {
+    pub t_start: f64,
+    pub t_end: f64,
+    pub input: Prediction,
+    pub fitted: Prediction,
+}
+
+/// Every segment diagnosis compared, predicted by `input` (the model the
+/// user gave) and `fitted` (the model diagnosis wrote), from the same
+/// observed starts diagnosis used (pose outliers set aside as it does).
+pub fn replay(
+    recording: &Recording,
+    input: &UnicycleModel,
+    fitted: &UnicycleModel,
+    options: &Options,
+) -> Vec<SegmentReplay> {
+    let (recording, _) = recording.without_pose_outliers();
+    let prepared = prepare(&recording, options);
+    let (grid, segments) = (&prepared.grid, &prepared.segments);
+    let predict = |model: &UnicycleModel| -> Vec<Prediction> {
+        let mut predictions: Vec<Prediction> = segments
+            .iter()
+            .map(|s| Prediction {
+                t: vec![s.t_start],
+                path: vec![[s.start.x, s.start.y]],
+                residual: [0.0; 3],
+            })
+            .collect();
+        let ends = model.trace_stretches(
+            grid,
+            segments.iter().map(|s| (s.start, s.from, s.to)),
+            warmup_steps(model, grid),
+            |index, step, pose: Pose| {
+                if let Some(p) = predictions.get_mut(index) {
+                    p.t.push(grid.time(step) + grid.dt);
+                    p.path.push([pose.x, pose.y]);
+                }
+            },
+        );
+        for ((p, s), end) in predictions.iter_mut().zip(segments).zip(ends) {
+            p.residual = residual_of(s, end);
+        }
+        predictions
+    };
+    predict(input)
+        .into_iter()
+        .zip(predict(fitted))
+        .zip(segments)
+        .map(|((input, fitted), s)| SegmentReplay {
+            t_start: s.t_start,
+            t_end: s.t_end,
+            input,
+            fitted,
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::generate::{Settings, generate};
+    use crate::likelihood::residuals;
+    use shoal_physics::{Effect, ScopedEffect};
+
+    #[test]
+    fn the_replay_predicts_what_diagnosis_scored() {
+        let truth = UnicycleModel::with_effects(vec![ScopedEffect::always(Effect::SpeedScale {
+            factor: 0.8,
+        })]);
+        let recording = generate(
+            &truth,
+            &Settings {
+                duration_s: 60.0,
+                ..Settings::default()
+            },
+        );
+        let options = Options::default();
+        let segments = replay(&recording, &UnicycleModel::plain(), &truth, &options);
+        assert!(segments.len() > 30, "{} segments", segments.len());
+
+        // The ends are exactly the residuals the likelihood scores.
+        let (cleaned, _) = recording.without_pose_outliers();
+        let prepared = prepare(&cleaned, &options);
+        let scored = residuals(&truth, &prepared.grid, &prepared.segments);
+        for (s, r) in segments.iter().zip(&scored) {
+            assert_eq!(&s.fitted.residual, r);
+        }
+        // A path runs from the segment's start to its end, a pose a step.
+        let s = &segments[10];
+        assert_eq!(s.input.t.first(), Some(&s.t_start));
+        assert!((s.input.t.last().copied().unwrap_or(0.0) - s.t_end).abs() < 1e-6);
+        assert_eq!(s.input.t.len(), s.input.path.len());
+        // The plain model overshoots a body that drives at 80%: its along
+        // residual is negative and far larger than the true model's.
+        let mean_along = |f: fn(&SegmentReplay) -> f64| {
+            segments.iter().map(f).sum::<f64>() / segments.len() as f64
+        };
+        let input = mean_along(|s| s.input.residual[0]);
+        let fitted = mean_along(|s| s.fitted.residual[0]);
+        assert!(input < -0.005, "plain along residual {input}");
+        assert!(fitted.abs() < input.abs() / 5.0, "fitted {fitted} vs plain {input}");
+    }
+}
