@@ -124,6 +124,11 @@ fn load_csv_pair(commands: &Path, poses: &Path) -> Result<Recording> {
 fn load_bag(path: &Path, args: &DiagnoseArgs) -> Result<Recording> {
     let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
     let file = path.display().to_string();
+    if !bytes.starts_with(bag::MCAP_MAGIC) {
+        bail!(
+            "{file}: not an MCAP file; ROS 2 bags in the default sqlite3 storage (.db3) can be converted with `ros2 bag convert`, or recorded with `ros2 bag record -s mcap`"
+        );
+    }
     let (Some(commands_topic), Some(poses_topic)) = (&args.commands_topic, &args.poses_topic)
     else {
         let topics = bag::topics(&bytes, &file)?;
@@ -159,7 +164,11 @@ fn load_bag(path: &Path, args: &DiagnoseArgs) -> Result<Recording> {
         "shoal diagnose: times of {commands_topic} from {}, of {poses_topic} from {}",
         run.command_times, run.pose_times
     );
-    Ok(Recording::from_absolute(run.commands, run.poses))
+    Ok(Recording {
+        commands: run.commands,
+        poses: run.poses,
+        t_origin: run.t_origin,
+    })
 }
 
 fn or_none(names: &[&str]) -> String {

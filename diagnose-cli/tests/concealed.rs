@@ -1,5 +1,6 @@
 //! Diagnosis end to end through the real `shoal-diagnose` binary: runs
-//! written by the generator as CSV files, diagnosed blind from the files.
+//! written by the generator as CSV files (and as ROS 2 bags by the official
+//! Python writer), diagnosed blind from the files.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -330,4 +331,122 @@ fn too_little_data_is_an_error_not_a_verdict() {
     let output = Command::new(binary()).arg(&dir).output().expect("run");
     assert!(!output.status.success());
     assert!(String::from_utf8_lossy(&output.stderr).contains("too little to compare"));
+}
+
+/// Writes the run in `dir` as a ROS 2 bag with the official Python writer
+/// (`mcap-ros2-support`), poses as `pose`, `tf` or `odometry` messages.
+fn write_bag(dir: &Path, poses_as: &str) -> PathBuf {
+    let bag = dir.join(format!("{poses_as}.mcap"));
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/write_bag.py");
+    let output = Command::new("python3")
+        .arg(script)
+        .arg(dir)
+        .arg(&bag)
+        .arg(poses_as)
+        .output()
+        .expect("run python3");
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    bag
+}
+
+fn diagnose_bag(bag: &Path, topics: &[&str]) -> std::process::Output {
+    Command::new(binary())
+        .arg("--bag")
+        .arg(bag)
+        .args(topics)
+        .arg("--json")
+        .output()
+        .expect("run shoal-diagnose")
+}
+
+#[test]
+fn a_ros2_bag_is_diagnosed_from_pose_tf_and_odometry_topics() {
+    let case = cases(DURATION_S)
+        .into_iter()
+        .find(|c| c.name == "latency")
+        .expect("latency case");
+    let (from_csv, dir) = diagnose_generated("bag", &truth_toml(&case), &[]);
+    let true_latency = case.truth[0].effect.params()[0].1;
+    for (poses_as, topics) in [
+        ("pose", &["--commands-topic", "/cmd_vel", "--poses-topic", "/mocap/pose"][..]),
+        (
+            "tf",
+            &["--commands-topic", "/cmd_vel", "--poses-topic", "/tf", "--frame", "base_link", "--parent", "odom"][..],
+        ),
+        ("odometry", &["--commands-topic", "/cmd_vel", "--poses-topic", "/odom"][..]),
+    ] {
+        let bag = write_bag(&dir, poses_as);
+        let output = diagnose_bag(&bag, topics);
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(output.status.success(), "{poses_as}: {stderr}");
+        // Twist has no header; the poses' header stamps are used.
+        assert!(
+            stderr.contains("/cmd_vel from the bag's log times")
+                && stderr.contains("from the messages' header stamps"),
+            "{stderr}"
+        );
+        let d: Value = serde_json::from_slice(&output.stdout).expect("JSON");
+        assert_eq!(kinds(&d), ["latency"], "{poses_as}: {d}");
+        let fitted = d["effects"][0]["params"]["seconds"].as_f64().expect("seconds");
+        assert!(
+            (fitted - true_latency).abs() < 0.2 * true_latency,
+            "{poses_as}: {fitted} s for {true_latency} s"
+        );
+        // The bag holds the CSV's run: the same comparison to the last digits.
+        let (a, b) = (&from_csv["baseline"]["heldout_rmse_pos_m"], &d["baseline"]["heldout_rmse_pos_m"]);
+        assert!(
+            (a.as_f64().expect("rmse") - b.as_f64().expect("rmse")).abs() < 1e-9,
+            "{poses_as}: {a} from CSV vs {b} from the bag"
+        );
+    }
+    // Without topics, the bag's topics and their types are listed.
+    let output = diagnose_bag(&dir.join("tf.mcap"), &[]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success());
+    assert!(
+        stderr.contains("/cmd_vel  geometry_msgs/msg/Twist")
+            && stderr.contains("/tf  tf2_msgs/msg/TFMessage")
+            && stderr.contains("--commands-topic"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn bad_bags_are_refused_naming_the_file_topic_and_message() {
+    let (_, dir) = diagnose_generated("badbag", "", &[]);
+    let bag = write_bag(&dir, "tf");
+    let bytes = std::fs::read(&bag).expect("read bag");
+    let cut = dir.join("cut.mcap");
+    std::fs::write(&cut, &bytes[..bytes.len() / 2]).expect("write");
+    let csv = dir.join("commands.csv");
+    let topics = ["--commands-topic", "/cmd_vel", "--poses-topic", "/tf", "--frame", "base_link"];
+    let cases: [(&Path, &[&str], &str); 5] = [
+        (&csv, &topics, "commands.csv: not an MCAP file"),
+        (&cut, &topics, "cut.mcap: the bag is damaged or cut short"),
+        (
+            &bag,
+            &["--commands-topic", "/tf", "--poses-topic", "/tf", "--frame", "base_link"],
+            "tf.mcap: topic /tf, message 1 (tf2_msgs/msg/TFMessage): commands must be",
+        ),
+        (
+            &bag,
+            &["--commands-topic", "/cmd_vel", "--poses-topic", "/tf"],
+            "tf.mcap: topic /tf, message 1 (tf2_msgs/msg/TFMessage): a TF topic needs --frame",
+        ),
+        (
+            &bag,
+            &["--commands-topic", "/cmd", "--poses-topic", "/tf", "--frame", "base_link"],
+            "tf.mcap: no messages on topic /cmd",
+        ),
+    ];
+    for (file, args, expected) in cases {
+        let output = diagnose_bag(file, args);
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(!output.status.success(), "{expected}: {stderr}");
+        assert!(stderr.contains(expected), "expected `{expected}` in: {stderr}");
+    }
 }

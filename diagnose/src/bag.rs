@@ -50,13 +50,21 @@ impl std::fmt::Display for TimeSource {
 }
 
 /// What a bag holds for diagnosis, and where each topic's times came from.
+/// Times are seconds after the first command, taken in whole nanoseconds:
+/// as `f64` seconds since 1970 they would be off by up to a quarter of a
+/// microsecond, enough to move a command across a grid step.
 #[derive(Clone, Debug)]
 pub struct BagRun {
     pub commands: Commands,
     pub poses: Poses,
+    /// Seconds since the epoch of the bag's clock at the first command.
+    pub t_origin: f64,
     pub command_times: TimeSource,
     pub pose_times: TimeSource,
 }
+
+/// The bytes every MCAP file starts with.
+pub const MCAP_MAGIC: &[u8] = mcap::MAGIC;
 
 pub const COMMAND_TYPES: [&str; 2] = ["geometry_msgs/msg/Twist", "geometry_msgs/msg/TwistStamped"];
 pub const POSE_TYPES: [&str; 4] = [
@@ -143,7 +151,8 @@ pub fn read_bag(bytes: &[u8], file: &str, selection: &Selection) -> Result<BagRu
                 message.channel.message_encoding
             )));
         }
-        let log_time = message.log_time as f64 * 1e-9;
+        let log_time = i64::try_from(message.log_time)
+            .map_err(|_| at(format!("log time {} ns is past the year 2262", message.log_time)))?;
         if index == 0 {
             commands.push(decode_command(&kind, &message.data, log_time).map_err(at)?);
         } else {
@@ -180,13 +189,19 @@ pub fn read_bag(bytes: &[u8], file: &str, selection: &Selection) -> Result<BagRu
     }
     let command_times = time_source(&commands);
     let pose_times = time_source(&poses);
+    let commands = in_time_order(commands, command_times);
+    let poses = in_time_order(poses, pose_times);
+    let origin_ns = commands.first().map_or(0, |c| c.0);
+    let seconds = |ns: i64| (ns - origin_ns) as f64 * 1e-9;
     let mut run = BagRun {
         commands: Commands::default(),
         poses: Poses::default(),
+        t_origin: origin_ns as f64 * 1e-9,
         command_times,
         pose_times,
     };
-    for (t, (v, omega)) in in_time_order(commands, command_times) {
+    for (ns, (v, omega)) in commands {
+        let t = seconds(ns);
         // Two commands at one time: the later one is what the robot kept.
         if run.commands.t.last() == Some(&t) {
             run.commands.t.pop();
@@ -197,7 +212,8 @@ pub fn read_bag(bytes: &[u8], file: &str, selection: &Selection) -> Result<BagRu
         run.commands.v.push(v);
         run.commands.omega.push(omega);
     }
-    for (t, (x, y, theta)) in in_time_order(poses, pose_times) {
+    for (ns, (x, y, theta)) in poses {
+        let t = seconds(ns);
         if run.poses.t.last() != Some(&t) {
             run.poses.push(t, x, y, theta);
         }
@@ -206,10 +222,10 @@ pub fn read_bag(bytes: &[u8], file: &str, selection: &Selection) -> Result<BagRu
 }
 
 /// A decoded value with its header stamp (if the type has one and it was
-/// set) and the bag's log time.
+/// set) and the bag's log time, both in nanoseconds.
 struct Stamped<T> {
-    stamp: Option<f64>,
-    log_time: f64,
+    stamp: Option<i64>,
+    log_time: i64,
     value: T,
 }
 
@@ -223,8 +239,8 @@ fn time_source<T>(messages: &[Stamped<T>]) -> TimeSource {
     }
 }
 
-fn in_time_order<T>(messages: Vec<Stamped<T>>, source: TimeSource) -> Vec<(f64, T)> {
-    let mut timed: Vec<(f64, T)> = messages
+fn in_time_order<T>(messages: Vec<Stamped<T>>, source: TimeSource) -> Vec<(i64, T)> {
+    let mut timed: Vec<(i64, T)> = messages
         .into_iter()
         .map(|m| {
             let t = match source {
@@ -234,7 +250,7 @@ fn in_time_order<T>(messages: Vec<Stamped<T>>, source: TimeSource) -> Vec<(f64, 
             (t, m.value)
         })
         .collect();
-    timed.sort_by(|a, b| a.0.total_cmp(&b.0));
+    timed.sort_by_key(|m| m.0);
     timed
 }
 
@@ -267,12 +283,12 @@ fn finite(values: &[(&str, f64)]) -> Result<(), String> {
     }
 }
 
-fn decode_command(kind: &str, data: &[u8], log_time: f64) -> Result<Stamped<(f64, f64)>, String> {
+fn decode_command(kind: &str, data: &[u8], log_time: i64) -> Result<Stamped<(f64, f64)>, String> {
     let (stamp, twist) = match kind {
         "geometry_msgs/msg/Twist" => (None, decode::<msg::Twist>(data)?),
         "geometry_msgs/msg/TwistStamped" => {
             let m = decode::<msg::TwistStamped>(data)?;
-            (m.header.stamp.seconds(), m.twist)
+            (m.header.stamp.nanoseconds(), m.twist)
         }
         other => {
             return Err(format!(
@@ -295,11 +311,11 @@ fn decode_command(kind: &str, data: &[u8], log_time: f64) -> Result<Stamped<(f64
 fn decode_poses(
     kind: &str,
     data: &[u8],
-    log_time: f64,
+    log_time: i64,
     selection: &Selection,
 ) -> Result<Vec<Stamped<(f64, f64, f64)>>, String> {
     let one = |header: msg::Header, pose: msg::Pose| -> Result<Vec<_>, String> {
-        Ok(vec![planar(header.stamp.seconds(), log_time, &pose.position, &pose.orientation)?])
+        Ok(vec![planar(header.stamp.nanoseconds(), log_time, &pose.position, &pose.orientation)?])
     };
     match kind {
         "geometry_msgs/msg/PoseStamped" => {
@@ -331,7 +347,7 @@ fn decode_poses(
                         z: t.transform.translation.z,
                     };
                     planar(
-                        t.header.stamp.seconds(),
+                        t.header.stamp.nanoseconds(),
                         log_time,
                         &position,
                         &t.transform.rotation,
@@ -345,8 +361,8 @@ fn decode_poses(
 
 /// A pose on the floor: position and yaw (heading about z).
 fn planar(
-    stamp: Option<f64>,
-    log_time: f64,
+    stamp: Option<i64>,
+    log_time: i64,
     p: &msg::Vector3,
     q: &msg::Quaternion,
 ) -> Result<Stamped<(f64, f64, f64)>, String> {
@@ -383,10 +399,10 @@ mod msg {
     }
 
     impl Time {
-        /// Seconds, or `None` for an unset (zero) stamp.
-        pub fn seconds(&self) -> Option<f64> {
+        /// Nanoseconds, or `None` for an unset (zero) stamp.
+        pub fn nanoseconds(&self) -> Option<i64> {
             (self.sec != 0 || self.nanosec != 0)
-                .then(|| f64::from(self.sec) + f64::from(self.nanosec) * 1e-9)
+                .then(|| i64::from(self.sec) * 1_000_000_000 + i64::from(self.nanosec))
         }
     }
 

@@ -1,0 +1,148 @@
+"""Writes a run (commands.csv, poses.csv) as a ROS 2 bag with the official
+Python writer (mcap-ros2-support, which encodes CDR as ROS 2 does).
+
+Usage: write_bag.py RUN_DIR OUT.mcap {pose,tf,odometry}
+
+Commands go to /cmd_vel as geometry_msgs/msg/Twist (no header: the bag's
+log times). Poses go, by the last argument, to /mocap/pose as
+geometry_msgs/msg/PoseStamped, to /tf as tf2_msgs/msg/TFMessage (odom ->
+base_link, beside a camera transform that must be ignored), or to /odom as
+nav_msgs/msg/Odometry. Times start at 1.7e9 s, as a wall clock would.
+"""
+
+import csv
+import math
+import sys
+
+from mcap_ros2.writer import Writer
+
+SEPARATOR = "=" * 80 + "\n"
+
+VECTOR3 = "float64 x\nfloat64 y\nfloat64 z\n"
+POINT = "float64 x\nfloat64 y\nfloat64 z\n"
+QUATERNION = "float64 x 0\nfloat64 y 0\nfloat64 z 0\nfloat64 w 1\n"
+HEADER = "builtin_interfaces/Time stamp\nstring frame_id\n"
+TIME = "int32 sec\nuint32 nanosec\n"
+POSE = "Point position\nQuaternion orientation\n"
+TWIST = "Vector3 linear\nVector3 angular\n"
+
+
+def definition(main: str, *deps: tuple) -> str:
+    text = main
+    for name, body in deps:
+        text += SEPARATOR + f"MSG: {name}\n" + body
+    return text
+
+
+TWIST_DEF = definition(TWIST, ("geometry_msgs/Vector3", VECTOR3))
+POSE_STAMPED_DEF = definition(
+    "std_msgs/Header header\nPose pose\n",
+    ("std_msgs/Header", HEADER),
+    ("builtin_interfaces/Time", TIME),
+    ("geometry_msgs/Pose", POSE),
+    ("geometry_msgs/Point", POINT),
+    ("geometry_msgs/Quaternion", QUATERNION),
+)
+TF_DEF = definition(
+    "geometry_msgs/TransformStamped[] transforms\n",
+    ("geometry_msgs/TransformStamped", "std_msgs/Header header\nstring child_frame_id\nTransform transform\n"),
+    ("std_msgs/Header", HEADER),
+    ("builtin_interfaces/Time", TIME),
+    ("geometry_msgs/Transform", "Vector3 translation\nQuaternion rotation\n"),
+    ("geometry_msgs/Vector3", VECTOR3),
+    ("geometry_msgs/Quaternion", QUATERNION),
+)
+ODOMETRY_DEF = definition(
+    "std_msgs/Header header\nstring child_frame_id\ngeometry_msgs/PoseWithCovariance pose\ngeometry_msgs/TwistWithCovariance twist\n",
+    ("std_msgs/Header", HEADER),
+    ("builtin_interfaces/Time", TIME),
+    ("geometry_msgs/PoseWithCovariance", "Pose pose\nfloat64[36] covariance\n"),
+    ("geometry_msgs/Pose", POSE),
+    ("geometry_msgs/Point", POINT),
+    ("geometry_msgs/Quaternion", QUATERNION),
+    ("geometry_msgs/TwistWithCovariance", "Twist twist\nfloat64[36] covariance\n"),
+    ("geometry_msgs/Twist", TWIST),
+    ("geometry_msgs/Vector3", VECTOR3),
+)
+
+EPOCH_S = 1_700_000_000
+
+
+def rows(path: str):
+    with open(path, newline="") as f:
+        for row in csv.DictReader(f):
+            yield {k: float(v) for k, v in row.items()}
+
+
+def nanos(t: float) -> int:
+    # In integers: (EPOCH_S + t) as a float is a quarter-microsecond coarse.
+    return EPOCH_S * 1_000_000_000 + round(t * 1e9)
+
+
+def stamp(t: float) -> dict:
+    ns = nanos(t)
+    return {"sec": ns // 1_000_000_000, "nanosec": ns % 1_000_000_000}
+
+
+def quaternion(theta: float) -> dict:
+    return {"x": 0.0, "y": 0.0, "z": math.sin(theta / 2), "w": math.cos(theta / 2)}
+
+
+def main(run: str, out: str, poses_as: str) -> None:
+    with open(out, "wb") as f:
+        writer = Writer(f)
+        twist = writer.register_msgdef("geometry_msgs/msg/Twist", TWIST_DEF)
+        # Messages are written in time order, as a recorder would.
+        messages = []
+        for r in rows(f"{run}/commands.csv"):
+            message = {
+                "linear": {"x": r["v"], "y": 0.0, "z": 0.0},
+                "angular": {"x": 0.0, "y": 0.0, "z": r["omega"]},
+            }
+            messages.append((r["t"], "/cmd_vel", twist, message))
+        if poses_as == "pose":
+            schema = writer.register_msgdef("geometry_msgs/msg/PoseStamped", POSE_STAMPED_DEF)
+            topic = "/mocap/pose"
+        elif poses_as == "tf":
+            schema = writer.register_msgdef("tf2_msgs/msg/TFMessage", TF_DEF)
+            topic = "/tf"
+        else:
+            schema = writer.register_msgdef("nav_msgs/msg/Odometry", ODOMETRY_DEF)
+            topic = "/odom"
+        for r in rows(f"{run}/poses.csv"):
+            position = {"x": r["x"], "y": r["y"], "z": 0.0}
+            header = {"stamp": stamp(r["t"]), "frame_id": "odom"}
+            if poses_as == "pose":
+                message = {"header": header, "pose": {"position": position, "orientation": quaternion(r["theta"])}}
+            elif poses_as == "tf":
+                robot = {
+                    "header": header,
+                    "child_frame_id": "base_link",
+                    "transform": {"translation": position, "rotation": quaternion(r["theta"])},
+                }
+                camera = {
+                    "header": {"stamp": stamp(r["t"]), "frame_id": "base_link"},
+                    "child_frame_id": "camera",
+                    "transform": {"translation": {"x": 0.1, "y": 0.0, "z": 0.3}, "rotation": quaternion(0.0)},
+                }
+                message = {"transforms": [camera, robot]}
+            else:
+                zero = [0.0] * 36
+                message = {
+                    "header": header,
+                    "child_frame_id": "base_link",
+                    "pose": {"pose": {"position": position, "orientation": quaternion(r["theta"])}, "covariance": zero},
+                    "twist": {
+                        "twist": {"linear": {"x": 0.0, "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": 0.0}},
+                        "covariance": zero,
+                    },
+                }
+            messages.append((r["t"], topic, schema, message))
+        messages.sort(key=lambda m: m[0])
+        for t, topic, schema, message in messages:
+            writer.write_message(topic=topic, schema=schema, message=message, log_time=nanos(t), publish_time=nanos(t))
+        writer.finish()
+
+
+if __name__ == "__main__":
+    main(sys.argv[1], sys.argv[2], sys.argv[3])
