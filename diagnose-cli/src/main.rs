@@ -86,24 +86,7 @@ struct DiagnoseArgs {
 #[derive(Subcommand)]
 enum Commands {
     /// Write a synthetic run (commands.csv, poses.csv) whose body has the effects of --truth.
-    Generate {
-        /// A model file with the true effects; default: none.
-        #[arg(long, conflicts_with = "case")]
-        truth: Option<PathBuf>,
-        /// One of the experiment's cases (e.g. surface_zone): its effects and
-        /// its operator, so a run of the experiment can be reproduced.
-        #[arg(long)]
-        case: Option<String>,
-        /// The experiment's noise colour to generate with.
-        #[arg(long, value_parser = NoiseColour::parse, default_value = "white")]
-        noise: NoiseColour,
-        #[arg(long)]
-        out: PathBuf,
-        #[arg(long, default_value_t = 1)]
-        seed: u64,
-        #[arg(long, default_value_t = 600.0)]
-        duration: f64,
-    },
+    Generate(GenerateArgs),
     /// Detection, false positives and parameter error over many seeds, per effect.
     Experiment(ExperimentArgs),
 }
@@ -348,15 +331,11 @@ fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
     Ok(())
 }
 
-fn run_generate(
-    truth: Option<&Path>,
-    case: Option<&str>,
-    noise: &NoiseColour,
-    out: &Path,
-    seed: u64,
-    duration: f64,
-) -> Result<()> {
-    let case = case
+fn run_generate(args: &GenerateArgs) -> Result<()> {
+    let (out, duration) = (&args.out, args.duration);
+    let case = args
+        .case
+        .as_deref()
         .map(|name| {
             cases(duration).into_iter().find(|c| c.name == name).with_context(|| {
                 let known: Vec<&str> = cases(duration).iter().map(|c| c.name).collect();
@@ -364,15 +343,15 @@ fn run_generate(
             })
         })
         .transpose()?;
-    let model = match (truth, &case) {
+    let model = match (&args.truth, &case) {
         (Some(path), _) => UnicycleModel::from_toml(&read(path)?, &path.display().to_string())?,
         (None, Some(case)) => UnicycleModel::with_effects(case.truth.clone()),
         (None, None) => UnicycleModel::plain(),
     };
     let recording = generate(
         &model,
-        &noise.apply(Settings {
-            seed,
+        &args.noise.apply(Settings {
+            seed: args.seed,
             duration_s: duration,
             turn_inside: case.and_then(|c| c.turn_inside),
             ..Settings::default()
@@ -383,7 +362,36 @@ fn run_generate(
     std::fs::write(out.join("commands.csv"), commands)?;
     std::fs::write(out.join("poses.csv"), poses)?;
     std::fs::write(out.join("truth.toml"), model.to_toml())?;
+    if args.bag {
+        let bytes = bag::write_bag(&recording).map_err(anyhow::Error::msg)?;
+        let path = out.join("run.mcap");
+        std::fs::write(&path, bytes).with_context(|| format!("cannot write {}", path.display()))?;
+    }
     Ok(())
+}
+
+#[derive(clap::Args)]
+struct GenerateArgs {
+    /// A model file with the true effects; default: none.
+    #[arg(long, conflicts_with = "case")]
+    truth: Option<PathBuf>,
+    /// One of the experiment's cases (e.g. surface_zone): its effects and
+    /// its operator, so a run of the experiment can be reproduced.
+    #[arg(long)]
+    case: Option<String>,
+    /// The experiment's noise colour to generate with.
+    #[arg(long, value_parser = NoiseColour::parse, default_value = "white")]
+    noise: NoiseColour,
+    #[arg(long)]
+    out: PathBuf,
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    #[arg(long, default_value_t = 600.0)]
+    duration: f64,
+    /// Also write the run as a ROS 2 bag, run.mcap (Twist on /cmd_vel,
+    /// PoseStamped on /mocap/pose).
+    #[arg(long)]
+    bag: bool,
 }
 
 #[derive(clap::Args)]
@@ -472,14 +480,7 @@ fn run_experiment(args: &ExperimentArgs) -> Result<()> {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let outcome = match &cli.command {
-        Some(Commands::Generate {
-            truth,
-            case,
-            noise,
-            out,
-            seed,
-            duration,
-        }) => run_generate(truth.as_deref(), case.as_deref(), noise, out, *seed, *duration),
+        Some(Commands::Generate(args)) => run_generate(args),
         Some(Commands::Experiment(args)) => run_experiment(args),
         None => run_diagnose(&cli.diagnose),
     };

@@ -54,10 +54,12 @@ pub enum Target {
     ModelUpdate,
     SlamParticles,
     SlamMap,
+    /// `shoal diagnose --bag`: a ROS 2 bag (MCAP, CDR), bytes mutated.
+    RosBag,
 }
 
 impl Target {
-    pub const ALL: [Target; 15] = [
+    pub const ALL: [Target; 16] = [
         Target::Scenario,
         Target::MotionModel,
         Target::EffectsModel,
@@ -73,6 +75,7 @@ impl Target {
         Target::ModelUpdate,
         Target::SlamParticles,
         Target::SlamMap,
+        Target::RosBag,
     ];
 
     fn is_text(self) -> bool {
@@ -140,6 +143,18 @@ impl Target {
             Target::ModelUpdate => wire_outcome::<shoal_broker::ModelUpdate>(rng),
             Target::SlamParticles => wire_outcome::<shoal_broker::SlamParticles>(rng),
             Target::SlamMap => wire_outcome::<shoal_broker::SlamMap>(rng),
+            Target::RosBag => text_outcome(
+                shoal_diagnose::bag::read_bag(
+                    &mutate_bytes(rng, &seeds.ros_bag),
+                    Self::FILE,
+                    &shoal_diagnose::bag::Selection {
+                        commands_topic: shoal_diagnose::bag::WRITTEN_COMMANDS_TOPIC,
+                        poses_topic: shoal_diagnose::bag::WRITTEN_POSES_TOPIC,
+                        ..Default::default()
+                    },
+                )
+                .map(|_| ()),
+            ),
         }
     }
 }
@@ -433,8 +448,36 @@ fn duplicate_span(rng: &mut StdRng, text: &str) -> String {
     format!("{}{}", &text[..b], &text[a..])
 }
 
+/// One to four random edits of binary `seed`: bytes overwritten (most
+/// often), the file cut short, random bytes inserted, a span repeated.
+fn mutate_bytes(rng: &mut StdRng, seed: &[u8]) -> Vec<u8> {
+    let mut bytes = seed.to_vec();
+    for _ in 0..rng.random_range(1..=4) {
+        let at = rng.random_range(0..=bytes.len());
+        match rng.random_range(0..6) {
+            0..=2 => {
+                if let Some(b) = bytes.get_mut(at) {
+                    *b = rng.random();
+                }
+            }
+            3 => bytes.truncate(at),
+            4 => {
+                let inserted: Vec<u8> = (0..rng.random_range(1..8)).map(|_| rng.random()).collect();
+                bytes.splice(at..at, inserted);
+            }
+            _ => {
+                let end = rng.random_range(at..=bytes.len());
+                let span = bytes[at..end].to_vec();
+                bytes.splice(end..end, span);
+            }
+        }
+    }
+    bytes
+}
+
 /// Valid files of every format, the starting points of mutation.
 pub struct Seeds {
+    ros_bag: Vec<u8>,
     scenario: String,
     motion_model: String,
     effects_model: String,
@@ -494,7 +537,13 @@ impl Seeds {
                 3.1
             ));
         }
+        // The bag holds the CSV seeds' run; both parse, as the unit tests show.
+        let run = shoal_diagnose::input::commands_csv(&commands, "seed")
+            .and_then(|c| Ok((c, shoal_diagnose::input::poses_csv(&poses, "seed")?)))
+            .map(|(c, p)| shoal_diagnose::Recording::from_absolute(c, p))
+            .unwrap_or_default();
         Self {
+            ros_bag: shoal_diagnose::bag::write_bag(&run).unwrap_or_default(),
             scenario: scenario.to_toml(),
             motion_model: toml::to_string(&shoal_physics::MotionModel::legged_default())
                 .unwrap_or_default(),
