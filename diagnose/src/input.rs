@@ -35,63 +35,23 @@ fn read_rows(text: &str, file: &str, layout: Layout) -> Result<Vec<(usize, Vec<f
             "the file ends in the middle of a line (was it cut short?)".into(),
         ));
     }
-    let (columns, positions, mut lines) = match layout {
-        Layout::Csv { columns } => {
-            let mut lines = text
-                .lines()
-                .enumerate()
-                .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
-            let Some((header_index, header)) = lines.next() else {
-                return Err(InputError {
-                    file: file.to_owned(),
-                    line: None,
-                    message: format!("empty file; expected a header `{}`", columns.join(",")),
-                });
-            };
-            let names: Vec<&str> = header.split(',').map(str::trim).collect();
-            let mut positions = Vec::new();
-            for column in columns {
-                let Some(p) = names.iter().position(|n| n == column) else {
-                    return Err(error(
-                        header_index + 1,
-                        format!(
-                            "missing column `{column}`: the header must name {}",
-                            columns.join(", ")
-                        ),
-                    ));
-                };
-                positions.push(p);
-            }
-            (
-                columns,
-                positions,
-                Box::new(lines) as Box<dyn Iterator<Item = (usize, &str)>>,
-            )
-        }
+    let (columns, rows_of_fields) = match layout {
+        Layout::Csv { columns } => (columns, csv_fields(text, file, columns)?),
         Layout::Whitespace { columns } => {
-            let lines = text
+            let rows = text
                 .lines()
                 .enumerate()
-                .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
-            (
-                columns,
-                (0..columns.len()).collect(),
-                Box::new(lines) as Box<dyn Iterator<Item = (usize, &str)>>,
-            )
+                .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'))
+                .map(|(index, line)| (index + 1, line.split_whitespace().map(str::to_owned).collect()))
+                .collect();
+            (columns, rows)
         }
     };
-    let comma = matches!(layout, Layout::Csv { .. });
     let mut rows = Vec::new();
     let mut last_time = f64::NEG_INFINITY;
-    for (index, line) in &mut lines {
-        let number = index + 1;
-        let fields: Vec<&str> = if comma {
-            line.split(',').map(str::trim).collect()
-        } else {
-            line.split_whitespace().collect()
-        };
+    for (number, fields) in rows_of_fields {
         let mut values = Vec::with_capacity(columns.len());
-        for (column, &position) in columns.iter().zip(&positions) {
+        for (position, column) in columns.iter().enumerate() {
             let Some(field) = fields.get(position) else {
                 return Err(error(number, format!("missing field `{column}`")));
             };
@@ -142,6 +102,97 @@ fn read_rows(text: &str, file: &str, layout: Layout) -> Result<Vec<(usize, Vec<f
             line: None,
             message: format!("needs at least two rows of data, found {}", rows.len()),
         });
+    }
+    Ok(rows)
+}
+
+/// A CSV file's fields in `columns`' order, each row with its line number:
+/// the `csv` crate reads it (quoted fields, CRLF line ends, a UTF-8 byte
+/// order mark), columns are found by the header's names, and lines that
+/// start with `#` are comments.
+fn csv_fields(
+    text: &str,
+    file: &str,
+    columns: &[&str],
+) -> Result<Vec<(usize, Vec<String>)>, InputError> {
+    let error = |line: Option<usize>, message: String| InputError {
+        file: file.to_owned(),
+        line,
+        message,
+    };
+    let mut reader = csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .comment(Some(b'#'))
+        .flexible(true)
+        .from_reader(text.as_bytes());
+    // The reader's positions are unreliable with CRLF and comments (they
+    // can point at the previous record's line end, and its line count
+    // skips comments), so a record's line is found from its byte offset:
+    // past line ends and comment lines to where the record's text starts.
+    // Records come in order, so counting on from the previous one keeps
+    // this linear in the file's length.
+    let bytes = text.as_bytes();
+    let mut counted = (0_usize, 1_usize);
+    let mut line_of = |position: Option<&csv::Position>| {
+        position.map(|p| {
+            let mut at = (p.byte() as usize).clamp(counted.0, bytes.len());
+            loop {
+                while at < bytes.len() && matches!(bytes[at], b'\r' | b'\n') {
+                    at += 1;
+                }
+                let line_start = at == 0 || bytes[at - 1] == b'\n';
+                if at < bytes.len() && bytes[at] == b'#' && line_start {
+                    at = bytes[at..]
+                        .iter()
+                        .position(|&b| b == b'\n')
+                        .map_or(bytes.len(), |n| at + n + 1);
+                    continue;
+                }
+                break;
+            }
+            counted.1 += bytes[counted.0..at].iter().filter(|&&b| b == b'\n').count();
+            counted.0 = at;
+            counted.1
+        })
+    };
+    let header = reader
+        .headers()
+        .map_err(|e| error(line_of(e.position()), format!("cannot read the header: {e}")))?
+        .clone();
+    if header.is_empty() || header.iter().all(str::is_empty) {
+        return Err(error(
+            None,
+            format!("empty file; expected a header `{}`", columns.join(",")),
+        ));
+    }
+    let header_line = line_of(header.position()).unwrap_or(1);
+    let mut positions = Vec::with_capacity(columns.len());
+    for column in columns {
+        let Some(p) = header.iter().position(|n| n == *column) else {
+            return Err(error(
+                Some(header_line),
+                format!(
+                    "missing column `{column}`: the header must name {}",
+                    columns.join(", ")
+                ),
+            ));
+        };
+        positions.push(p);
+    }
+    let mut rows = Vec::new();
+    for record in reader.records() {
+        let record =
+            record.map_err(|e| error(line_of(e.position()), format!("not valid CSV: {e}")))?;
+        let line = line_of(record.position()).unwrap_or(0);
+        if record.iter().all(str::is_empty) {
+            continue;
+        }
+        // A field the row lacks stays missing, reported by name.
+        let fields = positions
+            .iter()
+            .map_while(|&p| record.get(p).map(str::to_owned))
+            .collect();
+        rows.push((line, fields));
     }
     Ok(rows)
 }
@@ -210,6 +261,19 @@ mod tests {
         assert_eq!(commands.t, vec![0.0, 1.0]);
         assert_eq!(commands.v, vec![0.2, 0.3]);
         assert_eq!(commands.omega, vec![0.1, 0.2]);
+    }
+
+    #[test]
+    fn quoted_fields_crlf_and_a_byte_order_mark_are_read() {
+        let text = "\u{feff}\"t\",\"v\",\"omega\"\r\n\"0\",\"0.2\",0.1\r\n# a comment\r\n1,0.3,\"0.2\"\r\n";
+        let commands = commands_csv(text, "c.csv").expect("valid");
+        assert_eq!(commands.t, vec![0.0, 1.0]);
+        assert_eq!(commands.v, vec![0.2, 0.3]);
+        assert_eq!(commands.omega, vec![0.1, 0.2]);
+        // Lines are still counted as the file has them, comments included.
+        let error = commands_csv("t,v,omega\r\n0,1,0\r\n# c\r\n1,x,0\r\n", "c.csv")
+            .expect_err("not a number");
+        assert_eq!(error.line, Some(4), "{error}");
     }
 
     #[test]
