@@ -8,10 +8,10 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
+use shoal_diagnose::bag;
 use shoal_diagnose::experiment::{NoiseColour, cases, run_case};
 use shoal_diagnose::generate::{Settings, generate};
 use shoal_diagnose::input::{commands_csv, mrclam_groundtruth, mrclam_odometry, poses_csv};
-use shoal_diagnose::bag;
 use shoal_diagnose::replay::replay;
 use shoal_diagnose::{Diagnosis, Options, Recording, diagnose};
 use shoal_physics::UnicycleModel;
@@ -117,7 +117,10 @@ fn load_bag(path: &Path, args: &DiagnoseArgs) -> Result<Recording> {
         let topics = bag::topics(&bytes, &file)?;
         let mut listing = format!("{file} holds {} topics:\n", topics.len());
         for t in &topics {
-            listing.push_str(&format!("  {}  {}  ({} messages)\n", t.name, t.message_type, t.messages));
+            listing.push_str(&format!(
+                "  {}  {}  ({} messages)\n",
+                t.name, t.message_type, t.messages
+            ));
         }
         let of = |types: &[&str]| -> Vec<&str> {
             topics
@@ -201,7 +204,10 @@ fn report_text(d: &Diagnosis) -> String {
     let mut line = |text: String| {
         let _ = writeln!(out, "{text}");
     };
-    line(format!("{} segments of {:.1} s compared.", d.segments, d.horizon_s));
+    line(format!(
+        "{} segments of {:.1} s compared.",
+        d.segments, d.horizon_s
+    ));
     if !d.mismatch {
         line("No significant mismatch: the model explains the run within its noise.".into());
     }
@@ -289,11 +295,14 @@ fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
             diagnosis.model.to_toml()
         );
         write_into_place(&path, |partial| {
-            std::fs::write(partial, text).with_context(|| format!("cannot write {}", partial.display()))
+            std::fs::write(partial, text)
+                .with_context(|| format!("cannot write {}", partial.display()))
         })?;
         written.push(("model_out", path));
         let png = dir.join("fit.png");
-        write_into_place(&png, |partial| plot::fit_png(partial, &recording, &diagnosis))?;
+        write_into_place(&png, |partial| {
+            plot::fit_png(partial, &recording, &diagnosis)
+        })?;
         written.push(("plot", png));
     }
     let report = report_text(&diagnosis);
@@ -322,7 +331,11 @@ fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
         println!("{value}");
     } else {
         print!("{report}");
-        for (key, what) in [("model_out", "Model"), ("plot", "Plot"), ("rrd", "Recording")] {
+        for (key, what) in [
+            ("model_out", "Model"),
+            ("plot", "Plot"),
+            ("rrd", "Recording"),
+        ] {
             if let Some(path) = written_path(key) {
                 println!("{what} written to {path}");
             }
@@ -337,10 +350,13 @@ fn run_generate(args: &GenerateArgs) -> Result<()> {
         .case
         .as_deref()
         .map(|name| {
-            cases(duration).into_iter().find(|c| c.name == name).with_context(|| {
-                let known: Vec<&str> = cases(duration).iter().map(|c| c.name).collect();
-                format!("unknown case `{name}`; known: {}", known.join(", "))
-            })
+            cases(duration)
+                .into_iter()
+                .find(|c| c.name == name)
+                .with_context(|| {
+                    let known: Vec<&str> = cases(duration).iter().map(|c| c.name).collect();
+                    format!("unknown case `{name}`; known: {}", known.join(", "))
+                })
         })
         .transpose()?;
     let model = match (&args.truth, &case) {

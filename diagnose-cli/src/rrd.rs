@@ -51,7 +51,10 @@ fn log_all(
     segments: &[SegmentReplay],
     report: &str,
 ) -> rerun::RecordingStreamResult<()> {
-    rec.log_static("diagnosis/report", &rerun::TextDocument::from_markdown(report))?;
+    rec.log_static(
+        "diagnosis/report",
+        &rerun::TextDocument::from_markdown(report),
+    )?;
     log_regions(rec, diagnosis)?;
     log_series_styles(rec)?;
 
@@ -85,7 +88,8 @@ fn log_all(
         rec.set_duration_secs(TIMELINE, segment.t_end);
         rec.log(
             "world/segment/observed",
-            &rerun::LineStrips2D::new([observed_over(recording, segment)]).with_colors([colour(OBSERVED)]),
+            &rerun::LineStrips2D::new([observed_over(recording, segment)])
+                .with_colors([colour(OBSERVED)]),
         )?;
         for (name, prediction, rgb) in [
             ("input", &segment.input, INPUT),

@@ -184,18 +184,8 @@ fn two_effects_together_are_both_found_and_the_written_model_explains_the_run() 
 /// compared segment is there with both models' predictions and residuals,
 /// the fitted model's residuals are the smaller, and the report is attached.
 fn the_recording_shows_the_fit(d: &Value, rrd: &Path) {
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/read_diagnosis.py");
-    let output = Command::new("python3")
-        .arg(script)
-        .arg(rrd)
-        .output()
-        .expect("run python3");
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
-    let read: Value = serde_json::from_slice(&output.stdout).expect("reader JSON");
+    let read: Value = serde_json::from_slice(&python("read_diagnosis.py", &[rrd.as_os_str()]))
+        .expect("reader JSON");
     let segments = d["segments"].as_u64().expect("segments") as usize;
     let values = |entity: &str| -> Vec<f64> {
         read["scalars"][entity]
@@ -212,7 +202,12 @@ fn the_recording_shows_the_fit(d: &Value, rrd: &Path) {
         assert_eq!(input.len(), segments, "{component}");
         assert_eq!(fitted.len(), segments, "{component}");
         if component == "along_mm" {
-            assert!(rms(&fitted) < 0.8 * rms(&input), "{} vs {}", rms(&fitted), rms(&input));
+            assert!(
+                rms(&fitted) < 0.8 * rms(&input),
+                "{} vs {}",
+                rms(&fitted),
+                rms(&input)
+            );
         }
     }
     for entity in [
@@ -224,28 +219,39 @@ fn the_recording_shows_the_fit(d: &Value, rrd: &Path) {
         "/world/located",
         "/heldout/position_error_mm/fitted",
     ] {
-        assert!(read["entities"][entity].as_u64().unwrap_or(0) > 0, "{entity}: {}", read["entities"]);
+        assert!(
+            read["entities"][entity].as_u64().unwrap_or(0) > 0,
+            "{entity}: {}",
+            read["entities"]
+        );
     }
     assert_eq!(
         read["entities"]["/world/segment/fitted_model"].as_u64(),
         Some(segments as u64)
     );
     // A 1 s prediction is a path, not only its end: a pose per grid step.
-    assert!(read["strip_points"]["/world/segment/fitted_model"].as_u64().unwrap_or(0) > 10);
+    assert!(
+        read["strip_points"]["/world/segment/fitted_model"]
+            .as_u64()
+            .unwrap_or(0)
+            > 10
+    );
     let report = read["report"].as_str().unwrap_or("");
     assert!(report.contains("Held-out position error"), "{report}");
 }
 
+/// Diagnoses a second of driving straight, observed as `poses` (CSV text).
+fn diagnose_csv(name: &str, poses: &str) -> (Scratch, std::process::Output) {
+    let dir = scratch(name);
+    std::fs::write(dir.join("commands.csv"), "t,v,omega\n0,0.1,0\n1,0.1,0\n").expect("write");
+    std::fs::write(dir.join("poses.csv"), poses).expect("write");
+    let output = Command::new(binary()).arg(&*dir).output().expect("run");
+    (dir, output)
+}
+
 #[test]
 fn bad_input_names_the_file_and_line_and_exits_non_zero() {
-    let dir = scratch("bad");
-    std::fs::write(dir.join("commands.csv"), "t,v,omega\n0,0.1,0\n1,0.1,0\n").expect("write");
-    std::fs::write(
-        dir.join("poses.csv"),
-        "t,x,y,theta\n0,0,0,0\n0.5,0.1,0,0\n0.2,0.2,0,0\n",
-    )
-    .expect("write");
-    let output = Command::new(binary()).arg(&dir).output().expect("run");
+    let (dir, output) = diagnose_csv("bad", "t,x,y,theta\n0,0,0,0\n0.5,0.1,0,0\n0.2,0.2,0,0\n");
     assert!(!output.status.success());
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(
@@ -321,14 +327,7 @@ fn a_real_mrclam_robot_shows_a_mismatch_that_the_fit_reduces() {
 
 #[test]
 fn too_little_data_is_an_error_not_a_verdict() {
-    let dir = scratch("tiny");
-    std::fs::write(dir.join("commands.csv"), "t,v,omega\n0,0.1,0\n1,0.1,0\n").expect("write");
-    std::fs::write(
-        dir.join("poses.csv"),
-        "t,x,y,theta\n0,0,0,0\n0.9,0.09,0,0\n",
-    )
-    .expect("write");
-    let output = Command::new(binary()).arg(&dir).output().expect("run");
+    let (_dir, output) = diagnose_csv("tiny", "t,x,y,theta\n0,0,0,0\n0.9,0.09,0,0\n");
     assert!(!output.status.success());
     assert!(String::from_utf8_lossy(&output.stderr).contains("too little to compare"));
 }
@@ -337,20 +336,31 @@ fn too_little_data_is_an_error_not_a_verdict() {
 /// (`mcap-ros2-support`), poses as `pose`, `tf` or `odometry` messages.
 fn write_bag(dir: &Path, poses_as: &str) -> PathBuf {
     let bag = dir.join(format!("{poses_as}.mcap"));
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/write_bag.py");
+    python(
+        "write_bag.py",
+        &[dir.as_os_str(), bag.as_os_str(), poses_as.as_ref()],
+    );
+    bag
+}
+
+/// Runs one of this folder's Python scripts (the official clients our users
+/// have) and returns what it printed; fails the test if the script fails.
+fn python(script: &str, args: &[&std::ffi::OsStr]) -> Vec<u8> {
     let output = Command::new("python3")
-        .arg(script)
-        .arg(dir)
-        .arg(&bag)
-        .arg(poses_as)
+        .arg(
+            Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("tests")
+                .join(script),
+        )
+        .args(args)
         .output()
         .expect("run python3");
     assert!(
         output.status.success(),
-        "{}",
+        "{script}: {}",
         String::from_utf8_lossy(&output.stderr)
     );
-    bag
+    output.stdout
 }
 
 fn diagnose_bag(bag: &Path, topics: &[&str]) -> std::process::Output {
@@ -372,12 +382,32 @@ fn a_ros2_bag_is_diagnosed_from_pose_tf_and_odometry_topics() {
     let (from_csv, dir) = diagnose_generated("bag", &truth_toml(&case), &[]);
     let true_latency = case.truth[0].effect.params()[0].1;
     for (poses_as, topics) in [
-        ("pose", &["--commands-topic", "/cmd_vel", "--poses-topic", "/mocap/pose"][..]),
+        (
+            "pose",
+            &[
+                "--commands-topic",
+                "/cmd_vel",
+                "--poses-topic",
+                "/mocap/pose",
+            ][..],
+        ),
         (
             "tf",
-            &["--commands-topic", "/cmd_vel", "--poses-topic", "/tf", "--frame", "base_link", "--parent", "odom"][..],
+            &[
+                "--commands-topic",
+                "/cmd_vel",
+                "--poses-topic",
+                "/tf",
+                "--frame",
+                "base_link",
+                "--parent",
+                "odom",
+            ][..],
         ),
-        ("odometry", &["--commands-topic", "/cmd_vel", "--poses-topic", "/odom"][..]),
+        (
+            "odometry",
+            &["--commands-topic", "/cmd_vel", "--poses-topic", "/odom"][..],
+        ),
     ] {
         let bag = write_bag(&dir, poses_as);
         let output = diagnose_bag(&bag, topics);
@@ -391,13 +421,18 @@ fn a_ros2_bag_is_diagnosed_from_pose_tf_and_odometry_topics() {
         );
         let d: Value = serde_json::from_slice(&output.stdout).expect("JSON");
         assert_eq!(kinds(&d), ["latency"], "{poses_as}: {d}");
-        let fitted = d["effects"][0]["params"]["seconds"].as_f64().expect("seconds");
+        let fitted = d["effects"][0]["params"]["seconds"]
+            .as_f64()
+            .expect("seconds");
         assert!(
             (fitted - true_latency).abs() < 0.2 * true_latency,
             "{poses_as}: {fitted} s for {true_latency} s"
         );
         // The bag holds the CSV's run: the same comparison to the last digits.
-        let (a, b) = (&from_csv["baseline"]["heldout_rmse_pos_m"], &d["baseline"]["heldout_rmse_pos_m"]);
+        let (a, b) = (
+            &from_csv["baseline"]["heldout_rmse_pos_m"],
+            &d["baseline"]["heldout_rmse_pos_m"],
+        );
         assert!(
             (a.as_f64().expect("rmse") - b.as_f64().expect("rmse")).abs() < 1e-9,
             "{poses_as}: {a} from CSV vs {b} from the bag"
@@ -423,13 +458,27 @@ fn bad_bags_are_refused_naming_the_file_topic_and_message() {
     let cut = dir.join("cut.mcap");
     std::fs::write(&cut, &bytes[..bytes.len() / 2]).expect("write");
     let csv = dir.join("commands.csv");
-    let topics = ["--commands-topic", "/cmd_vel", "--poses-topic", "/tf", "--frame", "base_link"];
+    let topics = [
+        "--commands-topic",
+        "/cmd_vel",
+        "--poses-topic",
+        "/tf",
+        "--frame",
+        "base_link",
+    ];
     let cases: [(&Path, &[&str], &str); 5] = [
         (&csv, &topics, "commands.csv: not an MCAP file"),
         (&cut, &topics, "cut.mcap: the bag is damaged or cut short"),
         (
             &bag,
-            &["--commands-topic", "/tf", "--poses-topic", "/tf", "--frame", "base_link"],
+            &[
+                "--commands-topic",
+                "/tf",
+                "--poses-topic",
+                "/tf",
+                "--frame",
+                "base_link",
+            ],
             "tf.mcap: topic /tf, message 1 (tf2_msgs/msg/TFMessage): commands must be",
         ),
         (
@@ -439,7 +488,14 @@ fn bad_bags_are_refused_naming_the_file_topic_and_message() {
         ),
         (
             &bag,
-            &["--commands-topic", "/cmd", "--poses-topic", "/tf", "--frame", "base_link"],
+            &[
+                "--commands-topic",
+                "/cmd",
+                "--poses-topic",
+                "/tf",
+                "--frame",
+                "base_link",
+            ],
             "tf.mcap: no messages on topic /cmd",
         ),
     ];
@@ -447,6 +503,9 @@ fn bad_bags_are_refused_naming_the_file_topic_and_message() {
         let output = diagnose_bag(file, args);
         let stderr = String::from_utf8_lossy(&output.stderr);
         assert!(!output.status.success(), "{expected}: {stderr}");
-        assert!(stderr.contains(expected), "expected `{expected}` in: {stderr}");
+        assert!(
+            stderr.contains(expected),
+            "expected `{expected}` in: {stderr}"
+        );
     }
 }

@@ -151,8 +151,12 @@ pub fn read_bag(bytes: &[u8], file: &str, selection: &Selection) -> Result<BagRu
                 message.channel.message_encoding
             )));
         }
-        let log_time = i64::try_from(message.log_time)
-            .map_err(|_| at(format!("log time {} ns is past the year 2262", message.log_time)))?;
+        let log_time = i64::try_from(message.log_time).map_err(|_| {
+            at(format!(
+                "log time {} ns is past the year 2262",
+                message.log_time
+            ))
+        })?;
         if index == 0 {
             commands.push(decode_command(&kind, &message.data, log_time).map_err(at)?);
         } else {
@@ -297,10 +301,7 @@ fn decode_command(kind: &str, data: &[u8], log_time: i64) -> Result<Stamped<(f64
             ));
         }
     };
-    finite(&[
-        ("linear.x", twist.linear.x),
-        ("angular.z", twist.angular.z),
-    ])?;
+    finite(&[("linear.x", twist.linear.x), ("angular.z", twist.angular.z)])?;
     Ok(Stamped {
         stamp,
         log_time,
@@ -315,7 +316,12 @@ fn decode_poses(
     selection: &Selection,
 ) -> Result<Vec<Stamped<(f64, f64, f64)>>, String> {
     let one = |header: msg::Header, pose: msg::Pose| -> Result<Vec<_>, String> {
-        Ok(vec![planar(header.stamp.nanoseconds(), log_time, &pose.position, &pose.orientation)?])
+        Ok(vec![planar(
+            header.stamp.nanoseconds(),
+            log_time,
+            &pose.position,
+            &pose.orientation,
+        )?])
     };
     match kind {
         "geometry_msgs/msg/PoseStamped" => {
@@ -355,7 +361,10 @@ fn decode_poses(
                 })
                 .collect()
         }
-        other => Err(format!("poses must be {}, not {other}", POSE_TYPES.join(", "))),
+        other => Err(format!(
+            "poses must be {}, not {other}",
+            POSE_TYPES.join(", ")
+        )),
     }
 }
 
@@ -424,7 +433,11 @@ pub fn write_bag(recording: &Recording) -> Result<Vec<u8>, String> {
         .map_err(error)?;
     let no_metadata = BTreeMap::new();
     let twist = writer
-        .add_schema("geometry_msgs/msg/Twist", "ros2msg", TWIST_DEFINITION.as_bytes())
+        .add_schema(
+            "geometry_msgs/msg/Twist",
+            "ros2msg",
+            TWIST_DEFINITION.as_bytes(),
+        )
         .map_err(error)?;
     let pose = writer
         .add_schema(
@@ -444,8 +457,16 @@ pub fn write_bag(recording: &Recording) -> Result<Vec<u8>, String> {
     let mut messages: Vec<(i64, u16, Vec<u8>)> = Vec::with_capacity(c.t.len() + p.t.len());
     for i in 0..c.t.len() {
         let message = msg::Twist {
-            linear: msg::Vector3 { x: c.v[i], y: 0.0, z: 0.0 },
-            angular: msg::Vector3 { x: 0.0, y: 0.0, z: c.omega[i] },
+            linear: msg::Vector3 {
+                x: c.v[i],
+                y: 0.0,
+                z: 0.0,
+            },
+            angular: msg::Vector3 {
+                x: 0.0,
+                y: 0.0,
+                z: c.omega[i],
+            },
         };
         messages.push((nanos(c.t[i]), commands_channel, encode(&message)?));
     }
@@ -461,8 +482,17 @@ pub fn write_bag(recording: &Recording) -> Result<Vec<u8>, String> {
                 frame_id: "map".to_owned(),
             },
             pose: msg::Pose {
-                position: msg::Vector3 { x: p.x[i], y: p.y[i], z: 0.0 },
-                orientation: msg::Quaternion { x: 0.0, y: 0.0, z: half.sin(), w: half.cos() },
+                position: msg::Vector3 {
+                    x: p.x[i],
+                    y: p.y[i],
+                    z: 0.0,
+                },
+                orientation: msg::Quaternion {
+                    x: 0.0,
+                    y: 0.0,
+                    z: half.sin(),
+                    w: half.cos(),
+                },
             },
         };
         messages.push((ns, poses_channel, encode(&message)?));
@@ -637,11 +667,23 @@ mod tests {
         assert_eq!(
             listed
                 .iter()
-                .map(|t| (t.name.as_str(), t.message_type.as_str(), t.messages as usize))
+                .map(|t| (
+                    t.name.as_str(),
+                    t.message_type.as_str(),
+                    t.messages as usize
+                ))
                 .collect::<Vec<_>>(),
             [
-                ("/cmd_vel", "geometry_msgs/msg/Twist", recording.commands.t.len()),
-                ("/mocap/pose", "geometry_msgs/msg/PoseStamped", recording.poses.t.len()),
+                (
+                    "/cmd_vel",
+                    "geometry_msgs/msg/Twist",
+                    recording.commands.t.len()
+                ),
+                (
+                    "/mocap/pose",
+                    "geometry_msgs/msg/PoseStamped",
+                    recording.poses.t.len()
+                ),
             ]
         );
         let run = read_bag(
@@ -671,16 +713,29 @@ mod tests {
     #[test]
     fn a_message_cut_short_is_a_decoding_error() {
         let data = encode(&msg::Twist {
-            linear: msg::Vector3 { x: 0.1, y: 0.0, z: 0.0 },
-            angular: msg::Vector3 { x: 0.0, y: 0.0, z: 0.2 },
+            linear: msg::Vector3 {
+                x: 0.1,
+                y: 0.0,
+                z: 0.0,
+            },
+            angular: msg::Vector3 {
+                x: 0.0,
+                y: 0.0,
+                z: 0.2,
+            },
         })
         .expect("encode");
         let error = decode_command("geometry_msgs/msg/Twist", &data[..30], 0).err();
         assert!(
-            error.as_deref().is_some_and(|e| e.contains("cannot decode")),
+            error
+                .as_deref()
+                .is_some_and(|e| e.contains("cannot decode")),
             "{error:?}"
         );
         let error = decode_command("geometry_msgs/msg/Twist", &data[..2], 0).err();
-        assert!(error.as_deref().is_some_and(|e| e.contains("too short")), "{error:?}");
+        assert!(
+            error.as_deref().is_some_and(|e| e.contains("too short")),
+            "{error:?}"
+        );
     }
 }

@@ -727,9 +727,16 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
         let top: Vec<ScopedEffect> = ranked.into_iter().map(|(_, c)| c).collect();
         let mut confirmed = fit_all(grid, segs, &base, &top, options.max_iters / 2);
         for fitted in &mut confirmed {
-            let zone = refine_zone(grid, segs, &base, fitted.effects[0].clone(), options.max_iters / 2);
+            let zone = refine_zone(
+                grid,
+                segs,
+                &base,
+                fitted.effects[0].clone(),
+                options.max_iters / 2,
+            );
             if zone != fitted.effects[0] {
-                let effects: Vec<ScopedEffect> = base.iter().cloned().chain([zone.clone()]).collect();
+                let effects: Vec<ScopedEffect> =
+                    base.iter().cloned().chain([zone.clone()]).collect();
                 fitted.nll = nll_of(grid, segs, &effects);
                 fitted.effects = vec![zone];
             }
@@ -783,8 +790,7 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
                     && let Some(zone_effect) = Effect::identity("surface_zone", zone)
                 {
                     let (zone_fit, _) = confirm(&ScopedEffect::always(zone_effect));
-                    let zone_fit =
-                        refine_zone(grid, segs, &base, zone_fit, options.max_iters / 2);
+                    let zone_fit = refine_zone(grid, segs, &base, zone_fit, options.max_iters / 2);
                     let zone_gain = judge(&zone_fit);
                     if zone_gain < delta_bic + 2.0 {
                         tied.push((delta_bic, chosen.clone()));

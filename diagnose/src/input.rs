@@ -42,7 +42,12 @@ fn read_rows(text: &str, file: &str, layout: Layout) -> Result<Vec<(usize, Vec<f
                 .lines()
                 .enumerate()
                 .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'))
-                .map(|(index, line)| (index + 1, line.split_whitespace().map(str::to_owned).collect()))
+                .map(|(index, line)| {
+                    (
+                        index + 1,
+                        line.split_whitespace().map(str::to_owned).collect(),
+                    )
+                })
                 .collect();
             (columns, rows)
         }
@@ -157,7 +162,12 @@ fn csv_fields(
     };
     let header = reader
         .headers()
-        .map_err(|e| error(line_of(e.position()), format!("cannot read the header: {e}")))?
+        .map_err(|e| {
+            error(
+                line_of(e.position()),
+                format!("cannot read the header: {e}"),
+            )
+        })?
         .clone();
     if header.is_empty() || header.iter().all(str::is_empty) {
         return Err(error(

@@ -121,6 +121,9 @@ mod tests {
         let input = mean_along(|s| s.input.residual[0]);
         let fitted = mean_along(|s| s.fitted.residual[0]);
         assert!(input < -0.005, "plain along residual {input}");
-        assert!(fitted.abs() < input.abs() / 5.0, "fitted {fitted} vs plain {input}");
+        assert!(
+            fitted.abs() < input.abs() / 5.0,
+            "fitted {fitted} vs plain {input}"
+        );
     }
 }

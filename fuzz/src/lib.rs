@@ -503,7 +503,10 @@ impl Seeds {
         let effects = UnicycleModel::with_effects(vec![
             ScopedEffect::always(Effect::ActuatorLag { seconds: 0.12 }),
             ScopedEffect::always(Effect::Slip { per_m_per_s: 0.3 }),
-            ScopedEffect::always(Effect::ExternalFlow { vx: 0.01, vy: -0.02 }),
+            ScopedEffect::always(Effect::ExternalFlow {
+                vx: 0.01,
+                vy: -0.02,
+            }),
             ScopedEffect {
                 effect: Effect::SurfaceZone {
                     region: [0.5, 0.5, 3.0, 2.5],

@@ -422,13 +422,18 @@ mod tests {
 
     #[test]
     fn turning_costs_speed_and_driving_straight_does_not() {
-        let model = UnicycleModel::with_effects(vec![ScopedEffect::always(
-            Effect::TurnSpeedLoss { per_rad_per_s: 0.5 },
-        )]);
+        let model =
+            UnicycleModel::with_effects(vec![ScopedEffect::always(Effect::TurnSpeedLoss {
+                per_rad_per_s: 0.5,
+            })]);
         let straight_on = model.execute(&straight(2.0, 0.2, 0.0));
         assert_eq!(straight_on.v[100], 0.2);
         let turning = model.execute(&straight(2.0, 0.2, 0.4));
-        assert!((turning.v[100] - 0.2 * 0.8).abs() < 1e-12, "{}", turning.v[100]);
+        assert!(
+            (turning.v[100] - 0.2 * 0.8).abs() < 1e-12,
+            "{}",
+            turning.v[100]
+        );
         let backwards_turn = model.execute(&straight(2.0, 0.2, -0.4));
         assert_eq!(backwards_turn.v[100], turning.v[100]);
     }
@@ -438,12 +443,11 @@ mod tests {
         // Play holds the turn rate until the command next changes, however
         // long ago: stretches predicted one after another must carry that
         // state, as one long prediction does.
-        let model = UnicycleModel::with_effects(vec![ScopedEffect::always(
-            Effect::Hysteresis {
-                play_rad_per_s: 0.1,
-            },
-        )]);
-        let grid = CommandGrid::from_held(&[0.0, 1.0, 6.0], &[0.2, 0.2, 0.2], &[0.0, 0.5, 0.5], 0.01);
+        let model = UnicycleModel::with_effects(vec![ScopedEffect::always(Effect::Hysteresis {
+            play_rad_per_s: 0.1,
+        })]);
+        let grid =
+            CommandGrid::from_held(&[0.0, 1.0, 6.0], &[0.2, 0.2, 0.2], &[0.0, 0.5, 0.5], 0.01);
         let stretches: Vec<(Pose, usize, usize)> = (0..6)
             .map(|k| (Pose::default(), k * 100, (k + 1) * 100))
             .collect();
