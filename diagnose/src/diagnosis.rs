@@ -191,7 +191,7 @@ fn candidates(located: &[Located], segments: &[Segment], duration: f64) -> Vec<S
     }
     for place in located.iter().filter(|l| l.family == "place").take(3) {
         if let Some(region) = place.region
-            && let Some(effect) = Effect::identity("surface_zone", region)
+            && let Some(effect) = Effect::identity("surface_zone", at_least_min_side(region))
         {
             out.push(ScopedEffect::always(effect));
         }
@@ -493,6 +493,24 @@ fn zone_of_span(segments: &[Segment], scoped: &ScopedEffect) -> Option<[f64; 4]>
 
 /// The box the robot drove in during `[a, b]` seconds, if it drove there
 /// for at least a few segments.
+/// The narrowest side a surface zone may have. A patch of floor narrower
+/// than a robot's footprint is crossed in a fraction of a second and cannot
+/// be told from an event that happened there; a fit that shrinks a zone to a
+/// sliver has found a few odd segments, not a surface.
+const MIN_ZONE_SIDE_M: f64 = 0.3;
+
+/// `region` widened about its centre until each side is at least
+/// [`MIN_ZONE_SIDE_M`].
+fn at_least_min_side(region: [f64; 4]) -> [f64; 4] {
+    let widen = |lo: f64, hi: f64| {
+        let missing = (MIN_ZONE_SIDE_M - (hi - lo)).max(0.0);
+        (lo - missing / 2.0, hi + missing / 2.0)
+    };
+    let (x0, x1) = widen(region[0], region[2]);
+    let (y0, y1) = widen(region[1], region[3]);
+    [x0, y0, x1, y1]
+}
+
 fn region_driven(segments: &[Segment], [a, b]: [f64; 2]) -> Option<[f64; 4]> {
     let inside: Vec<&Segment> = segments
         .iter()
@@ -512,7 +530,7 @@ fn region_driven(segments: &[Segment], [a, b]: [f64; 2]) -> Option<[f64; 4]> {
             ];
         }
     }
-    Some(region)
+    Some(at_least_min_side(region))
 }
 
 /// How much correlation in time inflates each residual component of the
@@ -652,7 +670,7 @@ fn refine_zone(
                 };
                 let mut moved = region;
                 moved[edge] += shift * step;
-                if moved[0] >= moved[2] || moved[1] >= moved[3] {
+                if moved[2] - moved[0] < MIN_ZONE_SIDE_M || moved[3] - moved[1] < MIN_ZONE_SIDE_M {
                     continue;
                 }
                 let candidate = Effect::SurfaceZone {
@@ -922,5 +940,24 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
             .zip(&improved_errors)
             .map(|(&(t, plain), &(_, better))| (t, plain, better))
             .collect(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_zone_is_never_narrower_than_a_robot() {
+        let sliver = at_least_min_side([2.40, 2.75, 2.43, 2.99]);
+        assert!((sliver[2] - sliver[0] - MIN_ZONE_SIDE_M).abs() < 1e-12);
+        assert!((sliver[3] - sliver[1] - MIN_ZONE_SIDE_M).abs() < 1e-12);
+        // Widened about its centre.
+        assert!(((sliver[0] + sliver[2]) / 2.0 - 2.415).abs() < 1e-12);
+        // A zone wide enough already is left as it is.
+        assert_eq!(
+            at_least_min_side([0.0, 0.0, 1.0, 2.0]),
+            [0.0, 0.0, 1.0, 2.0]
+        );
     }
 }
