@@ -36,11 +36,6 @@ pub struct Executed {
 
 impl CommandGrid {
     /// Samples commands given at sorted `times` (each held until the next) every `dt`.
-    /// Step `i` covers `[t0 + i dt, t0 + (i + 1) dt)` and takes the command
-    /// in force at its middle: a command that falls on a step's start (a 50 Hz
-    /// stream on a 100 Hz grid) counts from that step whichever way its
-    /// time was rounded, and irregular commands are not delayed by half a
-    /// step on average.
     pub fn from_held(times: &[f64], v: &[f64], omega: &[f64], dt: f64) -> Self {
         let (Some(&first), Some(&last)) = (times.first(), times.last()) else {
             return Self {
@@ -59,8 +54,8 @@ impl CommandGrid {
         };
         let mut row = 0;
         for i in 0..steps {
-            let middle = first + (i as f64 + 0.5) * dt;
-            while row + 1 < times.len() && times[row + 1] <= middle {
+            let t = first + i as f64 * dt;
+            while row + 1 < times.len() && times[row + 1] <= t {
                 row += 1;
             }
             grid.v.push(v[row]);
