@@ -9,8 +9,8 @@ use std::process::ExitCode;
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
 use shoal_diagnose::bag;
-use shoal_diagnose::experiment::{NoiseColour, cases, run_case};
-use shoal_diagnose::generate::{Settings, generate};
+use shoal_diagnose::experiment::{NoiseColour, case_named, cases, run_case, run_settings};
+use shoal_diagnose::generate::generate;
 use shoal_diagnose::input::{commands_csv, mrclam_groundtruth, mrclam_odometry, poses_csv};
 use shoal_diagnose::replay::replay;
 use shoal_diagnose::{Diagnosis, Options, Recording, diagnose};
@@ -107,11 +107,6 @@ fn load_csv_pair(commands: &Path, poses: &Path) -> Result<Recording> {
 fn load_bag(path: &Path, args: &DiagnoseArgs) -> Result<Recording> {
     let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
     let file = path.display().to_string();
-    if !bytes.starts_with(bag::MCAP_MAGIC) {
-        bail!(
-            "{file}: not an MCAP file; ROS 2 bags in the default sqlite3 storage (.db3) can be converted with `ros2 bag convert`, or recorded with `ros2 bag record -s mcap`"
-        );
-    }
     let (Some(commands_topic), Some(poses_topic)) = (&args.commands_topic, &args.poses_topic)
     else {
         let topics = bag::topics(&bytes, &file)?;
@@ -286,7 +281,7 @@ fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
             options.horizon_s
         );
     }
-    let mut written: Vec<(&str, PathBuf)> = Vec::new();
+    let mut written = Written::default();
     if let Some(dir) = &args.out {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
         let path = dir.join("model.toml");
@@ -298,12 +293,12 @@ fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
             std::fs::write(partial, text)
                 .with_context(|| format!("cannot write {}", partial.display()))
         })?;
-        written.push(("model_out", path));
+        written.model_out = Some(path);
         let png = dir.join("fit.png");
         write_into_place(&png, |partial| {
             plot::fit_png(partial, &recording, &diagnosis)
         })?;
-        written.push(("plot", png));
+        written.plot = Some(png);
     }
     let report = report_text(&diagnosis);
     if let Some(path) = &args.rrd {
@@ -315,33 +310,36 @@ fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
         write_into_place(path, |partial| {
             rrd::write(partial, &recording, &diagnosis, &segments, &report)
         })?;
-        written.push(("rrd", path.clone()));
+        written.rrd = Some(path.clone());
     }
-    let written_path = |key: &str| {
-        written
-            .iter()
-            .find(|(k, _)| *k == key)
-            .map(|(_, p)| p.display().to_string())
-    };
+    let files = [
+        ("model_out", "Model", &written.model_out),
+        ("plot", "Plot", &written.plot),
+        ("rrd", "Recording", &written.rrd),
+    ];
     if args.json {
         let mut value = serde_json::to_value(&diagnosis)?;
-        for key in ["model_out", "plot", "rrd"] {
-            value[key] = serde_json::json!(written_path(key));
+        for (key, _, path) in files {
+            value[key] = serde_json::json!(path.as_ref().map(|p| p.display().to_string()));
         }
         println!("{value}");
     } else {
         print!("{report}");
-        for (key, what) in [
-            ("model_out", "Model"),
-            ("plot", "Plot"),
-            ("rrd", "Recording"),
-        ] {
-            if let Some(path) = written_path(key) {
-                println!("{what} written to {path}");
+        for (_, what, path) in files {
+            if let Some(path) = path {
+                println!("{what} written to {}", path.display());
             }
         }
     }
     Ok(())
+}
+
+/// The files a diagnosis wrote besides its report.
+#[derive(Default)]
+struct Written {
+    model_out: Option<PathBuf>,
+    plot: Option<PathBuf>,
+    rrd: Option<PathBuf>,
 }
 
 fn run_generate(args: &GenerateArgs) -> Result<()> {
@@ -349,15 +347,7 @@ fn run_generate(args: &GenerateArgs) -> Result<()> {
     let case = args
         .case
         .as_deref()
-        .map(|name| {
-            cases(duration)
-                .into_iter()
-                .find(|c| c.name == name)
-                .with_context(|| {
-                    let known: Vec<&str> = cases(duration).iter().map(|c| c.name).collect();
-                    format!("unknown case `{name}`; known: {}", known.join(", "))
-                })
-        })
+        .map(|name| case_named(name, duration).map_err(anyhow::Error::msg))
         .transpose()?;
     let model = match (&args.truth, &case) {
         (Some(path), _) => UnicycleModel::from_toml(&read(path)?, &path.display().to_string())?,
@@ -366,12 +356,7 @@ fn run_generate(args: &GenerateArgs) -> Result<()> {
     };
     let recording = generate(
         &model,
-        &args.noise.apply(Settings {
-            seed: args.seed,
-            duration_s: duration,
-            turn_inside: case.and_then(|c| c.turn_inside),
-            ..Settings::default()
-        }),
+        &run_settings(case.as_ref(), &args.noise, args.seed, duration),
     );
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
     let (commands, poses) = recording.to_csv();

@@ -14,10 +14,26 @@ use shoal_diagnose::{Diagnosis, Recording};
 
 const TIMELINE: &str = "time";
 const OBSERVED: [u8; 3] = [30, 30, 30];
-const INPUT: [u8; 3] = [220, 50, 40];
-const FITTED: [u8; 3] = [30, 150, 60];
+const WHOLE_PATH: [u8; 3] = [170, 170, 170];
 const LOCATED: [u8; 3] = [255, 170, 60];
 const ZONE: [u8; 3] = [70, 130, 230];
+
+/// The two models every prediction and series is drawn for: entity name,
+/// legend label, colour.
+const MODELS: [(&str, &str, [u8; 3]); 2] = [
+    ("input", "input model", [220, 50, 40]),
+    ("fitted", "fitted model", [30, 150, 60]),
+];
+
+/// The residual series, in the order of a residual's components, with the
+/// factor from metres or radians to their unit.
+const RESIDUALS: [(&str, f64); 3] = [
+    ("residuals/along_mm", 1e3),
+    ("residuals/across_mm", 1e3),
+    ("residuals/heading_deg", 180.0 / std::f64::consts::PI),
+];
+const HELDOUT: &str = "heldout/position_error_mm";
+
 fn colour([r, g, b]: [u8; 3]) -> Color {
     Color::from_rgb(r, g, b)
 }
@@ -67,7 +83,7 @@ fn log_all(
         .collect();
     rec.log_static(
         "world/observed/path",
-        &rerun::LineStrips2D::new([path]).with_colors([Color::from_rgb(170, 170, 170)]),
+        &rerun::LineStrips2D::new([path]).with_colors([colour(WHOLE_PATH)]),
     )?;
     let mut next_pose_t = f64::MIN;
     for i in 0..poses.t.len() {
@@ -91,39 +107,29 @@ fn log_all(
             &rerun::LineStrips2D::new([observed_over(recording, segment)])
                 .with_colors([colour(OBSERVED)]),
         )?;
-        for (name, prediction, rgb) in [
-            ("input", &segment.input, INPUT),
-            ("fitted", &segment.fitted, FITTED),
-        ] {
+        for ((name, _, rgb), prediction) in
+            MODELS.into_iter().zip([&segment.input, &segment.fitted])
+        {
             rec.log(
                 format!("world/segment/{name}_model"),
                 &rerun::LineStrips2D::new([strip(prediction)]).with_colors([colour(rgb)]),
             )?;
-            let [along, across, heading] = prediction.residual;
-            rec.log(
-                format!("residuals/along_mm/{name}"),
-                &rerun::Scalars::new([along * 1e3]),
-            )?;
-            rec.log(
-                format!("residuals/across_mm/{name}"),
-                &rerun::Scalars::new([across * 1e3]),
-            )?;
-            rec.log(
-                format!("residuals/heading_deg/{name}"),
-                &rerun::Scalars::new([heading.to_degrees()]),
-            )?;
+            for ((series, unit), value) in RESIDUALS.into_iter().zip(prediction.residual) {
+                rec.log(
+                    format!("{series}/{name}"),
+                    &rerun::Scalars::new([value * unit]),
+                )?;
+            }
         }
     }
     for &(t, input, fitted) in &diagnosis.heldout_errors {
         rec.set_duration_secs(TIMELINE, t);
-        rec.log(
-            "heldout/position_error_mm/input",
-            &rerun::Scalars::new([input * 1e3]),
-        )?;
-        rec.log(
-            "heldout/position_error_mm/fitted",
-            &rerun::Scalars::new([fitted * 1e3]),
-        )?;
+        for ((name, _, _), error_m) in MODELS.into_iter().zip([input, fitted]) {
+            rec.log(
+                format!("{HELDOUT}/{name}"),
+                &rerun::Scalars::new([error_m * 1e3]),
+            )?;
+        }
     }
     Ok(())
 }
@@ -131,16 +137,12 @@ fn log_all(
 /// Each plotted series is named and coloured once, so the viewer's legends
 /// say which model a line belongs to.
 fn log_series_styles(rec: &RecordingStream) -> rerun::RecordingStreamResult<()> {
-    for parent in [
-        "residuals/along_mm",
-        "residuals/across_mm",
-        "residuals/heading_deg",
-        "heldout/position_error_mm",
-    ] {
-        for (name, label, rgb) in [
-            ("input", "input model", INPUT),
-            ("fitted", "fitted model", FITTED),
-        ] {
+    for parent in RESIDUALS
+        .map(|(series, _)| series)
+        .into_iter()
+        .chain([HELDOUT])
+    {
+        for (name, label, rgb) in MODELS {
             rec.log_static(
                 format!("{parent}/{name}"),
                 &rerun::SeriesLines::new()
@@ -155,34 +157,33 @@ fn log_series_styles(rec: &RecordingStream) -> rerun::RecordingStreamResult<()> 
 /// Located regions (where the input model's residuals differ) and the
 /// regions of fitted effects, as labelled boxes.
 fn log_regions(rec: &RecordingStream, diagnosis: &Diagnosis) -> rerun::RecordingStreamResult<()> {
+    let located = diagnosis.located.iter().filter_map(|l| {
+        l.region.map(|r| {
+            (
+                r,
+                format!("{} residual differs (z {:.1})", l.component, l.z),
+            )
+        })
+    });
+    rec.log_static("world/located", &boxes(located, LOCATED))?;
+    let zones = diagnosis
+        .effects
+        .iter()
+        .filter_map(|e| e.place.region.map(|r| (r, e.kind.to_string())));
+    rec.log_static("world/fitted_zones", &boxes(zones, ZONE))
+}
+
+/// Labelled boxes of `[x0, y0, x1, y1]` regions.
+fn boxes(regions: impl Iterator<Item = ([f64; 4], String)>, rgb: [u8; 3]) -> rerun::Boxes2D {
     let (mut mins, mut sizes, mut labels) = (Vec::new(), Vec::new(), Vec::new());
-    for l in &diagnosis.located {
-        if let Some(r) = l.region {
-            mins.push([r[0] as f32, r[1] as f32]);
-            sizes.push([(r[2] - r[0]) as f32, (r[3] - r[1]) as f32]);
-            labels.push(format!("{} residual differs (z {:.1})", l.component, l.z));
-        }
+    for (r, label) in regions {
+        mins.push([r[0] as f32, r[1] as f32]);
+        sizes.push([(r[2] - r[0]) as f32, (r[3] - r[1]) as f32]);
+        labels.push(label);
     }
-    rec.log_static(
-        "world/located",
-        &rerun::Boxes2D::from_mins_and_sizes(mins, sizes)
-            .with_labels(labels)
-            .with_colors([colour(LOCATED)]),
-    )?;
-    let (mut mins, mut sizes, mut labels) = (Vec::new(), Vec::new(), Vec::new());
-    for e in &diagnosis.effects {
-        if let Some(r) = e.place.region {
-            mins.push([r[0] as f32, r[1] as f32]);
-            sizes.push([(r[2] - r[0]) as f32, (r[3] - r[1]) as f32]);
-            labels.push(e.kind.to_string());
-        }
-    }
-    rec.log_static(
-        "world/fitted_zones",
-        &rerun::Boxes2D::from_mins_and_sizes(mins, sizes)
-            .with_labels(labels)
-            .with_colors([colour(ZONE)]),
-    )
+    rerun::Boxes2D::from_mins_and_sizes(mins, sizes)
+        .with_labels(labels)
+        .with_colors([colour(rgb)])
 }
 
 fn strip(prediction: &Prediction) -> Vec<[f32; 2]> {

@@ -51,24 +51,19 @@ fn diagnose_generated(name: &str, truth: &str, extra: &[&str]) -> (Value, Scratc
     let dir = scratch(name);
     let truth_file = dir.join("truth.in.toml");
     std::fs::write(&truth_file, truth).expect("write truth");
-    let generated = Command::new(binary())
-        .args([
-            "generate",
-            "--seed",
-            SEED,
-            "--duration",
-            &DURATION_S.to_string(),
-            "--truth",
-        ])
-        .arg(&truth_file)
-        .arg("--out")
-        .arg(&dir)
-        .output()
-        .expect("run generate");
-    assert!(
-        generated.status.success(),
-        "{}",
-        String::from_utf8_lossy(&generated.stderr)
+    succeed(
+        Command::new(binary())
+            .args([
+                "generate",
+                "--seed",
+                SEED,
+                "--duration",
+                &DURATION_S.to_string(),
+                "--truth",
+            ])
+            .arg(&truth_file)
+            .arg("--out")
+            .arg(&dir),
     );
     let out = diagnose_dir(&dir, extra);
     (out, dir)
@@ -76,20 +71,27 @@ fn diagnose_generated(name: &str, truth: &str, extra: &[&str]) -> (Value, Scratc
 
 fn diagnose_dir(dir: &Path, extra: &[&str]) -> Value {
     // Run from the run's folder, so relative paths in `extra` land there.
-    let output = Command::new(binary())
-        .current_dir(dir)
-        .arg(dir)
-        .args(["--json", "--out"])
-        .arg(dir.join("out"))
-        .args(extra)
-        .output()
-        .expect("run shoal-diagnose");
+    let stdout = succeed(
+        Command::new(binary())
+            .current_dir(dir)
+            .arg(dir)
+            .args(["--json", "--out"])
+            .arg(dir.join("out"))
+            .args(extra),
+    );
+    serde_json::from_slice(&stdout).expect("JSON")
+}
+
+/// Runs `command`, fails the test with its stderr if it fails, and returns
+/// what it printed.
+fn succeed(command: &mut Command) -> Vec<u8> {
+    let output = command.output().expect("start the process");
     assert!(
         output.status.success(),
-        "{}",
+        "{command:?}: {}",
         String::from_utf8_lossy(&output.stderr)
     );
-    serde_json::from_slice(&output.stdout).expect("JSON")
+    output.stdout
 }
 
 fn kinds(diagnosis: &Value) -> Vec<String> {
@@ -297,17 +299,12 @@ fn mrclam_d6() -> PathBuf {
 #[test]
 fn a_real_mrclam_robot_shows_a_mismatch_that_the_fit_reduces() {
     let data = mrclam_d6();
-    let output = Command::new(binary())
-        .args(["--json", "--robot", "3", "--mrclam"])
-        .arg(&data)
-        .output()
-        .expect("run");
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
+    let stdout = succeed(
+        Command::new(binary())
+            .args(["--json", "--robot", "3", "--mrclam"])
+            .arg(&data),
     );
-    let d: Value = serde_json::from_slice(&output.stdout).expect("JSON");
+    let d: Value = serde_json::from_slice(&stdout).expect("JSON");
     assert_eq!(d["mismatch"], true);
     // A response delay: pure latency or a first-order actuator lag.
     assert!(
@@ -346,21 +343,15 @@ fn write_bag(dir: &Path, poses_as: &str) -> PathBuf {
 /// Runs one of this folder's Python scripts (the official clients our users
 /// have) and returns what it printed; fails the test if the script fails.
 fn python(script: &str, args: &[&std::ffi::OsStr]) -> Vec<u8> {
-    let output = Command::new("python3")
-        .arg(
-            Path::new(env!("CARGO_MANIFEST_DIR"))
-                .join("tests")
-                .join(script),
-        )
-        .args(args)
-        .output()
-        .expect("run python3");
-    assert!(
-        output.status.success(),
-        "{script}: {}",
-        String::from_utf8_lossy(&output.stderr)
-    );
-    output.stdout
+    succeed(
+        Command::new("python3")
+            .arg(
+                Path::new(env!("CARGO_MANIFEST_DIR"))
+                    .join("tests")
+                    .join(script),
+            )
+            .args(args),
+    )
 }
 
 fn diagnose_bag(bag: &Path, topics: &[&str]) -> std::process::Output {

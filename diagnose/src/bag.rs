@@ -63,9 +63,6 @@ pub struct BagRun {
     pub pose_times: TimeSource,
 }
 
-/// The bytes every MCAP file starts with.
-pub const MCAP_MAGIC: &[u8] = mcap::MAGIC;
-
 pub const COMMAND_TYPES: [&str; 2] = ["geometry_msgs/msg/Twist", "geometry_msgs/msg/TwistStamped"];
 pub const POSE_TYPES: [&str; 4] = [
     "geometry_msgs/msg/PoseStamped",
@@ -86,13 +83,19 @@ fn messages<'a>(
     bytes: &'a [u8],
     file: &str,
 ) -> Result<impl Iterator<Item = Result<mcap::Message<'a>, InputError>> + use<'a>, InputError> {
-    let owned = file.to_owned();
-    let stream = mcap::MessageStream::new(bytes).map_err(|e| {
+    let not_mcap = |why: String| {
         bag_error(
             file,
-            format!("not a readable MCAP file ({e}); ROS 2 bags must be recorded with the mcap storage plugin (`ros2 bag record -s mcap`)"),
+            format!(
+                "not an MCAP file{why}; ROS 2 bags in the default sqlite3 storage (.db3) can be converted with `ros2 bag convert`, or recorded with `ros2 bag record -s mcap`"
+            ),
         )
-    })?;
+    };
+    if !bytes.starts_with(mcap::MAGIC) {
+        return Err(not_mcap(String::new()));
+    }
+    let owned = file.to_owned();
+    let stream = mcap::MessageStream::new(bytes).map_err(|e| not_mcap(format!(" ({e})")))?;
     Ok(stream.map(move |m| {
         m.map_err(|e| bag_error(&owned, format!("the bag is damaged or cut short: {e}")))
     }))
@@ -205,22 +208,10 @@ pub fn read_bag(bytes: &[u8], file: &str, selection: &Selection) -> Result<BagRu
         pose_times,
     };
     for (ns, (v, omega)) in commands {
-        let t = seconds(ns);
-        // Two commands at one time: the later one is what the robot kept.
-        if run.commands.t.last() == Some(&t) {
-            run.commands.t.pop();
-            run.commands.v.pop();
-            run.commands.omega.pop();
-        }
-        run.commands.t.push(t);
-        run.commands.v.push(v);
-        run.commands.omega.push(omega);
+        run.commands.hold(seconds(ns), v, omega);
     }
     for (ns, (x, y, theta)) in poses {
-        let t = seconds(ns);
-        if run.poses.t.last() != Some(&t) {
-            run.poses.push(t, x, y, theta);
-        }
+        run.poses.observe(seconds(ns), x, y, theta);
     }
     Ok(run)
 }
@@ -347,15 +338,10 @@ fn decode_poses(
                 .filter(|t| same(&t.child_frame_id, frame))
                 .filter(|t| selection.parent.is_none_or(|p| same(&t.header.frame_id, p)))
                 .map(|t| {
-                    let position = msg::Vector3 {
-                        x: t.transform.translation.x,
-                        y: t.transform.translation.y,
-                        z: t.transform.translation.z,
-                    };
                     planar(
                         t.header.stamp.nanoseconds(),
                         log_time,
-                        &position,
+                        &t.transform.translation,
                         &t.transform.rotation,
                     )
                 })

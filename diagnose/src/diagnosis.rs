@@ -141,12 +141,22 @@ pub struct Diagnosis {
 pub struct Prepared {
     pub grid: CommandGrid,
     pub segments: Vec<Segment>,
+    /// Observed poses set aside as gross outliers before segmenting.
+    pub pose_outliers: usize,
 }
 
+/// The run as diagnosis compares it: gross pose outliers set aside (see
+/// `Poses::without_outliers`), commands on a grid, segments started at the
+/// observed poses.
 pub fn prepare(recording: &Recording, options: &Options) -> Prepared {
-    let grid = command_grid(recording, options.grid_dt);
-    let segments = segments(recording, &grid, options.horizon_s);
-    Prepared { grid, segments }
+    let (recording, pose_outliers) = recording.without_pose_outliers();
+    let grid = command_grid(&recording, options.grid_dt);
+    let segments = segments(&recording, &grid, options.horizon_s);
+    Prepared {
+        grid,
+        segments,
+        pose_outliers,
+    }
 }
 
 /// Extra BIC parameters for where an effect acts: a located span or
@@ -491,8 +501,6 @@ fn zone_of_span(segments: &[Segment], scoped: &ScopedEffect) -> Option<[f64; 4]>
     region_driven(segments, during)
 }
 
-/// The box the robot drove in during `[a, b]` seconds, if it drove there
-/// for at least a few segments.
 /// The narrowest side a surface zone may have. A patch of floor narrower
 /// than a robot's footprint is crossed in a fraction of a second and cannot
 /// be told from an event that happened there; a fit that shrinks a zone to a
@@ -511,6 +519,9 @@ fn at_least_min_side(region: [f64; 4]) -> [f64; 4] {
     [x0, y0, x1, y1]
 }
 
+/// The box the robot drove in during `[a, b]` seconds (at least
+/// [`MIN_ZONE_SIDE_M`] a side), if it drove there for at least a few
+/// segments.
 fn region_driven(segments: &[Segment], [a, b]: [f64; 2]) -> Option<[f64; 4]> {
     let inside: Vec<&Segment> = segments
         .iter()
@@ -697,9 +708,8 @@ fn subsample(segments: &[Segment], count: usize) -> Vec<Segment> {
 
 /// Diagnoses `recording` against `model`.
 pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options) -> Diagnosis {
-    let (recording, pose_outliers) = recording.without_pose_outliers();
-    let recording = &recording;
     let prepared = prepare(recording, options);
+    let pose_outliers = prepared.pose_outliers;
     let (grid, segs) = (&prepared.grid, &prepared.segments);
     let duration = recording.duration();
     let fixed = model.effects.clone();

@@ -279,6 +279,32 @@ fn param_error(truth: &Effect, found: &Effect) -> f64 {
         / size
 }
 
+/// The case called `name`; the error lists the known ones.
+pub fn case_named(name: &str, duration_s: f64) -> Result<Case, String> {
+    let all = cases(duration_s);
+    let known: Vec<&str> = all.iter().map(|c| c.name).collect();
+    let known = known.join(", ");
+    all.into_iter()
+        .find(|c| c.name == name)
+        .ok_or_else(|| format!("unknown case `{name}`; known: {known}"))
+}
+
+/// The generator's settings for one run: `case`'s operator (if any), under
+/// `noise`.
+pub fn run_settings(
+    case: Option<&Case>,
+    noise: &NoiseColour,
+    seed: u64,
+    duration_s: f64,
+) -> Settings {
+    noise.apply(Settings {
+        duration_s,
+        seed,
+        turn_inside: case.and_then(|c| c.turn_inside),
+        ..Settings::default()
+    })
+}
+
 pub fn run_case(
     case: &Case,
     noise: &NoiseColour,
@@ -294,13 +320,7 @@ pub fn run_case(
     let mut per_run = Vec::new();
     let runs = seeds.clone().count();
     for seed in seeds {
-        let settings = noise.apply(Settings {
-            duration_s,
-            seed,
-            turn_inside: case.turn_inside,
-            ..Settings::default()
-        });
-        let recording = generate(&truth, &settings);
+        let recording = generate(&truth, &run_settings(Some(case), noise, seed, duration_s));
         let started = std::time::Instant::now();
         let diagnosis = diagnose(&recording, &UnicycleModel::plain(), &Options::default());
         seconds += started.elapsed().as_secs_f64();

@@ -214,15 +214,7 @@ const MAX_SPAN_S: f64 = 24.0 * 3600.0;
 fn commands_from(rows: Vec<(usize, Vec<f64>)>) -> Commands {
     let mut commands = Commands::default();
     for (_, row) in rows {
-        // Two commands at the same time: the later one is what the robot kept.
-        if commands.t.last() == Some(&row[0]) {
-            commands.t.pop();
-            commands.v.pop();
-            commands.omega.pop();
-        }
-        commands.t.push(row[0]);
-        commands.v.push(row[1]);
-        commands.omega.push(row[2]);
+        commands.hold(row[0], row[1], row[2]);
     }
     commands
 }
@@ -230,9 +222,7 @@ fn commands_from(rows: Vec<(usize, Vec<f64>)>) -> Commands {
 fn poses_from(rows: Vec<(usize, Vec<f64>)>) -> Poses {
     let mut poses = Poses::default();
     for (_, row) in rows {
-        if poses.t.last() != Some(&row[0]) {
-            poses.push(row[0], row[1], row[2], row[3]);
-        }
+        poses.observe(row[0], row[1], row[2], row[3]);
     }
     poses
 }

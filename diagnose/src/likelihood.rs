@@ -41,7 +41,7 @@ const MEMORY_WARMUP_S: f64 = 3.0;
 
 /// Grid steps the actuators run before a segment that does not follow the
 /// previous one, for `model`.
-pub fn warmup_steps(model: &UnicycleModel, grid: &CommandGrid) -> usize {
+fn warmup_steps(model: &UnicycleModel, grid: &CommandGrid) -> usize {
     let warmup_s = if model.has_actuator_memory() {
         MEMORY_WARMUP_S
     } else {
@@ -51,10 +51,22 @@ pub fn warmup_steps(model: &UnicycleModel, grid: &CommandGrid) -> usize {
 }
 
 pub fn residuals(model: &UnicycleModel, grid: &CommandGrid, segments: &[Segment]) -> Vec<Residual> {
-    let predicted = model.predict_stretches(
+    traced_residuals(model, grid, segments, |_, _, _| {})
+}
+
+/// [`residuals`], also handing `on_step` every predicted pose on the way:
+/// the segment's index, the grid step just executed and the pose after it.
+pub fn traced_residuals(
+    model: &UnicycleModel,
+    grid: &CommandGrid,
+    segments: &[Segment],
+    on_step: impl FnMut(usize, usize, Pose),
+) -> Vec<Residual> {
+    let predicted = model.trace_stretches(
         grid,
         segments.iter().map(|s| (s.start, s.from, s.to)),
         warmup_steps(model, grid),
+        on_step,
     );
     segments
         .iter()
@@ -64,7 +76,7 @@ pub fn residuals(model: &UnicycleModel, grid: &CommandGrid, segments: &[Segment]
 }
 
 /// Observed minus `predicted` at the segment's end, in the frame of its start.
-pub fn residual_of(segment: &Segment, predicted: Pose) -> Residual {
+fn residual_of(segment: &Segment, predicted: Pose) -> Residual {
     let end = segment.end;
     let (dx, dy) = (end.x - predicted.x, end.y - predicted.y);
     let (sin, cos) = segment.start.theta.sin_cos();

@@ -30,7 +30,30 @@ pub struct Recording {
 /// Observations further apart than this leave a gap that no segment spans.
 pub const MAX_OBSERVATION_GAP_S: f64 = 0.5;
 
+impl Commands {
+    /// Appends a command read from a file, in time order. Of two commands
+    /// at one time, the later one is what the robot kept.
+    pub fn hold(&mut self, t: f64, v: f64, omega: f64) {
+        if self.t.last() == Some(&t) {
+            self.t.pop();
+            self.v.pop();
+            self.omega.pop();
+        }
+        self.t.push(t);
+        self.v.push(v);
+        self.omega.push(omega);
+    }
+}
+
 impl Poses {
+    /// Appends a pose read from a file, in time order; a second observation
+    /// at a time already seen is dropped.
+    pub fn observe(&mut self, t: f64, x: f64, y: f64, theta: f64) {
+        if self.t.last() != Some(&t) {
+            self.push(t, x, y, theta);
+        }
+    }
+
     pub fn push(&mut self, t: f64, x: f64, y: f64, theta: f64) {
         let theta = match self.theta.last() {
             Some(&previous) => previous + wrap_angle(theta - previous),

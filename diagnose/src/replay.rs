@@ -4,8 +4,8 @@
 
 use shoal_physics::{Pose, UnicycleModel};
 
-use crate::diagnosis::{Options, prepare};
-use crate::likelihood::{Residual, residual_of, warmup_steps};
+use crate::diagnosis::{Options, Prepared, prepare};
+use crate::likelihood::{Residual, traced_residuals};
 use crate::recording::Recording;
 
 /// One model's prediction over one segment.
@@ -30,16 +30,14 @@ pub struct SegmentReplay {
 
 /// Every segment diagnosis compared, predicted by `input` (the model the
 /// user gave) and `fitted` (the model diagnosis wrote), from the same
-/// observed starts diagnosis used (pose outliers set aside as it does).
+/// observed starts diagnosis used ([`prepare`]).
 pub fn replay(
     recording: &Recording,
     input: &UnicycleModel,
     fitted: &UnicycleModel,
     options: &Options,
 ) -> Vec<SegmentReplay> {
-    let (recording, _) = recording.without_pose_outliers();
-    let prepared = prepare(&recording, options);
-    let (grid, segments) = (&prepared.grid, &prepared.segments);
+    let Prepared { grid, segments, .. } = prepare(recording, options);
     let predict = |model: &UnicycleModel| -> Vec<Prediction> {
         let mut predictions: Vec<Prediction> = segments
             .iter()
@@ -49,26 +47,21 @@ pub fn replay(
                 residual: [0.0; 3],
             })
             .collect();
-        let ends = model.trace_stretches(
-            grid,
-            segments.iter().map(|s| (s.start, s.from, s.to)),
-            warmup_steps(model, grid),
-            |index, step, pose: Pose| {
-                if let Some(p) = predictions.get_mut(index) {
-                    p.t.push(grid.time(step) + grid.dt);
-                    p.path.push([pose.x, pose.y]);
-                }
-            },
-        );
-        for ((p, s), end) in predictions.iter_mut().zip(segments).zip(ends) {
-            p.residual = residual_of(s, end);
+        let residuals = traced_residuals(model, &grid, &segments, |index, step, pose: Pose| {
+            if let Some(p) = predictions.get_mut(index) {
+                p.t.push(grid.time(step) + grid.dt);
+                p.path.push([pose.x, pose.y]);
+            }
+        });
+        for (p, residual) in predictions.iter_mut().zip(residuals) {
+            p.residual = residual;
         }
         predictions
     };
     predict(input)
         .into_iter()
         .zip(predict(fitted))
-        .zip(segments)
+        .zip(&segments)
         .map(|((input, fitted), s)| SegmentReplay {
             t_start: s.t_start,
             t_end: s.t_end,
@@ -102,8 +95,7 @@ mod tests {
         assert!(segments.len() > 30, "{} segments", segments.len());
 
         // The ends are exactly the residuals the likelihood scores.
-        let (cleaned, _) = recording.without_pose_outliers();
-        let prepared = prepare(&cleaned, &options);
+        let prepared = prepare(&recording, &options);
         let scored = residuals(&truth, &prepared.grid, &prepared.segments);
         for (s, r) in segments.iter().zip(&scored) {
             assert_eq!(&s.fitted.residual, r);

@@ -273,33 +273,6 @@ impl UnicycleModel {
         }
     }
 
-    /// Predicts the pose at grid step `to` from `start` at step `from`, the
-    /// actuators warmed up over `warmup` steps before: the cost of one
-    /// prediction does not depend on how long the run is.
-    pub fn predict(
-        &self,
-        grid: &CommandGrid,
-        start: Pose,
-        from: usize,
-        to: usize,
-        warmup: usize,
-    ) -> Pose {
-        let first = from.saturating_sub(warmup);
-        let (mut pose, to) = (start, to.min(grid.len()));
-        if first >= to {
-            return pose;
-        }
-        let mut actuators = Actuators::settled(grid.v[first], grid.omega[first]);
-        for i in first..to {
-            let (v, omega) = actuators.execute(self, grid, i);
-            if i >= from {
-                pose = self.step_raw(pose, v, omega, grid.time(i) - grid.t0, grid.dt);
-            }
-        }
-        pose.theta = wrap_angle(pose.theta);
-        pose
-    }
-
     /// Whether what the actuators execute depends on their history (a lag,
     /// play in the steering, an acceleration limit), not only on the
     /// commands at one time.
@@ -313,7 +286,8 @@ impl UnicycleModel {
     }
 
     /// Predicts many stretches at once: for each `(start, from, to)` (in time
-    /// order) the pose at grid step `to` from `start` at step `from`. The
+    /// order) the pose at grid step `to` from `start` at step `from`, the
+    /// cost of each independent of how long the run is. The
     /// actuators run on through consecutive stretches, so their state is the
     /// one the whole history gives; where stretches leave a gap (or overlap)
     /// they are warmed up afresh over `warmup` steps.
