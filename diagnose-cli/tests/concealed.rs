@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use serde_json::Value;
-use shoal_diagnose::experiment::cases;
+use shoal_diagnose::experiment::{case_named, cases};
 
 const DURATION_S: f64 = 600.0;
 const SEED: &str = "1000";
@@ -155,10 +155,7 @@ fn each_concealed_effect_is_named_on_one_seed() {
 
 #[test]
 fn two_effects_together_are_both_found_and_the_written_model_explains_the_run() {
-    let case = cases(DURATION_S)
-        .into_iter()
-        .find(|c| c.name == "speed_scale+external_flow")
-        .expect("pair case");
+    let case = case_named("speed_scale+external_flow", DURATION_S).expect("pair case");
     let (d, dir) = diagnose_generated("pair", &truth_toml(&case), &["--rrd", "diagnosis.rrd"]);
     let found = kinds(&d);
     assert!(
@@ -366,10 +363,7 @@ fn diagnose_bag(bag: &Path, topics: &[&str]) -> std::process::Output {
 
 #[test]
 fn a_ros2_bag_is_diagnosed_from_pose_tf_and_odometry_topics() {
-    let case = cases(DURATION_S)
-        .into_iter()
-        .find(|c| c.name == "latency")
-        .expect("latency case");
+    let case = case_named("latency", DURATION_S).expect("latency case");
     let (from_csv, dir) = diagnose_generated("bag", &truth_toml(&case), &[]);
     let true_latency = case.truth[0].effect.params()[0].1;
     for (poses_as, topics) in [
