@@ -31,8 +31,8 @@ struct Cli {
 
 #[derive(Args)]
 struct DiagnoseArgs {
-    /// A run directory holding commands.csv and poses.csv (for a Shoal run:
-    /// DIR/robot-<id> of `shoal up --record run.rrd --tum DIR`).
+    /// A Shoal recording (run.rrd, with --robot N), or a run directory
+    /// holding commands.csv and poses.csv.
     run: Option<PathBuf>,
     /// Commands sent: CSV with header t,v,omega (held until the next row).
     #[arg(long, requires = "poses", conflicts_with_all = ["run", "mrclam"])]
@@ -43,7 +43,7 @@ struct DiagnoseArgs {
     /// An MRCLAM dataset directory (e.g. shared/data/mrclam-d6); with --robot.
     #[arg(long, requires = "robot", conflicts_with = "run")]
     mrclam: Option<PathBuf>,
-    /// Which MRCLAM robot, 1-5.
+    /// Which robot: a Shoal robot id in a .rrd recording, or MRCLAM's 1-5.
     #[arg(long)]
     robot: Option<u32>,
     /// A ROS 2 bag (MCAP): commands from --commands-topic, poses from
@@ -152,6 +152,34 @@ fn load_bag(path: &Path, args: &DiagnoseArgs) -> Result<Recording> {
     })
 }
 
+/// One robot of a Shoal recording: its true poses and the commands it
+/// executed, as the recorder logged them.
+fn load_rrd(path: &Path, robot: Option<u32>) -> Result<Recording> {
+    let file = path.display().to_string();
+    let rows = shoal_viewer_log::motion::read_motion(path)?;
+    if let Some(messages) = rows.truncated_after {
+        eprintln!(
+            "shoal diagnose: {file} ends mid-message after {messages} messages (was its recorder killed?); reading what came before"
+        );
+    }
+    let Some(robot) = robot else {
+        bail!(
+            "{file}: which robot? give --robot N; the recording holds robots {}",
+            shoal_viewer_log::motion::list_ids(&rows.robots())
+        );
+    };
+    let track = rows.track(robot, &file)?;
+    let mut commands = shoal_diagnose::recording::Commands::default();
+    for [t, v, omega] in track.commands {
+        commands.hold(t, v, omega);
+    }
+    let mut poses = shoal_diagnose::recording::Poses::default();
+    for [t, x, y, theta] in track.poses {
+        poses.observe(t, x, y, theta);
+    }
+    Ok(Recording::from_absolute(commands, poses))
+}
+
 fn or_none(names: &[&str]) -> String {
     if names.is_empty() {
         "none in this bag".to_owned()
@@ -177,12 +205,7 @@ fn load(args: &DiagnoseArgs) -> Result<Recording> {
     }
     if let Some(run) = &args.run {
         if run.extension().is_some_and(|e| e == "rrd") {
-            bail!(
-                "{}: diagnose a Shoal run through the folder its recorder writes beside it: \
-                 `shoal up --record run.rrd --tum DIR` writes DIR/robot-<id>/commands.csv and poses.csv; \
-                 then `shoal diagnose DIR/robot-<id>`",
-                run.display()
-            );
+            return load_rrd(run, args.robot);
         }
         return load_csv_pair(&run.join("commands.csv"), &run.join("poses.csv"));
     }

@@ -594,17 +594,38 @@ fn components_of(grid: &CommandGrid, segs: &[Segment], effects: &[ScopedEffect])
     component_nll(&model, segs, &residuals(&model, grid, segs))
 }
 
+/// What one more effect does to held-out, time-blocked prediction.
+#[derive(Clone, Copy, Debug)]
+struct HeldoutCheck {
+    /// Gain in held-out log-likelihood (positive: unseen data are likelier).
+    nll_gain: f64,
+    /// Held-out position error (RMS, m) without and with the effect.
+    rmse_pos_before: f64,
+    rmse_pos_after: f64,
+}
+
+impl HeldoutCheck {
+    /// An effect on the mean motion must also predict unseen positions no
+    /// worse: the likelihood alone can be won by reweighting the noise (a
+    /// spurious drift over a stretch whose noise is then judged smaller),
+    /// which is no better prediction. Noise-only effects move no prediction
+    /// and are judged by the likelihood alone.
+    fn passes(&self, effect: &Effect) -> bool {
+        let likelier = self.nll_gain > 0.0;
+        likelier && (effect.only_noise() || self.rmse_pos_after <= self.rmse_pos_before)
+    }
+}
+
 /// Held-out check of one more effect: on time-blocked folds, `candidate`
 /// is refitted on the training blocks and both models predict the held-out
-/// block. Returns the total gain in held-out log-likelihood (positive: the
-/// effect predicts unseen data better).
-fn heldout_gain(
+/// block.
+fn heldout_check(
     prepared: &Prepared,
     base: &[ScopedEffect],
     candidate: &ScopedEffect,
     options: &Options,
-) -> f64 {
-    on_folds(prepared, options, |train, test| {
+) -> HeldoutCheck {
+    let folds = on_folds(prepared, options, |train, test| {
         let with = refit_on(
             prepared,
             train,
@@ -612,13 +633,29 @@ fn heldout_gain(
             std::slice::from_ref(candidate),
             options,
         );
-        predict_heldout(prepared, train, test, base.to_vec()).0
-            - predict_heldout(prepared, train, test, with).0
-    })
-    .into_iter()
-    // A panicked fold makes the sum NaN, which never passes the check.
-    .map(|gain| gain.unwrap_or(f64::NAN))
-    .sum()
+        let (nll_before, before) = predict_heldout(prepared, train, test, base.to_vec());
+        let (nll_after, after) = predict_heldout(prepared, train, test, with);
+        (nll_before - nll_after, before, after)
+    });
+    let mut check = HeldoutCheck {
+        nll_gain: 0.0,
+        rmse_pos_before: 0.0,
+        rmse_pos_after: 0.0,
+    };
+    let (mut before, mut after) = (Vec::new(), Vec::new());
+    for fold in folds {
+        // A panicked fold makes the gain NaN, which never passes the check.
+        let Some((gain, b, a)) = fold else {
+            check.nll_gain = f64::NAN;
+            continue;
+        };
+        check.nll_gain += gain;
+        before.extend(b);
+        after.extend(a);
+    }
+    check.rmse_pos_before = rmse(&before).0;
+    check.rmse_pos_after = rmse(&after).0;
+    check
 }
 
 /// A fitted parameter this close to an edge of its physical range (as a
@@ -725,13 +762,33 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
     // length of the run.
     let screen = subsample(segs, options.screen_segments);
     let screen_log_n = ((3 * screen.len()).max(2) as f64).ln();
-    let mut remaining = candidates(&located, segs, duration);
+    // Where the robot goes is explained first, how noisy it is after: a
+    // mismatch of the mean (mud, a drift) otherwise passes for noise that
+    // grows with speed, and the noise model it leaves behind then judges
+    // the true explanation unlikely (feasible GLS orders them the same way).
+    let (mut remaining, mut noise_candidates): (Vec<ScopedEffect>, Vec<ScopedEffect>) =
+        candidates(&located, segs, duration)
+            .into_iter()
+            .partition(|c| !c.effect.only_noise());
+    // Ends the search for effects on the mean; the noise effects come next.
+    macro_rules! next_phase {
+        () => {{
+            if noise_candidates.is_empty() {
+                break;
+            }
+            remaining = std::mem::take(&mut noise_candidates);
+            continue;
+        }};
+    }
     let mut found: Vec<ScopedEffect> = Vec::new();
     // What selection learned of each effect in `found`, index for index.
     let mut evidence: Vec<Evidence> = Vec::new();
     let mut unexplained: Vec<Unexplained> = Vec::new();
     let mut rejected_heldout: Vec<&'static str> = Vec::new();
-    while found.len() < options.max_effects && !remaining.is_empty() && segs.len() >= 20 {
+    while found.len() < options.max_effects && segs.len() >= 20 {
+        if remaining.is_empty() {
+            next_phase!();
+        }
         let base: Vec<ScopedEffect> = fixed.iter().chain(&found).cloned().collect();
         let base_nll = components_of(grid, segs, &base);
         let screen_current = nll_of(grid, &screen, &base);
@@ -750,7 +807,7 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
         ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
         ranked.truncate(options.confirm);
         if ranked.is_empty() {
-            break;
+            next_phase!();
         }
         let top: Vec<ScopedEffect> = ranked.into_iter().map(|(_, c)| c).collect();
         let mut confirmed = fit_all(grid, segs, &base, &top, options.max_iters / 2);
@@ -770,7 +827,7 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
             }
         }
         let Some(best_fit) = confirmed.iter().min_by(|a, b| a.nll.total_cmp(&b.nll)) else {
-            break;
+            next_phase!();
         };
         let factors = factors_with(grid, segs, &base, &best_fit.effects[0]);
         let judge = |c: &ScopedEffect| calibrated_gain(grid, segs, base_nll, &base, c, factors);
@@ -780,7 +837,7 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
             .collect();
         confirmed.sort_by(|a, b| a.0.total_cmp(&b.0));
         let Some((mut delta_bic, mut chosen)) = confirmed.first().cloned() else {
-            break;
+            next_phase!();
         };
         // Explanations within 2 of BIC are not worth more than a bare
         // mention apart (Kass and Raftery): one finding, with alternatives.
@@ -790,7 +847,7 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
             .cloned()
             .collect();
         if delta_bic > -options.min_bic_gain {
-            break;
+            next_phase!();
         }
         // An effect may act in part of the run only. Trying that is not
         // left to the locating tests alone: the held-out check below keeps
@@ -853,11 +910,12 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
             });
             continue;
         }
-        let gain_heldout = heldout_gain(&prepared, &base, &chosen, options);
-        if !(gain_heldout > 0.0) {
+        let check = heldout_check(&prepared, &base, &chosen, options);
+        if !check.passes(&chosen.effect) {
             rejected_heldout.push(chosen.effect.kind());
             continue;
         }
+        let gain_heldout = check.nll_gain;
         found.push(chosen);
         evidence.push(Evidence {
             delta_bic,

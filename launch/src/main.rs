@@ -49,6 +49,12 @@ enum Commands {
         /// With --record: also write each robot's true and believed trajectory as TUM files here.
         #[arg(long, requires = "record")]
         tum: Option<PathBuf>,
+        /// Watch the run live in a Rerun viewer started now (`rerun` on PATH).
+        #[arg(long)]
+        viewer: bool,
+        /// Stream the run live to a Rerun viewer already running at ADDR (HOST:PORT).
+        #[arg(long, value_name = "ADDR", conflicts_with = "viewer")]
+        connect: Option<String>,
         /// Start a SLAM process following these robots, e.g. 0,3.
         #[arg(long, value_delimiter = ',')]
         slam: Vec<u32>,
@@ -70,7 +76,7 @@ enum Commands {
     /// Record a running swarm into a Rerun file (.rrd) until Ctrl-C.
     #[command(disable_help_flag = true)]
     Record {
-        /// Arguments for shoal-viewer-log: OUT.rrd [--swarm NAME] [--tum DIR] [--duration SECS].
+        /// Arguments for shoal-viewer-log: [OUT.rrd] [--viewer | --connect ADDR] [--swarm NAME] [--tum DIR] [--duration SECS].
         #[arg(trailing_var_arg = true, allow_hyphen_values = true, required = true)]
         args: Vec<String>,
     },
@@ -219,6 +225,8 @@ fn run(cli: Cli) -> Result<()> {
             json,
             record,
             tum,
+            viewer,
+            connect,
             slam,
         } => {
             up::up(up::UpOptions {
@@ -229,8 +237,12 @@ fn run(cli: Cli) -> Result<()> {
                 lockstep,
                 duration_s: duration,
                 json,
-                record,
-                tum,
+                record: up::RecordOptions {
+                    out: record,
+                    tum,
+                    viewer,
+                    connect,
+                },
                 slam,
             })?;
         }

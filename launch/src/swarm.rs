@@ -2,7 +2,7 @@
 //! an observer of the roster. `shoal up` and the experiments drive it.
 
 use std::collections::BTreeMap;
-use std::path::Path;
+
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
@@ -217,16 +217,10 @@ impl RunningSwarm {
         Ok(())
     }
 
-    /// Starts the recorder process, writing `out` (and TUM files into `tum`).
-    pub fn record(&mut self, out: &Path, tum: Option<&Path>) -> Result<()> {
-        let mut args = vec![
-            out.as_os_str().to_owned(),
-            "--swarm".into(),
-            self.name.clone().into(),
-        ];
-        if let Some(tum) = tum {
-            args.extend(["--tum".into(), tum.as_os_str().to_owned()]);
-        }
+    /// Starts the recorder process: into a file, a live viewer, or both.
+    pub fn record(&mut self, to: &crate::up::RecordOptions) -> Result<()> {
+        let mut args = to.recorder_args();
+        args.extend(["--swarm".into(), self.name.clone().into()]);
         self.pace_to("recorder", RECORDER_LAG_TICKS)?;
         self.start_helper(RECORDER_BINARY, &args)
     }

@@ -24,10 +24,73 @@ pub struct UpOptions {
     pub lockstep: bool,
     pub duration_s: Option<f64>,
     pub json: bool,
-    pub record: Option<PathBuf>,
-    pub tum: Option<PathBuf>,
+    pub record: RecordOptions,
     /// Robots a SLAM process follows (added to the scenario's `[slam] follow`).
     pub slam: Vec<u32>,
+}
+
+/// Where the recorder sends the run: a file, a live viewer, or both.
+#[derive(Clone, Debug, Default)]
+pub struct RecordOptions {
+    pub out: Option<PathBuf>,
+    /// With `out`: each robot's trajectories as TUM files here, for evo.
+    pub tum: Option<PathBuf>,
+    /// A Rerun viewer started now.
+    pub viewer: bool,
+    /// A Rerun viewer already running at this address.
+    pub connect: Option<String>,
+}
+
+impl RecordOptions {
+    /// Into a file (and TUM files beside it, if `tum`).
+    pub fn file(out: &std::path::Path, tum: Option<&std::path::Path>) -> Self {
+        Self {
+            out: Some(out.to_owned()),
+            tum: tum.map(ToOwned::to_owned),
+            ..Self::default()
+        }
+    }
+
+    pub fn wanted(&self) -> bool {
+        self.out.is_some() || self.viewer || self.connect.is_some()
+    }
+
+    /// The recorder's arguments (beside `--swarm`).
+    pub fn recorder_args(&self) -> Vec<std::ffi::OsString> {
+        let mut args = Vec::new();
+        if let Some(out) = &self.out {
+            args.push(out.as_os_str().to_owned());
+        }
+        if let Some(tum) = &self.tum {
+            args.extend(["--tum".into(), tum.as_os_str().to_owned()]);
+        }
+        if self.viewer {
+            args.push("--viewer".into());
+        }
+        if let Some(addr) = &self.connect {
+            args.extend(["--connect".into(), addr.into()]);
+        }
+        args
+    }
+}
+
+/// Fails before anything starts when `--viewer` cannot work: the Rerun
+/// viewer is the `rerun` program, which Shoal does not ship.
+fn check_viewer_installed() -> Result<()> {
+    let found = std::env::var_os("PATH").is_some_and(|path| {
+        std::env::split_paths(&path).any(|dir| {
+            std::fs::metadata(dir.join("rerun"))
+                .is_ok_and(|m| m.is_file() && std::os::unix::fs::PermissionsExt::mode(&m.permissions()) & 0o111 != 0)
+        })
+    });
+    if !found {
+        bail!(
+            "--viewer needs the Rerun viewer, the program `rerun`, on PATH, and there is none; \
+             install it with `pip install rerun-sdk==0.36.3` (or `cargo binstall rerun-cli@0.36.3`), \
+             or record with --record run.rrd and open that later with `rerun run.rrd`"
+        );
+    }
+    Ok(())
 }
 
 #[derive(Debug, Serialize)]
@@ -57,6 +120,9 @@ pub fn is_formed(metrics: &FormationMetrics) -> bool {
 }
 
 pub fn up(options: UpOptions) -> Result<UpSummary> {
+    if options.record.viewer {
+        check_viewer_installed()?;
+    }
     let mut scenario = load_scenario(options.scenario.as_ref())?;
     if let Some(count) = options.agents {
         scenario.agents.count = count;
@@ -72,8 +138,8 @@ pub fn up(options: UpOptions) -> Result<UpSummary> {
     let follow = scenario.slam.follow.clone();
     let spread = scenario.formation.spread;
     let mut swarm = RunningSwarm::launch(&options.swarm, scenario, options.lockstep)?;
-    if let Some(out) = &options.record {
-        swarm.record(out, options.tum.as_deref())?;
+    if options.record.wanted() {
+        swarm.record(&options.record)?;
     }
     if !follow.is_empty() {
         swarm.follow_with_slam(&follow, &[])?;
@@ -173,7 +239,7 @@ pub fn up(options: UpOptions) -> Result<UpSummary> {
     for death in swarm.take_deaths() {
         eprintln!("shoal: {death}");
     }
-    if let Some(out) = &options.record {
+    if let Some(out) = &options.record.out {
         eprintln!(
             "shoal: recording in {}; to watch it: pip install rerun-sdk, then rerun {}",
             out.display(),

@@ -73,6 +73,12 @@ pub const EFFECT_KINDS: [&str; 14] = [
 ];
 
 impl Effect {
+    /// Whether the effect changes only how noisy motion is, not where the
+    /// robot is predicted to go.
+    pub fn only_noise(&self) -> bool {
+        matches!(self, Effect::SpeedNoise { .. })
+    }
+
     pub fn kind(&self) -> &'static str {
         match self {
             Effect::Latency { .. } => "latency",

@@ -4,7 +4,9 @@ Usage: check_recording.py RECORDING.rrd
 
 Prints {"entities": [...], "ticks": N, "max_sim_time": S, "robots": [...],
 "poses": {"<id>@<tick>": [x, y], ...}, "events": [...],
-"slam_rows": {"<entity>": rows logged}}.
+"slam_rows": {"<entity>": rows logged},
+"motion": {"<id>@<tick>": [x, y, theta, command_v, command_omega]}, "period_s": P}
+(motion: the rows `shoal diagnose run.rrd --robot N` reads).
 """
 
 import json
@@ -21,6 +23,8 @@ def main(path: str) -> None:
     events = []
     max_sim_time = 0.0
     slam_rows = {}
+    motion = {}
+    period_s = None
     for chunk in rrx.RrdReader(path).stream().to_chunks():
         entities.add(chunk.entity_path)
         batch = chunk.to_record_batch()
@@ -39,6 +43,14 @@ def main(path: str) -> None:
                 for position, label in zip(row_positions, row_labels):
                     robots.add(int(label))
                     poses[f"{label}@{tick}"] = position
+        if chunk.entity_path == "/robots/motion":
+            if "period_s" in names:
+                period_s = batch.column(names.index("period_s")).to_pylist()[0][0]
+            if "agent_id" in names:
+                columns = [batch.column(names.index(n)).to_pylist() for n in ("tick", "agent_id", "x", "y", "theta", "command_v", "command_omega")]
+                for tick, ids, xs, ys, thetas, vs, omegas in zip(*columns):
+                    for i, robot in enumerate(ids):
+                        motion[f"{robot}@{tick}"] = [xs[i], ys[i], thetas[i], vs[i], omegas[i]]
         if chunk.entity_path.startswith("/world/slam/") or chunk.entity_path.startswith("/slam/"):
             slam_rows[chunk.entity_path] = slam_rows.get(chunk.entity_path, 0) + batch.num_rows
         if chunk.entity_path == "/events":
@@ -56,6 +68,8 @@ def main(path: str) -> None:
                 "poses": poses,
                 "events": [e for e in events if e is not None],
                 "slam_rows": slam_rows,
+                "motion": motion,
+                "period_s": period_s,
             }
         )
     )

@@ -139,6 +139,24 @@ fn a_recording_holds_the_swarm_as_the_robots_published_it() {
         }
     }
     assert!(compared >= 100, "only {compared} poses could be compared");
+    // The motion rows diagnosis reads hold the published poses exactly, and
+    // commands the robot's model can execute.
+    let motion = found["motion"].as_object().expect("motion rows");
+    let mut compared = 0;
+    for (key, [x, y]) in &published {
+        if let Some(row) = motion.get(key) {
+            assert_eq!(
+                (row[0].as_f64(), row[1].as_f64()),
+                (Some(*x), Some(*y)),
+                "{key}: motion row {row}"
+            );
+            let v = row[3].as_f64().expect("command_v");
+            assert!(v.is_finite() && v.abs() < 2.0, "{key}: command_v {v}");
+            compared += 1;
+        }
+    }
+    assert!(compared >= 100, "only {compared} motion rows could be compared");
+    assert_eq!(found["period_s"].as_f64(), Some(0.2));
     let events = found["events"].to_string();
     assert!(events.contains("joined"), "{events}");
 
@@ -204,13 +222,15 @@ fn a_recorder_killed_with_sigkill_leaves_a_readable_file() {
 }
 
 /// Robots walk from a plain floor into mud their motion model does not know;
-/// `shoal diagnose` finds the mud from the recorded run alone.
+/// `shoal diagnose run.rrd --robot N` finds the mud from the recording alone,
+/// and agrees with what it finds from the TUM side folder.
 #[test]
-fn a_surface_the_robots_model_lacks_is_diagnosed_from_the_recorded_run() {
+fn a_surface_the_robots_model_lacks_is_diagnosed_from_the_recording_alone() {
     let _turn = serial();
     let dir = scratch("mud");
     let scenario = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/mud.toml");
     let run = dir.join("run");
+    let recording = run.join("run.rrd");
     let output = shoal(&[
         "up",
         "--swarm",
@@ -221,7 +241,7 @@ fn a_surface_the_robots_model_lacks_is_diagnosed_from_the_recorded_run() {
         "--duration",
         "150",
         "--record",
-        run.join("run.rrd").to_str().expect("utf-8"),
+        recording.to_str().expect("utf-8"),
         "--tum",
         run.to_str().expect("utf-8"),
     ]);
@@ -230,42 +250,58 @@ fn a_surface_the_robots_model_lacks_is_diagnosed_from_the_recorded_run() {
         "{}",
         String::from_utf8_lossy(&output.stderr)
     );
-    let mut found_mud = Vec::new();
-    for robot in 0..6 {
-        let robot_dir = run.join(format!("robot-{robot}"));
-        let poses = std::fs::read_to_string(robot_dir.join("poses.csv")).expect("poses.csv");
-        // The lockstep clock waits for the recorder: every tick is there.
-        assert!(
-            poses.lines().count() >= 745,
-            "robot {robot}: {} rows",
-            poses.lines().count()
-        );
-        let output = shoal(&["diagnose", robot_dir.to_str().expect("utf-8"), "--json"]);
+    let diagnose = |input: &[&str]| -> Value {
+        let mut args = vec!["diagnose"];
+        args.extend_from_slice(input);
+        args.push("--json");
+        let output = shoal(&args);
         assert!(
             output.status.success(),
-            "{}",
+            "{input:?}: {}",
             String::from_utf8_lossy(&output.stderr)
         );
-        let d: Value = serde_json::from_slice(&output.stdout).expect("JSON");
+        serde_json::from_slice(&output.stdout).expect("JSON")
+    };
+    let is_mud = |e: &Value| {
+        e["kind"] == "surface_zone"
+            && e["where"]["region"][0]
+                .as_f64()
+                .is_some_and(|x0| (17.0..23.0).contains(&x0))
+            && e["params"]["speed_factor"]
+                .as_f64()
+                .is_some_and(|f| (0.4..0.8).contains(&f))
+    };
+    let mut found_mud = Vec::new();
+    for robot in 0..6 {
+        let id = robot.to_string();
+        let d = diagnose(&[recording.to_str().expect("utf-8"), "--robot", &id]);
+        // The lockstep clock waits for the recorder: every tick is there.
+        let segments = d["segments"].as_u64().expect("segments");
+        assert!(segments >= 100, "robot {robot}: {segments} segments: {d}");
         assert_eq!(d["mismatch"], true, "robot {robot}: {d}");
-        let zone = d["effects"].as_array().expect("effects").iter().find(|e| {
-            e["kind"] == "surface_zone"
-                && e["where"]["region"][0]
-                    .as_f64()
-                    .is_some_and(|x0| (17.0..23.0).contains(&x0))
-                && e["params"]["speed_factor"]
-                    .as_f64()
-                    .is_some_and(|f| (0.4..0.8).contains(&f))
-        });
-        if zone.is_some() {
+        let effects = d["effects"].as_array().expect("effects");
+        if effects.iter().any(is_mud) {
             found_mud.push(robot);
         }
+        // The side folder holds the same run (to the CSV's printed digits).
+        let robot_dir = run.join(format!("robot-{robot}"));
+        let from_csv = diagnose(&[robot_dir.to_str().expect("utf-8")]);
+        assert_eq!(
+            from_csv["effects"].as_array().expect("effects").iter().any(is_mud),
+            effects.iter().any(is_mud),
+            "robot {robot}: the recording and the side folder disagree:\n{d}\n{from_csv}"
+        );
     }
     // The mud starts at x = 20 and shortens strides by 40%.
     assert!(
         found_mud.len() >= 4,
         "mud found for robots {found_mud:?} only"
     );
+    // A robot the recording does not hold is named, with those it does.
+    let missing = shoal(&["diagnose", recording.to_str().expect("utf-8"), "--robot", "42"]);
+    assert!(!missing.status.success());
+    let said = String::from_utf8_lossy(&missing.stderr);
+    assert!(said.contains("no robot 42") && said.contains("holds robots 0-5"), "{said}");
     let _ = std::fs::remove_dir_all(dir);
 }
 
@@ -310,5 +346,120 @@ fn a_recording_holds_what_slam_learns() {
         .filter(|k| k.starts_with("/slam/0/model/"))
         .count();
     assert!(model_entities >= 3, "{}", found["slam_rows"]);
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+/// A Rerun viewer's gRPC endpoint, played by the official `rerun` CLI saving
+/// what it receives (`rerun --port P --save FILE`): it needs no display.
+struct ListeningViewer {
+    child: std::process::Child,
+    port: u16,
+}
+
+impl ListeningViewer {
+    fn start(save: &Path) -> Self {
+        // A port nobody holds now; the viewer binds it a moment later.
+        let port = std::net::TcpListener::bind("127.0.0.1:0")
+            .and_then(|l| l.local_addr())
+            .expect("a free port")
+            .port();
+        let child = Command::new("rerun")
+            .arg(format!("--port={port}"))
+            .arg("--save")
+            .arg(save)
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .expect("the rerun CLI (pip install rerun-sdk)");
+        let started = Instant::now();
+        while std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
+            assert!(
+                started.elapsed() < Duration::from_secs(30),
+                "rerun never listened on {port}"
+            );
+            std::thread::sleep(Duration::from_millis(100));
+        }
+        Self { child, port }
+    }
+
+    /// Stops the viewer as Ctrl-C would; it finishes its file.
+    fn stop(mut self) {
+        // SAFETY: kill(2) on our own child's pid.
+        unsafe { libc::kill(self.child.id() as i32, libc::SIGINT) };
+        let started = Instant::now();
+        while self.child.try_wait().expect("wait").is_none() {
+            if started.elapsed() > Duration::from_secs(20) {
+                let _ = self.child.kill();
+                panic!("rerun did not stop on SIGINT");
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    }
+}
+
+/// `--connect` streams the run live to a running viewer, and the `.rrd`
+/// file is still written whole beside it.
+#[test]
+fn a_run_streams_live_to_a_viewer_and_still_writes_its_file() {
+    let _turn = serial();
+    let dir = scratch("live");
+    let live = dir.join("live.rrd");
+    let recording = dir.join("run.rrd");
+    let viewer = ListeningViewer::start(&live);
+    let output = shoal(&[
+        "up",
+        "--swarm",
+        "e2e-live",
+        "--agents",
+        "4",
+        "--duration",
+        "6",
+        "--record",
+        recording.to_str().expect("utf-8"),
+        "--connect",
+        &format!("127.0.0.1:{}", viewer.port),
+    ]);
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    viewer.stop();
+    for (what, file) in [("streamed", &live), ("written", &recording)] {
+        let found = inspect(file);
+        assert_eq!(
+            found["robots"].as_array().map(Vec::len),
+            Some(4),
+            "{what}: {}",
+            found["robots"]
+        );
+        let ticks = found["ticks"].as_u64().expect("ticks");
+        assert!(ticks >= 20, "{what}: only {ticks} ticks");
+        assert!(
+            found["motion"].as_object().is_some_and(|m| m.len() >= 80),
+            "{what}: motion rows missing"
+        );
+    }
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+/// `--viewer` without the Rerun viewer installed says what to install, and
+/// starts nothing.
+#[test]
+fn asking_for_a_viewer_that_is_not_installed_is_a_clear_error() {
+    let _turn = serial();
+    let dir = scratch("no-viewer");
+    let output = Command::new(bin("shoal"))
+        .args(["up", "--swarm", "e2e-no-viewer", "--agents", "2", "--duration", "2", "--viewer"])
+        .env("PATH", &dir)
+        .output()
+        .expect("run shoal");
+    assert!(!output.status.success());
+    let said = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        said.contains("--viewer needs the Rerun viewer") && said.contains("pip install rerun-sdk"),
+        "{said}"
+    );
+    assert!(!said.contains("swarm `e2e-no-viewer` up"), "{said}");
     let _ = std::fs::remove_dir_all(dir);
 }

@@ -18,10 +18,22 @@ const FLUSH_EVERY: Duration = Duration::from_secs(1);
 const POLL: Duration = Duration::from_millis(20);
 
 #[derive(Parser)]
-#[command(version, about = "Record a running Shoal swarm into a Rerun .rrd file")]
+#[command(
+    version,
+    about = "Record a running Shoal swarm into a Rerun .rrd file, a live Rerun viewer, or both"
+)]
 struct Args {
     /// Where to write the recording.
-    out: PathBuf,
+    #[arg(required_unless_present_any = ["viewer", "connect"])]
+    out: Option<PathBuf>,
+    /// Stream the run live to a Rerun viewer started now (`rerun` on PATH;
+    /// one already running on its port is reused).
+    #[arg(long)]
+    viewer: bool,
+    /// Stream the run live to a Rerun viewer already running at this
+    /// address (HOST:PORT, or a rerun+http://HOST:PORT/proxy URL).
+    #[arg(long, value_name = "ADDR", conflicts_with = "viewer")]
+    connect: Option<String>,
     #[arg(long, default_value = "default")]
     swarm: String,
     /// Also write each robot's true and believed trajectory as TUM files here.
@@ -50,15 +62,26 @@ fn run(args: Args) -> Result<()> {
         flush_tick: FLUSH_EVERY,
         ..rerun::log::ChunkBatcherConfig::DEFAULT
     };
-    if let Some(parent) = args.out.parent().filter(|p| !p.as_os_str().is_empty()) {
-        std::fs::create_dir_all(parent)
-            .with_context(|| format!("creating the folder of {}", args.out.display()))?;
+    let live = live_url(args.viewer, args.connect.as_deref())?;
+    let mut sinks: Vec<Box<dyn rerun::sink::LogSink>> = Vec::new();
+    if let Some(out) = &args.out {
+        if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
+            std::fs::create_dir_all(parent)
+                .with_context(|| format!("creating the folder of {}", out.display()))?;
+        }
+        sinks.push(Box::new(
+            rerun::sink::FileSink::new(out).with_context(|| format!("creating {}", out.display()))?,
+        ));
+    }
+    if let Some(url) = &live {
+        sinks.push(Box::new(rerun::sink::GrpcSink::new(url.clone())));
+        eprintln!("shoal-viewer-log: streaming live to the Rerun viewer at {url}");
     }
     let rec = rerun::RecordingStreamBuilder::new("shoal")
         .batcher_config(batching)
-        .save(&args.out)
-        .with_context(|| format!("creating {}", args.out.display()))?;
-    let mut recorder = Recorder::new(rec, &scenario, args.tum.as_deref())?;
+        .set_sinks(sinks)
+        .context("starting the recording")?;
+    let mut recorder = Recorder::new(rec, &scenario, args.tum.as_deref(), live.is_some())?;
     recorder.event(&format!(
         "recording swarm `{}` ({})",
         args.swarm,
@@ -104,13 +127,42 @@ fn run(args: Args) -> Result<()> {
     ))?;
     recorder.flush()?;
     eprintln!(
-        "shoal-viewer-log: wrote {} ({} frames, {} dropped, {} rejected)",
-        args.out.display(),
+        "shoal-viewer-log: {} ({} frames, {} dropped, {} rejected)",
+        match &args.out {
+            Some(out) => format!("wrote {}", out.display()),
+            None => "streamed live".to_owned(),
+        },
         stats.frames,
         stats.dropped,
         stats.rejected
     );
     Ok(())
+}
+
+/// Where to stream live, if anywhere: a viewer started now (`--viewer`), or
+/// one already running (`--connect`).
+fn live_url(viewer: bool, connect: Option<&str>) -> Result<Option<rerun::external::re_uri::ProxyUri>> {
+    use std::str::FromStr as _;
+    let text = if viewer {
+        let spawned = rerun::spawn(&rerun::SpawnOptions::default()).map_err(|e| {
+            anyhow::anyhow!(
+                "--viewer: cannot start the Rerun viewer: {e}\n\
+                 (or record with --record run.rrd and open it later with `rerun run.rrd`)"
+            )
+        })?;
+        format!("rerun+http://127.0.0.1:{}/proxy", spawned.port)
+    } else if let Some(addr) = connect {
+        if addr.contains("://") {
+            addr.to_owned()
+        } else {
+            format!("rerun+http://{addr}/proxy")
+        }
+    } else {
+        return Ok(None);
+    };
+    rerun::external::re_uri::ProxyUri::from_str(&text)
+        .map(Some)
+        .map_err(|e| anyhow::anyhow!("--connect {text}: not a Rerun viewer address (HOST:PORT or rerun+http://HOST:PORT/proxy): {e}"))
 }
 
 fn main() -> std::process::ExitCode {

@@ -15,6 +15,8 @@ use shoal_physics::metrics::formation_metrics;
 const TRAIL_LENGTH: usize = 50;
 /// Trails are logged every this many ticks; positions every tick.
 const TRAIL_EVERY_TICKS: u64 = 5;
+/// How long a flush waits for a live viewer before the recorder moves on.
+const LIVE_FLUSH_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(1);
 
 struct Robot {
     pid: u32,
@@ -41,6 +43,13 @@ pub struct Recorder {
     pending: BTreeMap<u64, Vec<PoseSample>>,
     last_health: HashMap<u32, u32>,
     tum: Option<TumWriter>,
+    /// The model the robots ran with: what their executed commands mean.
+    motion: shoal_physics::MotionModel,
+    period_s: f64,
+    /// Streaming to a viewer, which may be closed at any time.
+    live: bool,
+    /// Whether the user was told the viewer is unreachable.
+    told_viewer_gone: bool,
     pub stats: RecorderStats,
 }
 
@@ -49,11 +58,11 @@ impl Recorder {
         rec: RecordingStream,
         scenario: &Scenario,
         tum_dir: Option<&Path>,
+        live: bool,
     ) -> anyhow::Result<Self> {
         crate::arena::log_arena(&rec, &scenario.arena)?;
-        let tum = tum_dir
-            .map(|dir| TumWriter::new(dir, scenario.motion.clone(), scenario.timing.period_s))
-            .transpose()?;
+        crate::motion::log_period(&rec, scenario.timing.period_s)?;
+        let tum = tum_dir.map(TumWriter::new).transpose()?;
         Ok(Self {
             rec,
             spread: scenario.formation.spread,
@@ -61,6 +70,10 @@ impl Recorder {
             pending: BTreeMap::new(),
             last_health: HashMap::new(),
             tum,
+            motion: scenario.motion.clone(),
+            period_s: scenario.timing.period_s,
+            live,
+            told_viewer_gone: false,
             stats: RecorderStats::default(),
         })
     }
@@ -143,7 +156,8 @@ impl Recorder {
             return Ok(());
         };
         self.rec.set_time_sequence("tick", tick as i64);
-        self.rec.set_duration_secs("sim_time", first.sim_time);
+        self.rec
+            .set_duration_secs(crate::motion::TIMELINE, first.sim_time);
         for sample in &samples {
             self.track(sample)?;
         }
@@ -237,9 +251,10 @@ impl Recorder {
             "recorder/rejected_samples",
             &rerun::Scalars::new([self.stats.rejected as f64]),
         )?;
+        crate::motion::log_tick(&self.rec, &self.motion, self.period_s, &robots)?;
         if let Some(tum) = &mut self.tum {
             for s in &robots {
-                tum.write(s)?;
+                tum.write(s, crate::motion::executed_velocity(&self.motion, self.period_s, s), self.period_s)?;
             }
         }
         Ok(())
@@ -289,7 +304,20 @@ impl Recorder {
         if let Some(tum) = &mut self.tum {
             tum.flush()?;
         }
-        self.rec.flush_blocking()?;
+        if !self.live {
+            self.rec.flush_blocking()?;
+            return Ok(());
+        }
+        // A viewer the user closed must not stop the recording: the file
+        // (flushed with it) is still written, and the user is told once.
+        if let Err(e) = self.rec.flush_with_timeout(LIVE_FLUSH_TIMEOUT)
+            && !self.told_viewer_gone
+        {
+            self.told_viewer_gone = true;
+            eprintln!(
+                "shoal-viewer-log: the live viewer does not answer ({e}); recording goes on"
+            );
+        }
         Ok(())
     }
 }
@@ -317,20 +345,16 @@ struct TumWriter {
     files: HashMap<(u32, &'static str), BufWriter<File>>,
     /// Files this recording created; a robot that comes back appends to them.
     created: std::collections::HashSet<(u32, &'static str)>,
-    motion: shoal_physics::MotionModel,
-    period_s: f64,
 }
 
 impl TumWriter {
-    fn new(dir: &Path, motion: shoal_physics::MotionModel, period_s: f64) -> anyhow::Result<Self> {
+    fn new(dir: &Path) -> anyhow::Result<Self> {
         std::fs::create_dir_all(dir)
             .map_err(|e| anyhow::anyhow!("creating {}: {e}", dir.display()))?;
         Ok(Self {
             dir: dir.to_owned(),
             files: HashMap::new(),
             created: std::collections::HashSet::new(),
-            motion,
-            period_s,
         })
     }
 
@@ -370,7 +394,14 @@ impl TumWriter {
         }
     }
 
-    fn write(&mut self, s: &PoseSample) -> anyhow::Result<()> {
+    /// Writes one sample; `executed` is its command's velocity (v, omega),
+    /// held over the `period_s` before it.
+    fn write(
+        &mut self,
+        s: &PoseSample,
+        executed: Option<(f64, f64)>,
+        period_s: f64,
+    ) -> anyhow::Result<()> {
         for (kind, x, y, theta) in [
             ("true", s.x, s.y, s.theta),
             ("estimated", s.believed_x, s.believed_y, s.believed_theta),
@@ -379,14 +410,8 @@ impl TumWriter {
             self.file(s.agent_id, kind)?.write_all(line.as_bytes())?;
         }
         // The command a pose carries moved the robot there over the period before it.
-        if let Some(command) = shoal_physics::Command::from_index(s.command as usize) {
-            let mean = self.motion.mean(command);
-            let line = format!(
-                "{:.3},{:.6},{:.6}\n",
-                s.sim_time - self.period_s,
-                mean.along / self.period_s,
-                mean.turn / self.period_s
-            );
+        if let Some((v, omega)) = executed {
+            let line = format!("{:.3},{v:.6},{omega:.6}\n", s.sim_time - period_s);
             self.file(s.agent_id, "commands")?
                 .write_all(line.as_bytes())?;
         }
@@ -426,16 +451,15 @@ mod tests {
     #[test]
     fn a_robot_that_falls_silent_closes_its_files_and_appends_when_it_returns() {
         let dir = std::env::temp_dir().join(format!("shoal-tum-test-{}", std::process::id()));
-        let mut tum = TumWriter::new(&dir, shoal_physics::MotionModel::legged_default(), 0.1)
-            .expect("writer");
+        let mut tum = TumWriter::new(&dir).expect("writer");
         // Many robots come and go; only those heard from lately hold files.
         for id in 0..300 {
-            tum.write(&PoseSample::standing(id, 1, 1, 1.0, 2.0, 0.0))
+            tum.write(&PoseSample::standing(id, 1, 1, 1.0, 2.0, 0.0), None, 0.1)
                 .expect("write");
             tum.close(id).expect("close");
         }
         assert!(tum.files.is_empty());
-        tum.write(&PoseSample::standing(7, 2, 5, 3.0, 4.0, 0.0))
+        tum.write(&PoseSample::standing(7, 2, 5, 3.0, 4.0, 0.0), None, 0.1)
             .expect("write again");
         tum.flush().expect("flush");
         let poses = std::fs::read_to_string(dir.join("robot-7/poses.csv")).expect("poses");
