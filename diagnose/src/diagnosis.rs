@@ -594,38 +594,17 @@ fn components_of(grid: &CommandGrid, segs: &[Segment], effects: &[ScopedEffect])
     component_nll(&model, segs, &residuals(&model, grid, segs))
 }
 
-/// What one more effect does to held-out, time-blocked prediction.
-#[derive(Clone, Copy, Debug)]
-struct HeldoutCheck {
-    /// Gain in held-out log-likelihood (positive: unseen data are likelier).
-    nll_gain: f64,
-    /// Held-out position error (RMS, m) without and with the effect.
-    rmse_pos_before: f64,
-    rmse_pos_after: f64,
-}
-
-impl HeldoutCheck {
-    /// An effect on the mean motion must also predict unseen positions no
-    /// worse: the likelihood alone can be won by reweighting the noise (a
-    /// spurious drift over a stretch whose noise is then judged smaller),
-    /// which is no better prediction. Noise-only effects move no prediction
-    /// and are judged by the likelihood alone.
-    fn passes(&self, effect: &Effect) -> bool {
-        let likelier = self.nll_gain > 0.0;
-        likelier && (effect.only_noise() || self.rmse_pos_after <= self.rmse_pos_before)
-    }
-}
-
 /// Held-out check of one more effect: on time-blocked folds, `candidate`
 /// is refitted on the training blocks and both models predict the held-out
-/// block.
-fn heldout_check(
+/// block. Returns the total gain in held-out log-likelihood (positive: the
+/// effect predicts unseen data better).
+fn heldout_gain(
     prepared: &Prepared,
     base: &[ScopedEffect],
     candidate: &ScopedEffect,
     options: &Options,
-) -> HeldoutCheck {
-    let folds = on_folds(prepared, options, |train, test| {
+) -> f64 {
+    on_folds(prepared, options, |train, test| {
         let with = refit_on(
             prepared,
             train,
@@ -633,29 +612,13 @@ fn heldout_check(
             std::slice::from_ref(candidate),
             options,
         );
-        let (nll_before, before) = predict_heldout(prepared, train, test, base.to_vec());
-        let (nll_after, after) = predict_heldout(prepared, train, test, with);
-        (nll_before - nll_after, before, after)
-    });
-    let mut check = HeldoutCheck {
-        nll_gain: 0.0,
-        rmse_pos_before: 0.0,
-        rmse_pos_after: 0.0,
-    };
-    let (mut before, mut after) = (Vec::new(), Vec::new());
-    for fold in folds {
-        // A panicked fold makes the gain NaN, which never passes the check.
-        let Some((gain, b, a)) = fold else {
-            check.nll_gain = f64::NAN;
-            continue;
-        };
-        check.nll_gain += gain;
-        before.extend(b);
-        after.extend(a);
-    }
-    check.rmse_pos_before = rmse(&before).0;
-    check.rmse_pos_after = rmse(&after).0;
-    check
+        predict_heldout(prepared, train, test, base.to_vec()).0
+            - predict_heldout(prepared, train, test, with).0
+    })
+    .into_iter()
+    // A panicked fold makes the sum NaN, which never passes the check.
+    .map(|gain| gain.unwrap_or(f64::NAN))
+    .sum()
 }
 
 /// A fitted parameter this close to an edge of its physical range (as a
@@ -910,12 +873,11 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
             });
             continue;
         }
-        let check = heldout_check(&prepared, &base, &chosen, options);
-        if !check.passes(&chosen.effect) {
+        let gain_heldout = heldout_gain(&prepared, &base, &chosen, options);
+        if !(gain_heldout > 0.0) {
             rejected_heldout.push(chosen.effect.kind());
             continue;
         }
-        let gain_heldout = check.nll_gain;
         found.push(chosen);
         evidence.push(Evidence {
             delta_bic,

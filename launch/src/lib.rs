@@ -3,6 +3,7 @@
 
 pub mod clock;
 pub mod control;
+pub mod demo;
 pub mod experiment;
 pub mod observer;
 pub mod process;

@@ -59,6 +59,24 @@ enum Commands {
         #[arg(long, value_delimiter = ',')]
         slam: Vec<u32>,
     },
+    /// All of Shoal in one run: robots form, SLAM learns, four robots are
+    /// killed and restarted, and the recording is diagnosed.
+    Demo {
+        /// The demo's scenario (scenarios/demo.toml; copy it and change it).
+        #[arg(long, default_value = "scenarios/demo.toml")]
+        scenario: PathBuf,
+        /// Where the recording goes.
+        #[arg(long, default_value = "demo.rrd")]
+        out: PathBuf,
+        /// How long the swarm runs, in seconds (real time).
+        #[arg(long, default_value_t = 90.0)]
+        seconds: f64,
+        #[arg(long, default_value = "demo")]
+        swarm: String,
+        /// Print the summary as JSON.
+        #[arg(long)]
+        json: bool,
+    },
     /// Run particle-filter SLAM on robots of a running swarm (see `shoal-slam --help`).
     #[command(disable_help_flag = true)]
     Slam {
@@ -245,6 +263,26 @@ fn run(cli: Cli) -> Result<()> {
                 },
                 slam,
             })?;
+        }
+        Commands::Demo {
+            scenario,
+            out,
+            seconds,
+            swarm,
+            json,
+        } => {
+            let summary = shoal::demo::run(&shoal::demo::DemoOptions {
+                swarm,
+                scenario: scenario.clone(),
+                out,
+                seconds,
+            })?;
+            if json {
+                println!("{}", serde_json::to_string(&summary)?);
+            } else {
+                let spread = up::load_scenario(Some(&scenario))?.formation.spread;
+                shoal::demo::print(&summary, spread);
+            }
         }
         Commands::Slam { args } => become_binary("shoal-slam", &args)?,
         Commands::Record { args } => become_binary("shoal-viewer-log", &args)?,

@@ -1,0 +1,335 @@
+//! `shoal demo`: all of Shoal in one run. Robots form in real time on a
+//! scenario file; a SLAM process follows two of them from a model whose
+//! strides are too short and learns; part-way through four robots are
+//! killed and later restarted; at the end `shoal diagnose` reads the demo's
+//! own recording and names the floor the robots' model does not know.
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use anyhow::{Context, Result, bail};
+use glam::DVec2;
+use serde::Serialize;
+use shoal_physics::{Command, MotionModel, Pose, Scenario};
+
+use crate::swarm::RunningSwarm;
+use crate::up::{RecordOptions, is_formed};
+
+/// The SLAM process starts from strides this much too short.
+const STRIDE_ERROR: f64 = 0.25;
+/// How many robots are killed, and when (share of the run), and for how long.
+const KILLED: usize = 4;
+const KILL_AT: f64 = 0.45;
+const DOWN_S: f64 = 8.0;
+/// A hole counts as closed once a robot stands this close (in spreads) to its centre.
+const HOLE_CLOSED_SPREADS: f64 = 0.75;
+/// Robots diagnosed: those that walked longest on a floor the model lacks.
+const DIAGNOSED: usize = 3;
+/// SLAM error is averaged over this long at the start and at the end.
+const SLAM_WINDOW_S: f64 = 10.0;
+
+pub struct DemoOptions {
+    pub swarm: String,
+    pub scenario: PathBuf,
+    pub out: PathBuf,
+    pub seconds: f64,
+}
+
+#[derive(Debug, Default, Serialize)]
+pub struct DemoSummary {
+    pub robots: usize,
+    pub groups: usize,
+    pub spacing_ratio: f64,
+    pub killed: Vec<u32>,
+    /// Seconds from the kill until a robot stood in the hole.
+    pub hole_closed_s: Option<f64>,
+    /// Seconds from the restart until the formation was one group with its
+    /// spacing again.
+    pub whole_again_s: Option<f64>,
+    /// Per followed robot: mean SLAM position error over the first and the
+    /// last seconds of the run, metres.
+    pub slam: Vec<SlamProgress>,
+    pub diagnoses: Vec<DiagnosisLine>,
+    pub recording: PathBuf,
+}
+
+#[derive(Debug, Default, Serialize)]
+pub struct SlamProgress {
+    pub robot: u32,
+    pub early_error_m: f64,
+    pub late_error_m: f64,
+    /// How far the learned model moved from where SLAM started (in starting
+    /// standard deviations).
+    pub model_distance: Option<f64>,
+}
+
+#[derive(Debug, Serialize)]
+pub struct DiagnosisLine {
+    pub robot: u32,
+    /// Seconds it walked on a floor its model does not know.
+    pub seconds_on_unknown_floor: f64,
+    pub finding: String,
+}
+
+/// The model SLAM starts from: every stride `1 - error` of the true one.
+fn short_strides(model: &MotionModel, error: f64) -> MotionModel {
+    let mut wrong = model.clone();
+    for command in Command::ALL {
+        let m = wrong.command_mut(command);
+        m.d = m.d.scaled(1.0 - error);
+    }
+    wrong
+}
+
+/// Floors whose motion differs from the robots' model, which knows none.
+fn unknown_floor_at(scenario: &Scenario, p: DVec2, t: f64) -> bool {
+    scenario
+        .arena
+        .surface_at_time(p, t)
+        .is_some_and(|s| s.along_scale != 1.0 || s.across_scale != 1.0 || s.turn_scale != 1.0)
+}
+
+fn centroid(points: &[DVec2]) -> DVec2 {
+    points.iter().copied().sum::<DVec2>() / points.len().max(1) as f64
+}
+
+pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
+    let scenario = Scenario::from_file(&options.scenario)?;
+    if scenario.agents.count < KILLED + 4 {
+        bail!(
+            "{}: the demo kills {KILLED} robots, so it needs at least {} (agents.count is {})",
+            options.scenario.display(),
+            KILLED + 4,
+            scenario.agents.count
+        );
+    }
+    let follow: Vec<u32> = scenario.slam.follow.clone();
+    let spread = scenario.formation.spread;
+    let mut swarm = RunningSwarm::launch(&options.swarm, scenario.clone(), false)?;
+    swarm.record(&RecordOptions::file(&options.out, None))?;
+    if !follow.is_empty() {
+        let model_path = swarm.runtime.dir.join("demo-initial-model.toml");
+        let wrong = short_strides(&scenario.motion, STRIDE_ERROR);
+        std::fs::write(&model_path, toml::to_string(&wrong)?)
+            .with_context(|| format!("writing {}", model_path.display()))?;
+        swarm.follow_with_slam(
+            &follow,
+            &["--initial-model".into(), model_path.display().to_string()],
+        )?;
+    }
+    eprintln!(
+        "shoal demo: {} robots forming in real time for {:.0} s, recorded into {}; a SLAM process follows robots {:?} from strides {:.0}% too short",
+        scenario.agents.count,
+        options.seconds,
+        options.out.display(),
+        follow,
+        STRIDE_ERROR * 100.0
+    );
+    let mut summary = DemoSummary {
+        recording: options.out.clone(),
+        ..DemoSummary::default()
+    };
+    let kill_at = KILL_AT * options.seconds;
+    let mut killed_at: Option<f64> = None;
+    let mut down: Vec<(u32, Pose)> = Vec::new();
+    let mut hole = DVec2::ZERO;
+    let mut restarted_at: Option<f64> = None;
+    let mut on_floor: std::collections::BTreeMap<u32, f64> = Default::default();
+    // (sim time, robot, position error) of the followed robots.
+    let mut slam_errors: Vec<(f64, u32, f64)> = Vec::new();
+    let mut last_tick = 0;
+    let mut last_line = std::time::Instant::now();
+    while swarm.sim_time() < options.seconds {
+        if swarm.termination_requested() {
+            eprintln!("shoal demo: interrupted");
+            break;
+        }
+        swarm.advance()?;
+        for death in swarm.take_deaths() {
+            eprintln!("shoal demo: {death}");
+        }
+        let now = swarm.sim_time();
+        if swarm.observer.newest_tick != last_tick {
+            last_tick = swarm.observer.newest_tick;
+            for s in swarm.observer.samples() {
+                let moved = s.vx.hypot(s.vy) > 0.01;
+                if moved && unknown_floor_at(&scenario, DVec2::new(s.x, s.y), s.sim_time) {
+                    *on_floor.entry(s.agent_id).or_default() += scenario.timing.period_s;
+                }
+                if follow.contains(&s.agent_id) {
+                    let error = (s.x - s.believed_x).hypot(s.y - s.believed_y);
+                    slam_errors.push((s.sim_time, s.agent_id, error));
+                }
+            }
+        }
+        if killed_at.is_none() && now >= kill_at {
+            // The robots nearest the middle of the swarm, SLAM's excepted.
+            let positions: Vec<DVec2> = swarm.observer.samples().map(|s| DVec2::new(s.x, s.y)).collect();
+            let middle = centroid(&positions);
+            let mut by_distance: Vec<(f64, u32, Pose)> = swarm
+                .observer
+                .samples()
+                .filter(|s| !follow.contains(&s.agent_id))
+                .map(|s| {
+                    (
+                        DVec2::new(s.x, s.y).distance(middle),
+                        s.agent_id,
+                        Pose::new(s.x, s.y, s.theta),
+                    )
+                })
+                .collect();
+            by_distance.sort_by(|a, b| a.0.total_cmp(&b.0));
+            down = by_distance.iter().take(KILLED).map(|(_, id, pose)| (*id, *pose)).collect();
+            hole = centroid(&down.iter().map(|(_, p)| p.position()).collect::<Vec<_>>());
+            for (id, _) in &down {
+                swarm.signal_robot(*id, libc::SIGKILL)?;
+                swarm.observer.forget(*id);
+            }
+            summary.killed = down.iter().map(|(id, _)| *id).collect();
+            eprintln!("shoal demo: t {now:.0} s: SIGKILL to robots {:?}", summary.killed);
+            killed_at = Some(now);
+        }
+        if let Some(at) = killed_at {
+            if summary.hole_closed_s.is_none()
+                && restarted_at.is_none()
+                && swarm
+                    .observer
+                    .samples()
+                    .any(|s| DVec2::new(s.x, s.y).distance(hole) <= HOLE_CLOSED_SPREADS * spread)
+            {
+                summary.hole_closed_s = Some(now - at);
+                eprintln!("shoal demo: t {now:.0} s: the hole closed after {:.1} s", now - at);
+            }
+            if restarted_at.is_none() && now >= at + DOWN_S {
+                for (id, pose) in &down {
+                    swarm.start(*id, *pose)?;
+                }
+                eprintln!("shoal demo: t {now:.0} s: robots {:?} restarted where they fell", summary.killed);
+                restarted_at = Some(now);
+            }
+        }
+        if let Some(at) = restarted_at
+            && summary.whole_again_s.is_none()
+            && swarm.observer.len() == scenario.agents.count
+            && is_formed(&swarm.observer.metrics(spread))
+        {
+            summary.whole_again_s = Some(now - at);
+        }
+        if last_line.elapsed() >= Duration::from_secs(10) {
+            last_line = std::time::Instant::now();
+            let m = swarm.observer.metrics(spread);
+            eprintln!(
+                "shoal demo: t {now:.0} s | robots {} | groups {} | spacing {:.2} x spread",
+                m.agents, m.components, m.spacing_ratio
+            );
+        }
+    }
+    let metrics = swarm.observer.metrics(spread);
+    (summary.robots, summary.groups, summary.spacing_ratio) =
+        (metrics.agents, metrics.components, metrics.spacing_ratio);
+    let slam_report = swarm.runtime.read_slam_report();
+    let end = swarm.sim_time();
+    swarm.shutdown()?;
+    for id in &follow {
+        let mean_error = |from: f64, to: f64| {
+            let errors: Vec<f64> = slam_errors
+                .iter()
+                .filter(|(t, r, _)| r == id && *t >= from && *t <= to)
+                .map(|(_, _, e)| *e)
+                .collect();
+            errors.iter().sum::<f64>() / errors.len().max(1) as f64
+        };
+        summary.slam.push(SlamProgress {
+            robot: *id,
+            early_error_m: mean_error(0.0, SLAM_WINDOW_S),
+            late_error_m: mean_error(end - SLAM_WINDOW_S, end),
+            model_distance: slam_report
+                .as_ref()
+                .and_then(|r| r.followed.iter().find(|f| f.id == *id))
+                .map(|f| f.model_distance),
+        });
+    }
+    let mut walkers: Vec<(u32, f64)> = on_floor
+        .into_iter()
+        .filter(|(id, _)| !summary.killed.contains(id))
+        .collect();
+    walkers.sort_by(|a, b| b.1.total_cmp(&a.1));
+    for (robot, seconds) in walkers.into_iter().take(DIAGNOSED) {
+        summary.diagnoses.push(DiagnosisLine {
+            robot,
+            seconds_on_unknown_floor: seconds,
+            finding: diagnose_robot(&options.out, robot)?,
+        });
+    }
+    Ok(summary)
+}
+
+/// `shoal diagnose RECORDING --robot N`: its first finding, as a sentence.
+fn diagnose_robot(recording: &Path, robot: u32) -> Result<String> {
+    let output = std::process::Command::new(crate::process::sibling_binary("shoal-diagnose")?)
+        .arg(recording)
+        .args(["--robot", &robot.to_string(), "--json"])
+        .output()
+        .context("running shoal-diagnose")?;
+    if !output.status.success() {
+        return Ok(format!(
+            "diagnosis failed: {}",
+            String::from_utf8_lossy(&output.stderr).trim()
+        ));
+    }
+    let d: serde_json::Value =
+        serde_json::from_slice(&output.stdout).context("reading shoal-diagnose's JSON")?;
+    let sentences: Vec<&str> = d["effects"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter_map(|e| e["sentence"].as_str())
+        .collect();
+    Ok(if sentences.is_empty() {
+        if d["mismatch"] == true {
+            "a significant mismatch that no effect of the library explains".to_owned()
+        } else {
+            "no significant mismatch".to_owned()
+        }
+    } else {
+        sentences.join(" ")
+    })
+}
+
+/// What a person reads at the end.
+pub fn print(summary: &DemoSummary, spread: f64) {
+    println!("\nShoal demo: what happened");
+    println!(
+        "  formation: {} robots in {} group(s), mean spacing {:.2} x the spread ({spread} m)",
+        summary.robots, summary.groups, summary.spacing_ratio
+    );
+    let seconds = |s: Option<f64>| s.map_or("not within the run".to_owned(), |s| format!("{s:.1} s"));
+    println!(
+        "  healing: robots {:?} killed with SIGKILL; the hole closed in {}; after their restart the formation was whole in {}",
+        summary.killed,
+        seconds(summary.hole_closed_s),
+        seconds(summary.whole_again_s)
+    );
+    for s in &summary.slam {
+        println!(
+            "  SLAM robot {}: position error {:.0} mm in the first {SLAM_WINDOW_S:.0} s -> {:.0} mm in the last, learning from strides {:.0}% too short{}",
+            s.robot,
+            s.early_error_m * 1e3,
+            s.late_error_m * 1e3,
+            STRIDE_ERROR * 100.0,
+            s.model_distance
+                .map(|d| format!(" (model moved {d:.1} starting std)"))
+                .unwrap_or_default()
+        );
+    }
+    for d in &summary.diagnoses {
+        println!(
+            "  diagnose robot {} ({:.0} s on a floor its model lacks): {}",
+            d.robot, d.seconds_on_unknown_floor, d.finding
+        );
+    }
+    println!(
+        "  open the recording: rerun {}   (pip install rerun-sdk==0.36.3)",
+        summary.recording.display()
+    );
+}
