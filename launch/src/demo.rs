@@ -10,10 +10,10 @@ use std::time::Duration;
 use anyhow::{Context, Result, bail};
 use glam::DVec2;
 use serde::Serialize;
-use shoal_physics::{Command, MotionModel, Pose, Scenario};
+use shoal_physics::{Command, MotionModel, Pose, Scenario, Surface};
 
 use crate::swarm::RunningSwarm;
-use crate::up::{RecordOptions, is_formed};
+use crate::up::RecordOptions;
 
 /// The SLAM process starts from strides this much too short.
 const STRIDE_ERROR: f64 = 0.25;
@@ -21,8 +21,10 @@ const STRIDE_ERROR: f64 = 0.25;
 const KILLED: usize = 4;
 const KILL_AT: f64 = 0.45;
 const DOWN_S: f64 = 8.0;
-/// A hole counts as closed once a robot stands this close (in spreads) to its centre.
-const HOLE_CLOSED_SPREADS: f64 = 0.75;
+/// The hole counts as closed once a robot stands this close to its centre,
+/// in the swarm's mean spacing just before the kill (its killed robots stood
+/// about 0.7 spacings from it, the survivors around it at least one).
+const HOLE_CLOSED_SPACINGS: f64 = 0.5;
 /// Robots diagnosed: those that walked longest on a floor the model lacks.
 const DIAGNOSED: usize = 3;
 /// SLAM error is averaged over this long at the start and at the end.
@@ -43,8 +45,7 @@ pub struct DemoSummary {
     pub killed: Vec<u32>,
     /// Seconds from the kill until a robot stood in the hole.
     pub hole_closed_s: Option<f64>,
-    /// Seconds from the restart until the formation was one group with its
-    /// spacing again.
+    /// Seconds from the restart until every robot was back in one group.
     pub whole_again_s: Option<f64>,
     /// Per followed robot: mean SLAM position error over the first and the
     /// last seconds of the run, metres.
@@ -81,12 +82,13 @@ fn short_strides(model: &MotionModel, error: f64) -> MotionModel {
     wrong
 }
 
-/// Floors whose motion differs from the robots' model, which knows none.
+/// A floor whose motion differs from the robots' model, which knows none.
+fn model_lacks(surface: &Surface) -> bool {
+    surface.along_scale != 1.0 || surface.across_scale != 1.0 || surface.turn_scale != 1.0
+}
+
 fn unknown_floor_at(scenario: &Scenario, p: DVec2, t: f64) -> bool {
-    scenario
-        .arena
-        .surface_at_time(p, t)
-        .is_some_and(|s| s.along_scale != 1.0 || s.across_scale != 1.0 || s.turn_scale != 1.0)
+    scenario.arena.surface_at_time(p, t).is_some_and(model_lacks)
 }
 
 fn centroid(points: &[DVec2]) -> DVec2 {
@@ -133,12 +135,14 @@ pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
     let mut killed_at: Option<f64> = None;
     let mut down: Vec<(u32, Pose)> = Vec::new();
     let mut hole = DVec2::ZERO;
+    let mut hole_radius = 0.0;
     let mut restarted_at: Option<f64> = None;
     let mut on_floor: std::collections::BTreeMap<u32, f64> = Default::default();
     // (sim time, robot, position error) of the followed robots.
     let mut slam_errors: Vec<(f64, u32, f64)> = Vec::new();
     let mut last_tick = 0;
     let mut last_line = std::time::Instant::now();
+    let mut last_slam_read = std::time::Instant::now();
     while swarm.sim_time() < options.seconds {
         if swarm.termination_requested() {
             eprintln!("shoal demo: interrupted");
@@ -156,30 +160,44 @@ pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
                 if moved && unknown_floor_at(&scenario, DVec2::new(s.x, s.y), s.sim_time) {
                     *on_floor.entry(s.agent_id).or_default() += scenario.timing.period_s;
                 }
-                if follow.contains(&s.agent_id) {
-                    let error = (s.x - s.believed_x).hypot(s.y - s.believed_y);
-                    slam_errors.push((s.sim_time, s.agent_id, error));
+            }
+        }
+        // SLAM's estimates reach the launcher through its report (once a second).
+        if last_slam_read.elapsed() >= Duration::from_secs(1) {
+            last_slam_read = std::time::Instant::now();
+            for followed in swarm.runtime.read_slam_report().into_iter().flat_map(|r| r.followed) {
+                if let (Some([x, y, _]), Some(truth)) =
+                    (followed.estimate, swarm.observer.get(followed.id))
+                {
+                    slam_errors.push((now, followed.id, (x - truth.x).hypot(y - truth.y)));
                 }
             }
         }
         if killed_at.is_none() && now >= kill_at {
-            // The robots nearest the middle of the swarm, SLAM's excepted.
+            // A block of robots in the middle of the swarm (SLAM's excepted):
+            // the one nearest the centre and its nearest neighbours.
             let positions: Vec<DVec2> = swarm.observer.samples().map(|s| DVec2::new(s.x, s.y)).collect();
             let middle = centroid(&positions);
-            let mut by_distance: Vec<(f64, u32, Pose)> = swarm
+            let candidates: Vec<(u32, Pose)> = swarm
                 .observer
                 .samples()
                 .filter(|s| !follow.contains(&s.agent_id))
-                .map(|s| {
-                    (
-                        DVec2::new(s.x, s.y).distance(middle),
-                        s.agent_id,
-                        Pose::new(s.x, s.y, s.theta),
-                    )
-                })
+                .map(|s| (s.agent_id, Pose::new(s.x, s.y, s.theta)))
                 .collect();
-            by_distance.sort_by(|a, b| a.0.total_cmp(&b.0));
-            down = by_distance.iter().take(KILLED).map(|(_, id, pose)| (*id, *pose)).collect();
+            let Some(&(_, seed)) = candidates
+                .iter()
+                .min_by(|a, b| a.1.position().distance(middle).total_cmp(&b.1.position().distance(middle)))
+            else {
+                bail!("no robot to kill: the swarm is empty");
+            };
+            let mut by_distance = candidates.clone();
+            by_distance.sort_by(|a, b| {
+                a.1.position()
+                    .distance(seed.position())
+                    .total_cmp(&b.1.position().distance(seed.position()))
+            });
+            down = by_distance.into_iter().take(KILLED).collect();
+            hole_radius = HOLE_CLOSED_SPACINGS * swarm.observer.metrics(spread).spacing_ratio * spread;
             hole = centroid(&down.iter().map(|(_, p)| p.position()).collect::<Vec<_>>());
             for (id, _) in &down {
                 swarm.signal_robot(*id, libc::SIGKILL)?;
@@ -195,7 +213,7 @@ pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
                 && swarm
                     .observer
                     .samples()
-                    .any(|s| DVec2::new(s.x, s.y).distance(hole) <= HOLE_CLOSED_SPREADS * spread)
+                    .any(|s| DVec2::new(s.x, s.y).distance(hole) <= hole_radius)
             {
                 summary.hole_closed_s = Some(now - at);
                 eprintln!("shoal demo: t {now:.0} s: the hole closed after {:.1} s", now - at);
@@ -211,7 +229,7 @@ pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
         if let Some(at) = restarted_at
             && summary.whole_again_s.is_none()
             && swarm.observer.len() == scenario.agents.count
-            && is_formed(&swarm.observer.metrics(spread))
+            && swarm.observer.metrics(spread).components == 1
         {
             summary.whole_again_s = Some(now - at);
         }
@@ -297,7 +315,8 @@ fn diagnose_robot(recording: &Path, robot: u32) -> Result<String> {
 }
 
 /// What a person reads at the end.
-pub fn print(summary: &DemoSummary, spread: f64) {
+pub fn print(summary: &DemoSummary, scenario: &Scenario) {
+    let spread = scenario.formation.spread;
     println!("\nShoal demo: what happened");
     println!(
         "  formation: {} robots in {} group(s), mean spacing {:.2} x the spread ({spread} m)",
@@ -305,7 +324,7 @@ pub fn print(summary: &DemoSummary, spread: f64) {
     );
     let seconds = |s: Option<f64>| s.map_or("not within the run".to_owned(), |s| format!("{s:.1} s"));
     println!(
-        "  healing: robots {:?} killed with SIGKILL; the hole closed in {}; after their restart the formation was whole in {}",
+        "  healing: robots {:?} killed with SIGKILL; the hole closed in {}; restarted, all were back in one group in {}",
         summary.killed,
         seconds(summary.hole_closed_s),
         seconds(summary.whole_again_s)
@@ -322,6 +341,19 @@ pub fn print(summary: &DemoSummary, spread: f64) {
                 .unwrap_or_default()
         );
     }
+    let floors: Vec<String> = scenario
+        .arena
+        .surfaces
+        .iter()
+        .filter(|s| model_lacks(s))
+        .map(|s| {
+            format!(
+                "{} in [{}, {}]-[{}, {}] m (strides x{}, turns x{})",
+                s.name, s.region[0], s.region[1], s.region[2], s.region[3], s.along_scale, s.turn_scale
+            )
+        })
+        .collect();
+    println!("  floors the robots' model lacks (the truth): {}", floors.join("; "));
     for d in &summary.diagnoses {
         println!(
             "  diagnose robot {} ({:.0} s on a floor its model lacks): {}",

@@ -280,8 +280,7 @@ fn run(cli: Cli) -> Result<()> {
             if json {
                 println!("{}", serde_json::to_string(&summary)?);
             } else {
-                let spread = up::load_scenario(Some(&scenario))?.formation.spread;
-                shoal::demo::print(&summary, spread);
+                shoal::demo::print(&summary, &up::load_scenario(Some(&scenario))?);
             }
         }
         Commands::Slam { args } => become_binary("shoal-slam", &args)?,

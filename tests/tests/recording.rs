@@ -463,3 +463,76 @@ fn asking_for_a_viewer_that_is_not_installed_is_a_clear_error() {
     assert!(!said.contains("swarm `e2e-no-viewer` up"), "{said}");
     let _ = std::fs::remove_dir_all(dir);
 }
+
+/// The demo, shortened: its recording holds the swarm, SLAM's particles and
+/// map, the kill and the restart, and it ends with a diagnosis.
+#[test]
+fn the_demo_records_slam_healing_and_a_diagnosis() {
+    let _turn = serial();
+    let dir = scratch("demo");
+    let recording = dir.join("demo.rrd");
+    let scenario = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/demo.toml");
+    let output = shoal(&[
+        "demo",
+        "--swarm",
+        "e2e-demo",
+        "--scenario",
+        scenario.to_str().expect("utf-8"),
+        "--out",
+        recording.to_str().expect("utf-8"),
+        "--seconds",
+        "30",
+        "--json",
+    ]);
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let summary: Value = serde_json::from_slice(&output.stdout).expect("JSON summary");
+    assert_eq!(summary["robots"], 20, "{summary}");
+    let killed: Vec<u64> = summary["killed"]
+        .as_array()
+        .expect("killed")
+        .iter()
+        .filter_map(Value::as_u64)
+        .collect();
+    assert_eq!(killed.len(), 4, "{summary}");
+    assert!(
+        summary["diagnoses"].as_array().is_some_and(|d| !d.is_empty()),
+        "{summary}"
+    );
+    let found = inspect(&recording);
+    let rows = |entity: &str| found["slam_rows"][entity].as_u64().unwrap_or(0);
+    for robot in [0, 1] {
+        assert!(
+            rows(&format!("/world/slam/{robot}/particles")) >= 10,
+            "robot {robot}: {}",
+            found["slam_rows"]
+        );
+        assert!(
+            rows(&format!("/world/slam/{robot}/map")) >= 2,
+            "robot {robot}: {}",
+            found["slam_rows"]
+        );
+    }
+    let events: Vec<&str> = found["events"]
+        .as_array()
+        .expect("events")
+        .iter()
+        .filter_map(Value::as_str)
+        .collect();
+    for id in &killed {
+        let fell = events
+            .iter()
+            .any(|e| e.starts_with(&format!("robot {id} (pid")) && e.contains("fell silent"));
+        let back = events
+            .iter()
+            .any(|e| e.starts_with(&format!("robot {id} restarted")));
+        assert!(
+            fell && back,
+            "robot {id}'s kill and restart are not in the recording's events: {events:?}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(dir);
+}

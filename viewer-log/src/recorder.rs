@@ -40,6 +40,9 @@ pub struct Recorder {
     rec: RecordingStream,
     spread: f64,
     robots: BTreeMap<u32, Robot>,
+    /// The last pid of robots that fell silent: one that comes back was
+    /// restarted, not a newcomer.
+    gone: HashMap<u32, u32>,
     pending: BTreeMap<u64, Vec<PoseSample>>,
     last_health: HashMap<u32, u32>,
     tum: Option<TumWriter>,
@@ -67,6 +70,7 @@ impl Recorder {
             rec,
             spread: scenario.formation.spread,
             robots: BTreeMap::new(),
+            gone: HashMap::new(),
             pending: BTreeMap::new(),
             last_health: HashMap::new(),
             tum,
@@ -134,6 +138,7 @@ impl Recorder {
                 tum.close(id)?;
             }
             if let Some(robot) = self.robots.remove(&id) {
+                self.gone.insert(id, robot.pid);
                 self.event(&format!(
                     "robot {id} (pid {}) fell silent after tick {}",
                     robot.pid, robot.last_tick
@@ -280,10 +285,16 @@ impl Recorder {
                 "robot {} restarted (pid {} -> {})",
                 sample.agent_id, robot.pid, sample.pid
             )),
-            None => Some(format!(
-                "robot {} (pid {}) joined at ({:.2}, {:.2})",
-                sample.agent_id, sample.pid, sample.x, sample.y
-            )),
+            None => Some(match self.gone.remove(&sample.agent_id) {
+                Some(old_pid) => format!(
+                    "robot {} restarted (pid {old_pid} -> {}) at ({:.2}, {:.2})",
+                    sample.agent_id, sample.pid, sample.x, sample.y
+                ),
+                None => format!(
+                    "robot {} (pid {}) joined at ({:.2}, {:.2})",
+                    sample.agent_id, sample.pid, sample.x, sample.y
+                ),
+            }),
         };
         if let Some(text) = event {
             self.robots.insert(
