@@ -286,6 +286,11 @@ impl Recorder {
                 sample.agent_id, robot.pid, sample.pid
             )),
             None => Some(match self.gone.remove(&sample.agent_id) {
+                // A process stalled longer than the staleness, not restarted.
+                Some(old_pid) if old_pid == sample.pid => format!(
+                    "robot {} (pid {}) heard again at ({:.2}, {:.2})",
+                    sample.agent_id, sample.pid, sample.x, sample.y
+                ),
                 Some(old_pid) => format!(
                     "robot {} restarted (pid {old_pid} -> {}) at ({:.2}, {:.2})",
                     sample.agent_id, sample.pid, sample.x, sample.y
