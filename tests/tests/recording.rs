@@ -538,3 +538,64 @@ fn the_demo_records_slam_healing_and_a_diagnosis() {
     }
     let _ = std::fs::remove_dir_all(dir);
 }
+
+/// `--viewer` starts the `rerun` program on PATH and streams to it. Here that
+/// program is the official CLI told to save what it receives (no display on a
+/// test machine); the viewer outlives the swarm, as a user's window does.
+#[test]
+fn the_viewer_option_starts_rerun_and_streams_the_run_to_it() {
+    let _turn = serial();
+    let dir = scratch("viewer");
+    let live = dir.join("live.rrd");
+    let real = Command::new("sh")
+        .args(["-c", "command -v rerun"])
+        .output()
+        .expect("sh");
+    let real = String::from_utf8_lossy(&real.stdout).trim().to_owned();
+    assert!(!real.is_empty(), "the rerun CLI (pip install rerun-sdk)");
+    let bin_dir = dir.join("bin");
+    std::fs::create_dir_all(&bin_dir).expect("bin folder");
+    let wrapper = bin_dir.join("rerun");
+    std::fs::write(
+        &wrapper,
+        format!(
+            "#!/bin/sh\nif [ \"$1\" = --version ]; then exec {real} --version; fi\nexec {real} \"$@\" --save {}\n",
+            live.display()
+        ),
+    )
+    .expect("wrapper");
+    let mut permissions = std::fs::metadata(&wrapper).expect("wrapper").permissions();
+    std::os::unix::fs::PermissionsExt::set_mode(&mut permissions, 0o755);
+    std::fs::set_permissions(&wrapper, permissions).expect("chmod");
+    let path = format!(
+        "{}:{}",
+        bin_dir.display(),
+        std::env::var("PATH").unwrap_or_default()
+    );
+    let output = Command::new(bin("shoal"))
+        .args(["up", "--swarm", "e2e-viewer", "--agents", "3", "--duration", "5", "--viewer"])
+        .env("PATH", &path)
+        .output()
+        .expect("run shoal");
+    // The viewer is stopped as a user closes it; it then finishes its file.
+    let stopped = |signal: &str| {
+        Command::new("pkill")
+            .args([signal, "-f", live.to_str().expect("utf-8")])
+            .status()
+            .is_ok_and(|s| s.success())
+    };
+    let started = Instant::now();
+    while stopped("-INT") && started.elapsed() < Duration::from_secs(20) {
+        std::thread::sleep(Duration::from_millis(500));
+    }
+    stopped("-KILL");
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let found = inspect(&live);
+    assert_eq!(found["robots"].as_array().map(Vec::len), Some(3), "{found}");
+    assert!(found["ticks"].as_u64().expect("ticks") >= 15, "{}", found["ticks"]);
+    let _ = std::fs::remove_dir_all(dir);
+}
