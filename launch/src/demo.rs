@@ -88,7 +88,10 @@ fn model_lacks(surface: &Surface) -> bool {
 }
 
 fn unknown_floor_at(scenario: &Scenario, p: DVec2, t: f64) -> bool {
-    scenario.arena.surface_at_time(p, t).is_some_and(model_lacks)
+    scenario
+        .arena
+        .surface_at_time(p, t)
+        .is_some_and(model_lacks)
 }
 
 fn centroid(points: &[DVec2]) -> DVec2 {
@@ -165,7 +168,12 @@ pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
         // SLAM's estimates reach the launcher through its report (once a second).
         if last_slam_read.elapsed() >= Duration::from_secs(1) {
             last_slam_read = std::time::Instant::now();
-            for followed in swarm.runtime.read_slam_report().into_iter().flat_map(|r| r.followed) {
+            for followed in swarm
+                .runtime
+                .read_slam_report()
+                .into_iter()
+                .flat_map(|r| r.followed)
+            {
                 if let (Some([x, y, _]), Some(truth)) =
                     (followed.estimate, swarm.observer.get(followed.id))
                 {
@@ -176,7 +184,11 @@ pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
         if killed_at.is_none() && now >= kill_at {
             // A block of robots in the middle of the swarm (SLAM's excepted):
             // the one nearest the centre and its nearest neighbours.
-            let positions: Vec<DVec2> = swarm.observer.samples().map(|s| DVec2::new(s.x, s.y)).collect();
+            let positions: Vec<DVec2> = swarm
+                .observer
+                .samples()
+                .map(|s| DVec2::new(s.x, s.y))
+                .collect();
             let middle = centroid(&positions);
             let candidates: Vec<(u32, Pose)> = swarm
                 .observer
@@ -184,10 +196,11 @@ pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
                 .filter(|s| !follow.contains(&s.agent_id))
                 .map(|s| (s.agent_id, Pose::new(s.x, s.y, s.theta)))
                 .collect();
-            let Some(&(_, seed)) = candidates
-                .iter()
-                .min_by(|a, b| a.1.position().distance(middle).total_cmp(&b.1.position().distance(middle)))
-            else {
+            let Some(&(_, seed)) = candidates.iter().min_by(|a, b| {
+                a.1.position()
+                    .distance(middle)
+                    .total_cmp(&b.1.position().distance(middle))
+            }) else {
                 bail!("no robot to kill: the swarm is empty");
             };
             let mut by_distance = candidates.clone();
@@ -197,14 +210,18 @@ pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
                     .total_cmp(&b.1.position().distance(seed.position()))
             });
             down = by_distance.into_iter().take(KILLED).collect();
-            hole_radius = HOLE_CLOSED_SPACINGS * swarm.observer.metrics(spread).spacing_ratio * spread;
+            hole_radius =
+                HOLE_CLOSED_SPACINGS * swarm.observer.metrics(spread).spacing_ratio * spread;
             hole = centroid(&down.iter().map(|(_, p)| p.position()).collect::<Vec<_>>());
             for (id, _) in &down {
                 swarm.signal_robot(*id, libc::SIGKILL)?;
                 swarm.observer.forget(*id);
             }
             summary.killed = down.iter().map(|(id, _)| *id).collect();
-            eprintln!("shoal demo: t {now:.0} s: SIGKILL to robots {:?}", summary.killed);
+            eprintln!(
+                "shoal demo: t {now:.0} s: SIGKILL to robots {:?}",
+                summary.killed
+            );
             killed_at = Some(now);
         }
         if let Some(at) = killed_at {
@@ -216,13 +233,19 @@ pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
                     .any(|s| DVec2::new(s.x, s.y).distance(hole) <= hole_radius)
             {
                 summary.hole_closed_s = Some(now - at);
-                eprintln!("shoal demo: t {now:.0} s: the hole closed after {:.1} s", now - at);
+                eprintln!(
+                    "shoal demo: t {now:.0} s: the hole closed after {:.1} s",
+                    now - at
+                );
             }
             if restarted_at.is_none() && now >= at + DOWN_S {
                 for (id, pose) in &down {
                     swarm.start(*id, *pose)?;
                 }
-                eprintln!("shoal demo: t {now:.0} s: robots {:?} restarted where they fell", summary.killed);
+                eprintln!(
+                    "shoal demo: t {now:.0} s: robots {:?} restarted where they fell",
+                    summary.killed
+                );
                 restarted_at = Some(now);
             }
         }
@@ -322,7 +345,8 @@ pub fn print(summary: &DemoSummary, scenario: &Scenario) {
         "  formation: {} robots in {} group(s), mean spacing {:.2} x the spread ({spread} m)",
         summary.robots, summary.groups, summary.spacing_ratio
     );
-    let seconds = |s: Option<f64>| s.map_or("not within the run".to_owned(), |s| format!("{s:.1} s"));
+    let seconds =
+        |s: Option<f64>| s.map_or("not within the run".to_owned(), |s| format!("{s:.1} s"));
     println!(
         "  healing: robots {:?} killed with SIGKILL; the hole closed in {}; restarted, all were back in one group in {}",
         summary.killed,
@@ -349,11 +373,20 @@ pub fn print(summary: &DemoSummary, scenario: &Scenario) {
         .map(|s| {
             format!(
                 "{} in [{}, {}]-[{}, {}] m (strides x{}, turns x{})",
-                s.name, s.region[0], s.region[1], s.region[2], s.region[3], s.along_scale, s.turn_scale
+                s.name,
+                s.region[0],
+                s.region[1],
+                s.region[2],
+                s.region[3],
+                s.along_scale,
+                s.turn_scale
             )
         })
         .collect();
-    println!("  floors the robots' model lacks (the truth): {}", floors.join("; "));
+    println!(
+        "  floors the robots' model lacks (the truth): {}",
+        floors.join("; ")
+    );
     for d in &summary.diagnoses {
         println!(
             "  diagnose robot {} ({:.0} s on a floor its model lacks): {}",

@@ -157,7 +157,10 @@ fn a_recording_holds_the_swarm_as_the_robots_published_it() {
             compared += 1;
         }
     }
-    assert!(compared >= 100, "only {compared} motion rows could be compared");
+    assert!(
+        compared >= 100,
+        "only {compared} motion rows could be compared"
+    );
     assert_eq!(found["period_s"].as_f64(), Some(0.2));
     let events = found["events"].to_string();
     assert!(events.contains("joined"), "{events}");
@@ -289,7 +292,11 @@ fn a_surface_the_robots_model_lacks_is_diagnosed_from_the_recording_alone() {
         let robot_dir = run.join(format!("robot-{robot}"));
         let from_csv = diagnose(&[robot_dir.to_str().expect("utf-8")]);
         assert_eq!(
-            from_csv["effects"].as_array().expect("effects").iter().any(is_mud),
+            from_csv["effects"]
+                .as_array()
+                .expect("effects")
+                .iter()
+                .any(is_mud),
             effects.iter().any(is_mud),
             "robot {robot}: the recording and the side folder disagree:\n{d}\n{from_csv}"
         );
@@ -300,10 +307,18 @@ fn a_surface_the_robots_model_lacks_is_diagnosed_from_the_recording_alone() {
         "mud found for robots {found_mud:?} only"
     );
     // A robot the recording does not hold is named, with those it does.
-    let missing = shoal(&["diagnose", recording.to_str().expect("utf-8"), "--robot", "42"]);
+    let missing = shoal(&[
+        "diagnose",
+        recording.to_str().expect("utf-8"),
+        "--robot",
+        "42",
+    ]);
     assert!(!missing.status.success());
     let said = String::from_utf8_lossy(&missing.stderr);
-    assert!(said.contains("no robot 42") && said.contains("holds robots 0-5"), "{said}");
+    assert!(
+        said.contains("no robot 42") && said.contains("holds robots 0-5"),
+        "{said}"
+    );
     let _ = std::fs::remove_dir_all(dir);
 }
 
@@ -452,7 +467,16 @@ fn asking_for_a_viewer_that_is_not_installed_is_a_clear_error() {
     let _turn = serial();
     let dir = scratch("no-viewer");
     let output = Command::new(bin("shoal"))
-        .args(["up", "--swarm", "e2e-no-viewer", "--agents", "2", "--duration", "2", "--viewer"])
+        .args([
+            "up",
+            "--swarm",
+            "e2e-no-viewer",
+            "--agents",
+            "2",
+            "--duration",
+            "2",
+            "--viewer",
+        ])
         .env("PATH", &dir)
         .output()
         .expect("run shoal");
@@ -501,7 +525,9 @@ fn the_demo_records_slam_healing_and_a_diagnosis() {
         .collect();
     assert_eq!(killed.len(), 4, "{summary}");
     assert!(
-        summary["diagnoses"].as_array().is_some_and(|d| !d.is_empty()),
+        summary["diagnoses"]
+            .as_array()
+            .is_some_and(|d| !d.is_empty()),
         "{summary}"
     );
     let found = inspect(&recording);
@@ -573,7 +599,16 @@ fn the_viewer_option_starts_rerun_and_streams_the_run_to_it() {
         std::env::var("PATH").unwrap_or_default()
     );
     let output = Command::new(bin("shoal"))
-        .args(["up", "--swarm", "e2e-viewer", "--agents", "3", "--duration", "5", "--viewer"])
+        .args([
+            "up",
+            "--swarm",
+            "e2e-viewer",
+            "--agents",
+            "3",
+            "--duration",
+            "5",
+            "--viewer",
+        ])
         .env("PATH", &path)
         .output()
         .expect("run shoal");
@@ -596,6 +631,10 @@ fn the_viewer_option_starts_rerun_and_streams_the_run_to_it() {
     );
     let found = inspect(&live);
     assert_eq!(found["robots"].as_array().map(Vec::len), Some(3), "{found}");
-    assert!(found["ticks"].as_u64().expect("ticks") >= 15, "{}", found["ticks"]);
+    assert!(
+        found["ticks"].as_u64().expect("ticks") >= 15,
+        "{}",
+        found["ticks"]
+    );
     let _ = std::fs::remove_dir_all(dir);
 }

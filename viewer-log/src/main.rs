@@ -70,7 +70,8 @@ fn run(args: Args) -> Result<()> {
                 .with_context(|| format!("creating the folder of {}", out.display()))?;
         }
         sinks.push(Box::new(
-            rerun::sink::FileSink::new(out).with_context(|| format!("creating {}", out.display()))?,
+            rerun::sink::FileSink::new(out)
+                .with_context(|| format!("creating {}", out.display()))?,
         ));
     }
     if let Some(url) = &live {
@@ -141,7 +142,10 @@ fn run(args: Args) -> Result<()> {
 
 /// Where to stream live, if anywhere: a viewer started now (`--viewer`), or
 /// one already running (`--connect`).
-fn live_url(viewer: bool, connect: Option<&str>) -> Result<Option<rerun::external::re_uri::ProxyUri>> {
+fn live_url(
+    viewer: bool,
+    connect: Option<&str>,
+) -> Result<Option<rerun::external::re_uri::ProxyUri>> {
     use std::str::FromStr as _;
     let text = if viewer {
         let spawned = rerun::spawn(&rerun::SpawnOptions::default()).map_err(|e| {

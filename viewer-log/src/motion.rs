@@ -37,7 +37,11 @@ const PERIOD: &str = "period_s";
 /// The velocity a sample's executed command means under `motion`: what the
 /// robot was asked to do over the period that ended at this sample. `None`
 /// for a command index the model does not know.
-pub fn executed_velocity(motion: &MotionModel, period_s: f64, sample: &PoseSample) -> Option<(f64, f64)> {
+pub fn executed_velocity(
+    motion: &MotionModel,
+    period_s: f64,
+    sample: &PoseSample,
+) -> Option<(f64, f64)> {
     let command = Command::from_index(sample.command as usize)?;
     let mean = motion.mean(command);
     Some((mean.along / period_s, mean.turn / period_s))
@@ -72,7 +76,9 @@ pub fn log_tick(
         &rerun::AnyValues::default()
             .with_component_from_data(
                 AGENT_ID,
-                Arc::new(UInt32Array::from_iter_values(samples.iter().map(|s| s.agent_id))),
+                Arc::new(UInt32Array::from_iter_values(
+                    samples.iter().map(|s| s.agent_id),
+                )),
             )
             .with_component_from_data(X, column(&|s| s.x))
             .with_component_from_data(Y, column(&|s| s.y))
@@ -80,13 +86,19 @@ pub fn log_tick(
             .with_component_from_data(
                 V,
                 Arc::new(Float64Array::from(
-                    velocities.iter().map(|v| v.map(|v| v.0)).collect::<Vec<_>>(),
+                    velocities
+                        .iter()
+                        .map(|v| v.map(|v| v.0))
+                        .collect::<Vec<_>>(),
                 )),
             )
             .with_component_from_data(
                 OMEGA,
                 Arc::new(Float64Array::from(
-                    velocities.iter().map(|v| v.map(|v| v.1)).collect::<Vec<_>>(),
+                    velocities
+                        .iter()
+                        .map(|v| v.map(|v| v.1))
+                        .collect::<Vec<_>>(),
                 )),
             ),
     )?;
@@ -229,7 +241,8 @@ fn add_chunk(out: &mut MotionRows, chunk: &Chunk) -> Result<()> {
         .map(|(t, _)| t.as_i64())
         .collect();
     let ids: Vec<&[u32]> = chunk.iter_slices::<u32>(AGENT_ID.into()).collect();
-    let numbers = |name: &'static str| -> Vec<&[f64]> { chunk.iter_slices::<f64>(name.into()).collect() };
+    let numbers =
+        |name: &'static str| -> Vec<&[f64]> { chunk.iter_slices::<f64>(name.into()).collect() };
     let (xs, ys, thetas) = (numbers(X), numbers(Y), numbers(THETA));
     // Commands may be null (an unknown command index): read them as options.
     let optional = |name: &'static str| -> Vec<Vec<Option<f64>>> {
@@ -251,9 +264,15 @@ fn add_chunk(out: &mut MotionRows, chunk: &Chunk) -> Result<()> {
     }
     for row in 0..rows {
         let n = ids[row].len();
-        if [xs[row].len(), ys[row].len(), thetas[row].len(), vs[row].len(), omegas[row].len()]
-            .iter()
-            .any(|len| *len != n)
+        if [
+            xs[row].len(),
+            ys[row].len(),
+            thetas[row].len(),
+            vs[row].len(),
+            omegas[row].len(),
+        ]
+        .iter()
+        .any(|len| *len != n)
         {
             bail!("row {row}: {n} robots but fields of other lengths");
         }
@@ -313,10 +332,17 @@ mod tests {
         assert!((track.poses[9][1] - 2.0).abs() < 1e-12);
         let expected = motion.mean(Command::ALL[1]);
         assert_eq!(track.commands.len(), 10);
-        assert!((track.commands[0][0] - 0.0).abs() < 1e-9, "{:?}", track.commands[0]);
+        assert!(
+            (track.commands[0][0] - 0.0).abs() < 1e-9,
+            "{:?}",
+            track.commands[0]
+        );
         assert!((track.commands[0][1] - expected.along / period).abs() < 1e-12);
         let missing = rows.track(9, "motion.rrd").expect_err("no robot 9");
-        assert!(missing.to_string().contains("holds robots 3-4"), "{missing}");
+        assert!(
+            missing.to_string().contains("holds robots 3-4"),
+            "{missing}"
+        );
         std::fs::remove_dir_all(&dir).expect("cleanup");
     }
 
@@ -327,7 +353,10 @@ mod tests {
         let path = dir.join("notes.rrd");
         std::fs::write(&path, "t,x,y\n1,2,3\n").expect("write");
         let err = read_motion(&path).expect_err("not an rrd");
-        assert!(err.to_string().contains("notes.rrd: not a Rerun recording"), "{err}");
+        assert!(
+            err.to_string().contains("notes.rrd: not a Rerun recording"),
+            "{err}"
+        );
         std::fs::remove_dir_all(&dir).expect("cleanup");
     }
 }

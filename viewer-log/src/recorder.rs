@@ -259,7 +259,11 @@ impl Recorder {
         crate::motion::log_tick(&self.rec, &self.motion, self.period_s, &robots)?;
         if let Some(tum) = &mut self.tum {
             for s in &robots {
-                tum.write(s, crate::motion::executed_velocity(&self.motion, self.period_s, s), self.period_s)?;
+                tum.write(
+                    s,
+                    crate::motion::executed_velocity(&self.motion, self.period_s, s),
+                    self.period_s,
+                )?;
             }
         }
         Ok(())
@@ -330,9 +334,7 @@ impl Recorder {
             && !self.told_viewer_gone
         {
             self.told_viewer_gone = true;
-            eprintln!(
-                "shoal-viewer-log: the live viewer does not answer ({e}); recording goes on"
-            );
+            eprintln!("shoal-viewer-log: the live viewer does not answer ({e}); recording goes on");
         }
         Ok(())
     }
