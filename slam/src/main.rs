@@ -152,13 +152,15 @@ fn run(args: Args) -> Result<()> {
                 idle = false;
                 robot.last_scan = Some(std::time::Instant::now());
                 let mut ranges: Vec<f64> = scan.ranges().iter().map(|r| f64::from(*r)).collect();
-                if let Some(filter) = &robot.filter {
-                    mask_bodies(
-                        &mut ranges,
-                        &filter.estimate(),
-                        &scenario.sensor,
-                        bodies.others(*id),
-                    );
+                // Beams that end on another robot are dropped, also from the
+                // first scan, which starts the map: a swarm starts crowded,
+                // and its robots would stand in the map as walls for ever.
+                let seen_from = match &robot.filter {
+                    Some(filter) => Some(filter.estimate()),
+                    None => anchors.get(id).copied(),
+                };
+                if let Some(pose) = seen_from {
+                    mask_bodies(&mut ranges, &pose, &scenario.sensor, bodies.others(*id));
                 }
                 let Some(command) = Command::from_index(scan.command as usize) else {
                     continue;
