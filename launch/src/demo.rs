@@ -30,9 +30,14 @@ const DIAGNOSED: usize = 3;
 /// SLAM error is averaged over this long at the start and at the end.
 const SLAM_WINDOW_S: f64 = 10.0;
 
+/// The demo's scenario as shipped, for a `shoal demo` run outside the
+/// repository; `scenarios/demo.toml` is the same file to copy and change.
+pub const DEMO_SCENARIO: &str = include_str!("../../scenarios/demo.toml");
+
 pub struct DemoOptions {
     pub swarm: String,
-    pub scenario: PathBuf,
+    /// None: [`DEMO_SCENARIO`].
+    pub scenario: Option<PathBuf>,
     pub out: PathBuf,
     pub seconds: f64,
 }
@@ -98,12 +103,20 @@ fn centroid(points: &[DVec2]) -> DVec2 {
     points.iter().copied().sum::<DVec2>() / points.len().max(1) as f64
 }
 
+/// The scenario file given, or the demo's own.
+pub fn demo_scenario(path: Option<&Path>) -> Result<Scenario> {
+    Ok(match path {
+        Some(path) => Scenario::from_file(path)?,
+        None => Scenario::from_toml(DEMO_SCENARIO, "scenarios/demo.toml")?,
+    })
+}
+
 pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
-    let scenario = Scenario::from_file(&options.scenario)?;
+    let scenario = demo_scenario(options.scenario.as_deref())?;
     if scenario.agents.count < KILLED + 4 {
         bail!(
             "{}: the demo kills {KILLED} robots, so it needs at least {} (agents.count is {})",
-            options.scenario.display(),
+            scenario.name,
             KILLED + 4,
             scenario.agents.count
         );
@@ -397,4 +410,33 @@ pub fn print(summary: &DemoSummary, scenario: &Scenario) {
         "  open the recording: rerun {}   (pip install rerun-sdk==0.36.3)",
         summary.recording.display()
     );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_shipped_scenario_has_what_the_demo_shows() {
+        let scenario = demo_scenario(None).expect("the demo's scenario parses");
+        assert!(scenario.agents.count >= KILLED + 4);
+        assert_eq!(scenario.slam.follow.len(), 2);
+        assert!(scenario.arena.surfaces.iter().any(model_lacks));
+    }
+
+    #[test]
+    fn slam_starts_from_strides_a_quarter_too_short() {
+        let truth = MotionModel::legged_default();
+        let wrong = short_strides(&truth, STRIDE_ERROR);
+        let walk = Command::Walk(2);
+        let ratio = wrong.mean(walk).along / truth.mean(walk).along;
+        assert!((ratio - 0.75).abs() < 1e-12, "{ratio}");
+        assert_eq!(wrong.mean(walk).turn, truth.mean(walk).turn);
+        // What the SLAM process reads back is what was meant.
+        let text = toml::to_string(&wrong).expect("toml");
+        assert_eq!(
+            MotionModel::from_toml(&text, "model.toml").expect("reads"),
+            wrong
+        );
+    }
 }

@@ -62,9 +62,10 @@ enum Commands {
     /// All of Shoal in one run: robots form, SLAM learns, four robots are
     /// killed and restarted, and the recording is diagnosed.
     Demo {
-        /// The demo's scenario (scenarios/demo.toml; copy it and change it).
-        #[arg(long, default_value = "scenarios/demo.toml")]
-        scenario: PathBuf,
+        /// A scenario file; default: the demo's own (scenarios/demo.toml in
+        /// the repository: copy it and change it).
+        #[arg(long)]
+        scenario: Option<PathBuf>,
         /// Where the recording goes.
         #[arg(long, default_value = "demo.rrd")]
         out: PathBuf,
@@ -280,7 +281,7 @@ fn run(cli: Cli) -> Result<()> {
             if json {
                 println!("{}", serde_json::to_string(&summary)?);
             } else {
-                shoal::demo::print(&summary, &up::load_scenario(Some(&scenario))?);
+                shoal::demo::print(&summary, &shoal::demo::demo_scenario(scenario.as_deref())?);
             }
         }
         Commands::Slam { args } => become_binary("shoal-slam", &args)?,
