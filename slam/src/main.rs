@@ -63,11 +63,17 @@ struct Followed {
     estimates: StreamPublisher<EstimateSample>,
     models: StreamPublisher<ModelUpdate>,
     filter: Option<ParticleFilter>,
+    /// Scans that came before their tick's pose, while the filter waits to start.
+    waiting: Vec<ScanSample>,
     steps: u64,
     last_scan: Option<std::time::Instant>,
 }
 
 const MIN_GRID_M: f64 = 0.01;
+/// Ticks of true poses kept per followed robot, to start its filter from.
+const ANCHOR_TICKS: usize = 64;
+/// Scans kept while a filter waits for the pose of their tick.
+const WAITING_SCANS: usize = 16;
 const MAX_GRID_M: f64 = 1.0;
 
 fn run(args: Args) -> Result<()> {
@@ -108,6 +114,7 @@ fn run(args: Args) -> Result<()> {
                 estimates: robot_streams::estimate_publisher(&bus, id)?,
                 models: robot_streams::model_publisher(&bus, id)?,
                 filter: None,
+                waiting: Vec::new(),
                 steps: 0,
                 last_scan: None,
             },
@@ -122,7 +129,8 @@ fn run(args: Args) -> Result<()> {
         ..FilterConfig::default()
     };
     tracing::info!(follow = ?args.follow, learning = ?args.learning, "SLAM following");
-    let mut anchors: BTreeMap<u32, Pose> = BTreeMap::new();
+    // Each followed robot's recent true poses by tick, to start its filter at.
+    let mut anchors: BTreeMap<u32, BTreeMap<u64, Pose>> = BTreeMap::new();
     let mut last_report = std::time::Instant::now();
     // Where every robot stands, and at which tick, to drop beams that ended
     // on one: robots move, so they do not belong in the map. A robot silent
@@ -139,49 +147,75 @@ fn run(args: Args) -> Result<()> {
                 *seen = (*seen).max(s.tick);
             }
             if followed.contains_key(&s.agent_id) {
-                anchors.insert(s.agent_id, Pose::new(s.x, s.y, s.theta));
+                let poses = anchors.entry(s.agent_id).or_default();
+                poses.insert(s.tick, Pose::new(s.x, s.y, s.theta));
+                while poses.len() > ANCHOR_TICKS {
+                    poses.pop_first();
+                }
             }
             bodies.saw(s.agent_id, glam::DVec2::new(s.x, s.y), s.tick);
         })?;
         bodies.forget_gone();
         let mut idle = true;
         for (id, robot) in &mut followed {
-            let mut scans = Vec::new();
+            let mut scans = std::mem::take(&mut robot.waiting);
             robot.scans.receive(|scan| scans.push(scan))?;
-            for scan in scans {
+            if !scans.is_empty() {
                 idle = false;
                 robot.last_scan = Some(std::time::Instant::now());
-                let mut ranges: Vec<f64> = scan.ranges().iter().map(|r| f64::from(*r)).collect();
-                // Beams that end on another robot are dropped, also from the
-                // first scan, which starts the map: a swarm starts crowded,
-                // and its robots would stand in the map as walls for ever.
-                let seen_from = match &robot.filter {
-                    Some(filter) => Some(filter.estimate()),
-                    None => anchors.get(id).copied(),
-                };
-                if let Some(pose) = seen_from {
-                    mask_bodies(&mut ranges, &pose, &scenario.sensor, bodies.others(*id));
-                }
-                let Some(command) = Command::from_index(scan.command as usize) else {
+            }
+            if robot.filter.is_none() {
+                // The filter starts at the true pose of the tick of a scan,
+                // mapping that scan; the command that led there is already
+                // in the pose and is not applied again. (Starting from the
+                // newest pose and stepping the first scan's command turned a
+                // formation robot, whose first command is a turn in place,
+                // by that turn twice: SLAM then ran 90 degrees off.)
+                let poses = anchors.get(id);
+                let Some(first) = scans
+                    .iter()
+                    .rposition(|s| poses.is_some_and(|p| p.contains_key(&s.tick)))
+                else {
+                    // The roster may bring the scan's pose a moment later.
+                    let keep = scans.len().saturating_sub(WAITING_SCANS);
+                    robot.waiting = scans.split_off(keep);
                     continue;
                 };
-                let filter = match &mut robot.filter {
-                    Some(filter) => filter,
-                    None => {
-                        let Some(start) = anchors.get(id) else {
-                            continue;
-                        };
-                        let mut filter = ParticleFilter::new(
-                            *start,
-                            initial.clone(),
-                            config.clone(),
-                            scenario.arena.width,
-                            scenario.arena.height,
-                            u64::from(*id),
-                        );
-                        filter.observe_start(&ranges);
-                        robot.filter.insert(filter)
-                    }
+                let scan = scans[first];
+                let Some(start) = poses.and_then(|p| p.get(&scan.tick)).copied() else {
+                    continue;
+                };
+                let mut ranges: Vec<f64> = scan.ranges().iter().map(|r| f64::from(*r)).collect();
+                // A swarm starts crowded: beams that end on another robot
+                // would put it in the map as a wall for ever.
+                mask_bodies(&mut ranges, &start, &scenario.sensor, bodies.others(*id));
+                let mut filter = ParticleFilter::new(
+                    start,
+                    initial.clone(),
+                    config.clone(),
+                    scenario.arena.width,
+                    scenario.arena.height,
+                    u64::from(*id),
+                );
+                filter.observe_start(&ranges);
+                robot.filter = Some(filter);
+                scans.drain(..=first);
+            }
+            for scan in scans {
+                let Some(filter) = &mut robot.filter else {
+                    break;
+                };
+                let mut ranges: Vec<f64> = scan.ranges().iter().map(|r| f64::from(*r)).collect();
+                // Beams that end on another robot are dropped: robots move,
+                // so they do not belong in the map.
+                mask_bodies(
+                    &mut ranges,
+                    &filter.estimate(),
+                    &scenario.sensor,
+                    bodies.others(*id),
+                );
+                let Some(command) = Command::from_index(scan.command as usize) else {
+                    continue;
                 };
                 let report = filter.step(command, scan.bumped != 0, &ranges);
                 robot.steps += 1;
