@@ -29,7 +29,7 @@ pub fn run(agents: &[usize], seconds: f64, json: bool) -> Result<()> {
         let name = format!("benchrec{}-{count}", std::process::id());
         let out = std::env::temp_dir().join(format!("{name}.rrd"));
         let mut swarm = RunningSwarm::launch(&name, open_arena(count), false)?;
-        swarm.record(&shoal::up::RecordOptions::file(&out, None))?;
+        swarm.record(&shoal::swarm::RecordOptions::file(&out, None))?;
         std::thread::sleep(Duration::from_secs(3));
         let recorder = swarm.recorder_pid().context("the recorder did not start")?;
         let robots = swarm.agent_pids();

@@ -729,202 +729,192 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
     // mismatch of the mean (mud, a drift) otherwise passes for noise that
     // grows with speed, and the noise model it leaves behind then judges
     // the true explanation unlikely (feasible GLS orders them the same way).
-    let (mut remaining, mut noise_candidates): (Vec<ScopedEffect>, Vec<ScopedEffect>) =
+    let (mean_candidates, noise_candidates): (Vec<ScopedEffect>, Vec<ScopedEffect>) =
         candidates(&located, segs, duration)
             .into_iter()
             .partition(|c| !c.effect.only_noise());
-    // Ends the search for effects on the mean; the noise effects come next.
-    macro_rules! next_phase {
-        () => {{
-            if noise_candidates.is_empty() {
-                break;
-            }
-            remaining = std::mem::take(&mut noise_candidates);
-            continue;
-        }};
-    }
     let mut found: Vec<ScopedEffect> = Vec::new();
     // What selection learned of each effect in `found`, index for index.
     let mut evidence: Vec<Evidence> = Vec::new();
     let mut unexplained: Vec<Unexplained> = Vec::new();
     let mut rejected_heldout: Vec<&'static str> = Vec::new();
-    while found.len() < options.max_effects && segs.len() >= 20 {
-        if remaining.is_empty() {
-            next_phase!();
-        }
-        let base: Vec<ScopedEffect> = fixed.iter().chain(&found).cloned().collect();
-        let base_nll = components_of(grid, segs, &base);
-        let screen_current = nll_of(grid, &screen, &base);
-        let screened = fit_all(grid, &screen, &base, &remaining, options.max_iters);
-        // Ranking only: the screen's plain BIC orders the candidates; the
-        // decision below is made on all segments with calibrated gains.
-        let screen_gain = |f: &Fitted, c: &ScopedEffect| {
-            2.0 * (f.nll - screen_current) + extra_params(c) as f64 * screen_log_n
-        };
-        let mut ranked: Vec<(f64, ScopedEffect)> = screened
-            .iter()
-            .zip(&remaining)
-            .map(|(f, c)| (screen_gain(f, c), f.effects[0].clone()))
-            .filter(|(g, _)| *g < 0.0)
-            .collect();
-        ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
-        ranked.truncate(options.confirm);
-        if ranked.is_empty() {
-            next_phase!();
-        }
-        let top: Vec<ScopedEffect> = ranked.into_iter().map(|(_, c)| c).collect();
-        let mut confirmed = fit_all(grid, segs, &base, &top, options.max_iters / 2);
-        for fitted in &mut confirmed {
-            let zone = refine_zone(
-                grid,
-                segs,
-                &base,
-                fitted.effects[0].clone(),
-                options.max_iters / 2,
-            );
-            if zone != fitted.effects[0] {
-                let effects: Vec<ScopedEffect> =
-                    base.iter().cloned().chain([zone.clone()]).collect();
-                fitted.nll = nll_of(grid, segs, &effects);
-                fitted.effects = vec![zone];
+    for mut remaining in [mean_candidates, noise_candidates] {
+        while found.len() < options.max_effects && !remaining.is_empty() && segs.len() >= 20 {
+            let base: Vec<ScopedEffect> = fixed.iter().chain(&found).cloned().collect();
+            let base_nll = components_of(grid, segs, &base);
+            let screen_current = nll_of(grid, &screen, &base);
+            let screened = fit_all(grid, &screen, &base, &remaining, options.max_iters);
+            // Ranking only: the screen's plain BIC orders the candidates; the
+            // decision below is made on all segments with calibrated gains.
+            let screen_gain = |f: &Fitted, c: &ScopedEffect| {
+                2.0 * (f.nll - screen_current) + extra_params(c) as f64 * screen_log_n
+            };
+            let mut ranked: Vec<(f64, ScopedEffect)> = screened
+                .iter()
+                .zip(&remaining)
+                .map(|(f, c)| (screen_gain(f, c), f.effects[0].clone()))
+                .filter(|(g, _)| *g < 0.0)
+                .collect();
+            ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
+            ranked.truncate(options.confirm);
+            if ranked.is_empty() {
+                break;
             }
-        }
-        let Some(best_fit) = confirmed.iter().min_by(|a, b| a.nll.total_cmp(&b.nll)) else {
-            next_phase!();
-        };
-        let factors = factors_with(grid, segs, &base, &best_fit.effects[0]);
-        let judge = |c: &ScopedEffect| calibrated_gain(grid, segs, base_nll, &base, c, factors);
-        let mut confirmed: Vec<(f64, ScopedEffect)> = confirmed
-            .iter()
-            .map(|f| (judge(&f.effects[0]), f.effects[0].clone()))
-            .collect();
-        confirmed.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let Some((mut delta_bic, mut chosen)) = confirmed.first().cloned() else {
-            next_phase!();
-        };
-        // Explanations within 2 of BIC are not worth more than a bare
-        // mention apart (Kass and Raftery): one finding, with alternatives.
-        let mut tied: Vec<(f64, ScopedEffect)> = confirmed[1..]
-            .iter()
-            .filter(|(g, c)| *g < delta_bic + 2.0 && c.effect.kind() != chosen.effect.kind())
-            .cloned()
-            .collect();
-        if delta_bic > -options.min_bic_gain {
-            next_phase!();
-        }
-        // An effect may act in part of the run only. Trying that is not
-        // left to the locating tests alone: the held-out check below keeps
-        // a narrower scope from fitting noise.
-        if let Some(scoped) = narrower_scope(grid, &screen, &base, &chosen, duration, options) {
-            let confirm = |candidate: &ScopedEffect| {
-                let full = fit(
+            let top: Vec<ScopedEffect> = ranked.into_iter().map(|(_, c)| c).collect();
+            let mut confirmed = fit_all(grid, segs, &base, &top, options.max_iters / 2);
+            for fitted in &mut confirmed {
+                let zone = refine_zone(
                     grid,
                     segs,
                     &base,
-                    std::slice::from_ref(candidate),
+                    fitted.effects[0].clone(),
                     options.max_iters / 2,
                 );
-                let fitted = full.effects[0].clone();
-                let g = judge(&fitted);
-                (fitted, g)
+                if zone != fitted.effects[0] {
+                    let effects: Vec<ScopedEffect> =
+                        base.iter().cloned().chain([zone.clone()]).collect();
+                    fitted.nll = nll_of(grid, segs, &effects);
+                    fitted.effects = vec![zone];
+                }
+            }
+            let Some(best_fit) = confirmed.iter().min_by(|a, b| a.nll.total_cmp(&b.nll)) else {
+                break;
             };
-            let (scoped_fit, scoped_gain) = confirm(&scoped);
-            if scoped_gain < delta_bic - options.min_bic_gain {
-                (chosen, delta_bic) = (scoped_fit, scoped_gain);
-                // A robot that drives into a zone and stays there shows a speed
-                // change in time that is as much a change in place: try the
-                // region it drove in over that span as a surface zone.
-                if let Some(zone) = zone_of_span(segs, &chosen)
-                    && let Some(zone_effect) = Effect::identity("surface_zone", zone)
-                {
-                    let (zone_fit, _) = confirm(&ScopedEffect::always(zone_effect));
-                    let zone_fit = refine_zone(grid, segs, &base, zone_fit, options.max_iters / 2);
-                    let zone_gain = judge(&zone_fit);
-                    if zone_gain < delta_bic + 2.0 {
-                        tied.push((delta_bic, chosen.clone()));
-                        (chosen, delta_bic) = (zone_fit, zone_gain);
+            let factors = factors_with(grid, segs, &base, &best_fit.effects[0]);
+            let judge = |c: &ScopedEffect| calibrated_gain(grid, segs, base_nll, &base, c, factors);
+            let mut confirmed: Vec<(f64, ScopedEffect)> = confirmed
+                .iter()
+                .map(|f| (judge(&f.effects[0]), f.effects[0].clone()))
+                .collect();
+            confirmed.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let Some((mut delta_bic, mut chosen)) = confirmed.first().cloned() else {
+                break;
+            };
+            // Explanations within 2 of BIC are not worth more than a bare
+            // mention apart (Kass and Raftery): one finding, with alternatives.
+            let mut tied: Vec<(f64, ScopedEffect)> = confirmed[1..]
+                .iter()
+                .filter(|(g, c)| *g < delta_bic + 2.0 && c.effect.kind() != chosen.effect.kind())
+                .cloned()
+                .collect();
+            if delta_bic > -options.min_bic_gain {
+                break;
+            }
+            // An effect may act in part of the run only. Trying that is not
+            // left to the locating tests alone: the held-out check below keeps
+            // a narrower scope from fitting noise.
+            if let Some(scoped) = narrower_scope(grid, &screen, &base, &chosen, duration, options) {
+                let confirm = |candidate: &ScopedEffect| {
+                    let full = fit(
+                        grid,
+                        segs,
+                        &base,
+                        std::slice::from_ref(candidate),
+                        options.max_iters / 2,
+                    );
+                    let fitted = full.effects[0].clone();
+                    let g = judge(&fitted);
+                    (fitted, g)
+                };
+                let (scoped_fit, scoped_gain) = confirm(&scoped);
+                if scoped_gain < delta_bic - options.min_bic_gain {
+                    (chosen, delta_bic) = (scoped_fit, scoped_gain);
+                    // A robot that drives into a zone and stays there shows a speed
+                    // change in time that is as much a change in place: try the
+                    // region it drove in over that span as a surface zone.
+                    if let Some(zone) = zone_of_span(segs, &chosen)
+                        && let Some(zone_effect) = Effect::identity("surface_zone", zone)
+                    {
+                        let (zone_fit, _) = confirm(&ScopedEffect::always(zone_effect));
+                        let zone_fit =
+                            refine_zone(grid, segs, &base, zone_fit, options.max_iters / 2);
+                        let zone_gain = judge(&zone_fit);
+                        if zone_gain < delta_bic + 2.0 {
+                            tied.push((delta_bic, chosen.clone()));
+                            (chosen, delta_bic) = (zone_fit, zone_gain);
+                        }
                     }
                 }
             }
-        }
-        let tied_kinds: Vec<&'static str> = tied.iter().map(|(_, c)| c.effect.kind()).collect();
-        // Later rounds only try what helped on its own (an effect that did
-        // not lower the likelihood alone is rarely needed in company), and
-        // never an alternative of what was found: that would name one
-        // mismatch twice.
-        remaining = remaining
-            .iter()
-            .zip(&screened)
-            .filter(|(c, f)| {
-                let kind = c.effect.kind();
-                f.nll < screen_current - 1.0
-                    && kind != chosen.effect.kind()
-                    && !tied_kinds.contains(&kind)
-            })
-            .map(|(c, _)| c.clone())
-            .collect();
-        if let Some(reason) = on_bound(&chosen) {
-            unexplained.push(Unexplained {
-                tried: chosen.effect.kind(),
-                params: chosen.effect.params().into_iter().collect(),
-                reason: format!(
-                    "{reason}; the mismatch is real (BIC {delta_bic:.0}) but no effect of the library explains it within physical limits"
-                ),
-            });
-            continue;
-        }
-        let gain_heldout = heldout_gain(&prepared, &base, &chosen, options);
-        if !(gain_heldout > 0.0) {
-            rejected_heldout.push(chosen.effect.kind());
-            continue;
-        }
-        found.push(chosen);
-        evidence.push(Evidence {
-            delta_bic,
-            heldout_gain: gain_heldout,
-            // An alternative fitted onto a physical edge is no explanation.
-            alternatives: tied
+            let tied_kinds: Vec<&'static str> = tied.iter().map(|(_, c)| c.effect.kind()).collect();
+            // Later rounds only try what helped on its own (an effect that did
+            // not lower the likelihood alone is rarely needed in company), and
+            // never an alternative of what was found: that would name one
+            // mismatch twice.
+            remaining = remaining
                 .iter()
-                .filter(|(_, c)| on_bound(c).is_none())
-                .map(|(g, c)| Alternative {
-                    kind: c.effect.kind(),
-                    params: c.effect.params().into_iter().collect(),
-                    delta_bic: *g,
-                    sentence: operating_point.sentence(&c.effect, duration),
+                .zip(&screened)
+                .filter(|(c, f)| {
+                    let kind = c.effect.kind();
+                    f.nll < screen_current - 1.0
+                        && kind != chosen.effect.kind()
+                        && !tied_kinds.contains(&kind)
                 })
-                .collect(),
-        });
-        // Effects found earlier may now be estimated differently: refit together.
-        let joint = fit(grid, segs, &fixed, &found, options.max_iters * 2);
-        found = joint.effects;
-        // And one found early may no longer be needed once a better
-        // explanation joined (a turn scale standing in for steering play):
-        // drop any effect the others, refitted, do as well without.
-        let mut k = 0;
-        while found.len() >= 2 && k < found.len() {
-            let others: Vec<ScopedEffect> = found
-                .iter()
-                .enumerate()
-                .filter(|(j, _)| *j != k)
-                .map(|(_, e)| e.clone())
+                .map(|(c, _)| c.clone())
                 .collect();
-            let refit = fit(grid, segs, &fixed, &others, options.max_iters);
-            let rest: Vec<ScopedEffect> =
-                fixed.iter().cloned().chain(refit.effects.clone()).collect();
-            let factors = factors_with(grid, segs, &rest, &found[k]);
-            let needed = calibrated_gain(
-                grid,
-                segs,
-                components_of(grid, segs, &rest),
-                &rest,
-                &found[k],
-                factors,
-            );
-            if needed > -options.min_bic_gain {
-                found = refit.effects;
-                evidence.remove(k);
-            } else {
-                k += 1;
+            if let Some(reason) = on_bound(&chosen) {
+                unexplained.push(Unexplained {
+                    tried: chosen.effect.kind(),
+                    params: chosen.effect.params().into_iter().collect(),
+                    reason: format!(
+                        "{reason}; the mismatch is real (BIC {delta_bic:.0}) but no effect of the library explains it within physical limits"
+                    ),
+                });
+                continue;
+            }
+            let gain_heldout = heldout_gain(&prepared, &base, &chosen, options);
+            if !(gain_heldout > 0.0) {
+                rejected_heldout.push(chosen.effect.kind());
+                continue;
+            }
+            found.push(chosen);
+            evidence.push(Evidence {
+                delta_bic,
+                heldout_gain: gain_heldout,
+                // An alternative fitted onto a physical edge is no explanation.
+                alternatives: tied
+                    .iter()
+                    .filter(|(_, c)| on_bound(c).is_none())
+                    .map(|(g, c)| Alternative {
+                        kind: c.effect.kind(),
+                        params: c.effect.params().into_iter().collect(),
+                        delta_bic: *g,
+                        sentence: operating_point.sentence(&c.effect, duration),
+                    })
+                    .collect(),
+            });
+            // Effects found earlier may now be estimated differently: refit together.
+            let joint = fit(grid, segs, &fixed, &found, options.max_iters * 2);
+            found = joint.effects;
+            // And one found early may no longer be needed once a better
+            // explanation joined (a turn scale standing in for steering play):
+            // drop any effect the others, refitted, do as well without.
+            let mut k = 0;
+            while found.len() >= 2 && k < found.len() {
+                let others: Vec<ScopedEffect> = found
+                    .iter()
+                    .enumerate()
+                    .filter(|(j, _)| *j != k)
+                    .map(|(_, e)| e.clone())
+                    .collect();
+                let refit = fit(grid, segs, &fixed, &others, options.max_iters);
+                let rest: Vec<ScopedEffect> =
+                    fixed.iter().cloned().chain(refit.effects.clone()).collect();
+                let factors = factors_with(grid, segs, &rest, &found[k]);
+                let needed = calibrated_gain(
+                    grid,
+                    segs,
+                    components_of(grid, segs, &rest),
+                    &rest,
+                    &found[k],
+                    factors,
+                );
+                if needed > -options.min_bic_gain {
+                    found = refit.effects;
+                    evidence.remove(k);
+                } else {
+                    k += 1;
+                }
             }
         }
     }

@@ -10,10 +10,11 @@ use std::time::Duration;
 use anyhow::{Context, Result, bail};
 use glam::DVec2;
 use serde::Serialize;
+use shoal_physics::metrics::centroid;
 use shoal_physics::{Command, MotionModel, Pose, Scenario, Surface};
 
+use crate::swarm::RecordOptions;
 use crate::swarm::RunningSwarm;
-use crate::up::RecordOptions;
 
 /// The SLAM process starts from strides this much too short.
 const STRIDE_ERROR: f64 = 0.25;
@@ -87,20 +88,37 @@ fn short_strides(model: &MotionModel, error: f64) -> MotionModel {
     wrong
 }
 
-/// A floor whose motion differs from the robots' model, which knows none.
-fn model_lacks(surface: &Surface) -> bool {
-    surface.along_scale != 1.0 || surface.across_scale != 1.0 || surface.turn_scale != 1.0
-}
-
+/// Whether `p` lies on a floor the robots' model (which knows none) lacks.
 fn unknown_floor_at(scenario: &Scenario, p: DVec2, t: f64) -> bool {
     scenario
         .arena
         .surface_at_time(p, t)
-        .is_some_and(model_lacks)
+        .is_some_and(Surface::changes_motion)
 }
 
-fn centroid(points: &[DVec2]) -> DVec2 {
-    points.iter().copied().sum::<DVec2>() / points.len().max(1) as f64
+/// A block of `count` robots in the middle of the swarm: the one nearest the
+/// centre of all `robots` and its nearest neighbours among `candidates`.
+fn block_in_the_middle(
+    robots: &[DVec2],
+    candidates: &[(u32, Pose)],
+    count: usize,
+) -> Vec<(u32, Pose)> {
+    let middle = centroid(robots);
+    let Some(&(_, seed)) = candidates.iter().min_by(|a, b| {
+        a.1.position()
+            .distance(middle)
+            .total_cmp(&b.1.position().distance(middle))
+    }) else {
+        return Vec::new();
+    };
+    let mut by_distance = candidates.to_vec();
+    by_distance.sort_by(|a, b| {
+        a.1.position()
+            .distance(seed.position())
+            .total_cmp(&b.1.position().distance(seed.position()))
+    });
+    by_distance.truncate(count);
+    by_distance
 }
 
 /// The scenario file given, or the demo's own.
@@ -195,34 +213,22 @@ pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
             }
         }
         if killed_at.is_none() && now >= kill_at {
-            // A block of robots in the middle of the swarm (SLAM's excepted):
-            // the one nearest the centre and its nearest neighbours.
+            // SLAM's robots are spared.
             let positions: Vec<DVec2> = swarm
                 .observer
                 .samples()
                 .map(|s| DVec2::new(s.x, s.y))
                 .collect();
-            let middle = centroid(&positions);
             let candidates: Vec<(u32, Pose)> = swarm
                 .observer
                 .samples()
                 .filter(|s| !follow.contains(&s.agent_id))
                 .map(|s| (s.agent_id, Pose::new(s.x, s.y, s.theta)))
                 .collect();
-            let Some(&(_, seed)) = candidates.iter().min_by(|a, b| {
-                a.1.position()
-                    .distance(middle)
-                    .total_cmp(&b.1.position().distance(middle))
-            }) else {
+            down = block_in_the_middle(&positions, &candidates, KILLED);
+            if down.is_empty() {
                 bail!("no robot to kill: the swarm is empty");
-            };
-            let mut by_distance = candidates.clone();
-            by_distance.sort_by(|a, b| {
-                a.1.position()
-                    .distance(seed.position())
-                    .total_cmp(&b.1.position().distance(seed.position()))
-            });
-            down = by_distance.into_iter().take(KILLED).collect();
+            }
             hole_radius =
                 HOLE_CLOSED_SPACINGS * swarm.observer.metrics(spread).spacing_ratio * spread;
             hole = centroid(&down.iter().map(|(_, p)| p.position()).collect::<Vec<_>>());
@@ -382,7 +388,7 @@ pub fn print(summary: &DemoSummary, scenario: &Scenario) {
         .arena
         .surfaces
         .iter()
-        .filter(|s| model_lacks(s))
+        .filter(|s| s.changes_motion())
         .map(|s| {
             format!(
                 "{} in [{}, {}]-[{}, {}] m (strides x{}, turns x{})",
@@ -421,7 +427,24 @@ mod tests {
         let scenario = demo_scenario(None).expect("the demo's scenario parses");
         assert!(scenario.agents.count >= KILLED + 4);
         assert_eq!(scenario.slam.follow.len(), 2);
-        assert!(scenario.arena.surfaces.iter().any(model_lacks));
+        assert!(scenario.arena.surfaces.iter().any(Surface::changes_motion));
+    }
+
+    #[test]
+    fn the_killed_block_is_the_middle_robot_and_its_nearest_spared_neighbours() {
+        // A row of seven robots 1 m apart: robot 3 stands in the middle, and
+        // robot 2, as near to it as robot 4, is followed by SLAM: spared.
+        let robots: Vec<DVec2> = (0..7).map(|i| DVec2::new(f64::from(i), 0.0)).collect();
+        let candidates: Vec<(u32, Pose)> = (0..7u32)
+            .filter(|i| *i != 2)
+            .map(|i| (i, Pose::new(f64::from(i), 0.0, 0.0)))
+            .collect();
+        let block: Vec<u32> = block_in_the_middle(&robots, &candidates, 2)
+            .iter()
+            .map(|(id, _)| *id)
+            .collect();
+        assert_eq!(block, vec![3, 4]);
+        assert!(block_in_the_middle(&robots, &[], 3).is_empty());
     }
 
     #[test]

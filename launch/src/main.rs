@@ -256,7 +256,7 @@ fn run(cli: Cli) -> Result<()> {
                 lockstep,
                 duration_s: duration,
                 json,
-                record: up::RecordOptions {
+                record: shoal::swarm::RecordOptions {
                     out: record,
                     tum,
                     viewer,

@@ -54,6 +54,12 @@ impl Observer {
         self.latest.get(&id).map(|(s, _)| s)
     }
 
+    /// Where the robots heard from stand on average.
+    pub fn centroid(&self) -> DVec2 {
+        let positions: Vec<DVec2> = self.samples().map(|s| DVec2::new(s.x, s.y)).collect();
+        shoal_physics::metrics::centroid(&positions)
+    }
+
     pub fn len(&self) -> usize {
         self.latest.len()
     }

@@ -114,6 +114,51 @@ impl Pace {
     }
 }
 
+/// Where the recorder sends the run: a file, a live viewer, or both.
+#[derive(Clone, Debug, Default)]
+pub struct RecordOptions {
+    pub out: Option<std::path::PathBuf>,
+    /// With `out`: each robot's trajectories as TUM files here, for evo.
+    pub tum: Option<std::path::PathBuf>,
+    /// A Rerun viewer started now.
+    pub viewer: bool,
+    /// A Rerun viewer already running at this address.
+    pub connect: Option<String>,
+}
+
+impl RecordOptions {
+    /// Into a file (and TUM files beside it, if `tum`).
+    pub fn file(out: &std::path::Path, tum: Option<&std::path::Path>) -> Self {
+        Self {
+            out: Some(out.to_owned()),
+            tum: tum.map(ToOwned::to_owned),
+            ..Self::default()
+        }
+    }
+
+    pub fn wanted(&self) -> bool {
+        self.out.is_some() || self.viewer || self.connect.is_some()
+    }
+
+    /// The recorder's arguments (beside `--swarm`).
+    pub fn recorder_args(&self) -> Vec<std::ffi::OsString> {
+        let mut args = Vec::new();
+        if let Some(out) = &self.out {
+            args.push(out.as_os_str().to_owned());
+        }
+        if let Some(tum) = &self.tum {
+            args.extend(["--tum".into(), tum.as_os_str().to_owned()]);
+        }
+        if self.viewer {
+            args.push("--viewer".into());
+        }
+        if let Some(addr) = &self.connect {
+            args.extend(["--connect".into(), addr.into()]);
+        }
+        args
+    }
+}
+
 impl RunningSwarm {
     /// Starts `scenario.agents.count` robots in swarm `name`.
     pub fn launch(name: &str, scenario: Scenario, lockstep: bool) -> Result<Self> {
@@ -218,7 +263,7 @@ impl RunningSwarm {
     }
 
     /// Starts the recorder process: into a file, a live viewer, or both.
-    pub fn record(&mut self, to: &crate::up::RecordOptions) -> Result<()> {
+    pub fn record(&mut self, to: &RecordOptions) -> Result<()> {
         let mut args = to.recorder_args();
         args.extend(["--swarm".into(), self.name.clone().into()]);
         self.pace_to("recorder", RECORDER_LAG_TICKS)?;

@@ -10,7 +10,7 @@ use serde::Serialize;
 use shoal_physics::Scenario;
 use shoal_physics::metrics::FormationMetrics;
 
-use crate::swarm::RunningSwarm;
+use crate::swarm::{RecordOptions, RunningSwarm};
 
 /// A formation counts as formed when it is one group with mean spacing within
 /// this fraction of the desired spread.
@@ -27,51 +27,6 @@ pub struct UpOptions {
     pub record: RecordOptions,
     /// Robots a SLAM process follows (added to the scenario's `[slam] follow`).
     pub slam: Vec<u32>,
-}
-
-/// Where the recorder sends the run: a file, a live viewer, or both.
-#[derive(Clone, Debug, Default)]
-pub struct RecordOptions {
-    pub out: Option<PathBuf>,
-    /// With `out`: each robot's trajectories as TUM files here, for evo.
-    pub tum: Option<PathBuf>,
-    /// A Rerun viewer started now.
-    pub viewer: bool,
-    /// A Rerun viewer already running at this address.
-    pub connect: Option<String>,
-}
-
-impl RecordOptions {
-    /// Into a file (and TUM files beside it, if `tum`).
-    pub fn file(out: &std::path::Path, tum: Option<&std::path::Path>) -> Self {
-        Self {
-            out: Some(out.to_owned()),
-            tum: tum.map(ToOwned::to_owned),
-            ..Self::default()
-        }
-    }
-
-    pub fn wanted(&self) -> bool {
-        self.out.is_some() || self.viewer || self.connect.is_some()
-    }
-
-    /// The recorder's arguments (beside `--swarm`).
-    pub fn recorder_args(&self) -> Vec<std::ffi::OsString> {
-        let mut args = Vec::new();
-        if let Some(out) = &self.out {
-            args.push(out.as_os_str().to_owned());
-        }
-        if let Some(tum) = &self.tum {
-            args.extend(["--tum".into(), tum.as_os_str().to_owned()]);
-        }
-        if self.viewer {
-            args.push("--viewer".into());
-        }
-        if let Some(addr) = &self.connect {
-            args.extend(["--connect".into(), addr.into()]);
-        }
-        args
-    }
 }
 
 /// Fails before anything starts when `--viewer` cannot work: the Rerun

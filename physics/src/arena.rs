@@ -47,6 +47,12 @@ fn one() -> f64 {
 }
 
 impl Surface {
+    /// Whether walking on it differs from the base floor, which is all a
+    /// robot's own motion model knows.
+    pub fn changes_motion(&self) -> bool {
+        self.along_scale != 1.0 || self.across_scale != 1.0 || self.turn_scale != 1.0
+    }
+
     pub fn contains(&self, p: DVec2) -> bool {
         let [x0, y0, x1, y1] = self.region;
         p.x >= x0 && p.x <= x1 && p.y >= y0 && p.y <= y1

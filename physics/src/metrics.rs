@@ -17,6 +17,11 @@ pub struct FormationMetrics {
 /// Two agents closer than this many spreads belong to one group.
 pub const LINK_FACTOR: f64 = 1.5;
 
+/// The mean of `points`; the origin for none.
+pub fn centroid(points: &[DVec2]) -> DVec2 {
+    points.iter().copied().sum::<DVec2>() / points.len().max(1) as f64
+}
+
 pub fn formation_metrics(positions: &[DVec2], spread: f64) -> FormationMetrics {
     let n = positions.len();
     if n == 0 {

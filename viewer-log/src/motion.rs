@@ -114,20 +114,29 @@ pub struct RobotTrack {
     pub commands: Vec<[f64; 3]>,
 }
 
+/// One robot at one tick.
+#[derive(Clone, Copy, Debug)]
+struct MotionRow {
+    t: f64,
+    id: u32,
+    pose: [f64; 3],
+    /// (v, omega); none for a command index the model did not know.
+    velocity: Option<[f64; 2]>,
+}
+
 /// What a recording holds of [`ENTITY`]: every robot's rows, and whether the
 /// file ended mid-message (a recorder killed while writing).
 #[derive(Debug, Default)]
 pub struct MotionRows {
     period_s: Option<f64>,
-    /// (t, id, x, y, theta, v, omega).
-    rows: Vec<(f64, u32, [f64; 3], Option<[f64; 2]>)>,
+    rows: Vec<MotionRow>,
     pub truncated_after: Option<u64>,
 }
 
 impl MotionRows {
     /// Robot ids the recording holds, ascending.
     pub fn robots(&self) -> Vec<u32> {
-        let mut ids: Vec<u32> = self.rows.iter().map(|r| r.1).collect();
+        let mut ids: Vec<u32> = self.rows.iter().map(|r| r.id).collect();
         ids.sort_unstable();
         ids.dedup();
         ids
@@ -151,10 +160,11 @@ impl MotionRows {
             );
         }
         let mut track = RobotTrack::default();
-        for (t, _, pose, velocity) in self.rows.iter().filter(|r| r.1 == id) {
-            track.poses.push([*t, pose[0], pose[1], pose[2]]);
-            if let Some([v, omega]) = velocity {
-                track.commands.push([t - period_s, *v, *omega]);
+        for row in self.rows.iter().filter(|r| r.id == id) {
+            let [x, y, theta] = row.pose;
+            track.poses.push([row.t, x, y, theta]);
+            if let Some([v, omega]) = row.velocity {
+                track.commands.push([row.t - period_s, v, omega]);
             }
         }
         track.poses.sort_by(|a, b| a[0].total_cmp(&b[0]));
@@ -279,12 +289,12 @@ fn add_chunk(out: &mut MotionRows, chunk: &Chunk) -> Result<()> {
         let t = times[row] as f64 * 1e-9;
         for i in 0..n {
             let velocity = vs[row][i].zip(omegas[row][i]).map(|(v, w)| [v, w]);
-            out.rows.push((
+            out.rows.push(MotionRow {
                 t,
-                ids[row][i],
-                [xs[row][i], ys[row][i], thetas[row][i]],
+                id: ids[row][i],
+                pose: [xs[row][i], ys[row][i], thetas[row][i]],
                 velocity,
-            ));
+            });
         }
     }
     Ok(())

@@ -193,7 +193,7 @@ pub fn run(args: &ChaosArgs) -> Result<Report> {
         )
     };
     let (rrd, tum) = segment(0);
-    swarm.record(&crate::up::RecordOptions::file(&rrd, Some(&tum)))?;
+    swarm.record(&crate::swarm::RecordOptions::file(&rrd, Some(&tum)))?;
     // Everyone in, before the chaos starts.
     let joined = Instant::now();
     while swarm.observer.len() < args.agents && joined.elapsed() < Duration::from_secs(60) {
@@ -288,7 +288,7 @@ pub fn run(args: &ChaosArgs) -> Result<Report> {
             recorder_kills.push(swarm.sim_time());
             swarm.kill_recorder()?;
             let (rrd, tum) = segment(recorder_kills.len());
-            swarm.record(&crate::up::RecordOptions::file(&rrd, Some(&tum)))?;
+            swarm.record(&crate::swarm::RecordOptions::file(&rrd, Some(&tum)))?;
         }
         if now >= next_progress {
             next_progress += 10.0;

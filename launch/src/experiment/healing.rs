@@ -3,6 +3,7 @@
 use anyhow::{Result, bail};
 use glam::DVec2;
 use serde::Serialize;
+use shoal_physics::metrics::centroid;
 use shoal_physics::{Pose, Scenario};
 
 use super::{run_until, run_until_settled, swarm_name};
@@ -31,15 +32,6 @@ pub struct Report {
     pub cases: Vec<Case>,
 }
 
-fn centroid(swarm: &RunningSwarm) -> DVec2 {
-    let positions: Vec<DVec2> = swarm
-        .observer
-        .samples()
-        .map(|s| DVec2::new(s.x, s.y))
-        .collect();
-    positions.iter().copied().sum::<DVec2>() / positions.len().max(1) as f64
-}
-
 pub fn remove_central(seed: u64, max_s: f64) -> Result<Case> {
     let mut scenario = Scenario::default_arena();
     scenario.agents.count = 20;
@@ -48,7 +40,7 @@ pub fn remove_central(seed: u64, max_s: f64) -> Result<Case> {
     let mut swarm =
         RunningSwarm::launch(&swarm_name("heal-remove", seed as usize), scenario, true)?;
     let before = run_until_settled(&mut swarm, max_s, 5.0)?;
-    let center = centroid(&swarm);
+    let center = swarm.observer.centroid();
     let mut by_distance: Vec<(f64, u32)> = swarm
         .observer
         .samples()
@@ -56,13 +48,14 @@ pub fn remove_central(seed: u64, max_s: f64) -> Result<Case> {
         .collect();
     by_distance.sort_by(|a, b| a.0.total_cmp(&b.0));
     let removed: Vec<u32> = by_distance.iter().take(4).map(|(_, id)| *id).collect();
-    let hole = swarm
-        .observer
-        .samples()
-        .filter(|s| removed.contains(&s.agent_id))
-        .map(|s| DVec2::new(s.x, s.y))
-        .sum::<DVec2>()
-        / 4.0;
+    let hole = centroid(
+        &swarm
+            .observer
+            .samples()
+            .filter(|s| removed.contains(&s.agent_id))
+            .map(|s| DVec2::new(s.x, s.y))
+            .collect::<Vec<_>>(),
+    );
     for id in &removed {
         swarm.signal_robot(*id, libc::SIGKILL)?;
     }
@@ -92,7 +85,7 @@ pub fn add_at_edge(seed: u64, max_s: f64) -> Result<Case> {
     let spread = scenario.formation.spread;
     let mut swarm = RunningSwarm::launch(&swarm_name("heal-add", seed as usize), scenario, true)?;
     let before = run_until_settled(&mut swarm, max_s, 5.0)?;
-    let center = centroid(&swarm);
+    let center = swarm.observer.centroid();
     let reach = swarm
         .observer
         .samples()
