@@ -292,6 +292,13 @@ impl SwarmRuntime {
         write_atomically(&self.meta_path(), &meta)
     }
 
+    /// Whether the swarm still runs: its launcher removes the swarm's files
+    /// when it stops. Helpers started from another terminal (`shoal slam`,
+    /// `shoal record`) end by it rather than outlive their swarm.
+    pub fn is_up(&self) -> bool {
+        self.meta_path().exists()
+    }
+
     pub fn read_meta(&self) -> io::Result<SwarmMeta> {
         let path = self.meta_path();
         let text = read_no_follow(&path).map_err(|e| {

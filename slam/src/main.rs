@@ -259,6 +259,13 @@ fn run(args: Args) -> Result<()> {
         progress.publish(&HelperProgress { tick: done })?;
         if last_report.elapsed() >= REPORT_EVERY {
             last_report = std::time::Instant::now();
+            if !runtime.is_up() {
+                eprintln!(
+                    "shoal-slam: swarm `{}` has stopped; so does SLAM",
+                    args.swarm
+                );
+                break;
+            }
             let report = report(&followed, &initial);
             if let Err(e) = runtime.write_slam_report(&report) {
                 tracing::warn!("cannot write the SLAM report: {e}");

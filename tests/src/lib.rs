@@ -43,6 +43,18 @@ pub fn shoal(args: &[&str]) -> Output {
         .expect("run shoal")
 }
 
+/// `shoal ARGS`, which must succeed: a failure shows what it said.
+pub fn shoal_ok(args: &[&str]) -> Output {
+    let output = shoal(args);
+    assert!(
+        output.status.success(),
+        "shoal {}: {}",
+        args.join(" "),
+        String::from_utf8_lossy(&output.stderr)
+    );
+    output
+}
+
 /// `shoal status --json` of `swarm`.
 pub fn status(swarm: &str) -> Value {
     let output = shoal(&["status", "--swarm", swarm, "--json"]);

@@ -236,7 +236,7 @@ fn a_surface_the_robots_model_lacks_is_diagnosed_from_the_recording_alone() {
     let scenario = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/mud.toml");
     let run = dir.join("run");
     let recording = run.join("run.rrd");
-    let output = shoal(&[
+    shoal_ok(&[
         "up",
         "--swarm",
         "e2e-mud",
@@ -250,22 +250,11 @@ fn a_surface_the_robots_model_lacks_is_diagnosed_from_the_recording_alone() {
         "--tum",
         run.to_str().expect("utf-8"),
     ]);
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
     let diagnose = |input: &[&str]| -> Value {
         let mut args = vec!["diagnose"];
         args.extend_from_slice(input);
         args.push("--json");
-        let output = shoal(&args);
-        assert!(
-            output.status.success(),
-            "{input:?}: {}",
-            String::from_utf8_lossy(&output.stderr)
-        );
-        serde_json::from_slice(&output.stdout).expect("JSON")
+        serde_json::from_slice(&shoal_ok(&args).stdout).expect("JSON")
     };
     let is_mud = |e: &Value| {
         e["kind"] == "surface_zone"
@@ -328,7 +317,7 @@ fn a_recording_holds_what_slam_learns() {
     let _turn = serial();
     let dir = scratch("slam-record");
     let recording = dir.join("slam.rrd");
-    let output = shoal(&[
+    shoal_ok(&[
         "up",
         "--swarm",
         "e2e-slam-record",
@@ -341,11 +330,6 @@ fn a_recording_holds_what_slam_learns() {
         "--record",
         recording.to_str().expect("utf-8"),
     ]);
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
     let found = inspect(&recording);
     let rows = |entity: &str| found["slam_rows"][entity].as_u64().unwrap_or(0);
     // One particle batch per SLAM step, and at least a few dozen steps in 12 s.
@@ -423,7 +407,7 @@ fn a_run_streams_live_to_a_viewer_and_still_writes_its_file() {
     let live = dir.join("live.rrd");
     let recording = dir.join("run.rrd");
     let viewer = ListeningViewer::start(&live);
-    let output = shoal(&[
+    shoal_ok(&[
         "up",
         "--swarm",
         "e2e-live",
@@ -436,11 +420,6 @@ fn a_run_streams_live_to_a_viewer_and_still_writes_its_file() {
         "--connect",
         &format!("127.0.0.1:{}", viewer.port),
     ]);
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
     viewer.stop();
     for (what, file) in [("streamed", &live), ("written", &recording)] {
         let found = inspect(file);
@@ -498,7 +477,7 @@ fn the_demo_records_slam_healing_and_a_diagnosis() {
     let dir = scratch("demo");
     let recording = dir.join("demo.rrd");
     let scenario = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/demo.toml");
-    let output = shoal(&[
+    let output = shoal_ok(&[
         "demo",
         "--swarm",
         "e2e-demo",
@@ -510,11 +489,6 @@ fn the_demo_records_slam_healing_and_a_diagnosis() {
         "30",
         "--json",
     ]);
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
     let summary: Value = serde_json::from_slice(&output.stdout).expect("JSON summary");
     assert_eq!(summary["robots"], 20, "{summary}");
     let killed: Vec<u64> = summary["killed"]

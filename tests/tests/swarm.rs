@@ -382,3 +382,56 @@ fn the_official_python_iceoryx2_client_reads_the_roster() {
         );
     }
 }
+
+/// A process of the test's own, killed if the test ends early.
+struct KillOnDrop(std::process::Child);
+
+impl Drop for KillOnDrop {
+    fn drop(&mut self) {
+        if matches!(self.0.try_wait(), Ok(None)) {
+            let _ = self.0.kill();
+            let _ = self.0.wait();
+        }
+    }
+}
+
+/// `shoal slam` and `shoal record` started from another terminal end with
+/// their swarm instead of outliving it.
+#[test]
+fn helpers_started_by_hand_end_with_their_swarm() {
+    let _turn = serial();
+    let dir = scratch("helpers-end");
+    let swarm = "e2e-helpers-end";
+    let mut up = BackgroundSwarm::start(swarm, &["--agents", "3", "--duration", "8"]);
+    up.wait_alive(3, Duration::from_secs(30));
+    let recording = dir.join("run.rrd");
+    let hand_started = |args: &[&str]| {
+        KillOnDrop(
+            std::process::Command::new(bin("shoal"))
+                .args(args)
+                .stderr(std::process::Stdio::null())
+                .spawn()
+                .expect("start a helper"),
+        )
+    };
+    let mut helpers = [
+        hand_started(&["slam", "--swarm", swarm, "--follow", "0"]),
+        hand_started(&[
+            "record",
+            recording.to_str().expect("utf-8"),
+            "--swarm",
+            swarm,
+        ]),
+    ];
+    let (exit, said) = up.wait_end();
+    assert!(exit.success(), "{said}");
+    for helper in &mut helpers {
+        let ended = wait_until(Duration::from_secs(10), || {
+            matches!(helper.0.try_wait(), Ok(Some(_)))
+        });
+        assert!(ended, "a helper outlived its swarm by 10 s");
+        let status = helper.0.wait().expect("wait");
+        assert!(status.success(), "a helper failed: {status}");
+    }
+    let _ = std::fs::remove_dir_all(dir);
+}

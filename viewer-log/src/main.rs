@@ -117,6 +117,10 @@ fn run(args: Args) -> Result<()> {
         if last_flush.elapsed() >= FLUSH_EVERY {
             last_flush = Instant::now();
             recorder.flush()?;
+            if !runtime.is_up() {
+                recorder.event(&format!("swarm `{}` stopped", args.swarm))?;
+                break;
+            }
         }
         std::thread::sleep(POLL);
     }
