@@ -371,9 +371,20 @@ impl SwarmRuntime {
 /// replaces a link at `path`, never what it points to).
 fn write_atomically(path: &Path, text: &str) -> io::Result<()> {
     use std::io::Write;
-    let partial = path.with_extension("partial");
+    let partial = partial_path(path);
     open_no_follow(&partial, true)?.write_all(text.as_bytes())?;
-    std::fs::rename(&partial, path)
+    std::fs::rename(&partial, path).map_err(|e| with_path(e, path, "writing"))
+}
+
+/// Where `path` is written before it is renamed into place: unique to the
+/// file and the writing process. (`agent-3.partial` once served both a
+/// robot's `agent-3.pose` and the launcher's `agent-3.stopped`; the two
+/// processes renamed each other's file away, and the chaos run failed with
+/// a bare "No such file or directory".)
+fn partial_path(path: &Path) -> PathBuf {
+    let mut name = path.file_name().unwrap_or_default().to_os_string();
+    name.push(format!(".{}.partial", std::process::id()));
+    path.with_file_name(name)
 }
 
 fn current_uid() -> u32 {
@@ -409,6 +420,23 @@ fn read_no_follow(path: &Path) -> io::Result<String> {
 mod tests {
     use super::*;
     use std::os::unix::fs::PermissionsExt;
+
+    /// A robot's pose and the launcher's stop mark, written at once by two
+    /// processes, never share the file they are written through.
+    #[test]
+    fn files_of_one_robot_are_written_through_files_of_their_own() {
+        let dir = Path::new("/tmp/shoal-x/swarm");
+        let pose = partial_path(&dir.join("agent-3.pose"));
+        let stopped = partial_path(&dir.join("agent-3.stopped"));
+        assert_ne!(pose, stopped);
+        assert_eq!(pose.parent(), Some(dir));
+        assert!(
+            pose.to_string_lossy()
+                .ends_with(&format!("agent-3.pose.{}.partial", std::process::id())),
+            "{}",
+            pose.display()
+        );
+    }
 
     fn runtime_in(root: &Path, swarm: &str) -> SwarmRuntime {
         SwarmRuntime {
