@@ -214,6 +214,10 @@ fn load(args: &DiagnoseArgs) -> Result<Recording> {
     )
 }
 
+/// Below this corrected p-value a residual covariate is reported as one
+/// the residuals still follow.
+const SIGNIFICANT: f64 = 0.01;
+
 /// The report a person reads: printed, and the recording's document.
 fn report_text(d: &Diagnosis) -> String {
     use std::fmt::Write as _;
@@ -247,6 +251,9 @@ fn report_text(d: &Diagnosis) -> String {
     if d.mismatch && d.effects.is_empty() {
         line("The mismatch is significant but no effect of the library explains it.".into());
     }
+    for u in &d.unexplained {
+        line(format!("  not explained: tried {}: {}", u.tried, u.reason));
+    }
     for e in &d.effects {
         line(format!("  {} (ΔBIC {:.0})", e.sentence, e.delta_bic));
         if !e.indistinguishable_from.is_empty() {
@@ -255,6 +262,23 @@ fn report_text(d: &Diagnosis) -> String {
                 e.indistinguishable_from.join(", ")
             ));
         }
+    }
+    let following: Vec<String> = d
+        .residual_covariates
+        .iter()
+        .filter(|c| c.significance < SIGNIFICANT)
+        .map(|c| {
+            format!(
+                "{} residual with {} (r {:+.2}, p {:.1e})",
+                c.component, c.covariate, c.correlation, c.significance
+            )
+        })
+        .collect();
+    if !following.is_empty() {
+        line(format!(
+            "What is left still follows: {}.",
+            following.join("; ")
+        ));
     }
     line(format!(
         "Held-out position error {:.1} mm -> {:.1} mm, heading {:.2} -> {:.2} deg, NLL {:.2} -> {:.2} per segment.",

@@ -8,6 +8,7 @@ use serde::Serialize;
 use shoal_physics::effects::EFFECT_KINDS;
 use shoal_physics::{CommandGrid, Effect, ScopedEffect, UnicycleModel};
 
+use crate::covariates::{self, Covariate};
 use crate::fit::{Fitted, fit, nll_of};
 use crate::likelihood::{
     Residual, component_nll, estimate_noise, long_run_factors, long_run_factors_of_noise,
@@ -114,6 +115,10 @@ pub struct Diagnosis {
     pub effects: Vec<FoundEffect>,
     /// Mismatches no effect of the library explains physically.
     pub unexplained: Vec<Unexplained>,
+    /// What the residuals of the model with the effects found still
+    /// follow, strongest evidence first: a clue where no effect explains
+    /// the mismatch, and a check where one does.
+    pub residual_covariates: Vec<Covariate>,
     /// How much the plain model's residuals' correlation in time inflates
     /// the variance of sums (along, across, heading): 1 for white noise.
     pub noise_correlation: [f64; 3],
@@ -163,12 +168,17 @@ pub fn prepare(recording: &Recording, options: &Options) -> Prepared {
 /// region was picked among a few, not fitted freely.
 const WHERE_PARAMS: usize = 2;
 
+/// How many of the residuals' strongest covariates a diagnosis lists.
+const COVARIATES_REPORTED: usize = 5;
+
 fn candidates(located: &[Located], segments: &[Segment], duration: f64) -> Vec<ScopedEffect> {
+    // Speed noise is stated at the robot's usual speed.
+    let usual_speed = OperatingPoint::of(segments).speed_m_per_s;
     let mut out: Vec<ScopedEffect> = EFFECT_KINDS
         .iter()
         .filter(|k| **k != "surface_zone")
         .filter_map(|k| Effect::identity(k, [0.0; 4]))
-        .map(ScopedEffect::always)
+        .map(|e| ScopedEffect::always(e.at_reference_speed(usual_speed)))
         .collect();
     let spans = located
         .iter()
@@ -453,7 +463,10 @@ fn narrower_scope(
 ) -> Option<ScopedEffect> {
     let scopable = !matches!(
         global.effect,
-        Effect::SurfaceZone { .. } | Effect::BatteryFade { .. } | Effect::SpeedNoise { .. }
+        Effect::SurfaceZone { .. }
+            | Effect::BatteryFade { .. }
+            | Effect::SpeedNoise { .. }
+            | Effect::TurnCentreOffset { .. }
     );
     if !scopable || global.during.is_some() {
         return None;
@@ -934,6 +947,18 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
             describe(scoped, se, evidence, duration, operating_point)
         })
         .collect();
+    let final_model = UnicycleModel::with_effects(fixed.iter().chain(&found).cloned().collect());
+    let residual_covariates = {
+        let r = residuals(&final_model, grid, segs);
+        let noise = estimate_noise(&final_model, segs, &r);
+        let z = standardised(&final_model, &noise, segs, &r);
+        covariates::strongest(
+            segs,
+            &z,
+            long_run_factors_of_noise(segs, &z),
+            COVARIATES_REPORTED,
+        )
+    };
     let (baseline, plain_errors) = heldout(&prepared, &fixed, &[], options);
     let (improved, improved_errors) = if found.is_empty() {
         (baseline, plain_errors.clone())
@@ -945,6 +970,7 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
         located,
         effects,
         unexplained,
+        residual_covariates,
         noise_correlation,
         operating_point,
         pose_outliers,
@@ -954,7 +980,7 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
         segments: segs.len(),
         horizon_s: options.horizon_s,
         t_origin: recording.t_origin,
-        model: UnicycleModel::with_effects(fixed.into_iter().chain(found).collect()),
+        model: final_model,
         heldout_errors: plain_errors
             .iter()
             .zip(&improved_errors)

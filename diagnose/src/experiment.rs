@@ -110,7 +110,11 @@ pub fn cases(duration_s: f64) -> Vec<Case> {
         Case {
             name: "speed_noise",
             concealment: "noise only, no bias",
-            truth: always(Effect::SpeedNoise { per_m_per_s: 6.0 }),
+            // Variance 1 + 6 |v|: at 0.5 m/s, three quarters from driving.
+            truth: always(Effect::SpeedNoise {
+                driving_share: 0.75,
+                at_m_per_s: 0.5,
+            }),
             turn_inside: None,
         },
         Case {
@@ -260,7 +264,11 @@ pub struct RunFindings {
 /// Relative error of `found`'s parameters against `truth`'s.
 fn param_error(truth: &Effect, found: &Effect) -> f64 {
     let t = truth.params();
-    let f = found.params();
+    let reference = match *truth {
+        Effect::SpeedNoise { at_m_per_s, .. } => at_m_per_s,
+        _ => 0.0,
+    };
+    let f = found.at_reference_speed(reference).params();
     let scale = t.iter().map(|(_, v)| v.abs()).fold(0.0, f64::max).max(1e-9);
     let identity = Effect::identity(truth.kind(), [0.0; 4])
         .map(|e| e.params())

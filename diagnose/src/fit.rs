@@ -32,8 +32,9 @@ pub fn step_of(effect: &Effect, name: &str) -> f64 {
         (Effect::SurfaceZone { .. }, _) => 0.1,
         (Effect::ExternalFlow { .. }, _) => 0.01,
         (Effect::Hysteresis { .. }, _) => 0.05,
-        (Effect::SpeedNoise { .. }, _) => 2.0,
+        (Effect::SpeedNoise { .. }, _) => 0.2,
         (Effect::TurnSpeedLoss { .. }, _) => 0.1,
+        (Effect::TurnCentreOffset { .. }, _) => 0.03,
     }
 }
 

@@ -3,6 +3,7 @@
 //! Pure logic: inputs arrive as text or numbers, outputs leave as values.
 
 pub mod bag;
+pub mod covariates;
 pub mod diagnosis;
 pub mod fit;
 pub mod generate;

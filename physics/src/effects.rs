@@ -42,12 +42,24 @@ pub enum Effect {
     /// Play in the steering: the executed turn rate only follows the command
     /// once it differs by more than this (backlash; depends on history).
     Hysteresis { play_rad_per_s: f64 },
-    /// Motion noise variance grows by this fraction per m/s of speed.
-    SpeedNoise { per_m_per_s: f64 },
+    /// Motion noise grows with speed: at `at_m_per_s` (the robot's usual
+    /// speed) this share of its variance comes from driving, the rest is
+    /// there standing still. Variance grows linearly with speed, as noise
+    /// that accrues per metre driven does: at rest it is the plain model's,
+    /// at speed v it is `1 + share / (1 - share) * v / at_m_per_s` times
+    /// that. A share in [0, 1) cannot run away as a per-m/s coefficient
+    /// does on a slow robot, and says what it means at the robot's speed.
+    SpeedNoise { driving_share: f64, at_m_per_s: f64 },
     /// Forward speed drops while turning: v (1 - k |omega|). A differential
     /// drive whose wheels scrub, or whose controller slows both wheels to
     /// keep the outer one within its limit, loses speed in every turn.
     TurnSpeedLoss { per_rad_per_s: f64 },
+    /// The point whose pose is observed (a motion-capture marker, the
+    /// robot's frame origin) lies `forward_m` ahead of and `left_m` to the
+    /// left of the point the robot turns about (the middle of a
+    /// differential drive's axle): in every turn it swings sideways by
+    /// `forward_m` and back by `left_m` per radian.
+    TurnCentreOffset { forward_m: f64, left_m: f64 },
 }
 
 fn unchanged() -> f64 {
@@ -55,7 +67,7 @@ fn unchanged() -> f64 {
 }
 
 /// The kinds, in the order `shoal diagnose` tries them.
-pub const EFFECT_KINDS: [&str; 14] = [
+pub const EFFECT_KINDS: [&str; 15] = [
     "latency",
     "actuator_lag",
     "speed_scale",
@@ -70,6 +82,7 @@ pub const EFFECT_KINDS: [&str; 14] = [
     "hysteresis",
     "speed_noise",
     "turn_speed_loss",
+    "turn_centre_offset",
 ];
 
 impl Effect {
@@ -95,6 +108,7 @@ impl Effect {
             Effect::Hysteresis { .. } => "hysteresis",
             Effect::SpeedNoise { .. } => "speed_noise",
             Effect::TurnSpeedLoss { .. } => "turn_speed_loss",
+            Effect::TurnCentreOffset { .. } => "turn_centre_offset",
         }
     }
 
@@ -119,8 +133,11 @@ impl Effect {
             } => vec![("speed_factor", speed_factor), ("turn_factor", turn_factor)],
             Effect::ExternalFlow { vx, vy } => vec![("vx", vx), ("vy", vy)],
             Effect::Hysteresis { play_rad_per_s } => vec![("play_rad_per_s", play_rad_per_s)],
-            Effect::SpeedNoise { per_m_per_s } => vec![("per_m_per_s", per_m_per_s)],
+            Effect::SpeedNoise { driving_share, .. } => vec![("driving_share", driving_share)],
             Effect::TurnSpeedLoss { per_rad_per_s } => vec![("per_rad_per_s", per_rad_per_s)],
+            Effect::TurnCentreOffset { forward_m, left_m } => {
+                vec![("forward_m", forward_m), ("left_m", left_m)]
+            }
         }
     }
 
@@ -147,9 +164,16 @@ impl Effect {
             Effect::Hysteresis { .. } => Effect::Hysteresis {
                 play_rad_per_s: v(0),
             },
-            Effect::SpeedNoise { .. } => Effect::SpeedNoise { per_m_per_s: v(0) },
+            Effect::SpeedNoise { at_m_per_s, .. } => Effect::SpeedNoise {
+                driving_share: v(0),
+                at_m_per_s,
+            },
             Effect::TurnSpeedLoss { .. } => Effect::TurnSpeedLoss {
                 per_rad_per_s: v(0),
+            },
+            Effect::TurnCentreOffset { .. } => Effect::TurnCentreOffset {
+                forward_m: v(0),
+                left_m: v(1),
             },
         }
     }
@@ -176,10 +200,37 @@ impl Effect {
             "hysteresis" => Effect::Hysteresis {
                 play_rad_per_s: 0.0,
             },
-            "speed_noise" => Effect::SpeedNoise { per_m_per_s: 0.0 },
+            "speed_noise" => Effect::SpeedNoise {
+                driving_share: 0.0,
+                at_m_per_s: 1.0,
+            },
             "turn_speed_loss" => Effect::TurnSpeedLoss { per_rad_per_s: 0.0 },
+            "turn_centre_offset" => Effect::TurnCentreOffset {
+                forward_m: 0.0,
+                left_m: 0.0,
+            },
             _ => return None,
         })
+    }
+
+    /// The same physics stated at another reference speed: only speed
+    /// noise has one (its share of the variance from driving is a share at
+    /// a speed); every other effect is returned as it is.
+    pub fn at_reference_speed(&self, speed_m_per_s: f64) -> Effect {
+        match *self {
+            Effect::SpeedNoise {
+                driving_share,
+                at_m_per_s,
+            } if speed_m_per_s > 0.0 => {
+                let share = driving_share.clamp(0.0, 0.999);
+                let growth = share / (1.0 - share) / at_m_per_s.max(1e-3) * speed_m_per_s;
+                Effect::SpeedNoise {
+                    driving_share: growth / (1.0 + growth),
+                    at_m_per_s: speed_m_per_s,
+                }
+            }
+            _ => self.clone(),
+        }
     }
 
     /// The physical range of each parameter, in the order of
@@ -199,9 +250,14 @@ impl Effect {
             Effect::SurfaceZone { .. } => vec![(0.05, 3.0), (0.05, 3.0)],
             Effect::ExternalFlow { .. } => vec![(-2.0, 2.0), (-2.0, 2.0)],
             Effect::Hysteresis { .. } => vec![(0.0, 2.0)],
-            Effect::SpeedNoise { .. } => vec![(0.0, 100.0)],
+            // At 0.99, standing still the noise is a hundredth of what it
+            // is at the usual speed: anything more is not motion noise.
+            Effect::SpeedNoise { .. } => vec![(0.0, 0.99)],
             // At 3 per rad/s a robot turning at 0.33 rad/s stops driving.
             Effect::TurnSpeedLoss { .. } => vec![(0.0, 3.0)],
+            // Within a robot's body: a point half a metre from the axle is
+            // not on a robot of the size this library is for.
+            Effect::TurnCentreOffset { .. } => vec![(-0.5, 0.5), (-0.5, 0.5)],
         }
     }
 
@@ -241,9 +297,13 @@ impl Effect {
                 percent(per_minute * duration_s / 60.0),
                 duration_s / 60.0
             ),
-            Effect::SpeedNoise { per_m_per_s } => format!(
-                "At its usual {speed:.2} m/s the robot's motion noise is {:.2} times as large as when creeping (speed-dependent noise).",
-                (1.0 + per_m_per_s * speed).sqrt()
+            Effect::SpeedNoise {
+                driving_share,
+                at_m_per_s,
+            } => format!(
+                "At its usual {at_m_per_s:.2} m/s, {:.0}% of the robot's motion noise variance comes from driving: its noise grows with distance driven, and standing still it is {:.2} times as large as at that speed (speed-dependent noise).",
+                percent(driving_share),
+                (1.0 - driving_share).sqrt()
             ),
             Effect::TurnSpeedLoss { per_rad_per_s } => format!(
                 "While turning at its usual {turn:.2} rad/s the robot drives {:.0}% slower than commanded, {:.0}% at twice that rate; driving straight it loses nothing (speed lost in turns: wheel scrub or a wheel-speed limit).",
@@ -317,13 +377,21 @@ impl Effect {
             Effect::Hysteresis { play_rad_per_s } => format!(
                 "The turn rate lags changes of the command by a play of {play_rad_per_s:.3} rad/s (hysteresis)."
             ),
-            Effect::SpeedNoise { per_m_per_s } => format!(
-                "Motion noise variance grows by {:.0}% per m/s of speed (speed-dependent noise).",
-                per_m_per_s * 100.0
-            ),
+            Effect::SpeedNoise { .. } => self.sentence_at(0.0, 0.0, 0.0),
             Effect::TurnSpeedLoss { per_rad_per_s } => format!(
                 "Forward speed drops by {:.0}% per rad/s of turning (speed lost in turns).",
                 per_rad_per_s * 100.0
+            ),
+            Effect::TurnCentreOffset { forward_m, left_m } => format!(
+                "The robot turns about a point {:.0} mm {} and {:.0} mm {} of the point observed, so the observed point swings sideways in every turn (turning centre offset: the marker or frame origin is not over the axle).",
+                forward_m.abs() * 1e3,
+                if forward_m >= 0.0 { "behind" } else { "ahead" },
+                left_m.abs() * 1e3,
+                if left_m >= 0.0 {
+                    "to the right"
+                } else {
+                    "to the left"
+                }
             ),
         }
     }
@@ -348,5 +416,37 @@ impl ScopedEffect {
 
     pub fn active_at(&self, t: f64) -> bool {
         self.during.is_none_or(|[a, b]| t >= a && t <= b)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::UnicycleModel;
+
+    fn multiplier(effect: &Effect, speed: f64) -> f64 {
+        UnicycleModel::with_effects(vec![ScopedEffect::always(effect.clone())])
+            .noise_multiplier(speed, 0.0)
+    }
+
+    #[test]
+    fn speed_noise_is_the_same_physics_at_any_reference_speed() {
+        let noise = Effect::SpeedNoise {
+            driving_share: 0.75,
+            at_m_per_s: 0.5,
+        };
+        // Three quarters of the variance at 0.5 m/s is from driving.
+        assert!((multiplier(&noise, 0.0) - 1.0).abs() < 1e-12);
+        assert!((multiplier(&noise, 0.5) - 4.0).abs() < 1e-12);
+        let slow = noise.at_reference_speed(0.08);
+        let Effect::SpeedNoise { driving_share, .. } = slow else {
+            panic!("{slow:?}");
+        };
+        // At 0.08 m/s the variance is 1 + 6 * 0.08 times the resting one.
+        assert!((driving_share - 0.48 / 1.48).abs() < 1e-12);
+        for speed in [0.0, 0.08, 0.3, 1.2] {
+            assert!((multiplier(&noise, speed) - multiplier(&slow, speed)).abs() < 1e-9);
+        }
+        assert!(slow.in_bounds());
     }
 }

@@ -259,16 +259,35 @@ impl UnicycleModel {
                 turn += rad_per_m * speed * dt;
             }
         }
-        self.step_unwrapped(pose, speed, turn, flow, dt)
+        // The observed point's own velocity in the body frame, beyond the
+        // turning centre's (along, across), m/s.
+        let mut swing = (0.0, 0.0);
+        for effect in self.active(run_s) {
+            if let Effect::TurnCentreOffset { forward_m, left_m } = *effect {
+                // omega x r for r = (forward, left): (-omega left, omega forward).
+                let rate = turn / dt;
+                swing = (-rate * left_m, rate * forward_m);
+            }
+        }
+        self.step_unwrapped(pose, (speed + swing.0, swing.1), turn, flow, dt)
     }
 
-    /// Midpoint integration; the heading is left unwrapped so that long
+    /// Midpoint integration of `body_velocity` (along and across the
+    /// heading, m/s); the heading is left unwrapped so that long
     /// predictions need no wrapping per step.
-    fn step_unwrapped(&self, pose: Pose, speed: f64, turn: f64, flow: (f64, f64), dt: f64) -> Pose {
+    fn step_unwrapped(
+        &self,
+        pose: Pose,
+        body_velocity: (f64, f64),
+        turn: f64,
+        flow: (f64, f64),
+        dt: f64,
+    ) -> Pose {
         let (sin, cos) = (pose.theta + 0.5 * turn).sin_cos();
+        let (along, across) = body_velocity;
         Pose {
-            x: pose.x + (speed * cos + flow.0) * dt,
-            y: pose.y + (speed * sin + flow.1) * dt,
+            x: pose.x + (along * cos - across * sin + flow.0) * dt,
+            y: pose.y + (along * sin + across * cos + flow.1) * dt,
             theta: pose.theta + turn,
         }
     }
@@ -360,7 +379,13 @@ impl UnicycleModel {
     pub fn noise_multiplier(&self, speed: f64, run_s: f64) -> f64 {
         self.active(run_s)
             .map(|e| match *e {
-                Effect::SpeedNoise { per_m_per_s } => 1.0 + per_m_per_s * speed.abs(),
+                Effect::SpeedNoise {
+                    driving_share,
+                    at_m_per_s,
+                } => {
+                    let share = driving_share.clamp(0.0, 0.999);
+                    1.0 + share / (1.0 - share) * speed.abs() / at_m_per_s.max(1e-3)
+                }
                 _ => 1.0,
             })
             .product()
@@ -378,6 +403,23 @@ mod tests {
     fn drive(model: &UnicycleModel, grid: &CommandGrid) -> Pose {
         let executed = model.execute(grid);
         model.integrate(grid, &executed, Pose::default(), 0, grid.len())
+    }
+
+    #[test]
+    fn a_point_ahead_of_the_axle_swings_on_a_circle_when_the_robot_turns_in_place() {
+        let model =
+            UnicycleModel::with_effects(vec![ScopedEffect::always(Effect::TurnCentreOffset {
+                forward_m: 0.1,
+                left_m: 0.0,
+            })]);
+        // Half a turn in place: the point 0.1 m ahead ends 0.2 m behind
+        // where it started, facing back.
+        let end = drive(&model, &straight(std::f64::consts::PI, 0.0, 1.0));
+        assert!((end.x + 0.2).abs() < 1e-3 && end.y.abs() < 1e-3, "{end:?}");
+        assert!((end.theta.abs() - std::f64::consts::PI).abs() < 0.01, "{end:?}");
+        // Driving straight it changes nothing.
+        let grid = straight(2.0, 0.5, 0.0);
+        assert_eq!(drive(&model, &grid), drive(&UnicycleModel::plain(), &grid));
     }
 
     #[test]
