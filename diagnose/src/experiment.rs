@@ -126,6 +126,16 @@ pub fn cases(duration_s: f64) -> Vec<Case> {
             turn_inside: None,
         },
         Case {
+            // A marker 4 cm ahead of the axle and 1 cm to its right.
+            name: "turn_centre_offset",
+            concealment: tiny,
+            truth: always(Effect::TurnCentreOffset {
+                forward_m: 0.04,
+                left_m: -0.01,
+            }),
+            turn_inside: None,
+        },
+        Case {
             name: "latency+heading_drift",
             concealment: "two effects together",
             truth: vec![
