@@ -416,7 +416,10 @@ mod tests {
         // where it started, facing back.
         let end = drive(&model, &straight(std::f64::consts::PI, 0.0, 1.0));
         assert!((end.x + 0.2).abs() < 1e-3 && end.y.abs() < 1e-3, "{end:?}");
-        assert!((end.theta.abs() - std::f64::consts::PI).abs() < 0.01, "{end:?}");
+        assert!(
+            (end.theta.abs() - std::f64::consts::PI).abs() < 0.01,
+            "{end:?}"
+        );
         // Driving straight it changes nothing.
         let grid = straight(2.0, 0.5, 0.0);
         assert_eq!(drive(&model, &grid), drive(&UnicycleModel::plain(), &grid));

@@ -14,6 +14,23 @@ use crate::learning::{Draw, MixtureLearner};
 /// The range of scales exploring particles apply to a drawn motion.
 const EXPLORE_SCALE: (f64, f64) = (0.3, 1.7);
 
+/// The exponent on a scan's likelihood in the particles' weights. Beams
+/// are scored as if independent, but neighbouring beams err together (one
+/// pose error moves them all), so the product is far too sure of itself: in
+/// a crowd, where robots hide most walls, a few steps of it left one
+/// particle's heading, 0.3 rad off, to map the rest of the run (an offline
+/// crowd of 20 of the demo's robots, `slam/tests/crowd.rs`). Tempering the
+/// likelihood keeps the cloud wide until walls decide.
+const BEAM_TEMPERING: f64 = 0.5;
+
+/// How much an exploring particle counts in the posterior, relative to
+/// one drawn from the model. Explorers are drawn from a wider distribution
+/// than the model, for the learner; counted in full, a wild turn that
+/// happened to fit a sparse scan took over the cloud and rotated the map
+/// (importance sampling would discount them by the model's density over
+/// the wider one; a fixed tenth does the same in effect).
+const EXPLORER_WEIGHT: f64 = 0.1;
+
 /// How far the map reaches beyond the arena.
 const MAP_MARGIN_M: f64 = 0.5;
 
@@ -151,6 +168,7 @@ impl ParticleFilter {
     pub fn step(&mut self, command: Command, bumped: bool, ranges: &[f64]) -> StepReport {
         let n = self.particles.len();
         let mut draws: Vec<[f64; 3]> = Vec::with_capacity(n);
+        let mut explored: Vec<bool> = Vec::with_capacity(n);
         // Exploring serves the learner; without learning the model is taken as is.
         let explore = if self.config.learning {
             self.config.explore
@@ -164,7 +182,9 @@ impl ParticleFilter {
             // the model says: when the model is wrong (a new surface, another
             // robot), they keep the truth within reach, and their qualities
             // show the learner where it lies.
-            if i % n.max(1).div_ceil(explorers.max(1)) == 0 && explorers > 0 {
+            let explorer = i % n.max(1).div_ceil(explorers.max(1)) == 0 && explorers > 0;
+            explored.push(explorer);
+            if explorer {
                 let scale = self.rng.random_range(EXPLORE_SCALE.0..EXPLORE_SCALE.1);
                 motion.along *= scale;
                 motion.across *= scale;
@@ -203,7 +223,10 @@ impl ParticleFilter {
                         .iter()
                         .map(|&b| {
                             let end = beam_end(&p.pose, sensor.bearing(b), ranges[b]);
-                            f64::from(0.05 + 0.9 * p.map.occupancy_near(end)).ln()
+                            // The range noise grows with the range: so does
+                            // how far off an obstacle a beam may end.
+                            let sigma = sensor.noise_per_m * ranges[b].max(0.1);
+                            f64::from(0.05 + 0.9 * p.map.occupancy_within(end, sigma)).ln()
                         })
                         .sum()
                 })
@@ -213,7 +236,13 @@ impl ParticleFilter {
             .iter()
             .copied()
             .fold(f64::NEG_INFINITY, f64::max);
+        // The learner judges each drawn motion by the whole likelihood; the
+        // posterior takes it tempered (see BEAM_TEMPERING).
         let step_weights: Vec<f64> = log_likelihoods.iter().map(|l| (l - best).exp()).collect();
+        let posterior_weights: Vec<f64> = log_likelihoods
+            .iter()
+            .map(|l| ((l - best) * BEAM_TEMPERING).exp())
+            .collect();
         let step_total: f64 = step_weights.iter().sum();
         if self.config.learning && self.steps > 0 && step_total > 0.0 {
             for (k, param) in Param::ALL.iter().enumerate() {
@@ -234,8 +263,13 @@ impl ParticleFilter {
                 *self.model.command_mut(command).param_mut(*param) = learner.mixture;
             }
         }
-        for (p, w) in self.particles.iter_mut().zip(&step_weights) {
-            p.weight *= w;
+        for ((p, w), explorer) in self
+            .particles
+            .iter_mut()
+            .zip(&posterior_weights)
+            .zip(&explored)
+        {
+            p.weight *= if *explorer { w * EXPLORER_WEIGHT } else { *w };
         }
         let total: f64 = self.particles.iter().map(|p| p.weight).sum();
         for p in &mut self.particles {

@@ -83,16 +83,24 @@ impl TiledGrid {
         1.0 / (1.0 + (-self.log_odds(cell)).exp())
     }
 
-    /// Occupancy at `p`, or a neighbour's at 60% if that is higher: a beam
-    /// ending one cell off an obstacle still scores, but less (0.5 outside the map).
-    pub fn occupancy_near(&self, p: DVec2) -> f32 {
+    /// The highest occupancy within about `sigma` metres of `p`, each cell's
+    /// discounted by a Gaussian of its distance (0.5 outside the map): a
+    /// beam that ends where the range noise could have put it off an
+    /// obstacle still scores. Far beams are noisier, so their tolerance is
+    /// wider; with a fixed one-cell tolerance a 10 m beam scores by chance.
+    pub fn occupancy_within(&self, p: DVec2, sigma: f64) -> f32 {
         let Some((cx, cy)) = self.cell_of(p) else {
             return 0.5;
         };
+        let sigma = sigma.max(self.cell_size);
+        let reach = ((2.0 * sigma / self.cell_size).ceil() as usize).clamp(1, 6);
         let mut best = self.occupancy((cx, cy));
-        for y in cy.saturating_sub(1)..=(cy + 1).min(self.height - 1) {
-            for x in cx.saturating_sub(1)..=(cx + 1).min(self.width - 1) {
-                best = best.max(0.6 * self.occupancy((x, y)));
+        for y in cy.saturating_sub(reach)..=(cy + reach).min(self.height - 1) {
+            for x in cx.saturating_sub(reach)..=(cx + reach).min(self.width - 1) {
+                let centre =
+                    self.origin + DVec2::new(x as f64 + 0.5, y as f64 + 0.5) * self.cell_size;
+                let d = centre.distance(p) / sigma;
+                best = best.max(self.occupancy((x, y)) * (-0.5 * d * d).exp() as f32);
             }
         }
         best
