@@ -8,7 +8,7 @@ use shoal_physics::legged::Param;
 use shoal_physics::range::RangeSensor;
 use shoal_physics::{Command, MotionModel, Pose};
 
-use crate::grid::TiledGrid;
+use crate::grid::{TiledGrid, Tolerance};
 use crate::learning::{Draw, MixtureLearner};
 
 /// The range of scales exploring particles apply to a drawn motion.
@@ -216,17 +216,21 @@ impl ParticleFilter {
         let log_likelihoods: Vec<f64> = if self.steps == 0 {
             vec![0.0; n]
         } else {
+            // The range noise grows with the range: so does how far off an
+            // obstacle a beam may end.
+            let tolerances: Vec<Tolerance> = returned
+                .iter()
+                .map(|&b| Tolerance::new(sensor.noise_per_m * ranges[b], self.config.cell_size))
+                .collect();
             self.particles
                 .iter()
                 .map(|p| {
                     returned
                         .iter()
-                        .map(|&b| {
+                        .zip(&tolerances)
+                        .map(|(&b, tolerance)| {
                             let end = beam_end(&p.pose, sensor.bearing(b), ranges[b]);
-                            // The range noise grows with the range: so does
-                            // how far off an obstacle a beam may end.
-                            let sigma = sensor.noise_per_m * ranges[b].max(0.1);
-                            f64::from(0.05 + 0.9 * p.map.occupancy_within(end, sigma)).ln()
+                            f64::from(0.05 + 0.9 * p.map.occupancy_within(end, tolerance)).ln()
                         })
                         .sum()
                 })

@@ -72,35 +72,33 @@ impl TiledGrid {
         self.tiles[tile][offset]
     }
 
-    fn add(&mut self, cell: (usize, usize), delta: f32) {
-        let (tile, offset) = self.index(cell);
-        let value = &mut Arc::make_mut(&mut self.tiles[tile])[offset];
-        *value = (*value + delta).clamp(-CLAMP, CLAMP);
-    }
-
     /// Probability that the cell is occupied.
     pub fn occupancy(&self, cell: (usize, usize)) -> f32 {
         1.0 / (1.0 + (-self.log_odds(cell)).exp())
     }
 
-    /// The highest occupancy within about `sigma` metres of `p`, each cell's
-    /// discounted by a Gaussian of its distance (0.5 outside the map): a
-    /// beam that ends where the range noise could have put it off an
-    /// obstacle still scores. Far beams are noisier, so their tolerance is
-    /// wider; with a fixed one-cell tolerance a 10 m beam scores by chance.
-    pub fn occupancy_within(&self, p: DVec2, sigma: f64) -> f32 {
+    /// The highest occupancy near `p`, each cell's discounted by the
+    /// Gaussian weight `tolerance` gives its distance (0.5 outside the
+    /// map): a beam that ends where the range noise could have put it off
+    /// an obstacle still scores. Far beams are noisier, so their tolerance
+    /// is wider; with a fixed one-cell tolerance a 10 m beam scores by
+    /// chance.
+    pub fn occupancy_within(&self, p: DVec2, tolerance: &Tolerance) -> f32 {
         let Some((cx, cy)) = self.cell_of(p) else {
             return 0.5;
         };
-        let sigma = sigma.max(self.cell_size);
-        let reach = ((2.0 * sigma / self.cell_size).ceil() as usize).clamp(1, 6);
+        let reach = tolerance.reach;
         let mut best = self.occupancy((cx, cy));
         for y in cy.saturating_sub(reach)..=(cy + reach).min(self.height - 1) {
+            let dy = y.abs_diff(cy);
             for x in cx.saturating_sub(reach)..=(cx + reach).min(self.width - 1) {
-                let centre =
-                    self.origin + DVec2::new(x as f64 + 0.5, y as f64 + 0.5) * self.cell_size;
-                let d = centre.distance(p) / sigma;
-                best = best.max(self.occupancy((x, y)) * (-0.5 * d * d).exp() as f32);
+                let odds = self.log_odds((x, y));
+                // Only cells more likely occupied than not can beat the
+                // centre by much; skipping the rest keeps this cheap.
+                if odds > 0.0 {
+                    let weight = tolerance.weight(x.abs_diff(cx), dy);
+                    best = best.max(weight / (1.0 + (-odds).exp()));
+                }
             }
         }
         best
@@ -117,8 +115,25 @@ impl TiledGrid {
         let (dx, dy) = ((x1 - x).abs(), -(y1 - y).abs());
         let (sx, sy) = (if x < x1 { 1 } else { -1 }, if y < y1 { 1 } else { -1 });
         let mut error = dx + dy;
-        while (x, y) != (x1, y1) {
-            self.add((x as usize, y as usize), MISS);
+        // A beam crosses few tiles: each is made writable once, not once a
+        // cell (copy-on-write shares tiles between particles).
+        let tiles_x = self.tiles_x;
+        let mut writable: Option<(usize, &mut Tile)> = None;
+        loop {
+            let last = (x, y) == (x1, y1);
+            let (cx, cy) = (x as usize, y as usize);
+            let tile = (cy / TILE) * tiles_x + cx / TILE;
+            if writable.as_ref().is_none_or(|(t, _)| *t != tile) {
+                writable = Some((tile, Arc::make_mut(&mut self.tiles[tile])));
+            }
+            if let Some((_, cells)) = writable.as_mut() {
+                let offset = (cy % TILE) * TILE + cx % TILE;
+                let delta = if last && hit { HIT } else { MISS };
+                cells[offset] = (cells[offset] + delta).clamp(-CLAMP, CLAMP);
+            }
+            if last {
+                break;
+            }
             let doubled = 2 * error;
             if doubled >= dy {
                 error += dy;
@@ -129,7 +144,6 @@ impl TiledGrid {
                 y += sy;
             }
         }
-        self.add(end, if hit { HIT } else { MISS });
     }
 
     /// How many tiles this grid shares with `other` (same allocation).
@@ -222,5 +236,35 @@ mod tests {
         );
         a.integrate_beam(DVec2::new(3.0, 3.0), DVec2::new(3.1, 3.0), false);
         assert!(a.shared_tiles(&b) < shared);
+    }
+}
+
+/// How far from a beam's end an obstacle still explains it, for
+/// [`TiledGrid::occupancy_within`]: Gaussian weights by cell offset,
+/// computed once per beam rather than once per particle.
+#[derive(Clone, Debug)]
+pub struct Tolerance {
+    reach: usize,
+    /// Weight by squared offset in cells, dx^2 + dy^2.
+    weights: Vec<f32>,
+}
+
+impl Tolerance {
+    /// Most cells a tolerance reaches out, each way: past 2 sigma the
+    /// weight is below 0.14, and a wider window costs quadratically.
+    const MAX_REACH: usize = 6;
+
+    /// A tolerance of `sigma` metres (at least one cell) on cells of `cell_size`.
+    pub fn new(sigma: f64, cell_size: f64) -> Self {
+        let sigma_cells = sigma.max(cell_size) / cell_size;
+        let reach = ((2.0 * sigma_cells).ceil() as usize).clamp(1, Self::MAX_REACH);
+        let weights = (0..=2 * reach * reach)
+            .map(|squared| (-0.5 * squared as f64 / (sigma_cells * sigma_cells)).exp() as f32)
+            .collect();
+        Self { reach, weights }
+    }
+
+    fn weight(&self, dx: usize, dy: usize) -> f32 {
+        self.weights.get(dx * dx + dy * dy).copied().unwrap_or(0.0)
     }
 }
