@@ -36,6 +36,10 @@ pub struct FollowedReport {
     /// The filter's pose estimate, once it has started.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub estimate: Option<[f64; 3]>,
+    /// How far the learned model says a full stride (`walk(3)`) carries,
+    /// metres: the scalar a reader can hold against the truth.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stride_m: Option<f64>,
 }
 
 #[derive(Clone, Debug)]

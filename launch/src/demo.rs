@@ -68,6 +68,11 @@ pub struct SlamProgress {
     /// How far the learned model moved from where SLAM started (in starting
     /// standard deviations).
     pub model_distance: Option<f64>,
+    /// A full stride (`walk(3)`): what SLAM started from, what it learned,
+    /// and the truth on the floor the robot ended on, metres.
+    pub stride_start_m: f64,
+    pub stride_learned_m: Option<f64>,
+    pub stride_true_m: f64,
 }
 
 #[derive(Debug, Serialize)]
@@ -289,8 +294,24 @@ pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
         (metrics.agents, metrics.components, metrics.spacing_ratio);
     let slam_report = swarm.runtime.read_slam_report();
     let end = swarm.sim_time();
+    // The true stride is the floor's: where each followed robot stands at the end.
+    let floor_scale: std::collections::BTreeMap<u32, f64> = follow
+        .iter()
+        .filter_map(|id| swarm.observer.get(*id).map(|s| (*id, DVec2::new(s.x, s.y))))
+        .map(|(id, at)| {
+            let scale = scenario
+                .arena
+                .surface_at_time(at, end)
+                .map_or(1.0, |floor| floor.along_scale);
+            (id, scale)
+        })
+        .collect();
     swarm.shutdown()?;
+    let stride = |model: &MotionModel| model.mean(Command::Walk(3)).along;
     for id in &follow {
+        let followed = slam_report
+            .as_ref()
+            .and_then(|r| r.followed.iter().find(|f| f.id == *id));
         let mean_error = |from: f64, to: f64| {
             let errors: Vec<f64> = slam_errors
                 .iter()
@@ -303,10 +324,10 @@ pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
             robot: *id,
             early_error_m: mean_error(0.0, SLAM_WINDOW_S),
             late_error_m: mean_error(end - SLAM_WINDOW_S, end),
-            model_distance: slam_report
-                .as_ref()
-                .and_then(|r| r.followed.iter().find(|f| f.id == *id))
-                .map(|f| f.model_distance),
+            model_distance: followed.map(|f| f.model_distance),
+            stride_start_m: stride(&short_strides(&scenario.motion, STRIDE_ERROR)),
+            stride_learned_m: followed.and_then(|f| f.stride_m),
+            stride_true_m: stride(&scenario.motion) * floor_scale.get(id).copied().unwrap_or(1.0),
         });
     }
     let mut walkers: Vec<(u32, f64)> = on_floor
@@ -379,8 +400,13 @@ pub fn print(summary: &DemoSummary, scenario: &Scenario) {
             s.early_error_m * 1e3,
             s.late_error_m * 1e3,
             STRIDE_ERROR * 100.0,
-            s.model_distance
-                .map(|d| format!(" (model moved {d:.1} starting std)"))
+            s.stride_learned_m
+                .map(|learned| format!(
+                    ": a full stride {:.0} mm at the start, {learned_mm:.0} mm learned, {:.0} mm true on its floor",
+                    s.stride_start_m * 1e3,
+                    s.stride_true_m * 1e3,
+                    learned_mm = learned * 1e3
+                ))
                 .unwrap_or_default()
         );
     }
