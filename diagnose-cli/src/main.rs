@@ -334,7 +334,10 @@ fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
         let path = dir.join("model.toml");
         let text = format!(
             "# Written by shoal diagnose: the input model plus the effects it found.\n# Load it with --model, or as the body of a simulated robot.\n{}",
-            diagnosis.model.to_toml()
+            diagnosis
+                .model
+                .to_toml()
+                .context("writing the fitted model")?
         );
         write_into_place(&path, |partial| {
             std::fs::write(partial, text)
@@ -409,7 +412,10 @@ fn run_generate(args: &GenerateArgs) -> Result<()> {
     let (commands, poses) = recording.to_csv();
     std::fs::write(out.join("commands.csv"), commands)?;
     std::fs::write(out.join("poses.csv"), poses)?;
-    std::fs::write(out.join("truth.toml"), model.to_toml())?;
+    std::fs::write(
+        out.join("truth.toml"),
+        model.to_toml().context("writing the true model")?,
+    )?;
     if args.bag {
         let bytes = bag::write_bag(&recording).map_err(anyhow::Error::msg)?;
         let path = out.join("run.mcap");

@@ -104,7 +104,9 @@ fn kinds(diagnosis: &Value) -> Vec<String> {
 }
 
 fn truth_toml(case: &shoal_diagnose::experiment::Case) -> String {
-    shoal_physics::UnicycleModel::with_effects(case.truth.clone()).to_toml()
+    shoal_physics::UnicycleModel::with_effects(case.truth.clone())
+        .to_toml()
+        .expect("a case's model writes as TOML")
 }
 
 #[test]

@@ -258,19 +258,27 @@ fn fit_all(
             })
             .collect();
         for handle in chunks {
-            let _ = handle.join();
+            joined(handle.join());
         }
     });
+    // Every worker filled its slots, or its panic went on above.
     results.into_iter().flatten().collect()
 }
 
+/// A worker's result, or its panic carried on in this thread: a fit that
+/// panicked is a bug to see, and dropping its result would pair the other
+/// fits with the wrong candidates or folds.
+fn joined<T>(result: std::thread::Result<T>) -> T {
+    result.unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+}
+
 /// Runs `per_fold(train, test)` on each of the time-blocked folds, in
-/// parallel; results in fold order, `None` for a fold whose worker panicked.
+/// parallel; results in fold order.
 fn on_folds<T: Send>(
     prepared: &Prepared,
     options: &Options,
     per_fold: impl Fn(&[Segment], &[Segment]) -> T + Sync,
-) -> Vec<Option<T>> {
+) -> Vec<T> {
     let n = prepared.segments.len();
     let folds = options.folds.clamp(2, n.max(2));
     let per_fold = &per_fold;
@@ -288,7 +296,7 @@ fn on_folds<T: Send>(
                 })
             })
             .collect();
-        handles.into_iter().map(|h| h.join().ok()).collect()
+        handles.into_iter().map(|h| joined(h.join())).collect()
     })
 }
 
@@ -340,10 +348,7 @@ fn heldout(
     let per_fold: Vec<(f64, Vec<Residual>)> = on_folds(prepared, options, |train, test| {
         let effects = refit_on(prepared, train, fixed, found, options);
         predict_heldout(prepared, train, test, effects)
-    })
-    .into_iter()
-    .map(|fold| fold.unwrap_or((f64::NAN, Vec::new())))
-    .collect();
+    });
     let nll: f64 = per_fold.iter().map(|(nll, _)| nll).sum();
     let all_residuals: Vec<Residual> = per_fold.into_iter().flat_map(|(_, r)| r).collect();
     let errors: Vec<(f64, f64)> = prepared
@@ -629,8 +634,6 @@ fn heldout_gain(
             - predict_heldout(prepared, train, test, with).0
     })
     .into_iter()
-    // A panicked fold makes the sum NaN, which never passes the check.
-    .map(|gain| gain.unwrap_or(f64::NAN))
     .sum()
 }
 

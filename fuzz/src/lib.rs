@@ -547,10 +547,10 @@ impl Seeds {
             .unwrap_or_default();
         Self {
             ros_bag: shoal_diagnose::bag::write_bag(&run).unwrap_or_default(),
-            scenario: scenario.to_toml(),
+            scenario: scenario.to_toml().unwrap_or_default(),
             motion_model: toml::to_string(&shoal_physics::MotionModel::legged_default())
                 .unwrap_or_default(),
-            effects_model: effects.to_toml(),
+            effects_model: effects.to_toml().unwrap_or_default(),
             commands_csv: commands,
             poses_csv: poses,
             mrclam_odometry: odometry,

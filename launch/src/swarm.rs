@@ -195,8 +195,11 @@ impl RunningSwarm {
             epoch_unix_ms,
             period_s: scenario.timing.period_s,
         };
+        let scenario_file = scenario
+            .to_toml()
+            .context("writing the scenario for the swarm's robots")?;
         runtime
-            .create(&scenario.to_toml(), &meta)
+            .create(&scenario_file, &meta)
             .with_context(|| format!("writing the swarm's files in {}", runtime.dir.display()))?;
         let bus = Bus::join(
             name,

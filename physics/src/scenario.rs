@@ -264,8 +264,10 @@ impl Scenario {
         Ok(scenario)
     }
 
-    pub fn to_toml(&self) -> String {
-        toml::to_string_pretty(self).unwrap_or_default()
+    /// The scenario as a scenario file. An error, never an empty file, if
+    /// it cannot be written.
+    pub fn to_toml(&self) -> Result<String, toml::ser::Error> {
+        toml::to_string_pretty(self)
     }
 
     /// Checks what the types alone cannot: every number lies in a range a
@@ -631,7 +633,7 @@ mod tests {
     #[test]
     fn the_default_scenario_round_trips_through_toml() {
         let scenario = Scenario::default_arena();
-        let text = scenario.to_toml();
+        let text = scenario.to_toml().expect("a scenario writes as TOML");
         let parsed = Scenario::from_toml(&text, "default.toml").expect("valid");
         assert_eq!(parsed.arena, scenario.arena);
         assert_eq!(parsed.formation, scenario.formation);

@@ -206,8 +206,10 @@ impl UnicycleModel {
         Ok(model)
     }
 
-    pub fn to_toml(&self) -> String {
-        toml::to_string_pretty(self).unwrap_or_default()
+    /// The model as a model file. An error, never an empty file, if it
+    /// cannot be written (a parameter TOML has no number for).
+    pub fn to_toml(&self) -> Result<String, toml::ser::Error> {
+        toml::to_string_pretty(self)
     }
 
     fn active(&self, t: f64) -> impl Iterator<Item = &Effect> {
@@ -534,7 +536,7 @@ mod tests {
                 during: Some([10.0, 20.0]),
             },
         ]);
-        let text = model.to_toml();
+        let text = model.to_toml().expect("a model writes as TOML");
         assert_eq!(UnicycleModel::from_toml(&text, "m.toml").ok(), Some(model));
         let bad = "[[effects]]\nkind = \"latency\"\nseconds = 0.1\n\n[[effects]]\nkind = \"speed_scale\"\nfactor = -3.0\n";
         let error = UnicycleModel::from_toml(bad, "m.toml").expect_err("negative scale");
