@@ -18,27 +18,8 @@ struct Args {
     #[arg(long)]
     id: u32,
     /// Start pose `X,Y[,THETA]`.
-    #[arg(long, value_parser = parse_pose)]
+    #[arg(long, value_parser = shoal_physics::pose::parse_pose)]
     at: Pose,
-}
-
-fn parse_pose(text: &str) -> Result<Pose, String> {
-    let values: Vec<f64> = text
-        .split(',')
-        .map(|v| v.trim().parse::<f64>().map_err(|e| format!("`{v}`: {e}")))
-        .collect::<Result<_, _>>()?;
-    match values[..] {
-        [x, y] => Ok(Pose::new(x, y, 0.0)),
-        [x, y, theta] => Ok(Pose::new(x, y, theta)),
-        _ => Err("expected X,Y or X,Y,THETA".to_owned()),
-    }
-    .and_then(|p| {
-        if p.is_finite() {
-            Ok(p)
-        } else {
-            Err("pose must be finite".to_owned())
-        }
-    })
 }
 
 fn main() -> std::process::ExitCode {

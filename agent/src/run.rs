@@ -98,6 +98,8 @@ pub fn run(options: AgentOptions) -> Result<()> {
     let mut settled = clock.is_none();
     let mut last_housekeeping = Instant::now();
     let mut dead_suspected = false;
+    // Whether the last attempt to listen to the cells around failed.
+    let mut listen_failing = false;
     while !bus.termination_requested() {
         let (tick, sim_time) = match &clock {
             Some(clock) => match clock.wait_after(last.tick, Duration::from_millis(100))? {
@@ -251,8 +253,19 @@ pub fn run(options: AgentOptions) -> Result<()> {
             scenario.formation.neighbours.min(WIDEN_BELOW),
         );
         let center = cells.cell_of(after.x, after.y);
-        if let Err(e) = cells.listen(&bus, center, range.listen_ring) {
-            tracing::warn!("{e}");
+        // Said once when listening starts failing, and once when it works
+        // again: a failure that lasts would otherwise fill the log every period.
+        match cells.listen(&bus, center, range.listen_ring) {
+            Ok(()) if listen_failing => {
+                listen_failing = false;
+                tracing::info!("listening to the cells around again");
+            }
+            Ok(()) => {}
+            Err(e) if !listen_failing => {
+                listen_failing = true;
+                tracing::warn!("{e}; retrying every period");
+            }
+            Err(_) => {}
         }
         if last_housekeeping.elapsed() >= HOUSEKEEPING_PERIOD {
             last_housekeeping = Instant::now();

@@ -119,7 +119,7 @@ enum Commands {
         ids: Vec<u32>,
         #[arg(long, default_value = "default")]
         swarm: String,
-        #[arg(long, value_parser = parse_point)]
+        #[arg(long, value_parser = shoal_physics::pose::parse_point)]
         at: Option<[f64; 2]>,
     },
     /// Reproduce the thesis's results with real processes in lockstep.
@@ -141,7 +141,7 @@ enum Commands {
         count: usize,
         #[arg(long, default_value = "default")]
         swarm: String,
-        #[arg(long, value_parser = parse_point)]
+        #[arg(long, value_parser = shoal_physics::pose::parse_point)]
         at: Option<[f64; 2]>,
     },
 }
@@ -201,26 +201,6 @@ enum ExperimentKind {
         #[arg(long, default_value_t = 60.0)]
         max_seconds: f64,
     },
-}
-
-fn parse_point(text: &str) -> Result<[f64; 2], String> {
-    let parts: Vec<&str> = text.split(',').collect();
-    let [x, y] = parts[..] else {
-        return Err("expected X,Y".to_owned());
-    };
-    let parse = |v: &str| {
-        v.trim()
-            .parse::<f64>()
-            .map_err(|e| format!("`{v}`: {e}"))
-            .and_then(|v| {
-                if v.is_finite() {
-                    Ok(v)
-                } else {
-                    Err(format!("`{v}` is not finite"))
-                }
-            })
-    };
-    Ok([parse(x)?, parse(y)?])
 }
 
 /// Becomes the sibling binary (exec): one process, so the pid the user sees

@@ -8,13 +8,8 @@ use anyhow::{Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 use shoal_physics::Scenario;
-use shoal_physics::metrics::FormationMetrics;
 
 use crate::swarm::{RecordOptions, RunningSwarm};
-
-/// A formation counts as formed when it is one group with mean spacing within
-/// this fraction of the desired spread.
-pub const SPACING_TOLERANCE: f64 = 0.15;
 
 pub struct UpOptions {
     pub swarm: String,
@@ -70,10 +65,6 @@ pub fn load_scenario(path: Option<&PathBuf>) -> Result<Scenario> {
         Some(path) => Scenario::from_file(path)?,
         None => Scenario::default_arena(),
     })
-}
-
-pub fn is_formed(metrics: &FormationMetrics) -> bool {
-    metrics.components == 1 && (metrics.spacing_ratio - 1.0).abs() <= SPACING_TOLERANCE
 }
 
 pub fn up(options: UpOptions) -> Result<UpSummary> {
@@ -146,7 +137,7 @@ pub fn up(options: UpOptions) -> Result<UpSummary> {
             break;
         }
         let metrics = swarm.observer.metrics(spread);
-        match (is_formed(&metrics), converged_since) {
+        match (metrics.is_formed(), converged_since) {
             (true, None) => converged_since = Some(swarm.sim_time()),
             (false, Some(_)) => converged_since = None,
             _ => {}

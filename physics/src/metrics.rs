@@ -14,6 +14,17 @@ pub struct FormationMetrics {
     pub spacing_cv: f64,
 }
 
+/// A formation counts as formed when it is one group with mean spacing within
+/// this fraction of the desired spread.
+pub const SPACING_TOLERANCE: f64 = 0.15;
+
+impl FormationMetrics {
+    /// One group, spaced as the formation asks (within [`SPACING_TOLERANCE`]).
+    pub fn is_formed(&self) -> bool {
+        self.components == 1 && (self.spacing_ratio - 1.0).abs() <= SPACING_TOLERANCE
+    }
+}
+
 /// Two agents closer than this many spreads belong to one group.
 pub const LINK_FACTOR: f64 = 1.5;
 

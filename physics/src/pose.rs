@@ -60,10 +60,55 @@ pub fn wrap_angle(angle: f64) -> f64 {
     }
 }
 
+/// Comma-separated finite numbers as typed on a command line.
+fn finite_numbers(text: &str) -> Result<Vec<f64>, String> {
+    text.split(',')
+        .map(|v| {
+            let value = v
+                .trim()
+                .parse::<f64>()
+                .map_err(|e| format!("`{}`: {e}", v.trim()))?;
+            if value.is_finite() {
+                Ok(value)
+            } else {
+                Err(format!("`{}` is not finite", v.trim()))
+            }
+        })
+        .collect()
+}
+
+/// A pose typed as `X,Y` or `X,Y,THETA` (heading 0 when left out).
+pub fn parse_pose(text: &str) -> Result<Pose, String> {
+    match finite_numbers(text)?[..] {
+        [x, y] => Ok(Pose::new(x, y, 0.0)),
+        [x, y, theta] => Ok(Pose::new(x, y, theta)),
+        _ => Err("expected X,Y or X,Y,THETA".to_owned()),
+    }
+}
+
+/// A point typed as `X,Y`.
+pub fn parse_point(text: &str) -> Result<[f64; 2], String> {
+    match finite_numbers(text)?[..] {
+        [x, y] => Ok([x, y]),
+        _ => Err("expected X,Y".to_owned()),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use std::f64::consts::{FRAC_PI_2, PI};
+
+    #[test]
+    fn poses_and_points_typed_on_a_command_line_are_finite_numbers() {
+        assert_eq!(parse_pose("1, 2"), Ok(Pose::new(1.0, 2.0, 0.0)));
+        assert_eq!(parse_pose("1,2,0.5"), Ok(Pose::new(1.0, 2.0, 0.5)));
+        assert_eq!(parse_point("3,-4"), Ok([3.0, -4.0]));
+        assert!(parse_pose("1").is_err());
+        assert!(parse_point("1,2,3").is_err());
+        assert_eq!(parse_point("1,NaN"), Err("`NaN` is not finite".to_owned()));
+        assert!(parse_pose("1,x").is_err_and(|e| e.starts_with("`x`")));
+    }
 
     #[test]
     fn advancing_along_and_across_follows_the_heading() {

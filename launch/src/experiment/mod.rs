@@ -13,7 +13,6 @@ use shoal_physics::metrics::FormationMetrics;
 
 use crate::observer::Observer;
 use crate::swarm::RunningSwarm;
-use crate::up::is_formed;
 
 /// How a run ended.
 #[derive(Clone, Copy, Debug)]
@@ -47,7 +46,7 @@ pub fn run_until(
         }
         swarm.advance()?;
         let now = swarm.sim_time() - start;
-        let formed = is_formed(&swarm.observer.metrics(spread)) && also(&swarm.observer);
+        let formed = swarm.observer.metrics(spread).is_formed() && also(&swarm.observer);
         match (formed, formed_since) {
             (true, None) => formed_since = Some(now),
             (false, Some(_)) => formed_since = None,
