@@ -292,10 +292,8 @@ pub fn run(options: AgentOptions) -> Result<()> {
 /// Adopts one learned mixture; the update has passed its wire check, so
 /// its command and parameter name something.
 fn apply_model_update(model: &mut shoal_physics::MotionModel, update: &shoal_broker::ModelUpdate) {
-    let command = shoal_physics::Command::from_index(update.command as usize);
-    let param = shoal_physics::legged::Param::ALL.get(update.param as usize);
-    if let (Some(command), Some(param)) = (command, param) {
-        *model.command_mut(command).param_mut(*param) = update.mixture();
+    if let Some((command, param)) = update.target() {
+        *model.command_mut(command).param_mut(param) = update.mixture();
     }
 }
 

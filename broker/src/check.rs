@@ -243,6 +243,35 @@ impl Wire for ModelUpdate {
 }
 
 impl ModelUpdate {
+    /// The learned `mixture` of `command`'s `param` for robot `agent_id`,
+    /// after `step` SLAM steps, as it goes on the wire.
+    pub fn new(
+        agent_id: u32,
+        command: Command,
+        param: Param,
+        step: u64,
+        mixture: &Mixture2,
+    ) -> Self {
+        Self {
+            agent_id,
+            command: command.index() as u32,
+            param: param.index() as u32,
+            reserved: 0,
+            step,
+            weights: mixture.weights,
+            means: mixture.means,
+            variances: mixture.variances,
+        }
+    }
+
+    /// Which mixture of a motion model the update replaces, or `None` for
+    /// indices that name nothing (the wire check refuses those).
+    pub fn target(&self) -> Option<(Command, Param)> {
+        let command = Command::from_index(self.command as usize)?;
+        let param = *Param::ALL.get(self.param as usize)?;
+        Some((command, param))
+    }
+
     pub fn mixture(&self) -> Mixture2 {
         Mixture2 {
             weights: self.weights,
@@ -395,6 +424,18 @@ mod tests {
         bad.neighbour_count = 99;
         assert!(!check.accept(&bad));
         assert_eq!(check.rejected, 4);
+    }
+
+    #[test]
+    fn a_model_update_names_the_mixture_it_was_made_from() {
+        let mixture = Mixture2::gaussian(0.2, 0.01);
+        let update = ModelUpdate::new(7, Command::Walk(3), Param::C, 12, &mixture);
+        assert_eq!(update.check(), Ok(()));
+        assert_eq!(update.target(), Some((Command::Walk(3), Param::C)));
+        assert_eq!(update.mixture(), mixture);
+        let nowhere = ModelUpdate { param: 3, ..update };
+        assert_eq!(nowhere.target(), None);
+        assert!(nowhere.check().is_err());
     }
 
     #[test]

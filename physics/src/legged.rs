@@ -75,6 +75,11 @@ pub enum Param {
 
 impl Param {
     pub const ALL: [Param; 3] = [Param::D, Param::C, Param::T];
+
+    /// Where the parameter stands in [`Param::ALL`], as on the wire.
+    pub fn index(self) -> usize {
+        self as usize
+    }
 }
 
 /// The distributions of D, C and T for one command.

@@ -242,18 +242,15 @@ fn run(args: Args) -> Result<()> {
                     theta: report.estimate.theta,
                     effective_particles: report.effective_particles,
                 })?;
-                for (index, param) in Param::ALL.iter().enumerate() {
-                    let mixture = filter.model().command(command).param(*param);
-                    robot.models.publish(&ModelUpdate {
-                        agent_id: *id,
-                        command: command.index() as u32,
-                        param: index as u32,
-                        reserved: 0,
-                        step: robot.steps,
-                        weights: mixture.weights,
-                        means: mixture.means,
-                        variances: mixture.variances,
-                    })?;
+                for param in Param::ALL {
+                    let mixture = filter.model().command(command).param(param);
+                    robot.models.publish(&ModelUpdate::new(
+                        *id,
+                        command,
+                        param,
+                        robot.steps,
+                        mixture,
+                    ))?;
                 }
             }
         }

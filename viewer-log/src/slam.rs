@@ -7,9 +7,6 @@ use std::collections::BTreeMap;
 use rerun::RecordingStream;
 use shoal_broker::robot_streams::{self, StreamSubscriber};
 use shoal_broker::{Bus, ModelUpdate, SlamMap, SlamParticles};
-use shoal_physics::Command;
-
-const PARAM_NAMES: [&str; 3] = ["D", "C", "T"];
 
 pub struct SlamViews {
     particles: StreamSubscriber<SlamParticles>,
@@ -92,10 +89,9 @@ impl SlamViews {
                 continue;
             };
             for u in updates {
-                let (Some(command), Some(param)) = (
-                    Command::from_index(u.command as usize),
-                    PARAM_NAMES.get(u.param as usize),
-                ) else {
+                // The subscriber passes only updates that pass their wire
+                // check, which refuses indices that name nothing.
+                let Some((command, param)) = u.target() else {
                     continue;
                 };
                 let values = [
@@ -120,7 +116,7 @@ impl SlamViews {
                     })
                     .collect();
                 rec.log(
-                    format!("slam/{id}/model/{}/{param}", name.trim_end_matches('_')),
+                    format!("slam/{id}/model/{}/{param:?}", name.trim_end_matches('_')),
                     &rerun::Scalars::new(values),
                 )?;
             }
