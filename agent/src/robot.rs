@@ -85,7 +85,7 @@ impl Robot {
         let me = self.body.pose.position();
         let tracked = choose_neighbours(me, sensed, &scenario.formation);
         let force = net_force(me, &tracked, &scenario.formation);
-        let max_step = self.belief.mean(Command::Walk(3)).along;
+        let max_step = self.belief.full_stride();
         let displacement = if force == DVec2::ZERO {
             DVec2::ZERO
         } else {

@@ -11,7 +11,7 @@ use anyhow::{Context, Result, bail};
 use glam::DVec2;
 use serde::Serialize;
 use shoal_physics::metrics::centroid;
-use shoal_physics::{Command, MotionModel, Pose, Scenario, Surface};
+use shoal_physics::{MotionModel, Pose, Scenario, Surface};
 
 use crate::swarm::RecordOptions;
 use crate::swarm::RunningSwarm;
@@ -85,12 +85,7 @@ pub struct DiagnosisLine {
 
 /// The model SLAM starts from: every stride `1 - error` of the true one.
 fn short_strides(model: &MotionModel, error: f64) -> MotionModel {
-    let mut wrong = model.clone();
-    for command in Command::ALL {
-        let m = wrong.command_mut(command);
-        m.d = m.d.scaled(1.0 - error);
-    }
-    wrong
+    model.scaled(1.0 - error, 1.0, 1.0)
 }
 
 /// Whether `p` lies on a floor the robots' model (which knows none) lacks.
@@ -307,7 +302,6 @@ pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
         })
         .collect();
     swarm.shutdown()?;
-    let stride = |model: &MotionModel| model.mean(Command::Walk(3)).along;
     for id in &follow {
         let followed = slam_report
             .as_ref()
@@ -325,9 +319,10 @@ pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
             early_error_m: mean_error(0.0, SLAM_WINDOW_S),
             late_error_m: mean_error(end - SLAM_WINDOW_S, end),
             model_distance: followed.map(|f| f.model_distance),
-            stride_start_m: stride(&short_strides(&scenario.motion, STRIDE_ERROR)),
+            stride_start_m: short_strides(&scenario.motion, STRIDE_ERROR).full_stride(),
             stride_learned_m: followed.and_then(|f| f.stride_m),
-            stride_true_m: stride(&scenario.motion) * floor_scale.get(id).copied().unwrap_or(1.0),
+            stride_true_m: scenario.motion.full_stride()
+                * floor_scale.get(id).copied().unwrap_or(1.0),
         });
     }
     let mut walkers: Vec<(u32, f64)> = on_floor
@@ -447,6 +442,7 @@ pub fn print(summary: &DemoSummary, scenario: &Scenario) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use shoal_physics::Command;
 
     #[test]
     fn the_shipped_scenario_has_what_the_demo_shows() {

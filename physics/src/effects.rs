@@ -218,18 +218,30 @@ impl Effect {
     /// a speed); every other effect is returned as it is.
     pub fn at_reference_speed(&self, speed_m_per_s: f64) -> Effect {
         match *self {
-            Effect::SpeedNoise {
-                driving_share,
-                at_m_per_s,
-            } if speed_m_per_s > 0.0 => {
-                let share = driving_share.clamp(0.0, 0.999);
-                let growth = share / (1.0 - share) / at_m_per_s.max(1e-3) * speed_m_per_s;
+            Effect::SpeedNoise { .. } if speed_m_per_s > 0.0 => {
+                let growth = self.noise_growth_per_m_per_s() * speed_m_per_s;
                 Effect::SpeedNoise {
                     driving_share: growth / (1.0 + growth),
                     at_m_per_s: speed_m_per_s,
                 }
             }
             _ => self.clone(),
+        }
+    }
+
+    /// How much the motion-noise variance grows per m/s of speed, as a
+    /// multiple of the resting variance: `share / (1 - share) / at_m_per_s`
+    /// for speed noise, 0 for every other effect.
+    pub fn noise_growth_per_m_per_s(&self) -> f64 {
+        match *self {
+            Effect::SpeedNoise {
+                driving_share,
+                at_m_per_s,
+            } => {
+                let share = driving_share.clamp(0.0, 0.999);
+                share / (1.0 - share) / at_m_per_s.max(1e-3)
+            }
+            _ => 0.0,
         }
     }
 

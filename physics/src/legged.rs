@@ -129,6 +129,25 @@ pub struct MotionModel {
 }
 
 impl MotionModel {
+    /// The same model with every command's step scaled: along the heading
+    /// by `along`, across it by `across`, its turn by `turn` (a floor, or a
+    /// model deliberately wrong).
+    pub fn scaled(&self, along: f64, across: f64, turn: f64) -> Self {
+        let mut scaled = self.clone();
+        for command in Command::ALL {
+            let m = scaled.command_mut(command);
+            m.d = m.d.scaled(along);
+            m.c = m.c.scaled(across);
+            m.t = m.t.scaled(turn);
+        }
+        scaled
+    }
+
+    /// How far a full stride (`walk(3)`) carries on average, metres.
+    pub fn full_stride(&self) -> f64 {
+        self.mean(Command::Walk(3)).along
+    }
+
     /// An AIBO-like model with the thesis's shapes: walk(2)'s stride is bimodal
     /// around 14.6 cm, walk(3) drifts sideways with a skewed tail, turn(1) and
     /// turn(2) rotate 30 and 60 degrees.

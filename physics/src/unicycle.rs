@@ -380,16 +380,7 @@ impl UnicycleModel {
     /// at `speed` m/s.
     pub fn noise_multiplier(&self, speed: f64, run_s: f64) -> f64 {
         self.active(run_s)
-            .map(|e| match *e {
-                Effect::SpeedNoise {
-                    driving_share,
-                    at_m_per_s,
-                } => {
-                    let share = driving_share.clamp(0.0, 0.999);
-                    1.0 + share / (1.0 - share) * speed.abs() / at_m_per_s.max(1e-3)
-                }
-                _ => 1.0,
-            })
+            .map(|e| 1.0 + e.noise_growth_per_m_per_s() * speed.abs())
             .product()
     }
 }

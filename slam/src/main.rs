@@ -307,10 +307,7 @@ fn report(followed: &BTreeMap<u32, Followed>, initial: &MotionModel) -> SlamRepo
                         .map_or(0.0, |f| f.model().distance_from(initial)),
                     paused: robot.last_scan.is_none_or(|t| t.elapsed() > PAUSED_AFTER),
                     estimate: estimate.map(|p| [p.x, p.y, p.theta]),
-                    stride_m: robot
-                        .filter
-                        .as_ref()
-                        .map(|f| f.model().mean(Command::Walk(3)).along),
+                    stride_m: robot.filter.as_ref().map(|f| f.model().full_stride()),
                 }
             })
             .collect(),

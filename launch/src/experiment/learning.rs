@@ -82,16 +82,10 @@ fn floor(along: f64, turn: f64, from_s: f64) -> Surface {
 
 /// The motion the body truly makes on `surface` (or on the base floor).
 fn true_model(base: &MotionModel, surface: Option<&Surface>) -> MotionModel {
-    let mut model = base.clone();
-    if let Some(s) = surface {
-        for command in Command::ALL {
-            let m = model.command_mut(command);
-            m.d = m.d.scaled(s.along_scale);
-            m.c = m.c.scaled(s.across_scale);
-            m.t = m.t.scaled(s.turn_scale);
-        }
-    }
-    model
+    surface.map_or_else(
+        || base.clone(),
+        |s| base.scaled(s.along_scale, s.across_scale, s.turn_scale),
+    )
 }
 
 fn run_once(
