@@ -52,6 +52,16 @@ impl Default for BusLimits {
 }
 
 impl BusLimits {
+    /// The limits a scenario's `[bus]` section sets; every process of a
+    /// swarm opens its services with these.
+    pub fn of(bus: &shoal_physics::scenario::BusSection) -> Self {
+        Self {
+            max_per_cell: bus.max_per_cell,
+            max_listeners_per_cell: bus.max_listeners_per_cell,
+            ..Self::default()
+        }
+    }
+
     pub fn cell_subscribers(&self) -> usize {
         self.max_listeners_per_cell + self.max_observers
     }

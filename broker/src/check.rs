@@ -371,9 +371,18 @@ pub struct SampleCheck {
     pub rejected: u64,
 }
 
+/// How far outside the map a pose may be and still be plausible: a robot
+/// pushed against a wall, with its pose noise.
+const MAP_MARGIN_M: f64 = 1.0;
+
 impl SampleCheck {
+    /// Poses more than [`MAP_MARGIN_M`] outside the scenario's arena are implausible.
+    pub fn for_scenario(scenario: &shoal_physics::Scenario) -> Self {
+        Self::for_map(scenario.arena.width, scenario.arena.height, MAP_MARGIN_M)
+    }
+
     /// Poses more than `margin` metres outside a `width` x `height` map are implausible.
-    pub fn for_map(width: f64, height: f64, margin: f64) -> Self {
+    fn for_map(width: f64, height: f64, margin: f64) -> Self {
         Self {
             bounds: [-margin, -margin, width + margin, height + margin],
             rejected: 0,

@@ -25,18 +25,6 @@ const HELPER_GRACE: Duration = Duration::from_secs(10);
 /// How long the launcher waits for its robots to announce themselves.
 const STARTUP_TIMEOUT: Duration = Duration::from_secs(30);
 
-pub fn bus_limits(scenario: &Scenario) -> BusLimits {
-    BusLimits {
-        max_per_cell: scenario.bus.max_per_cell,
-        max_listeners_per_cell: scenario.bus.max_listeners_per_cell,
-        ..BusLimits::default()
-    }
-}
-
-pub fn check_for(scenario: &Scenario) -> SampleCheck {
-    SampleCheck::for_map(scenario.arena.width, scenario.arena.height, 1.0)
-}
-
 pub struct RunningSwarm {
     pub name: String,
     pub scenario: Scenario,
@@ -204,7 +192,7 @@ impl RunningSwarm {
         let bus = Bus::join(
             name,
             &names::tool_node(name, "launcher"),
-            bus_limits(&scenario),
+            BusLimits::of(&scenario.bus),
         )?;
         let roster = RosterReader::new(&bus)?;
         let clock = if lockstep {
@@ -214,7 +202,7 @@ impl RunningSwarm {
         };
         let mut swarm = Self {
             name: name.to_owned(),
-            observer: Observer::new(check_for(&scenario)),
+            observer: Observer::new(SampleCheck::for_scenario(&scenario)),
             scenario,
             runtime,
             clock,

@@ -6,7 +6,8 @@
 use glam::DVec2;
 use shoal_agent::robot::Robot;
 use shoal_physics::{MotionModel, Neighbour, Scenario};
-use shoal_slam::filter::{Bodies, FilterConfig, ParticleFilter, mask_bodies};
+use shoal_slam::filter::{Bodies, FilterConfig};
+use shoal_slam::follower::{Follower, Scan};
 
 fn demo() -> Scenario {
     let text = include_str!("../../scenarios/demo.toml");
@@ -16,12 +17,13 @@ fn demo() -> Scenario {
 struct Followed {
     /// Position error after each step, metres.
     errors: Vec<f64>,
-    filter: ParticleFilter,
+    follower: Follower,
 }
 
 /// Walks `count` robots of the demo for `steps` periods while a filter
-/// follows robot 0 from `model`, as `shoal-slam` does: started at the true
-/// pose of its first scan, beams that end on other robots masked.
+/// follows robot 0 from `model` as `shoal-slam` does (the same
+/// [`Follower`]): started at the announced pose of its first scan, beams
+/// that end on other robots masked.
 fn follow_in_crowd(count: usize, steps: usize, model: &MotionModel, seed: u64) -> Followed {
     let scenario = demo();
     let starts = scenario.start_poses(0, count);
@@ -34,12 +36,13 @@ fn follow_in_crowd(count: usize, steps: usize, model: &MotionModel, seed: u64) -
         sensor: scenario.sensor.clone(),
         ..FilterConfig::default()
     };
-    let mut filter: Option<ParticleFilter> = None;
+    let arena = [scenario.arena.width, scenario.arena.height];
+    let mut follower = Follower::new(0, seed, model.clone(), config, arena);
     let mut bodies = Bodies::new(3);
     let mut errors = Vec::new();
     for tick in 0..steps as u64 {
         let positions: Vec<DVec2> = robots.iter().map(|r| r.body.pose.position()).collect();
-        let mut followed = None;
+        let mut scan = None;
         for (i, robot) in robots.iter_mut().enumerate() {
             let sensed: Vec<Neighbour> = positions
                 .iter()
@@ -54,43 +57,29 @@ fn follow_in_crowd(count: usize, steps: usize, model: &MotionModel, seed: u64) -
             let others: Vec<DVec2> = sensed.iter().map(|n| n.position).collect();
             let ranges = robot.scan(&scenario, &others);
             if i == 0 {
-                followed = Some((decision, ranges));
+                scan = Some(Scan {
+                    tick,
+                    sim_time: tick as f64 * scenario.timing.period_s,
+                    command: Some(decision.command),
+                    bumped: decision.outcome.bumped,
+                    ranges,
+                });
             }
         }
         for (i, robot) in robots.iter().enumerate() {
             bodies.saw(i as u32, robot.body.pose.position(), tick);
         }
-        let Some((decision, mut ranges)) = followed else {
-            continue;
-        };
-        let truth = robots[0].body.pose;
-        match filter.as_mut() {
-            None => {
-                mask_bodies(&mut ranges, &truth, &scenario.sensor, bodies.others(0));
-                let mut first = ParticleFilter::new(
-                    truth,
-                    model.clone(),
-                    config.clone(),
-                    scenario.arena.width,
-                    scenario.arena.height,
-                    seed,
-                );
-                first.observe_start(&ranges);
-                filter = Some(first);
-            }
-            Some(filter) => {
-                // As `shoal-slam` does: which beams hit robots is judged
-                // from where the robot stands (see its main).
-                mask_bodies(&mut ranges, &truth, &scenario.sensor, bodies.others(0));
-                let report = filter.step(decision.command, decision.outcome.bumped, &ranges);
-                errors.push(report.estimate.position().distance(truth.position()));
-            }
-        }
+        follower.announced(tick, robots[0].body.pose);
+        let truth = robots[0].body.pose.position();
+        follower
+            .on_scans(scan.into_iter().collect(), &bodies, |step| {
+                errors.push(step.report.estimate.position().distance(truth));
+                Ok::<(), ()>(())
+            })
+            .expect("the callback never fails");
     }
-    Followed {
-        errors,
-        filter: filter.expect("the filter started"),
-    }
+    assert!(follower.filter().is_some(), "the filter started");
+    Followed { errors, follower }
 }
 
 #[test]
@@ -106,7 +95,12 @@ fn in_a_crowd_a_filter_started_with_short_strides_holds_the_robot_and_learns_its
         let followed = follow_in_crowd(20, 150, &short, seed);
         let worst_late = followed.errors[100..].iter().copied().fold(0.0, f64::max);
         let last = followed.errors.last().copied().unwrap_or(f64::NAN);
-        let learned = followed.filter.model().full_stride();
+        let learned = followed
+            .follower
+            .filter()
+            .expect("started")
+            .model()
+            .full_stride();
         eprintln!(
             "seed {seed}: last {last:.2} m, worst of the last 50 steps {worst_late:.2} m; full stride {wrong:.3} -> {learned:.3} m (truth {right:.3})"
         );

@@ -92,7 +92,7 @@ fn run(args: Args) -> Result<()> {
             "real time"
         }
     ))?;
-    let mut check = SampleCheck::for_map(scenario.arena.width, scenario.arena.height, 1.0);
+    let mut check = SampleCheck::for_scenario(&scenario);
     let silent_ticks = (scenario.timing.stale_periods.ceil() as u64).max(1) + 1;
     let started = Instant::now();
     let mut last_flush = Instant::now();
