@@ -722,154 +722,249 @@ fn subsample(segments: &[Segment], count: usize) -> Vec<Segment> {
     segments.iter().step_by(every).cloned().collect()
 }
 
-/// Diagnoses `recording` against `model`.
-pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options) -> Diagnosis {
-    let prepared = prepare(recording, options);
-    let pose_outliers = prepared.pose_outliers;
-    let (grid, segs) = (&prepared.grid, &prepared.segments);
-    let duration = recording.duration();
-    let fixed = model.effects.clone();
-    let plain_residuals = residuals(model, grid, segs);
-    let noise = estimate_noise(model, segs, &plain_residuals);
-    let plain_standardised = standardised(model, &noise, segs, &plain_residuals);
-    let noise_correlation = long_run_factors_of_noise(segs, &plain_standardised);
-    let operating_point = OperatingPoint::of(segs);
-    let located = locate(segs, &plain_standardised, noise_correlation, options.alpha);
+/// What one round of forward selection decided.
+enum Round {
+    /// No candidate lowers the calibrated BIC enough: selection ends.
+    Done,
+    /// The best candidate, and the candidates later rounds may still try.
+    Chosen {
+        chosen: ScopedEffect,
+        delta_bic: f64,
+        /// Rival explanations within 2 of BIC.
+        tied: Vec<(f64, ScopedEffect)>,
+        remaining: Vec<ScopedEffect>,
+    },
+}
 
-    // Candidates are ranked on an even subsample, and only the best few are
-    // fitted on every segment: the cost of a round stops growing with the
-    // length of the run.
-    let screen = subsample(segs, options.screen_segments);
-    let screen_log_n = ((3 * screen.len()).max(2) as f64).ln();
+/// One diagnosis's data and settings, shared by its stages.
+struct Selection<'a> {
+    prepared: &'a Prepared,
+    /// An even subsample of the segments that ranks candidates, so the
+    /// cost of a round stops growing with the length of the run.
+    screen: Vec<Segment>,
+    /// The effects of the model under diagnosis.
+    fixed: Vec<ScopedEffect>,
+    duration: f64,
+    options: &'a Options,
+}
+
+impl Selection<'_> {
+    fn grid(&self) -> &CommandGrid {
+        &self.prepared.grid
+    }
+
+    fn segs(&self) -> &[Segment] {
+        &self.prepared.segments
+    }
+
+    /// One round: candidates are ranked on the screen, the best few fitted
+    /// on every segment (zones edge by edge) and judged with calibrated
+    /// gains; the best may then act in part of the run only.
+    fn round(&self, base: &[ScopedEffect], remaining: &[ScopedEffect]) -> Round {
+        let (grid, segs, options) = (self.grid(), self.segs(), self.options);
+        let base_nll = components_of(grid, segs, base);
+        let screen_current = nll_of(grid, &self.screen, base);
+        let screen_log_n = ((3 * self.screen.len()).max(2) as f64).ln();
+        let screened = fit_all(grid, &self.screen, base, remaining, options.max_iters);
+        // Ranking only: the screen's plain BIC orders the candidates; the
+        // decision below is made on all segments with calibrated gains.
+        let mut ranked: Vec<(f64, ScopedEffect)> = screened
+            .iter()
+            .zip(remaining)
+            .map(|(f, c)| {
+                let gain = 2.0 * (f.nll - screen_current) + extra_params(c) as f64 * screen_log_n;
+                (gain, f.effects[0].clone())
+            })
+            .filter(|(g, _)| *g < 0.0)
+            .collect();
+        ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
+        ranked.truncate(options.confirm);
+        let top: Vec<ScopedEffect> = ranked.into_iter().map(|(_, c)| c).collect();
+        let mut confirmed = fit_all(grid, segs, base, &top, options.max_iters / 2);
+        for fitted in &mut confirmed {
+            let zone = refine_zone(
+                grid,
+                segs,
+                base,
+                fitted.effects[0].clone(),
+                options.max_iters / 2,
+            );
+            if zone != fitted.effects[0] {
+                let effects: Vec<ScopedEffect> =
+                    base.iter().cloned().chain([zone.clone()]).collect();
+                fitted.nll = nll_of(grid, segs, &effects);
+                fitted.effects = vec![zone];
+            }
+        }
+        let Some(best_fit) = confirmed.iter().min_by(|a, b| a.nll.total_cmp(&b.nll)) else {
+            return Round::Done;
+        };
+        let factors = factors_with(grid, segs, base, &best_fit.effects[0]);
+        let judge = |c: &ScopedEffect| calibrated_gain(grid, segs, base_nll, base, c, factors);
+        let mut judged: Vec<(f64, ScopedEffect)> = confirmed
+            .iter()
+            .map(|f| (judge(&f.effects[0]), f.effects[0].clone()))
+            .collect();
+        judged.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let Some((delta_bic, chosen)) = judged.first().cloned() else {
+            return Round::Done;
+        };
+        // Explanations within 2 of BIC are not worth more than a bare
+        // mention apart (Kass and Raftery): one finding, with alternatives.
+        let mut tied: Vec<(f64, ScopedEffect)> = judged[1..]
+            .iter()
+            .filter(|(g, c)| *g < delta_bic + 2.0 && c.effect.kind() != chosen.effect.kind())
+            .cloned()
+            .collect();
+        if delta_bic > -options.min_bic_gain {
+            return Round::Done;
+        }
+        let (chosen, delta_bic) = self.scoped(base, chosen, delta_bic, &judge, &mut tied);
+        let tied_kinds: Vec<&'static str> = tied.iter().map(|(_, c)| c.effect.kind()).collect();
+        // Later rounds only try what helped on its own (an effect that did
+        // not lower the likelihood alone is rarely needed in company), and
+        // never an alternative of what was found: that would name one
+        // mismatch twice.
+        let remaining = remaining
+            .iter()
+            .zip(&screened)
+            .filter(|(c, f)| {
+                let kind = c.effect.kind();
+                f.nll < screen_current - 1.0
+                    && kind != chosen.effect.kind()
+                    && !tied_kinds.contains(&kind)
+            })
+            .map(|(c, _)| c.clone())
+            .collect();
+        Round::Chosen {
+            chosen,
+            delta_bic,
+            tied,
+            remaining,
+        }
+    }
+
+    /// An effect may act in part of the run only. Trying that is not left
+    /// to the locating tests alone: the held-out check that follows keeps a
+    /// narrower scope from fitting noise. A robot that drives into a zone
+    /// and stays there shows a change in time that is as much a change in
+    /// place, so the region it drove in over that span is tried as a zone.
+    fn scoped(
+        &self,
+        base: &[ScopedEffect],
+        chosen: ScopedEffect,
+        delta_bic: f64,
+        judge: &impl Fn(&ScopedEffect) -> f64,
+        tied: &mut Vec<(f64, ScopedEffect)>,
+    ) -> (ScopedEffect, f64) {
+        let (grid, segs, options) = (self.grid(), self.segs(), self.options);
+        let Some(scoped) =
+            narrower_scope(grid, &self.screen, base, &chosen, self.duration, options)
+        else {
+            return (chosen, delta_bic);
+        };
+        let confirm = |candidate: &ScopedEffect| {
+            let full = fit(
+                grid,
+                segs,
+                base,
+                std::slice::from_ref(candidate),
+                options.max_iters / 2,
+            );
+            let fitted = full.effects[0].clone();
+            let gain = judge(&fitted);
+            (fitted, gain)
+        };
+        let (scoped_fit, scoped_gain) = confirm(&scoped);
+        if scoped_gain >= delta_bic - options.min_bic_gain {
+            return (chosen, delta_bic);
+        }
+        if let Some(zone) = zone_of_span(segs, &scoped_fit)
+            && let Some(zone_effect) = Effect::identity("surface_zone", zone)
+        {
+            let (zone_fit, _) = confirm(&ScopedEffect::always(zone_effect));
+            let zone_fit = refine_zone(grid, segs, base, zone_fit, options.max_iters / 2);
+            let zone_gain = judge(&zone_fit);
+            if zone_gain < scoped_gain + 2.0 {
+                tied.push((scoped_gain, scoped_fit));
+                return (zone_fit, zone_gain);
+            }
+        }
+        (scoped_fit, scoped_gain)
+    }
+
+    /// Refits `found` together, then drops any effect the others, refitted,
+    /// do as well without (a turn scale standing in for steering play, once
+    /// the play joined); `evidence` follows index for index.
+    fn refit_and_prune(&self, found: &mut Vec<ScopedEffect>, evidence: &mut Vec<Evidence>) {
+        let (grid, segs, options, fixed) = (self.grid(), self.segs(), self.options, &self.fixed);
+        *found = fit(grid, segs, fixed, found, options.max_iters * 2).effects;
+        let mut k = 0;
+        while found.len() >= 2 && k < found.len() {
+            let others: Vec<ScopedEffect> = found
+                .iter()
+                .enumerate()
+                .filter(|(j, _)| *j != k)
+                .map(|(_, e)| e.clone())
+                .collect();
+            let refit = fit(grid, segs, fixed, &others, options.max_iters);
+            let rest: Vec<ScopedEffect> =
+                fixed.iter().cloned().chain(refit.effects.clone()).collect();
+            let factors = factors_with(grid, segs, &rest, &found[k]);
+            let rest_nll = components_of(grid, segs, &rest);
+            let needed = calibrated_gain(grid, segs, rest_nll, &rest, &found[k], factors);
+            if needed > -options.min_bic_gain {
+                *found = refit.effects;
+                evidence.remove(k);
+            } else {
+                k += 1;
+            }
+        }
+    }
+}
+
+/// What forward selection concluded.
+#[derive(Default)]
+struct Selected {
+    found: Vec<ScopedEffect>,
+    /// What selection learned of each effect in `found`, index for index.
+    evidence: Vec<Evidence>,
+    unexplained: Vec<Unexplained>,
+    rejected_heldout: Vec<&'static str>,
+}
+
+/// Forward selection: round after round, the best candidate enters if its
+/// fit is physical and it predicts held-out time blocks better.
+fn select(selection: &Selection, located: &[Located], at: OperatingPoint) -> Selected {
+    let segs = selection.segs();
+    let mut out = Selected::default();
     // Where the robot goes is explained first, how noisy it is after: a
     // mismatch of the mean (mud, a drift) otherwise passes for noise that
     // grows with speed, and the noise model it leaves behind then judges
     // the true explanation unlikely (feasible GLS orders them the same way).
     let (mean_candidates, noise_candidates): (Vec<ScopedEffect>, Vec<ScopedEffect>) =
-        candidates(&located, segs, duration)
+        candidates(located, segs, selection.duration)
             .into_iter()
             .partition(|c| !c.effect.only_noise());
-    let mut found: Vec<ScopedEffect> = Vec::new();
-    // What selection learned of each effect in `found`, index for index.
-    let mut evidence: Vec<Evidence> = Vec::new();
-    let mut unexplained: Vec<Unexplained> = Vec::new();
-    let mut rejected_heldout: Vec<&'static str> = Vec::new();
     for mut remaining in [mean_candidates, noise_candidates] {
-        while found.len() < options.max_effects && !remaining.is_empty() && segs.len() >= 20 {
-            let base: Vec<ScopedEffect> = fixed.iter().chain(&found).cloned().collect();
-            let base_nll = components_of(grid, segs, &base);
-            let screen_current = nll_of(grid, &screen, &base);
-            let screened = fit_all(grid, &screen, &base, &remaining, options.max_iters);
-            // Ranking only: the screen's plain BIC orders the candidates; the
-            // decision below is made on all segments with calibrated gains.
-            let screen_gain = |f: &Fitted, c: &ScopedEffect| {
-                2.0 * (f.nll - screen_current) + extra_params(c) as f64 * screen_log_n
-            };
-            let mut ranked: Vec<(f64, ScopedEffect)> = screened
-                .iter()
-                .zip(&remaining)
-                .map(|(f, c)| (screen_gain(f, c), f.effects[0].clone()))
-                .filter(|(g, _)| *g < 0.0)
-                .collect();
-            ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
-            ranked.truncate(options.confirm);
-            if ranked.is_empty() {
-                break;
-            }
-            let top: Vec<ScopedEffect> = ranked.into_iter().map(|(_, c)| c).collect();
-            let mut confirmed = fit_all(grid, segs, &base, &top, options.max_iters / 2);
-            for fitted in &mut confirmed {
-                let zone = refine_zone(
-                    grid,
-                    segs,
-                    &base,
-                    fitted.effects[0].clone(),
-                    options.max_iters / 2,
-                );
-                if zone != fitted.effects[0] {
-                    let effects: Vec<ScopedEffect> =
-                        base.iter().cloned().chain([zone.clone()]).collect();
-                    fitted.nll = nll_of(grid, segs, &effects);
-                    fitted.effects = vec![zone];
-                }
-            }
-            let Some(best_fit) = confirmed.iter().min_by(|a, b| a.nll.total_cmp(&b.nll)) else {
+        while out.found.len() < selection.options.max_effects
+            && !remaining.is_empty()
+            && segs.len() >= 20
+        {
+            let base: Vec<ScopedEffect> =
+                selection.fixed.iter().chain(&out.found).cloned().collect();
+            let Round::Chosen {
+                chosen,
+                delta_bic,
+                tied,
+                remaining: next,
+            } = selection.round(&base, &remaining)
+            else {
                 break;
             };
-            let factors = factors_with(grid, segs, &base, &best_fit.effects[0]);
-            let judge = |c: &ScopedEffect| calibrated_gain(grid, segs, base_nll, &base, c, factors);
-            let mut confirmed: Vec<(f64, ScopedEffect)> = confirmed
-                .iter()
-                .map(|f| (judge(&f.effects[0]), f.effects[0].clone()))
-                .collect();
-            confirmed.sort_by(|a, b| a.0.total_cmp(&b.0));
-            let Some((mut delta_bic, mut chosen)) = confirmed.first().cloned() else {
-                break;
-            };
-            // Explanations within 2 of BIC are not worth more than a bare
-            // mention apart (Kass and Raftery): one finding, with alternatives.
-            let mut tied: Vec<(f64, ScopedEffect)> = confirmed[1..]
-                .iter()
-                .filter(|(g, c)| *g < delta_bic + 2.0 && c.effect.kind() != chosen.effect.kind())
-                .cloned()
-                .collect();
-            if delta_bic > -options.min_bic_gain {
-                break;
-            }
-            // An effect may act in part of the run only. Trying that is not
-            // left to the locating tests alone: the held-out check below keeps
-            // a narrower scope from fitting noise.
-            if let Some(scoped) = narrower_scope(grid, &screen, &base, &chosen, duration, options) {
-                let confirm = |candidate: &ScopedEffect| {
-                    let full = fit(
-                        grid,
-                        segs,
-                        &base,
-                        std::slice::from_ref(candidate),
-                        options.max_iters / 2,
-                    );
-                    let fitted = full.effects[0].clone();
-                    let g = judge(&fitted);
-                    (fitted, g)
-                };
-                let (scoped_fit, scoped_gain) = confirm(&scoped);
-                if scoped_gain < delta_bic - options.min_bic_gain {
-                    (chosen, delta_bic) = (scoped_fit, scoped_gain);
-                    // A robot that drives into a zone and stays there shows a speed
-                    // change in time that is as much a change in place: try the
-                    // region it drove in over that span as a surface zone.
-                    if let Some(zone) = zone_of_span(segs, &chosen)
-                        && let Some(zone_effect) = Effect::identity("surface_zone", zone)
-                    {
-                        let (zone_fit, _) = confirm(&ScopedEffect::always(zone_effect));
-                        let zone_fit =
-                            refine_zone(grid, segs, &base, zone_fit, options.max_iters / 2);
-                        let zone_gain = judge(&zone_fit);
-                        if zone_gain < delta_bic + 2.0 {
-                            tied.push((delta_bic, chosen.clone()));
-                            (chosen, delta_bic) = (zone_fit, zone_gain);
-                        }
-                    }
-                }
-            }
-            let tied_kinds: Vec<&'static str> = tied.iter().map(|(_, c)| c.effect.kind()).collect();
-            // Later rounds only try what helped on its own (an effect that did
-            // not lower the likelihood alone is rarely needed in company), and
-            // never an alternative of what was found: that would name one
-            // mismatch twice.
-            remaining = remaining
-                .iter()
-                .zip(&screened)
-                .filter(|(c, f)| {
-                    let kind = c.effect.kind();
-                    f.nll < screen_current - 1.0
-                        && kind != chosen.effect.kind()
-                        && !tied_kinds.contains(&kind)
-                })
-                .map(|(c, _)| c.clone())
-                .collect();
+            remaining = next;
             if let Some(reason) = on_bound(&chosen) {
-                unexplained.push(Unexplained {
+                out.unexplained.push(Unexplained {
                     tried: chosen.effect.kind(),
                     params: chosen.effect.params().into_iter().collect(),
                     reason: format!(
@@ -878,13 +973,13 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
                 });
                 continue;
             }
-            let gain_heldout = heldout_gain(&prepared, &base, &chosen, options);
+            let gain_heldout = heldout_gain(selection.prepared, &base, &chosen, selection.options);
             if !(gain_heldout > 0.0) {
-                rejected_heldout.push(chosen.effect.kind());
+                out.rejected_heldout.push(chosen.effect.kind());
                 continue;
             }
-            found.push(chosen);
-            evidence.push(Evidence {
+            out.found.push(chosen);
+            out.evidence.push(Evidence {
                 delta_bic,
                 heldout_gain: gain_heldout,
                 // An alternative fitted onto a physical edge is no explanation.
@@ -895,49 +990,63 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
                         kind: c.effect.kind(),
                         params: c.effect.params().into_iter().collect(),
                         delta_bic: *g,
-                        sentence: operating_point.sentence(&c.effect, duration),
+                        sentence: at.sentence(&c.effect, selection.duration),
                     })
                     .collect(),
             });
-            // Effects found earlier may now be estimated differently: refit together.
-            let joint = fit(grid, segs, &fixed, &found, options.max_iters * 2);
-            found = joint.effects;
-            // And one found early may no longer be needed once a better
-            // explanation joined (a turn scale standing in for steering play):
-            // drop any effect the others, refitted, do as well without.
-            let mut k = 0;
-            while found.len() >= 2 && k < found.len() {
-                let others: Vec<ScopedEffect> = found
-                    .iter()
-                    .enumerate()
-                    .filter(|(j, _)| *j != k)
-                    .map(|(_, e)| e.clone())
-                    .collect();
-                let refit = fit(grid, segs, &fixed, &others, options.max_iters);
-                let rest: Vec<ScopedEffect> =
-                    fixed.iter().cloned().chain(refit.effects.clone()).collect();
-                let factors = factors_with(grid, segs, &rest, &found[k]);
-                let needed = calibrated_gain(
-                    grid,
-                    segs,
-                    components_of(grid, segs, &rest),
-                    &rest,
-                    &found[k],
-                    factors,
-                );
-                if needed > -options.min_bic_gain {
-                    found = refit.effects;
-                    evidence.remove(k);
-                } else {
-                    k += 1;
-                }
-            }
+            selection.refit_and_prune(&mut out.found, &mut out.evidence);
         }
     }
+    out
+}
+
+/// What the standardised residuals of `model` still follow, strongest first.
+fn residual_covariates_of(
+    model: &UnicycleModel,
+    grid: &CommandGrid,
+    segs: &[Segment],
+) -> Vec<Covariate> {
+    let r = residuals(model, grid, segs);
+    let noise = estimate_noise(model, segs, &r);
+    let z = standardised(model, &noise, segs, &r);
+    covariates::strongest(
+        segs,
+        &z,
+        long_run_factors_of_noise(segs, &z),
+        COVARIATES_REPORTED,
+    )
+}
+
+/// Diagnoses `recording` against `model`.
+pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options) -> Diagnosis {
+    let prepared = prepare(recording, options);
+    let (grid, segs) = (&prepared.grid, &prepared.segments);
+    let duration = recording.duration();
+    let plain_residuals = residuals(model, grid, segs);
+    let noise = estimate_noise(model, segs, &plain_residuals);
+    let plain_standardised = standardised(model, &noise, segs, &plain_residuals);
+    let noise_correlation = long_run_factors_of_noise(segs, &plain_standardised);
+    let operating_point = OperatingPoint::of(segs);
+    let located = locate(segs, &plain_standardised, noise_correlation, options.alpha);
+    let selection = Selection {
+        prepared: &prepared,
+        screen: subsample(segs, options.screen_segments),
+        fixed: model.effects.clone(),
+        duration,
+        options,
+    };
+    let Selected {
+        found,
+        evidence,
+        unexplained,
+        rejected_heldout,
+    } = select(&selection, &located, operating_point);
+    let fixed = &selection.fixed;
+
     let stderr = if found.is_empty() {
         Vec::new()
     } else {
-        fit(grid, segs, &fixed, &found, options.max_iters).stderr
+        fit(grid, segs, fixed, &found, options.max_iters).stderr
     };
     let mut offset = 0;
     let effects: Vec<FoundEffect> = found
@@ -951,32 +1060,21 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
         })
         .collect();
     let final_model = UnicycleModel::with_effects(fixed.iter().chain(&found).cloned().collect());
-    let residual_covariates = {
-        let r = residuals(&final_model, grid, segs);
-        let noise = estimate_noise(&final_model, segs, &r);
-        let z = standardised(&final_model, &noise, segs, &r);
-        covariates::strongest(
-            segs,
-            &z,
-            long_run_factors_of_noise(segs, &z),
-            COVARIATES_REPORTED,
-        )
-    };
-    let (baseline, plain_errors) = heldout(&prepared, &fixed, &[], options);
+    let (baseline, plain_errors) = heldout(&prepared, fixed, &[], options);
     let (improved, improved_errors) = if found.is_empty() {
         (baseline, plain_errors.clone())
     } else {
-        heldout(&prepared, &fixed, &found, options)
+        heldout(&prepared, fixed, &found, options)
     };
     Diagnosis {
         mismatch: !effects.is_empty() || !located.is_empty() || !unexplained.is_empty(),
         located,
         effects,
         unexplained,
-        residual_covariates,
+        residual_covariates: residual_covariates_of(&final_model, grid, segs),
         noise_correlation,
         operating_point,
-        pose_outliers,
+        pose_outliers: prepared.pose_outliers,
         rejected_heldout,
         baseline,
         improved,
