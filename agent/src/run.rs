@@ -34,7 +34,7 @@ pub fn run(options: AgentOptions) -> Result<()> {
         BusLimits::of(&scenario.bus),
     )?;
     let mut cells = CellExchange::new(scenario.bus.cell_size);
-    let roster = RosterPublisher::new(&bus)?;
+    let roster = shoal_broker::roster::publisher(&bus)?;
     let clock = if meta.lockstep {
         Some(ClockListener::new(&bus)?)
     } else {

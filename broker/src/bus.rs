@@ -6,6 +6,7 @@ use iceoryx2::service::port_factory::{
 };
 
 use crate::names;
+use crate::ports::Topic;
 
 #[derive(Debug, thiserror::Error)]
 pub enum BusError {
@@ -104,23 +105,19 @@ impl Bus {
 
     pub(crate) fn publish_subscribe<T: Debug + ZeroCopySend + 'static>(
         &self,
-        name: &str,
-        publishers: usize,
-        subscribers: usize,
-        buffer: usize,
-        history: usize,
+        topic: &Topic,
     ) -> Result<pubsub_factory::PortFactory<ipc::Service, T, ()>, BusError> {
         self.node
-            .service_builder(&Self::service_name(name)?)
+            .service_builder(&Self::service_name(&topic.name)?)
             .publish_subscribe::<T>()
-            .max_publishers(publishers)
-            .max_subscribers(subscribers)
-            .max_nodes(publishers + subscribers)
-            .subscriber_max_buffer_size(buffer)
-            .history_size(history)
+            .max_publishers(topic.publishers)
+            .max_subscribers(topic.subscribers)
+            .max_nodes(topic.publishers + topic.subscribers)
+            .subscriber_max_buffer_size(topic.buffer)
+            .history_size(topic.history)
             .enable_safe_overflow(true)
             .open_or_create()
-            .map_err(|e| BusError::iceoryx(format!("open {name}"), e))
+            .map_err(|e| BusError::iceoryx(format!("open {}", topic.name), e))
     }
 
     pub(crate) fn event(

@@ -5,13 +5,13 @@
 use std::collections::HashMap;
 use std::time::{Duration, Instant};
 
-use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 
 use crate::bus::{Bus, BusError};
 use crate::check::Rejected;
 use crate::names;
+use crate::ports::{Sender, Topic, receive_checked, subscribe};
 use crate::wire::PoseSample;
 
 pub type CellKey = (i32, i32);
@@ -29,7 +29,7 @@ const KEPT_PUBLISHERS: usize = 4;
 pub struct CellExchange {
     cell_size: f64,
     /// Most recent first; the first is the cell the robot stands in.
-    publishers: Vec<(CellKey, Publisher<ipc::Service, PoseSample, ()>)>,
+    publishers: Vec<(CellKey, Sender<PoseSample>)>,
     subscribers: HashMap<CellKey, Subscriber<ipc::Service, PoseSample, ()>>,
     /// Cells whose subscription failed (full), and when: they are retried
     /// only after [`RETRY_AFTER`], since opening a service is costly.
@@ -58,25 +58,14 @@ impl CellExchange {
         )
     }
 
-    fn open(
-        bus: &Bus,
-        key: CellKey,
-    ) -> Result<
-        iceoryx2::service::port_factory::publish_subscribe::PortFactory<
-            ipc::Service,
-            PoseSample,
-            (),
-        >,
-        BusError,
-    > {
-        let limits = bus.limits;
-        bus.publish_subscribe::<PoseSample>(
-            &names::cell(&bus.swarm, key.0, key.1),
-            limits.max_per_cell,
-            limits.cell_subscribers(),
-            CELL_BUFFER,
-            0,
-        )
+    fn topic(bus: &Bus, key: CellKey) -> Topic {
+        Topic {
+            name: names::cell(&bus.swarm, key.0, key.1),
+            publishers: bus.limits.max_per_cell,
+            subscribers: bus.limits.cell_subscribers(),
+            buffer: CELL_BUFFER,
+            history: 0,
+        }
     }
 
     /// Publishes into the cell under the sample's pose, moving to a new cell's
@@ -90,20 +79,13 @@ impl CellExchange {
                 self.publishers.insert(0, entry);
             }
             None => {
-                let service = Self::open(bus, key).inspect_err(|_| self.failures += 1)?;
-                let publisher = service.publisher_builder().create().map_err(|e| {
-                    self.failures += 1;
-                    BusError::iceoryx(format!("publish into cell {key:?}"), e)
-                })?;
+                let publisher = Sender::open(bus, &Self::topic(bus, key))
+                    .inspect_err(|_| self.failures += 1)?;
                 self.publishers.insert(0, (key, publisher));
                 self.publishers.truncate(KEPT_PUBLISHERS);
             }
         }
-        self.publishers[0]
-            .1
-            .send_copy(*sample)
-            .map_err(|e| BusError::iceoryx("send pose", e))?;
-        Ok(())
+        self.publishers[0].1.publish(sample)
     }
 
     /// Listens to every cell within `ring` cells of `center` and to no other.
@@ -125,12 +107,7 @@ impl CellExchange {
                 {
                     continue;
                 }
-                let subscriber = Self::open(bus, key).and_then(|service| {
-                    service
-                        .subscriber_builder()
-                        .create()
-                        .map_err(|e| BusError::iceoryx(format!("listen to cell {key:?}"), e))
-                });
+                let subscriber = subscribe(bus, &Self::topic(bus, key));
                 match subscriber {
                     Ok(subscriber) => {
                         self.failed.remove(&key);
@@ -151,14 +128,7 @@ impl CellExchange {
     /// check to `on_sample`.
     pub fn receive(&self, mut on_sample: impl FnMut(PoseSample)) -> Result<(), BusError> {
         for subscriber in self.subscribers.values() {
-            while let Some(sample) = subscriber
-                .receive()
-                .map_err(|e| BusError::iceoryx("receive pose", e))?
-            {
-                if self.rejected.filter("neighbour pose", &*sample) {
-                    on_sample(*sample);
-                }
-            }
+            receive_checked(subscriber, &self.rejected, "neighbour pose", &mut on_sample)?;
         }
         Ok(())
     }

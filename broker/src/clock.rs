@@ -7,8 +7,6 @@ use core::time::Duration;
 
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
-use iceoryx2::port::publisher::Publisher;
-use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 
 use iceoryx2::port::listener::ListenerWaitError;
@@ -23,24 +21,19 @@ fn waited(result: Result<u64, ListenerWaitError>, what: &str) -> Result<(), BusE
         Err(e) => Err(BusError::iceoryx(what, e)),
     }
 }
-use crate::check::Rejected;
 use crate::names;
+use crate::ports::{Receiver, Sender, Topic};
 use crate::wire::ClockTick;
 
-fn open_ticks(
-    bus: &Bus,
-) -> Result<
-    iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, ClockTick, ()>,
-    BusError,
-> {
+fn ticks(bus: &Bus) -> Topic {
     let limits = bus.limits;
-    bus.publish_subscribe::<ClockTick>(
-        &names::clock(&bus.swarm),
-        2,
-        limits.max_agents + limits.max_observers,
-        2,
-        1,
-    )
+    Topic {
+        name: names::clock(&bus.swarm),
+        publishers: 2,
+        subscribers: limits.max_agents + limits.max_observers,
+        buffer: 2,
+        history: 1,
+    }
 }
 
 fn open_clock_event(
@@ -67,17 +60,14 @@ fn open_ack_event(
 
 /// The clock's side.
 pub struct ClockSource {
-    publisher: Publisher<ipc::Service, ClockTick, ()>,
+    publisher: Sender<ClockTick>,
     notifier: Notifier<ipc::Service>,
     acks: Listener<ipc::Service>,
 }
 
 impl ClockSource {
     pub fn new(bus: &Bus) -> Result<Self, BusError> {
-        let publisher = open_ticks(bus)?
-            .publisher_builder()
-            .create()
-            .map_err(|e| BusError::iceoryx("publish clock", e))?;
+        let publisher = Sender::open(bus, &ticks(bus))?;
         let notifier = open_clock_event(bus)?
             .notifier_builder()
             .create()
@@ -94,9 +84,7 @@ impl ClockSource {
     }
 
     pub fn tick(&self, tick: ClockTick) -> Result<(), BusError> {
-        self.publisher
-            .send_copy(tick)
-            .map_err(|e| BusError::iceoryx("send tick", e))?;
+        self.publisher.publish(&tick)?;
         self.notifier
             .notify()
             .map_err(|e| BusError::iceoryx("notify tick", e))?;
@@ -111,10 +99,9 @@ impl ClockSource {
 
 /// A robot's side.
 pub struct ClockListener {
-    subscriber: Subscriber<ipc::Service, ClockTick, ()>,
+    ticks: Receiver<ClockTick>,
     listener: Listener<ipc::Service>,
     ack: Notifier<ipc::Service>,
-    rejected: Rejected,
     /// The newest tick accepted, to refuse one that leaps impossibly far.
     newest: core::cell::Cell<Option<u64>>,
 }
@@ -126,10 +113,7 @@ const MAX_TICK_LEAP: u64 = 100_000;
 
 impl ClockListener {
     pub fn new(bus: &Bus) -> Result<Self, BusError> {
-        let subscriber = open_ticks(bus)?
-            .subscriber_builder()
-            .create()
-            .map_err(|e| BusError::iceoryx("follow clock", e))?;
+        let ticks = Receiver::open(bus, &ticks(bus), "clock tick")?;
         let listener = open_clock_event(bus)?
             .listener_builder()
             .create()
@@ -139,10 +123,9 @@ impl ClockListener {
             .create()
             .map_err(|e| BusError::iceoryx("acknowledge clock", e))?;
         Ok(Self {
-            subscriber,
+            ticks,
             listener,
             ack,
-            rejected: Rejected::default(),
             newest: core::cell::Cell::new(None),
         })
     }
@@ -150,33 +133,25 @@ impl ClockListener {
     /// The newest valid tick already published, without waiting.
     pub fn latest(&self) -> Result<Option<ClockTick>, BusError> {
         let mut latest = None;
-        while let Some(sample) = self
-            .subscriber
-            .receive()
-            .map_err(|e| BusError::iceoryx("receive tick", e))?
-        {
+        self.ticks.receive(|tick| {
             let leaps = self
                 .newest
                 .get()
-                .is_some_and(|newest| sample.tick > newest.saturating_add(MAX_TICK_LEAP));
+                .is_some_and(|newest| tick.tick > newest.saturating_add(MAX_TICK_LEAP));
             if leaps {
-                self.rejected
-                    .count_one("clock tick", "it leaps too far ahead");
-            } else if self.rejected.filter("clock tick", &*sample) {
-                self.newest.set(Some(
-                    self.newest
-                        .get()
-                        .map_or(sample.tick, |n| n.max(sample.tick)),
-                ));
-                latest = Some(*sample);
+                self.ticks.reject("it leaps too far ahead");
+            } else {
+                let newest = self.newest.get().map_or(tick.tick, |n| n.max(tick.tick));
+                self.newest.set(Some(newest));
+                latest = Some(tick);
             }
-        }
+        })?;
         Ok(latest)
     }
 
     /// Ticks that failed their check since this listener was made.
     pub fn rejected(&self) -> u64 {
-        self.rejected.count()
+        self.ticks.rejected()
     }
 
     /// The newest tick later than `after`, waiting up to `timeout` for one.

@@ -9,6 +9,7 @@ pub mod check;
 pub mod clock;
 pub mod liveness;
 pub mod names;
+pub mod ports;
 pub mod process_main;
 pub mod robot_streams;
 pub mod roster;
@@ -20,6 +21,7 @@ pub use cells::{CellExchange, CellKey};
 pub use check::{Rejected, Rejection, SampleCheck, Wire};
 pub use clock::{ClockListener, ClockSource};
 pub use liveness::{SwarmNode, SwarmNodeState};
+pub use ports::{Receiver, Sender};
 pub use roster::{RosterPublisher, RosterReader};
 pub use runtime::{FollowedReport, SlamReport, SwarmMeta, SwarmRuntime};
 pub use wire::{

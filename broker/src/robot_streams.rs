@@ -4,13 +4,12 @@
 
 use core::fmt::Debug;
 
-use iceoryx2::port::publisher::Publisher;
-use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 
 use crate::bus::{Bus, BusError};
-use crate::check::{Rejected, Wire};
+use crate::check::Wire;
 use crate::names;
+use crate::ports::{Receiver, Sender, Topic};
 use crate::wire::{
     EstimateSample, HelperProgress, ModelUpdate, ScanSample, SlamMap, SlamParticles,
 };
@@ -18,129 +17,75 @@ use crate::wire::{
 /// A follower may fall this many samples behind before the oldest are overwritten.
 const BUFFER: usize = 32;
 
-fn open<T: Debug + ZeroCopySend + 'static>(
+/// One robot's stream, or one helper's: a publisher or two, and the swarm's observers.
+fn topic(bus: &Bus, name: String) -> Topic {
+    Topic {
+        name,
+        publishers: 2,
+        subscribers: bus.limits.max_observers,
+        buffer: BUFFER,
+        history: 0,
+    }
+}
+
+fn sender<T: Debug + ZeroCopySend + Copy + 'static>(
     bus: &Bus,
-    name: &str,
-) -> Result<
-    iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, T, ()>,
-    BusError,
-> {
-    bus.publish_subscribe::<T>(name, 2, bus.limits.max_observers, BUFFER, 0)
+    name: String,
+) -> Result<Sender<T>, BusError> {
+    Sender::open(bus, &topic(bus, name))
 }
 
-/// The sending end of one robot's stream of `T`.
-pub struct StreamPublisher<T: Debug + ZeroCopySend + 'static> {
-    publisher: Publisher<ipc::Service, T, ()>,
-}
-
-impl<T: Debug + ZeroCopySend + Copy + 'static> StreamPublisher<T> {
-    fn new(bus: &Bus, name: &str) -> Result<Self, BusError> {
-        let publisher = open::<T>(bus, name)?
-            .publisher_builder()
-            .create()
-            .map_err(|e| BusError::iceoryx(format!("publish {name}"), e))?;
-        Ok(Self { publisher })
-    }
-
-    pub fn publish(&self, value: &T) -> Result<(), BusError> {
-        self.publisher
-            .send_copy(*value)
-            .map(|_| ())
-            .map_err(|e| BusError::iceoryx("send", e))
-    }
-}
-
-/// The receiving end of one robot's stream of `T`.
-pub struct StreamSubscriber<T: Debug + ZeroCopySend + 'static> {
-    subscriber: Subscriber<ipc::Service, T, ()>,
-    rejected: Rejected,
-}
-
-impl<T: Debug + ZeroCopySend + Copy + Wire + 'static> StreamSubscriber<T> {
-    fn new(bus: &Bus, name: &str) -> Result<Self, BusError> {
-        let subscriber = open::<T>(bus, name)?
-            .subscriber_builder()
-            .create()
-            .map_err(|e| BusError::iceoryx(format!("follow {name}"), e))?;
-        Ok(Self {
-            subscriber,
-            rejected: Rejected::default(),
-        })
-    }
-
-    /// Hands every waiting sample that passes its [`Wire::check`] to `on_value`.
-    pub fn receive(&self, mut on_value: impl FnMut(T)) -> Result<(), BusError> {
-        while let Some(sample) = self
-            .subscriber
-            .receive()
-            .map_err(|e| BusError::iceoryx("receive", e))?
-        {
-            if self.rejected.filter(core::any::type_name::<T>(), &*sample) {
-                on_value(*sample);
-            }
-        }
-        Ok(())
-    }
-
-    /// Samples that failed their check since this subscriber was made.
-    pub fn rejected(&self) -> u64 {
-        self.rejected.count()
-    }
-}
-
-pub fn scan_publisher(bus: &Bus, id: u32) -> Result<StreamPublisher<ScanSample>, BusError> {
-    StreamPublisher::new(bus, &names::scan(&bus.swarm, id))
-}
-
-pub fn scan_subscriber(bus: &Bus, id: u32) -> Result<StreamSubscriber<ScanSample>, BusError> {
-    StreamSubscriber::new(bus, &names::scan(&bus.swarm, id))
-}
-
-pub fn estimate_publisher(bus: &Bus, id: u32) -> Result<StreamPublisher<EstimateSample>, BusError> {
-    StreamPublisher::new(bus, &names::estimate(&bus.swarm, id))
-}
-
-pub fn estimate_subscriber(
+fn receiver<T: Debug + ZeroCopySend + Copy + Wire + 'static>(
     bus: &Bus,
-    id: u32,
-) -> Result<StreamSubscriber<EstimateSample>, BusError> {
-    StreamSubscriber::new(bus, &names::estimate(&bus.swarm, id))
+    name: String,
+) -> Result<Receiver<T>, BusError> {
+    Receiver::open(bus, &topic(bus, name), core::any::type_name::<T>())
 }
 
-pub fn model_publisher(bus: &Bus, id: u32) -> Result<StreamPublisher<ModelUpdate>, BusError> {
-    StreamPublisher::new(bus, &names::model(&bus.swarm, id))
+pub fn scan_publisher(bus: &Bus, id: u32) -> Result<Sender<ScanSample>, BusError> {
+    sender(bus, names::scan(&bus.swarm, id))
 }
 
-pub fn model_subscriber(bus: &Bus, id: u32) -> Result<StreamSubscriber<ModelUpdate>, BusError> {
-    StreamSubscriber::new(bus, &names::model(&bus.swarm, id))
+pub fn scan_subscriber(bus: &Bus, id: u32) -> Result<Receiver<ScanSample>, BusError> {
+    receiver(bus, names::scan(&bus.swarm, id))
 }
 
-pub fn progress_publisher(
-    bus: &Bus,
-    helper: &str,
-) -> Result<StreamPublisher<HelperProgress>, BusError> {
-    StreamPublisher::new(bus, &names::progress(&bus.swarm, helper))
+pub fn estimate_publisher(bus: &Bus, id: u32) -> Result<Sender<EstimateSample>, BusError> {
+    sender(bus, names::estimate(&bus.swarm, id))
 }
 
-pub fn progress_subscriber(
-    bus: &Bus,
-    helper: &str,
-) -> Result<StreamSubscriber<HelperProgress>, BusError> {
-    StreamSubscriber::new(bus, &names::progress(&bus.swarm, helper))
+pub fn estimate_subscriber(bus: &Bus, id: u32) -> Result<Receiver<EstimateSample>, BusError> {
+    receiver(bus, names::estimate(&bus.swarm, id))
 }
 
-pub fn slam_particles_publisher(bus: &Bus) -> Result<StreamPublisher<SlamParticles>, BusError> {
-    StreamPublisher::new(bus, &names::slam_particles(&bus.swarm))
+pub fn model_publisher(bus: &Bus, id: u32) -> Result<Sender<ModelUpdate>, BusError> {
+    sender(bus, names::model(&bus.swarm, id))
 }
 
-pub fn slam_particles_subscriber(bus: &Bus) -> Result<StreamSubscriber<SlamParticles>, BusError> {
-    StreamSubscriber::new(bus, &names::slam_particles(&bus.swarm))
+pub fn model_subscriber(bus: &Bus, id: u32) -> Result<Receiver<ModelUpdate>, BusError> {
+    receiver(bus, names::model(&bus.swarm, id))
 }
 
-pub fn slam_map_publisher(bus: &Bus) -> Result<StreamPublisher<SlamMap>, BusError> {
-    StreamPublisher::new(bus, &names::slam_map(&bus.swarm))
+pub fn progress_publisher(bus: &Bus, helper: &str) -> Result<Sender<HelperProgress>, BusError> {
+    sender(bus, names::progress(&bus.swarm, helper))
 }
 
-pub fn slam_map_subscriber(bus: &Bus) -> Result<StreamSubscriber<SlamMap>, BusError> {
-    StreamSubscriber::new(bus, &names::slam_map(&bus.swarm))
+pub fn progress_subscriber(bus: &Bus, helper: &str) -> Result<Receiver<HelperProgress>, BusError> {
+    receiver(bus, names::progress(&bus.swarm, helper))
+}
+
+pub fn slam_particles_publisher(bus: &Bus) -> Result<Sender<SlamParticles>, BusError> {
+    sender(bus, names::slam_particles(&bus.swarm))
+}
+
+pub fn slam_particles_subscriber(bus: &Bus) -> Result<Receiver<SlamParticles>, BusError> {
+    receiver(bus, names::slam_particles(&bus.swarm))
+}
+
+pub fn slam_map_publisher(bus: &Bus) -> Result<Sender<SlamMap>, BusError> {
+    sender(bus, names::slam_map(&bus.swarm))
+}
+
+pub fn slam_map_subscriber(bus: &Bus) -> Result<Receiver<SlamMap>, BusError> {
+    receiver(bus, names::slam_map(&bus.swarm))
 }

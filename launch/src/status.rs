@@ -6,7 +6,7 @@ use std::time::{Duration, Instant};
 use anyhow::Result;
 use serde::Serialize;
 use shoal_broker::liveness::{SwarmNodeState, swarm_nodes};
-use shoal_broker::{Bus, BusLimits, FollowedReport, PoseSample, RosterReader, SwarmRuntime, names};
+use shoal_broker::{Bus, BusLimits, FollowedReport, PoseSample, SwarmRuntime, names};
 
 #[derive(Debug, Serialize)]
 pub struct AgentStatus {
@@ -43,7 +43,7 @@ pub fn gather(swarm: &str) -> Result<StatusReport> {
     let listen = Duration::from_secs_f64((3.0 * period).clamp(0.3, 3.0));
     let node_name = names::tool_node(swarm, &format!("status-{}", std::process::id()));
     let bus = Bus::join(swarm, &node_name, BusLimits::default())?;
-    let roster = RosterReader::new(&bus)?;
+    let roster = shoal_broker::roster::reader(&bus)?;
     let mut latest: BTreeMap<u32, PoseSample> = BTreeMap::new();
     let started = Instant::now();
     while started.elapsed() < listen {

@@ -8,7 +8,7 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::{Context, Result, bail};
 use shoal_broker::liveness::{SwarmNodeState, remove_dead_nodes, swarm_nodes};
-use shoal_broker::robot_streams::{self, StreamSubscriber};
+use shoal_broker::robot_streams::{self};
 use shoal_broker::{
     Bus, BusLimits, HelperProgress, RosterReader, SampleCheck, SwarmMeta, SwarmRuntime, names,
 };
@@ -57,7 +57,7 @@ struct Pace {
     helper: &'static str,
     /// Ticks the clock may run ahead of this helper.
     lag: u64,
-    progress: StreamSubscriber<HelperProgress>,
+    progress: shoal_broker::Receiver<HelperProgress>,
     tick: Option<u64>,
 }
 
@@ -194,7 +194,7 @@ impl RunningSwarm {
             &names::tool_node(name, "launcher"),
             BusLimits::of(&scenario.bus),
         )?;
-        let roster = RosterReader::new(&bus)?;
+        let roster = shoal_broker::roster::reader(&bus)?;
         let clock = if lockstep {
             Some(LockstepClock::new(&bus, scenario.timing.period_s)?)
         } else {

@@ -131,7 +131,7 @@ pub fn up(options: UpOptions) -> Result<UpSummary> {
                 eprintln!("shoal: {death}");
             }
         }
-        if swarm.running_children() == 0 && swarm.observer.len() == 0 && !swarm.deaths().is_empty()
+        if swarm.running_children() == 0 && swarm.observer.is_empty() && !swarm.deaths().is_empty()
         {
             eprintln!("shoal: every robot of swarm `{}` has stopped", swarm.name);
             break;

@@ -25,9 +25,9 @@ pub fn range_ahead(ranges: &[f64], sensor: &RangeSensor) -> f64 {
 pub fn wander_command(step: u64, ahead: f64, previous: Command) -> Command {
     if ahead < TOO_CLOSE_M || (matches!(previous, Command::Turn(_)) && ahead < CLEAR_M) {
         Command::Turn(2)
-    } else if step % VEER_EVERY == 0 {
+    } else if step.is_multiple_of(VEER_EVERY) {
         // Veer right, then left: both small turns get used.
-        if (step / VEER_EVERY) % 2 == 0 {
+        if (step / VEER_EVERY).is_multiple_of(2) {
             Command::Turn(-1)
         } else {
             Command::Turn(1)

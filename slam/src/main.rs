@@ -10,10 +10,10 @@ use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
 use clap::Parser;
-use shoal_broker::robot_streams::{self, StreamPublisher, StreamSubscriber};
+use shoal_broker::robot_streams;
 use shoal_broker::{
-    Bus, BusLimits, EstimateSample, FollowedReport, HelperProgress, ModelUpdate, RosterReader,
-    ScanSample, SlamReport, SwarmRuntime, names,
+    Bus, BusLimits, EstimateSample, FollowedReport, HelperProgress, ModelUpdate, Receiver,
+    ScanSample, Sender, SlamReport, SwarmRuntime, names,
 };
 use shoal_physics::legged::Param;
 use shoal_physics::{Command, MotionModel, Pose, Scenario};
@@ -62,9 +62,9 @@ fn read_model(path: &PathBuf) -> Result<MotionModel> {
 /// One followed robot: its filter and its streams.
 struct Followed {
     follower: Follower,
-    scans: StreamSubscriber<ScanSample>,
-    estimates: StreamPublisher<EstimateSample>,
-    models: StreamPublisher<ModelUpdate>,
+    scans: Receiver<ScanSample>,
+    estimates: Sender<EstimateSample>,
+    models: Sender<ModelUpdate>,
     last_scan: Option<std::time::Instant>,
 }
 
@@ -102,7 +102,7 @@ fn run(args: Args) -> Result<()> {
         &names::tool_node(&args.swarm, &format!("slam-{}", std::process::id())),
         BusLimits::default(),
     )?;
-    let roster = RosterReader::new(&bus)?;
+    let roster = shoal_broker::roster::reader(&bus)?;
     let particles_out = robot_streams::slam_particles_publisher(&bus)?;
     let maps_out = robot_streams::slam_map_publisher(&bus)?;
     let progress = robot_streams::progress_publisher(&bus, "slam")?;

@@ -6,7 +6,7 @@ use std::process::Command;
 use std::time::{Duration, Instant};
 
 use serde_json::Value;
-use shoal_broker::{Bus, BusLimits, RosterReader, names};
+use shoal_broker::{Bus, BusLimits, names};
 use shoal_e2e::*;
 
 /// What `tests/python/check_recording.py` finds in a recording.
@@ -58,7 +58,7 @@ fn a_recording_holds_the_swarm_as_the_robots_published_it() {
         BusLimits::default(),
     )
     .expect("join");
-    let roster = RosterReader::new(&bus).expect("roster");
+    let roster = shoal_broker::roster::reader(&bus).expect("roster");
     let mut published: HashMap<String, [f64; 2]> = HashMap::new();
     let started = Instant::now();
     while started.elapsed() < Duration::from_secs(6) {

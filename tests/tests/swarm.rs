@@ -255,7 +255,7 @@ fn a_malformed_scenario_names_file_line_and_field() {
 
 #[test]
 fn malformed_bus_samples_are_rejected_and_counted() {
-    use shoal_broker::{Bus, BusLimits, CellExchange, PoseSample, RosterPublisher, names};
+    use shoal_broker::{Bus, BusLimits, CellExchange, PoseSample, names};
     let _turn = serial();
     let mut swarm = BackgroundSwarm::start("e2e-rogue", &["--agents", "8", "--lockstep"]);
     swarm.wait_alive(8, Duration::from_secs(60));
@@ -268,7 +268,7 @@ fn malformed_bus_samples_are_rejected_and_counted() {
         BusLimits::default(),
     )
     .expect("join");
-    let roster = RosterPublisher::new(&bus).expect("roster");
+    let roster = shoal_broker::roster::publisher(&bus).expect("roster");
     let s = status(&swarm.name);
     let target = alive_agents(&s)[0].clone();
     let (x, y) = (

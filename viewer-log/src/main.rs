@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 use clap::Parser;
-use shoal_broker::{Bus, BusLimits, RosterReader, SampleCheck, SwarmRuntime, names};
+use shoal_broker::{Bus, BusLimits, SampleCheck, SwarmRuntime, names};
 use shoal_physics::Scenario;
 use shoal_viewer_log::recorder::Recorder;
 
@@ -53,7 +53,7 @@ fn run(args: Args) -> Result<()> {
         &names::tool_node(&args.swarm, &format!("recorder-{}", std::process::id())),
         BusLimits::default(),
     )?;
-    let roster = RosterReader::new(&bus)?;
+    let roster = shoal_broker::roster::reader(&bus)?;
     let progress = shoal_broker::robot_streams::progress_publisher(&bus, "recorder")?;
     let mut slam_views = shoal_viewer_log::slam::SlamViews::new(&bus)?;
     // Chunks are cut once a second rather than every few milliseconds: each

@@ -5,13 +5,13 @@
 use std::collections::BTreeMap;
 
 use rerun::RecordingStream;
-use shoal_broker::robot_streams::{self, StreamSubscriber};
-use shoal_broker::{Bus, ModelUpdate, SlamMap, SlamParticles};
+use shoal_broker::robot_streams;
+use shoal_broker::{Bus, ModelUpdate, Receiver, SlamMap, SlamParticles};
 
 pub struct SlamViews {
-    particles: StreamSubscriber<SlamParticles>,
-    maps: StreamSubscriber<SlamMap>,
-    models: BTreeMap<u32, StreamSubscriber<ModelUpdate>>,
+    particles: Receiver<SlamParticles>,
+    maps: Receiver<SlamMap>,
+    models: BTreeMap<u32, Receiver<ModelUpdate>>,
     /// The newest tick of each followed robot's SLAM step, for its model updates.
     ticks: BTreeMap<u32, (u64, f64)>,
 }

@@ -9,7 +9,7 @@ use glam::DVec2;
 use rand::{Rng, SeedableRng};
 use serde::Serialize;
 use shoal_broker::robot_streams;
-use shoal_broker::{Bus, BusLimits, RosterReader, names};
+use shoal_broker::{Bus, BusLimits, names};
 use shoal_physics::legged::Param;
 use shoal_physics::{Command, MotionModel, Pose, Scenario, Surface, wrap_angle};
 use shoal_slam::metrics::{CoarseMap, map_error};
@@ -107,7 +107,7 @@ fn run_once(
         &names::tool_node(&name, "learning"),
         BusLimits::default(),
     )?;
-    let roster = RosterReader::new(&bus)?;
+    let roster = shoal_broker::roster::reader(&bus)?;
     let estimates = robot_streams::estimate_subscriber(&bus, 0)?;
     let models = robot_streams::model_subscriber(&bus, 0)?;
     let maps = robot_streams::slam_map_subscriber(&bus)?;
