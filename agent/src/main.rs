@@ -25,7 +25,7 @@ struct Args {
 fn main() -> std::process::ExitCode {
     let args = Args::parse();
     let name = format!("shoal-agent {}", args.id);
-    shoal_broker::process_main::run_main(&name, "info", || {
+    shoal_runtime::process_main::run_main(&name, "info", || {
         run(AgentOptions {
             swarm: args.swarm,
             id: args.id,

@@ -7,9 +7,10 @@ use shoal_broker::liveness::remove_dead_nodes;
 use shoal_broker::robot_streams;
 use shoal_broker::{
     Bus, BusLimits, CellExchange, ClockListener, Health, PoseSample, RosterPublisher, SampleCheck,
-    SwarmRuntime, names,
+    names,
 };
 use shoal_physics::{Pose, Scenario};
+use shoal_runtime::SwarmRuntime;
 
 use crate::member::{Heard, Member};
 use crate::neighbours::NeighbourTable;

@@ -10,10 +10,8 @@ pub mod clock;
 pub mod liveness;
 pub mod names;
 pub mod ports;
-pub mod process_main;
 pub mod robot_streams;
 pub mod roster;
-pub mod runtime;
 pub mod wire;
 
 pub use bus::{Bus, BusError, BusLimits};
@@ -23,7 +21,6 @@ pub use clock::{ClockListener, ClockSource};
 pub use liveness::{SwarmNode, SwarmNodeState};
 pub use ports::{Receiver, Sender};
 pub use roster::{RosterPublisher, RosterReader};
-pub use runtime::{FollowedReport, SlamReport, SwarmMeta, SwarmRuntime};
 pub use wire::{
     ClockTick, EstimateSample, Health, HelperProgress, MAX_BEAMS, MAX_MAP_SIDE, MAX_NEIGHBOURS,
     MAX_SHOWN_PARTICLES, ModelUpdate, PoseSample, ScanSample, SlamMap, SlamParticles,

@@ -8,9 +8,9 @@ const RESTART_GRACE: Duration = Duration::from_secs(5);
 const DOWN_GRACE: Duration = Duration::from_secs(8);
 
 use anyhow::{Context, Result, bail};
-use shoal_broker::SwarmRuntime;
 use shoal_broker::liveness::{SwarmNode, SwarmNodeState, remove_dead_nodes, swarm_nodes};
 use shoal_physics::{Pose, Scenario};
+use shoal_runtime::SwarmRuntime;
 
 use crate::process::{Pinned, Tie, start_agent, stop_processes};
 

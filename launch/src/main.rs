@@ -333,5 +333,5 @@ fn run(cli: Cli) -> Result<()> {
 }
 
 fn main() -> ExitCode {
-    shoal_broker::process_main::run_main("shoal", "warn", || run(Cli::parse()))
+    shoal_runtime::process_main::run_main("shoal", "warn", || run(Cli::parse()))
 }

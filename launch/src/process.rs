@@ -175,10 +175,10 @@ pub fn start_agent(
     swarm: &str,
     id: u32,
     pose: Pose,
-    runtime: &shoal_broker::SwarmRuntime,
+    runtime: &shoal_runtime::SwarmRuntime,
     tie: Tie,
 ) -> Result<Child> {
-    let log_file = runtime.create_log(&shoal_broker::SwarmRuntime::agent_log_name(id))?;
+    let log_file = runtime.create_log(&shoal_runtime::SwarmRuntime::agent_log_name(id))?;
     let mut command = Command::new(sibling_binary("shoal-agent")?);
     command
         .args([

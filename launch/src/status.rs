@@ -6,7 +6,8 @@ use std::time::{Duration, Instant};
 use anyhow::Result;
 use serde::Serialize;
 use shoal_broker::liveness::{SwarmNodeState, swarm_nodes};
-use shoal_broker::{Bus, BusLimits, FollowedReport, PoseSample, SwarmRuntime, names};
+use shoal_broker::{Bus, BusLimits, PoseSample, names};
+use shoal_runtime::{FollowedReport, SwarmRuntime};
 
 #[derive(Debug, Serialize)]
 pub struct AgentStatus {

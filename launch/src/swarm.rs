@@ -9,10 +9,9 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 use anyhow::{Context, Result, bail};
 use shoal_broker::liveness::{SwarmNodeState, remove_dead_nodes, swarm_nodes};
 use shoal_broker::robot_streams::{self};
-use shoal_broker::{
-    Bus, BusLimits, HelperProgress, RosterReader, SampleCheck, SwarmMeta, SwarmRuntime, names,
-};
+use shoal_broker::{Bus, BusLimits, HelperProgress, RosterReader, SampleCheck, names};
 use shoal_physics::{Pose, Scenario};
+use shoal_runtime::{SwarmMeta, SwarmRuntime};
 
 use crate::clock::LockstepClock;
 use crate::observer::Observer;

@@ -12,11 +12,12 @@ use anyhow::{Context, Result, bail};
 use clap::Parser;
 use shoal_broker::robot_streams;
 use shoal_broker::{
-    Bus, BusLimits, EstimateSample, FollowedReport, HelperProgress, ModelUpdate, Receiver,
-    ScanSample, Sender, SlamReport, SwarmRuntime, names,
+    Bus, BusLimits, EstimateSample, HelperProgress, ModelUpdate, Receiver, ScanSample, Sender,
+    names,
 };
 use shoal_physics::legged::Param;
 use shoal_physics::{Command, MotionModel, Pose, Scenario};
+use shoal_runtime::{FollowedReport, SlamReport, SwarmRuntime};
 use shoal_slam::filter::{Bodies, FilterConfig};
 use shoal_slam::follower::{Follower, Scan};
 
@@ -255,5 +256,5 @@ fn report(followed: &BTreeMap<u32, Followed>, initial: &MotionModel) -> SlamRepo
 const MAP_EVERY_STEPS: u64 = 10;
 
 fn main() -> std::process::ExitCode {
-    shoal_broker::process_main::run_main("shoal-slam", "info", || run(Args::parse()))
+    shoal_runtime::process_main::run_main("shoal-slam", "info", || run(Args::parse()))
 }

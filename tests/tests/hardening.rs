@@ -70,7 +70,7 @@ fn a_robot_that_fails_is_reported_with_its_log_and_fails_the_run() {
         .expect("robot 1");
     // Robot 1 cannot note its last pose on the way out (a folder stands
     // where its file goes), so its exit fails: a real error exit.
-    let runtime = shoal_broker::SwarmRuntime::locate(name);
+    let runtime = shoal_runtime::SwarmRuntime::locate(name);
     let pose = runtime.dir.join("agent-1.pose");
     let _ = std::fs::remove_file(&pose);
     std::fs::create_dir(&pose).expect("block the pose file");
@@ -215,7 +215,7 @@ fn a_lockstep_swarm_ends_when_its_launcher_is_killed_and_shoal_down_stops_the_re
         "robots still alive after shoal down:\n{said}"
     );
     assert_eq!(residue(name), (0, vec![]), "nodes or services left behind");
-    assert!(!shoal_broker::SwarmRuntime::locate(name).dir.exists());
+    assert!(!shoal_runtime::SwarmRuntime::locate(name).dir.exists());
     std::fs::remove_dir_all(&dir).expect("cleanup");
 }
 

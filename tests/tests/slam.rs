@@ -96,7 +96,7 @@ fn slam_pauses_with_its_robot_and_the_swarm_outlives_slam() {
     });
     assert!(resumed, "the filter did not resume: {}", status(&name));
 
-    let slam_pid = shoal_broker::SwarmRuntime::locate(&name)
+    let slam_pid = shoal_runtime::SwarmRuntime::locate(&name)
         .read_slam_report()
         .expect("a SLAM report")
         .pid as i32;

@@ -349,7 +349,7 @@ fn a_real_time_swarm_keeps_going_when_shoal_up_is_killed() {
         "e2e-orphans"
     ))
     .is_empty()));
-    let _ = std::fs::remove_dir_all(shoal_broker::SwarmRuntime::locate("e2e-orphans").dir);
+    let _ = std::fs::remove_dir_all(shoal_runtime::SwarmRuntime::locate("e2e-orphans").dir);
     drop(swarm);
 }
 

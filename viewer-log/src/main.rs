@@ -7,8 +7,9 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 use clap::Parser;
-use shoal_broker::{Bus, BusLimits, SampleCheck, SwarmRuntime, names};
+use shoal_broker::{Bus, BusLimits, SampleCheck, names};
 use shoal_physics::Scenario;
+use shoal_runtime::SwarmRuntime;
 use shoal_viewer_log::recorder::Recorder;
 
 /// The recording is flushed to disk at least this often, so a recorder killed
@@ -174,5 +175,5 @@ fn live_url(
 }
 
 fn main() -> std::process::ExitCode {
-    shoal_broker::process_main::run_main("shoal-viewer-log", "warn", || run(Args::parse()))
+    shoal_runtime::process_main::run_main("shoal-viewer-log", "warn", || run(Args::parse()))
 }
