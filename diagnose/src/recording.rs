@@ -173,30 +173,44 @@ impl Recording {
         }
     }
 
-    /// The run as the two CSV files diagnosis reads: commands (`t,v,omega`)
-    /// and poses (`t,x,y,theta`, headings wrapped).
+    /// The run as the two CSV files diagnosis reads (see [`csv_lines`]).
     pub fn to_csv(&self) -> (String, String) {
-        use std::fmt::Write as _;
         let c = &self.commands;
-        let mut commands = String::from("t,v,omega\n");
+        let mut commands = String::from(csv_lines::COMMANDS_HEADER);
         for i in 0..c.t.len() {
-            let _ = writeln!(commands, "{:.3},{:.6},{:.6}", c.t[i], c.v[i], c.omega[i]);
+            commands.push_str(&csv_lines::command(c.t[i], c.v[i], c.omega[i]));
         }
         let p = &self.poses;
-        let mut poses = String::from("t,x,y,theta\n");
+        let mut poses = String::from(csv_lines::POSES_HEADER);
         for i in 0..p.t.len() {
-            let theta = wrap_angle(p.theta[i]);
-            let _ = writeln!(
-                poses,
-                "{:.4},{:.6},{:.6},{theta:.6}",
-                p.t[i], p.x[i], p.y[i]
-            );
+            poses.push_str(&csv_lines::pose(p.t[i], p.x[i], p.y[i], p.theta[i]));
         }
         (commands, poses)
     }
 
     pub fn duration(&self) -> f64 {
         self.commands.t.last().copied().unwrap_or(0.0)
+    }
+}
+
+/// The lines of the two CSV files diagnosis reads: one home for their
+/// format, for [`Recording::to_csv`] and for the recorder that writes them
+/// as a swarm runs.
+pub mod csv_lines {
+    use shoal_physics::wrap_angle;
+
+    /// Commands: time, forward speed (m/s), turn rate (rad/s).
+    pub const COMMANDS_HEADER: &str = "t,v,omega\n";
+    /// Poses: time, position (m), heading (rad).
+    pub const POSES_HEADER: &str = "t,x,y,theta\n";
+
+    pub fn command(t: f64, v: f64, omega: f64) -> String {
+        format!("{t:.3},{v:.6},{omega:.6}\n")
+    }
+
+    /// A pose line; the heading is wrapped to (-pi, pi].
+    pub fn pose(t: f64, x: f64, y: f64, theta: f64) -> String {
+        format!("{t:.4},{x:.6},{y:.6},{:.6}\n", wrap_angle(theta))
     }
 }
 

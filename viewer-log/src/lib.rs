@@ -2,6 +2,8 @@
 
 pub mod arena;
 pub mod motion;
+pub mod presence;
 pub mod recorder;
+pub mod run_files;
 pub mod slam;
 pub mod tum;
