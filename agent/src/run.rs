@@ -9,7 +9,7 @@ use shoal_broker::{
     Bus, BusLimits, CellExchange, ClockListener, Health, PoseSample, RosterPublisher, SampleCheck,
     names,
 };
-use shoal_physics::{Pose, Scenario};
+use shoal_physics::Pose;
 use shoal_runtime::SwarmRuntime;
 
 use crate::member::{Heard, Member};
@@ -27,7 +27,7 @@ pub struct AgentOptions {
 
 pub fn run(options: AgentOptions) -> Result<()> {
     let runtime = SwarmRuntime::locate(&options.swarm);
-    let scenario = Scenario::from_file(&runtime.scenario_path())?;
+    let scenario = runtime.read_scenario()?;
     let meta = runtime.read_meta()?;
     let bus = Bus::join(
         &options.swarm,

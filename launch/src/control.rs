@@ -65,7 +65,7 @@ fn open_swarm(swarm: &str) -> Result<(SwarmRuntime, Scenario)> {
     runtime
         .read_meta()
         .with_context(|| format!("swarm `{swarm}` was not started with `shoal up`"))?;
-    let scenario = Scenario::from_file(&runtime.scenario_path())?;
+    let scenario = runtime.read_scenario()?;
     Ok((runtime, scenario))
 }
 

@@ -124,7 +124,7 @@ fn block_in_the_middle(
 /// The scenario file given, or the demo's own.
 pub fn demo_scenario(path: Option<&Path>) -> Result<Scenario> {
     Ok(match path {
-        Some(path) => Scenario::from_file(path)?,
+        Some(path) => shoal_runtime::read_scenario(path)?,
         None => Scenario::from_toml(DEMO_SCENARIO, "scenarios/demo.toml")?,
     })
 }

@@ -62,7 +62,7 @@ pub struct UpSummary {
 
 pub fn load_scenario(path: Option<&PathBuf>) -> Result<Scenario> {
     Ok(match path {
-        Some(path) => Scenario::from_file(path)?,
+        Some(path) => shoal_runtime::read_scenario(path)?,
         None => Scenario::default_arena(),
     })
 }

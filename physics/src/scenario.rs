@@ -1,7 +1,6 @@
 //! Scenarios: the arena, the robots and the formation parameters, read from TOML.
 
 use std::fmt;
-use std::path::Path;
 
 use glam::DVec2;
 use rand::{Rng, SeedableRng};
@@ -235,18 +234,6 @@ impl Scenario {
             slam: SlamSection::default(),
             motion: MotionModel::legged_default(),
         }
-    }
-
-    /// Reads and checks a scenario file.
-    pub fn from_file(path: &Path) -> Result<Self, ScenarioError> {
-        let file = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| ScenarioError {
-            file: file.clone(),
-            line: None,
-            field: None,
-            message: format!("cannot read: {e}"),
-        })?;
-        Self::from_toml(&text, &file)
     }
 
     /// Parses and checks scenario text; `file` names it in errors.

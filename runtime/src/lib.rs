@@ -1,8 +1,33 @@
 //! What every Shoal process shares beside the bus: the swarm's runtime
 //! folder (its scenario, clock mode, robots' last poses, SLAM's report) and
-//! the frame of every binary.
+//! the frame of every binary. Reading files is here, so `shoal-physics`
+//! stays free of I/O.
 
 pub mod folder;
 pub mod process_main;
 
+use std::path::Path;
+
+use shoal_physics::{Scenario, scenario::ScenarioError};
+
 pub use folder::{FollowedReport, SlamReport, SwarmMeta, SwarmRuntime};
+
+/// Reads and checks a scenario file; errors name the file (and the line
+/// and field, for what is in it).
+pub fn read_scenario(path: &Path) -> Result<Scenario, ScenarioError> {
+    let file = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|e| ScenarioError {
+        file: file.clone(),
+        line: None,
+        field: None,
+        message: format!("cannot read: {e}"),
+    })?;
+    Scenario::from_toml(&text, &file)
+}
+
+impl SwarmRuntime {
+    /// The scenario the swarm runs.
+    pub fn read_scenario(&self) -> Result<Scenario, ScenarioError> {
+        read_scenario(&self.scenario_path())
+    }
+}

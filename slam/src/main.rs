@@ -16,7 +16,7 @@ use shoal_broker::{
     names,
 };
 use shoal_physics::legged::Param;
-use shoal_physics::{Command, MotionModel, Pose, Scenario};
+use shoal_physics::{Command, MotionModel, Pose};
 use shoal_runtime::{FollowedReport, SlamReport, SwarmRuntime};
 use shoal_slam::filter::{Bodies, FilterConfig};
 use shoal_slam::follower::{Follower, Scan};
@@ -88,7 +88,7 @@ fn run(args: Args) -> Result<()> {
     let from_file = args.initial_model.as_ref().map(read_model).transpose()?;
     let runtime = SwarmRuntime::locate(&args.swarm);
     runtime.read_meta()?;
-    let scenario = Scenario::from_file(&runtime.scenario_path())?;
+    let scenario = runtime.read_scenario()?;
     let initial = from_file.unwrap_or_else(|| scenario.motion.clone());
     // The map has (arena / grid)^2 cells per particle: a cell far below a
     // centimetre would ask for more memory than any machine has.

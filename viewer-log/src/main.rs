@@ -8,7 +8,6 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result};
 use clap::Parser;
 use shoal_broker::{Bus, BusLimits, SampleCheck, names};
-use shoal_physics::Scenario;
 use shoal_runtime::SwarmRuntime;
 use shoal_viewer_log::recorder::Recorder;
 
@@ -48,7 +47,7 @@ struct Args {
 fn run(args: Args) -> Result<()> {
     let runtime = SwarmRuntime::locate(&args.swarm);
     let meta = runtime.read_meta()?;
-    let scenario = Scenario::from_file(&runtime.scenario_path())?;
+    let scenario = runtime.read_scenario()?;
     let bus = Bus::join(
         &args.swarm,
         &names::tool_node(&args.swarm, &format!("recorder-{}", std::process::id())),
