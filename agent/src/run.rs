@@ -142,7 +142,7 @@ pub fn run(options: AgentOptions) -> Result<()> {
                 match remove_dead_nodes(&options.swarm) {
                     Ok(0) => {}
                     Ok(n) => tracing::info!("removed the stale resources of {n} dead nodes"),
-                    Err(e) => tracing::warn!("{e}"),
+                    Err(e) => tracing::warn!("{:#}", anyhow::Error::from(e)),
                 }
             }
         }
@@ -174,7 +174,7 @@ impl Listening {
             Ok(()) => {}
             Err(e) if !self.failing => {
                 self.failing = true;
-                tracing::warn!("{e}; retrying every period");
+                tracing::warn!("{:#}; retrying every period", anyhow::Error::from(e));
             }
             Err(_) => {}
         }
@@ -191,7 +191,7 @@ fn publish(
         // A full cell hides this robot from its neighbours this period; it
         // says so in its health and tries again next period.
         sample.health |= Health::CELL_FULL;
-        tracing::warn!("{e}");
+        tracing::warn!("{:#}", anyhow::Error::from(e));
     }
     roster.publish(sample)?;
     Ok(())

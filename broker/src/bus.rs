@@ -12,15 +12,23 @@ use crate::ports::Topic;
 pub enum BusError {
     #[error("invalid swarm name `{0}`: use letters, digits, `-` and `_` (at most 32)")]
     InvalidSwarm(String),
-    #[error("bus: {what}: {detail}")]
-    Iceoryx { what: String, detail: String },
+    /// What iceoryx2 refused, with its own error as the source (shown by
+    /// `{:#}` of an `anyhow::Error`, or by walking `source()`).
+    #[error("bus: {what}")]
+    Iceoryx {
+        what: String,
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
 }
 
 impl BusError {
-    pub fn iceoryx(what: impl Into<String>, detail: impl Debug) -> Self {
+    pub fn iceoryx(
+        what: impl Into<String>,
+        source: impl std::error::Error + Send + Sync + 'static,
+    ) -> Self {
         Self::Iceoryx {
             what: what.into(),
-            detail: format!("{detail:?}"),
+            source: Box::new(source),
         }
     }
 }
