@@ -1,23 +1,28 @@
 //! Reports of experiments and benchmarks: JSON, or a Markdown table of their one list of records.
 
-/// Prints `report` as JSON, or its one list of records as a Markdown table.
-pub fn print(report: &impl serde::Serialize, json: bool) -> anyhow::Result<()> {
-    let value = serde_json::to_value(report)?;
-    if json {
-        println!("{value}");
-        return Ok(());
+use serde_json::Value;
+
+/// A record's fields, nested objects flattened into dotted names
+/// (`learning.pos_rmse_m`), so every cell of the table is one value.
+fn flattened(prefix: &str, value: &Value, out: &mut Vec<(String, Value)>) {
+    match value {
+        Value::Object(fields) => {
+            for (key, field) in fields {
+                let name = if prefix.is_empty() {
+                    key.clone()
+                } else {
+                    format!("{prefix}.{key}")
+                };
+                flattened(&name, field, out);
+            }
+        }
+        other => out.push((prefix.to_owned(), other.clone())),
     }
-    let records = value
-        .as_object()
-        .and_then(|o| o.values().find_map(|v| v.as_array()))
-        .cloned()
-        .unwrap_or_default();
-    let Some(first) = records.first().and_then(|r| r.as_object()) else {
-        return Ok(());
-    };
-    let columns: Vec<&String> = first.keys().collect();
-    let cell = |v: &serde_json::Value| match v {
-        serde_json::Value::Number(n) => n.as_f64().map_or_else(
+}
+
+fn cell(value: Option<&Value>) -> String {
+    match value {
+        Some(Value::Number(n)) => n.as_f64().map_or_else(
             || n.to_string(),
             |f| {
                 if f.fract() == 0.0 {
@@ -27,21 +32,51 @@ pub fn print(report: &impl serde::Serialize, json: bool) -> anyhow::Result<()> {
                 }
             },
         ),
-        serde_json::Value::Null => "-".to_owned(),
-        serde_json::Value::String(s) => s.clone(),
-        other => other.to_string(),
-    };
-    println!(
-        "| {} |",
-        columns
-            .iter()
-            .map(|c| c.as_str())
-            .collect::<Vec<_>>()
-            .join(" | ")
-    );
+        None | Some(Value::Null) => "-".to_owned(),
+        Some(Value::String(s)) => s.clone(),
+        Some(other) => other.to_string(),
+    }
+}
+
+/// Prints `report` as JSON, or its one list of records as a Markdown table:
+/// one column per field any record has, `name` first.
+pub fn print(report: &impl serde::Serialize, json: bool) -> anyhow::Result<()> {
+    let value = serde_json::to_value(report)?;
+    if json {
+        println!("{value}");
+        return Ok(());
+    }
+    let records: Vec<Vec<(String, Value)>> = value
+        .as_object()
+        .and_then(|o| o.values().find_map(|v| v.as_array()))
+        .into_iter()
+        .flatten()
+        .map(|record| {
+            let mut fields = Vec::new();
+            flattened("", record, &mut fields);
+            fields
+        })
+        .collect();
+    let mut columns: Vec<&str> = Vec::new();
+    for (name, _) in records.iter().flatten() {
+        if !columns.contains(&name.as_str()) {
+            columns.push(name);
+        }
+    }
+    if columns.is_empty() {
+        return Ok(());
+    }
+    if let Some(at) = columns.iter().position(|c| *c == "name") {
+        let name = columns.remove(at);
+        columns.insert(0, name);
+    }
+    println!("| {} |", columns.join(" | "));
     println!("|{}", "---|".repeat(columns.len()));
     for record in &records {
-        let cells: Vec<String> = columns.iter().map(|c| cell(&record[c.as_str()])).collect();
+        let cells: Vec<String> = columns
+            .iter()
+            .map(|c| cell(record.iter().find(|(name, _)| name == c).map(|(_, v)| v)))
+            .collect();
         println!("| {} |", cells.join(" | "));
     }
     Ok(())

@@ -195,36 +195,53 @@ fn run_once(
     Ok(Outcome { scores, learned })
 }
 
-/// Runs a case with learning on and off.
-fn both(
-    label: &str,
-    index: &mut usize,
-    scenario: &Scenario,
-    initial: &MotionModel,
+/// The runs of the experiment, numbered in order (each its own swarm).
+struct Runs {
+    next: usize,
     particles: usize,
     seconds: f64,
-) -> Result<(Outcome, Outcome)> {
-    *index += 2;
-    Ok((
+}
+
+impl Runs {
+    fn once(
+        &mut self,
+        label: &str,
+        scenario: &Scenario,
+        initial: &MotionModel,
+        learning: bool,
+        particles: usize,
+    ) -> Result<Outcome> {
+        self.next += 1;
         run_once(
             label,
-            *index - 2,
+            self.next - 1,
             scenario,
             initial,
-            true,
+            learning,
             particles,
-            seconds,
-        )?,
-        run_once(
-            label,
-            *index - 1,
-            scenario,
-            initial,
-            false,
-            particles,
-            seconds,
-        )?,
-    ))
+            self.seconds,
+        )
+    }
+
+    /// A case with learning on and off, with `particles` per filter.
+    fn both_with(
+        &mut self,
+        label: &str,
+        scenario: &Scenario,
+        initial: &MotionModel,
+        particles: usize,
+    ) -> Result<(Outcome, Outcome)> {
+        Ok((
+            self.once(label, scenario, initial, true, particles)?,
+            self.once(label, scenario, initial, false, particles)?,
+        ))
+    }
+
+    /// A case with learning on and off, one row of the report.
+    fn case(&mut self, label: &str, scenario: &Scenario, initial: &MotionModel) -> Result<Case> {
+        let (on, off) = self.both_with(label, scenario, initial, self.particles)?;
+        Ok(case(label, self.particles, &on, &off))
+    }
 }
 
 fn mean_scores(all: &[Scores]) -> Scores {
@@ -266,34 +283,43 @@ fn case(name: &str, particles: usize, on: &Outcome, off: &Outcome) -> Case {
 }
 
 pub fn run(seconds: f64, perturbed_runs: u64, particles: usize) -> Result<Report> {
-    let mut cases = Vec::new();
-    let mut index = 0;
-    let base = room(1);
-    let truth = base.motion.clone();
-
-    // (1) The correct model.
-    let (on, off) = both(
-        "correct-model",
-        &mut index,
-        &base,
-        &truth,
+    let mut runs = Runs {
+        next: 0,
         particles,
         seconds,
-    )?;
-    cases.push(case("correct-model", particles, &on, &off));
+    };
+    let base = room(1);
+    let truth = base.motion.clone();
+    let mut cases = vec![runs.case("correct-model", &base, &truth)?];
+    cases.push(perturbed_models(&mut runs, &truth, perturbed_runs)?);
 
-    // (2) Perturbed initial models.
+    // turn(1) believed to be turn(2).
+    let mut initial = truth.clone();
+    *initial.command_mut(Command::Turn(1)) = *truth.command(Command::Turn(2));
+    cases.push(runs.case("turn1-as-turn2", &base, &initial)?);
+
+    // The floor changes half-way: strides 40% shorter, turns 20% wider.
+    let mut changing = base.clone();
+    changing.arena.surfaces.push(floor(0.6, 1.2, seconds / 2.0));
+    cases.push(runs.case("surface-change", &changing, &truth)?);
+
+    cases.push(model_transfer(&mut runs, &base, &truth)?);
+    cases.extend(fewest_particles(&mut runs, &base, &truth)?);
+    Ok(Report { cases })
+}
+
+/// Initial models perturbed at random: how close learning brings walk(2)'s
+/// stride and turn(2)'s turn to the truth.
+fn perturbed_models(runs: &mut Runs, truth: &MotionModel, count: u64) -> Result<Case> {
     let (mut on_all, mut off_all, mut walk, mut turn) =
         (Vec::new(), Vec::new(), Vec::new(), Vec::new());
-    for seed in 1..=perturbed_runs {
-        let initial = perturbed(&truth, seed);
-        let (on, off) = both(
+    for seed in 1..=count {
+        let initial = perturbed(truth, seed);
+        let (on, off) = runs.both_with(
             &format!("perturbed-{seed}"),
-            &mut index,
             &room(seed),
             &initial,
-            particles,
-            seconds,
+            runs.particles,
         )?;
         walk.push(
             on.learned.command(Command::Walk(2)).d.mean()
@@ -316,14 +342,14 @@ pub fn run(seconds: f64, perturbed_runs: u64, particles: usize) -> Result<Report
     };
     let (walk_mean, walk_sd) = spread(&walk);
     let (turn_mean, turn_sd) = spread(&turn);
-    let initial_error = (1..=perturbed_runs)
-        .map(|s| perturbed(&truth, s).distance_over(&truth, &USED))
+    let initial_error = (1..=count)
+        .map(|s| perturbed(truth, s).distance_over(truth, &USED))
         .sum::<f64>()
-        / perturbed_runs.max(1) as f64;
-    cases.push(Case {
+        / count.max(1) as f64;
+    Ok(Case {
         name: "perturbed-models".into(),
-        particles,
-        runs: perturbed_runs as usize,
+        particles: runs.particles,
+        runs: count as usize,
         learning: mean_scores(&on_all),
         no_learning: mean_scores(&off_all),
         details: BTreeMap::from([
@@ -333,61 +359,23 @@ pub fn run(seconds: f64, perturbed_runs: u64, particles: usize) -> Result<Report
             ("learned_turn2_t_mean_over_true".into(), turn_mean),
             ("learned_turn2_t_mean_over_true_sd".into(), turn_sd),
         ]),
-    });
+    })
+}
 
-    // (3) turn(1) believed to be turn(2).
-    let mut initial = truth.clone();
-    *initial.command_mut(Command::Turn(1)) = *truth.command(Command::Turn(2));
-    let (on, off) = both(
-        "turn1-as-turn2",
-        &mut index,
-        &base,
-        &initial,
-        particles,
-        seconds,
-    )?;
-    cases.push(case("turn1-as-turn2", particles, &on, &off));
-
-    // (4) The floor changes half-way: strides 40% shorter, turns 20% wider.
-    let mut changing = base.clone();
-    changing.arena.surfaces.push(floor(0.6, 1.2, seconds / 2.0));
-    let (on, off) = both(
-        "surface-change",
-        &mut index,
-        &changing,
-        &truth,
-        particles,
-        seconds,
-    )?;
-    cases.push(case("surface-change", particles, &on, &off));
-
-    // (5) A model learned on one robot, used for another that moves differently.
+/// A model learned on one robot, used for another that moves differently.
+fn model_transfer(runs: &mut Runs, base: &Scenario, truth: &MotionModel) -> Result<Case> {
     let mut other = base.clone();
     other.arena.surfaces.push(floor(0.8, 1.25, 0.0));
     let mut first = base.clone();
     first.agents.seed = 7;
-    let donor = run_once(
-        "transfer-donor",
-        index,
-        &first,
-        &truth,
-        true,
-        particles,
-        seconds,
-    )?;
-    index += 1;
-    let (on, off) = both(
-        "model-transfer",
-        &mut index,
-        &other,
-        &donor.learned,
-        particles,
-        seconds,
-    )?;
-    cases.push(case("model-transfer", particles, &on, &off));
+    let donor = runs.once("transfer-donor", &first, truth, true, runs.particles)?;
+    runs.case("model-transfer", &other, &donor.learned)
+}
 
-    // (6) The fewest particles that keep the pose error under the threshold,
-    // starting from a model whose turns are 1.5 times too large.
+/// The fewest particles that keep the pose error under the threshold,
+/// starting from a model whose turns are 1.5 times too large: one row per
+/// particle count tried, then the summary.
+fn fewest_particles(runs: &mut Runs, base: &Scenario, truth: &MotionModel) -> Result<Vec<Case>> {
     let mut wide = truth.clone();
     for command in Command::ALL {
         if matches!(command, Command::Turn(_)) {
@@ -395,17 +383,11 @@ pub fn run(seconds: f64, perturbed_runs: u64, particles: usize) -> Result<Report
             m.t = m.t.scaled(1.5);
         }
     }
+    let mut cases = Vec::new();
     let (mut fewest_on, mut fewest_off) = (None, None);
     let mut scores_at: BTreeMap<usize, (Scores, Scores)> = BTreeMap::new();
     for count in [25, 50, 100, 200, 500] {
-        let (on, off) = both(
-            &format!("fewest-{count}"),
-            &mut index,
-            &base,
-            &wide,
-            count,
-            seconds,
-        )?;
+        let (on, off) = runs.both_with(&format!("fewest-{count}"), base, &wide, count)?;
         if fewest_on.is_none() && on.scores.pos_rmse_m < POSE_THRESHOLD_M {
             fewest_on = Some(count);
         }
@@ -438,5 +420,5 @@ pub fn run(seconds: f64, perturbed_runs: u64, particles: usize) -> Result<Report
             ("fewest_without_learning".into(), as_number(fewest_off)),
         ]),
     });
-    Ok(Report { cases })
+    Ok(cases)
 }
