@@ -4,13 +4,14 @@
 //! killed and later restarted; at the end `shoal diagnose` reads the demo's
 //! own recording and names the floor the robots' model does not know.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
 use glam::DVec2;
 use serde::Serialize;
-use shoal_physics::metrics::centroid;
+use shoal_physics::metrics::{centroid, formation_metrics};
 use shoal_physics::{MotionModel, Pose, Scenario, Surface};
 
 use crate::swarm::RecordOptions;
@@ -121,12 +122,205 @@ fn block_in_the_middle(
     by_distance
 }
 
+/// The demo's healing act, free of I/O: when to kill a block of robots in
+/// the middle of the swarm, when the hole they leave has closed, when to
+/// restart them where they fell, and when the swarm is whole again.
+struct Healing {
+    kill_at: f64,
+    spread: f64,
+    /// Robots never killed (SLAM's).
+    spared: Vec<u32>,
+    killed_at: Option<f64>,
+    down: Vec<(u32, Pose)>,
+    hole: DVec2,
+    hole_radius: f64,
+    restarted_at: Option<f64>,
+    hole_closed_s: Option<f64>,
+    whole_again_s: Option<f64>,
+}
+
+/// What the healing act asks of the swarm.
+#[derive(Debug, PartialEq)]
+enum Act {
+    Kill(Vec<u32>),
+    /// The hole closed after so many seconds.
+    HoleClosed(f64),
+    Restart(Vec<(u32, Pose)>),
+}
+
+impl Healing {
+    fn new(kill_at: f64, spread: f64, spared: Vec<u32>) -> Self {
+        Self {
+            kill_at,
+            spread,
+            spared,
+            killed_at: None,
+            down: Vec::new(),
+            hole: DVec2::ZERO,
+            hole_radius: 0.0,
+            restarted_at: None,
+            hole_closed_s: None,
+            whole_again_s: None,
+        }
+    }
+
+    fn killed(&self) -> Vec<u32> {
+        self.down.iter().map(|(id, _)| *id).collect()
+    }
+
+    /// One look at the swarm at sim time `now`: `robots` is every robot
+    /// heard, `expected` how many the swarm should have.
+    fn step(&mut self, now: f64, robots: &[(u32, Pose)], expected: usize) -> Option<Act> {
+        let positions: Vec<DVec2> = robots.iter().map(|(_, p)| p.position()).collect();
+        let Some(killed_at) = self.killed_at else {
+            if now < self.kill_at {
+                return None;
+            }
+            let candidates: Vec<(u32, Pose)> = robots
+                .iter()
+                .filter(|(id, _)| !self.spared.contains(id))
+                .copied()
+                .collect();
+            self.down = block_in_the_middle(&positions, &candidates, KILLED);
+            if self.down.is_empty() {
+                return None;
+            }
+            let spacing = formation_metrics(&positions, self.spread).spacing_ratio * self.spread;
+            self.hole_radius = HOLE_CLOSED_SPACINGS * spacing;
+            let fallen: Vec<DVec2> = self.down.iter().map(|(_, p)| p.position()).collect();
+            self.hole = centroid(&fallen);
+            self.killed_at = Some(now);
+            return Some(Act::Kill(self.killed()));
+        };
+        let Some(restarted_at) = self.restarted_at else {
+            let in_hole = robots
+                .iter()
+                .filter(|(id, _)| !self.down.iter().any(|(d, _)| d == id))
+                .any(|(_, p)| p.position().distance(self.hole) <= self.hole_radius);
+            if self.hole_closed_s.is_none() && in_hole {
+                self.hole_closed_s = Some(now - killed_at);
+                return Some(Act::HoleClosed(now - killed_at));
+            }
+            if now >= killed_at + DOWN_S {
+                self.restarted_at = Some(now);
+                return Some(Act::Restart(self.down.clone()));
+            }
+            return None;
+        };
+        if self.whole_again_s.is_none()
+            && robots.len() == expected
+            && formation_metrics(&positions, self.spread).components == 1
+        {
+            self.whole_again_s = Some(now - restarted_at);
+        }
+        None
+    }
+}
+
 /// The scenario file given, or the demo's own.
 pub fn demo_scenario(path: Option<&Path>) -> Result<Scenario> {
     Ok(match path {
         Some(path) => shoal_runtime::read_scenario(path)?,
         None => Scenario::from_toml(DEMO_SCENARIO, "scenarios/demo.toml")?,
     })
+}
+
+/// How SLAM did for robot `id`: its mean error over the first and last
+/// seconds of a run ending at `end` (from `errors`: sim time, robot,
+/// error), and the full stride it started from, learned, and the truth on
+/// a floor that scales strides by `floor`.
+fn slam_progress(
+    id: u32,
+    followed: Option<&shoal_runtime::FollowedReport>,
+    errors: &[(f64, u32, f64)],
+    end: f64,
+    truth: &MotionModel,
+    floor: f64,
+) -> SlamProgress {
+    let mean_error = |from: f64, to: f64| {
+        let within: Vec<f64> = errors
+            .iter()
+            .filter(|(t, r, _)| *r == id && *t >= from && *t <= to)
+            .map(|(_, _, e)| *e)
+            .collect();
+        within.iter().sum::<f64>() / within.len().max(1) as f64
+    };
+    SlamProgress {
+        robot: id,
+        early_error_m: mean_error(0.0, SLAM_WINDOW_S),
+        late_error_m: mean_error(end - SLAM_WINDOW_S, end),
+        model_distance: followed.map(|f| f.model_distance),
+        stride_start_m: short_strides(truth, STRIDE_ERROR).full_stride(),
+        stride_learned_m: followed.and_then(|f| f.stride_m),
+        stride_true_m: truth.full_stride() * floor,
+    }
+}
+
+/// Starts the demo's swarm, its recorder, and SLAM following its robots
+/// from strides too short.
+fn launch(options: &DemoOptions, scenario: &Scenario) -> Result<RunningSwarm> {
+    let follow = &scenario.slam.follow;
+    let mut swarm = RunningSwarm::launch(&options.swarm, scenario.clone(), false)?;
+    swarm.record(&RecordOptions::file(&options.out, None))?;
+    if !follow.is_empty() {
+        let model_path = swarm.runtime.dir.join("demo-initial-model.toml");
+        let wrong = short_strides(&scenario.motion, STRIDE_ERROR);
+        std::fs::write(&model_path, toml::to_string(&wrong)?)
+            .with_context(|| format!("writing {}", model_path.display()))?;
+        swarm.follow_with_slam(
+            follow,
+            &["--initial-model".into(), model_path.display().to_string()],
+        )?;
+    }
+    eprintln!(
+        "shoal demo: {} robots forming in real time for {:.0} s, recorded into {}; a SLAM process follows robots {:?} from strides {:.0}% too short",
+        scenario.agents.count,
+        options.seconds,
+        options.out.display(),
+        follow,
+        STRIDE_ERROR * 100.0
+    );
+    Ok(swarm)
+}
+
+/// Does what the healing act asks, and says so.
+fn carry_out(swarm: &mut RunningSwarm, now: f64, act: Act) -> Result<()> {
+    match act {
+        Act::Kill(ids) => {
+            for id in &ids {
+                swarm.signal_robot(*id, libc::SIGKILL)?;
+                swarm.observer.forget(*id);
+            }
+            eprintln!("shoal demo: t {now:.0} s: SIGKILL to robots {ids:?}");
+        }
+        Act::HoleClosed(after) => {
+            eprintln!("shoal demo: t {now:.0} s: the hole closed after {after:.1} s");
+        }
+        Act::Restart(down) => {
+            for (id, pose) in &down {
+                swarm.start(*id, *pose)?;
+            }
+            let ids: Vec<u32> = down.iter().map(|(id, _)| *id).collect();
+            eprintln!("shoal demo: t {now:.0} s: robots {ids:?} restarted where they fell");
+        }
+    }
+    Ok(())
+}
+
+/// (now, robot, position error) of each followed robot SLAM's report has
+/// an estimate of.
+fn slam_errors_now(swarm: &RunningSwarm, now: f64) -> Vec<(f64, u32, f64)> {
+    swarm
+        .runtime
+        .read_slam_report()
+        .into_iter()
+        .flat_map(|r| r.followed)
+        .filter_map(|followed| {
+            let [x, y, _] = followed.estimate?;
+            let truth = swarm.observer.get(followed.id)?;
+            Some((now, followed.id, (x - truth.x).hypot(y - truth.y)))
+        })
+        .collect()
 }
 
 pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
@@ -141,37 +335,13 @@ pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
     }
     let follow: Vec<u32> = scenario.slam.follow.clone();
     let spread = scenario.formation.spread;
-    let mut swarm = RunningSwarm::launch(&options.swarm, scenario.clone(), false)?;
-    swarm.record(&RecordOptions::file(&options.out, None))?;
-    if !follow.is_empty() {
-        let model_path = swarm.runtime.dir.join("demo-initial-model.toml");
-        let wrong = short_strides(&scenario.motion, STRIDE_ERROR);
-        std::fs::write(&model_path, toml::to_string(&wrong)?)
-            .with_context(|| format!("writing {}", model_path.display()))?;
-        swarm.follow_with_slam(
-            &follow,
-            &["--initial-model".into(), model_path.display().to_string()],
-        )?;
-    }
-    eprintln!(
-        "shoal demo: {} robots forming in real time for {:.0} s, recorded into {}; a SLAM process follows robots {:?} from strides {:.0}% too short",
-        scenario.agents.count,
-        options.seconds,
-        options.out.display(),
-        follow,
-        STRIDE_ERROR * 100.0
-    );
+    let mut swarm = launch(options, &scenario)?;
     let mut summary = DemoSummary {
         recording: options.out.clone(),
         ..DemoSummary::default()
     };
-    let kill_at = KILL_AT * options.seconds;
-    let mut killed_at: Option<f64> = None;
-    let mut down: Vec<(u32, Pose)> = Vec::new();
-    let mut hole = DVec2::ZERO;
-    let mut hole_radius = 0.0;
-    let mut restarted_at: Option<f64> = None;
-    let mut on_floor: std::collections::BTreeMap<u32, f64> = Default::default();
+    let mut healing = Healing::new(KILL_AT * options.seconds, spread, follow.clone());
+    let mut on_floor: BTreeMap<u32, f64> = BTreeMap::new();
     // (sim time, robot, position error) of the followed robots.
     let mut slam_errors: Vec<(f64, u32, f64)> = Vec::new();
     let mut last_tick = 0;
@@ -199,81 +369,15 @@ pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
         // SLAM's estimates reach the launcher through its report (once a second).
         if last_slam_read.elapsed() >= Duration::from_secs(1) {
             last_slam_read = std::time::Instant::now();
-            for followed in swarm
-                .runtime
-                .read_slam_report()
-                .into_iter()
-                .flat_map(|r| r.followed)
-            {
-                if let (Some([x, y, _]), Some(truth)) =
-                    (followed.estimate, swarm.observer.get(followed.id))
-                {
-                    slam_errors.push((now, followed.id, (x - truth.x).hypot(y - truth.y)));
-                }
-            }
+            slam_errors.extend(slam_errors_now(&swarm, now));
         }
-        if killed_at.is_none() && now >= kill_at {
-            // SLAM's robots are spared.
-            let positions: Vec<DVec2> = swarm
-                .observer
-                .samples()
-                .map(|s| DVec2::new(s.x, s.y))
-                .collect();
-            let candidates: Vec<(u32, Pose)> = swarm
-                .observer
-                .samples()
-                .filter(|s| !follow.contains(&s.agent_id))
-                .map(|s| (s.agent_id, Pose::new(s.x, s.y, s.theta)))
-                .collect();
-            down = block_in_the_middle(&positions, &candidates, KILLED);
-            if down.is_empty() {
-                bail!("no robot to kill: the swarm is empty");
-            }
-            hole_radius =
-                HOLE_CLOSED_SPACINGS * swarm.observer.metrics(spread).spacing_ratio * spread;
-            hole = centroid(&down.iter().map(|(_, p)| p.position()).collect::<Vec<_>>());
-            for (id, _) in &down {
-                swarm.signal_robot(*id, libc::SIGKILL)?;
-                swarm.observer.forget(*id);
-            }
-            summary.killed = down.iter().map(|(id, _)| *id).collect();
-            eprintln!(
-                "shoal demo: t {now:.0} s: SIGKILL to robots {:?}",
-                summary.killed
-            );
-            killed_at = Some(now);
-        }
-        if let Some(at) = killed_at {
-            if summary.hole_closed_s.is_none()
-                && restarted_at.is_none()
-                && swarm
-                    .observer
-                    .samples()
-                    .any(|s| DVec2::new(s.x, s.y).distance(hole) <= hole_radius)
-            {
-                summary.hole_closed_s = Some(now - at);
-                eprintln!(
-                    "shoal demo: t {now:.0} s: the hole closed after {:.1} s",
-                    now - at
-                );
-            }
-            if restarted_at.is_none() && now >= at + DOWN_S {
-                for (id, pose) in &down {
-                    swarm.start(*id, *pose)?;
-                }
-                eprintln!(
-                    "shoal demo: t {now:.0} s: robots {:?} restarted where they fell",
-                    summary.killed
-                );
-                restarted_at = Some(now);
-            }
-        }
-        if let Some(at) = restarted_at
-            && summary.whole_again_s.is_none()
-            && swarm.observer.len() == scenario.agents.count
-            && swarm.observer.metrics(spread).components == 1
-        {
-            summary.whole_again_s = Some(now - at);
+        let robots: Vec<(u32, Pose)> = swarm
+            .observer
+            .samples()
+            .map(|s| (s.agent_id, Pose::new(s.x, s.y, s.theta)))
+            .collect();
+        if let Some(act) = healing.step(now, &robots, scenario.agents.count) {
+            carry_out(&mut swarm, now, act)?;
         }
         if last_line.elapsed() >= Duration::from_secs(10) {
             last_line = std::time::Instant::now();
@@ -284,13 +388,16 @@ pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
             );
         }
     }
+    summary.killed = healing.killed();
+    summary.hole_closed_s = healing.hole_closed_s;
+    summary.whole_again_s = healing.whole_again_s;
     let metrics = swarm.observer.metrics(spread);
     (summary.robots, summary.groups, summary.spacing_ratio) =
         (metrics.agents, metrics.components, metrics.spacing_ratio);
     let slam_report = swarm.runtime.read_slam_report();
     let end = swarm.sim_time();
     // The true stride is the floor's: where each followed robot stands at the end.
-    let floor_scale: std::collections::BTreeMap<u32, f64> = follow
+    let floor_scale: BTreeMap<u32, f64> = follow
         .iter()
         .filter_map(|id| swarm.observer.get(*id).map(|s| (*id, DVec2::new(s.x, s.y))))
         .map(|(id, at)| {
@@ -302,29 +409,16 @@ pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
         })
         .collect();
     swarm.shutdown()?;
-    for id in &follow {
-        let followed = slam_report
-            .as_ref()
-            .and_then(|r| r.followed.iter().find(|f| f.id == *id));
-        let mean_error = |from: f64, to: f64| {
-            let errors: Vec<f64> = slam_errors
-                .iter()
-                .filter(|(t, r, _)| r == id && *t >= from && *t <= to)
-                .map(|(_, _, e)| *e)
-                .collect();
-            errors.iter().sum::<f64>() / errors.len().max(1) as f64
-        };
-        summary.slam.push(SlamProgress {
-            robot: *id,
-            early_error_m: mean_error(0.0, SLAM_WINDOW_S),
-            late_error_m: mean_error(end - SLAM_WINDOW_S, end),
-            model_distance: followed.map(|f| f.model_distance),
-            stride_start_m: short_strides(&scenario.motion, STRIDE_ERROR).full_stride(),
-            stride_learned_m: followed.and_then(|f| f.stride_m),
-            stride_true_m: scenario.motion.full_stride()
-                * floor_scale.get(id).copied().unwrap_or(1.0),
-        });
-    }
+    summary.slam = follow
+        .iter()
+        .map(|id| {
+            let followed = slam_report
+                .as_ref()
+                .and_then(|r| r.followed.iter().find(|f| f.id == *id));
+            let floor = floor_scale.get(id).copied().unwrap_or(1.0);
+            slam_progress(*id, followed, &slam_errors, end, &scenario.motion, floor)
+        })
+        .collect();
     let mut walkers: Vec<(u32, f64)> = on_floor
         .into_iter()
         .filter(|(id, _)| !summary.killed.contains(id))
