@@ -6,10 +6,10 @@ use anyhow::{Context, Result};
 use shoal_broker::liveness::remove_dead_nodes;
 use shoal_broker::robot_streams;
 use shoal_broker::{
-    Bus, BusLimits, CellExchange, ClockListener, Health, PoseSample, RosterPublisher, SampleCheck,
-    names,
+    Bus, BusLimits, CellExchange, ClockListener, EstimateSample, Health, ModelUpdate, PoseSample,
+    Receiver, RosterPublisher, SampleCheck, ScanSample, Sender, names,
 };
-use shoal_physics::Pose;
+use shoal_physics::{Pose, Scenario};
 use shoal_runtime::SwarmRuntime;
 
 use crate::member::{Heard, Member};
@@ -29,27 +29,9 @@ pub fn run(options: AgentOptions) -> Result<()> {
     let runtime = SwarmRuntime::locate(&options.swarm);
     let scenario = runtime.read_scenario()?;
     let meta = runtime.read_meta()?;
-    let bus = Bus::join(
-        &options.swarm,
-        &names::agent_node(&options.swarm, options.id),
-        BusLimits::of(&scenario.bus),
-    )?;
-    let mut cells = CellExchange::new(scenario.bus.cell_size);
-    let roster = shoal_broker::roster::publisher(&bus)?;
-    let clock = if meta.lockstep {
-        Some(ClockListener::new(&bus)?)
-    } else {
-        None
-    };
-    let mut check = SampleCheck::for_scenario(&scenario);
     let pid = std::process::id();
     let mut member = Member::new(options.id, options.start, &scenario, pid);
-    let scans = robot_streams::scan_publisher(&bus, options.id)?;
-    let model_updates = robot_streams::model_subscriber(&bus, options.id)?;
-    let estimates = robot_streams::estimate_subscriber(&bus, options.id)?;
-    let mut table = NeighbourTable::new(options.id);
-    let period = Duration::from_secs_f64(scenario.timing.period_s);
-    let stale_after = period.mul_f64(scenario.timing.stale_periods);
+    let mut ports = Ports::open(&options, &scenario, meta.lockstep)?;
     tracing::info!(
         id = options.id,
         pid,
@@ -57,82 +39,53 @@ pub fn run(options: AgentOptions) -> Result<()> {
         "robot joined swarm {}",
         options.swarm
     );
+    let period_s = scenario.timing.period_s;
+    let stale_after = Duration::from_secs_f64(period_s * scenario.timing.stale_periods);
 
-    let mut last = member.standing(0, scenario.timing.period_s);
-    let mut listening = Listening::default();
-    listening.update(&bus, &mut cells, &last, member.range.listen_ring);
-    if let Some(clock) = &clock {
+    let mut last = member.standing(0, period_s);
+    ports.listen(&last, member.range.listen_ring);
+    if let Some(clock) = &ports.clock {
         // Announce ourselves so the clock waits for us from the next tick on.
-        last = member.standing(
-            clock.latest()?.map_or(0, |t| t.tick),
-            scenario.timing.period_s,
-        );
-        publish(&bus, &mut cells, &roster, &mut last)?;
-        clock.acknowledge()?;
+        last = member.standing(clock.latest()?.map_or(0, |t| t.tick), period_s);
+        ports.say(&mut last)?;
     }
-
     // In lockstep a robot's first tick only republishes where it stands: robots
     // that announced themselves before it subscribed were not heard, but every
     // robot hears everyone's first-tick pose, so all views agree from then on.
-    let mut settled = clock.is_none();
+    let mut settled = ports.clock.is_none();
     let mut last_housekeeping = Instant::now();
     let mut dead_suspected = false;
-    while !bus.termination_requested() {
-        let (tick, sim_time) = match &clock {
+    while !ports.bus.termination_requested() {
+        let (tick, sim_time) = match &ports.clock {
             Some(clock) => match clock.wait_after(last.tick, Duration::from_millis(100))? {
                 Some(t) => (t.tick, t.sim_time),
                 None => continue,
             },
-            None => wait_for_next_period(meta.epoch_unix_ms, scenario.timing.period_s, last.tick),
+            None => wait_for_next_period(meta.epoch_unix_ms, period_s, last.tick),
         };
         if !settled {
             settled = true;
             (last.tick, last.sim_time) = (tick, sim_time);
-            publish(&bus, &mut cells, &roster, &mut last)?;
-            if let Some(clock) = &clock {
-                clock.acknowledge()?;
-            }
+            ports.say(&mut last)?;
             continue;
         }
-        let now = Instant::now();
-        cells.receive(|sample| {
-            if check.accept(&sample) {
-                table.insert(sample, now);
-            }
-        })?;
-        let (current, dropped) = if clock.is_some() {
-            table.lockstep_view(tick)
-        } else {
-            table.realtime_view(now, stale_after)
-        };
-        // What a SLAM process learned about this robot replaces its own
-        // guesses; subscribers pass only what passes its wire check.
-        model_updates.receive(|update| member.learn(&update))?;
-        estimates.receive(|estimate| member.correct(&estimate))?;
-        let rejected = check.rejected
-            + cells.rejected()
-            + model_updates.rejected()
-            + estimates.rejected()
-            + clock.as_ref().map_or(0, |c| c.rejected());
+        let (current, dropped) = ports.hear(tick, stale_after, &mut member)?;
         let heard = Heard {
             tick,
             sim_time,
             current: &current,
             dropped: &dropped,
-            rejected,
+            rejected: ports.rejected(),
         };
         let said = member.period(&heard, &last, &scenario);
         if !said.died_nearby.is_empty() {
             tracing::info!(died_nearby = ?said.died_nearby, "dropped robots that fell silent nearby");
             dead_suspected = true;
         }
-        scans.publish(&said.scan)?;
+        ports.scans.publish(&said.scan)?;
         last = said.pose;
-        publish(&bus, &mut cells, &roster, &mut last)?;
-        if let Some(clock) = &clock {
-            clock.acknowledge()?;
-        }
-        listening.update(&bus, &mut cells, &last, member.range.listen_ring);
+        ports.say(&mut last)?;
+        ports.listen(&last, member.range.listen_ring);
         if last_housekeeping.elapsed() >= HOUSEKEEPING_PERIOD {
             last_housekeeping = Instant::now();
             if let Err(e) = runtime.write_last_pose(options.id, [last.x, last.y, last.theta]) {
@@ -152,6 +105,99 @@ pub fn run(options: AgentOptions) -> Result<()> {
         .context("noting the last pose on the way out")?;
     tracing::info!(id = options.id, tick = last.tick, "robot left the swarm");
     Ok(())
+}
+
+/// A robot's ports on the bus, and what it keeps of what it heard.
+struct Ports {
+    bus: Bus,
+    cells: CellExchange,
+    roster: RosterPublisher,
+    clock: Option<ClockListener>,
+    scans: Sender<ScanSample>,
+    model_updates: Receiver<ModelUpdate>,
+    estimates: Receiver<EstimateSample>,
+    check: SampleCheck,
+    table: NeighbourTable,
+    listening: Listening,
+}
+
+impl Ports {
+    fn open(options: &AgentOptions, scenario: &Scenario, lockstep: bool) -> Result<Self> {
+        let bus = Bus::join(
+            &options.swarm,
+            &names::agent_node(&options.swarm, options.id),
+            BusLimits::of(&scenario.bus),
+        )?;
+        Ok(Self {
+            cells: CellExchange::new(scenario.bus.cell_size),
+            roster: shoal_broker::roster::publisher(&bus)?,
+            clock: lockstep.then(|| ClockListener::new(&bus)).transpose()?,
+            scans: robot_streams::scan_publisher(&bus, options.id)?,
+            model_updates: robot_streams::model_subscriber(&bus, options.id)?,
+            estimates: robot_streams::estimate_subscriber(&bus, options.id)?,
+            check: SampleCheck::for_scenario(scenario),
+            table: NeighbourTable::new(options.id),
+            listening: Listening::default(),
+            bus,
+        })
+    }
+
+    /// The neighbour poses current for `tick` and those that fell silent;
+    /// what SLAM sent goes to `member`.
+    fn hear(
+        &mut self,
+        tick: u64,
+        stale_after: Duration,
+        member: &mut Member,
+    ) -> Result<(Vec<PoseSample>, Vec<PoseSample>)> {
+        let now = Instant::now();
+        let (check, table) = (&mut self.check, &mut self.table);
+        self.cells.receive(|sample| {
+            if check.accept(&sample) {
+                table.insert(sample, now);
+            }
+        })?;
+        // What a SLAM process learned about this robot replaces its own
+        // guesses; receivers pass only what passes its wire check.
+        self.model_updates.receive(|update| member.learn(&update))?;
+        self.estimates
+            .receive(|estimate| member.correct(&estimate))?;
+        Ok(if self.clock.is_some() {
+            self.table.lockstep_view(tick)
+        } else {
+            self.table.realtime_view(now, stale_after)
+        })
+    }
+
+    /// Bus input rejected so far, by every check of this robot.
+    fn rejected(&self) -> u64 {
+        self.check.rejected
+            + self.cells.rejected()
+            + self.model_updates.rejected()
+            + self.estimates.rejected()
+            + self.clock.as_ref().map_or(0, |c| c.rejected())
+    }
+
+    /// Publishes `pose` to the cell and the roster, and acknowledges the
+    /// tick in lockstep. A full cell hides this robot from its neighbours
+    /// this period; it says so in its health and tries again next period.
+    fn say(&mut self, pose: &mut PoseSample) -> Result<()> {
+        if let Err(e) = self.cells.publish(&self.bus, pose) {
+            pose.health |= Health::CELL_FULL;
+            tracing::warn!("{:#}", anyhow::Error::from(e));
+        }
+        self.roster.publish(pose)?;
+        if let Some(clock) = &self.clock {
+            clock.acknowledge()?;
+        }
+        Ok(())
+    }
+
+    /// Listens to the cells within `ring` of the cell `pose` stands in.
+    fn listen(&mut self, pose: &PoseSample, ring: u32) {
+        self.listening
+            .update(&self.bus, &mut self.cells, pose, ring);
+    }
 }
 
 /// Whether listening to the cells around works; said once when it starts
@@ -179,22 +225,6 @@ impl Listening {
             Err(_) => {}
         }
     }
-}
-
-fn publish(
-    bus: &Bus,
-    cells: &mut CellExchange,
-    roster: &RosterPublisher,
-    sample: &mut PoseSample,
-) -> Result<()> {
-    if let Err(e) = cells.publish(bus, sample) {
-        // A full cell hides this robot from its neighbours this period; it
-        // says so in its health and tries again next period.
-        sample.health |= Health::CELL_FULL;
-        tracing::warn!("{:#}", anyhow::Error::from(e));
-    }
-    roster.publish(sample)?;
-    Ok(())
 }
 
 /// Sleeps until the next period boundary of the swarm's shared clock and
