@@ -13,13 +13,13 @@ use clap::Parser;
 use shoal_broker::robot_streams;
 use shoal_broker::{
     Bus, BusLimits, EstimateSample, HelperProgress, ModelUpdate, Receiver, ScanSample, Sender,
-    names,
+    SlamMap, SlamParticles, names,
 };
 use shoal_physics::legged::Param;
 use shoal_physics::{Command, MotionModel, Pose};
 use shoal_runtime::{FollowedReport, SlamReport, SwarmRuntime};
 use shoal_slam::filter::{Bodies, FilterConfig};
-use shoal_slam::follower::{Follower, Scan};
+use shoal_slam::follower::{Follower, Scan, Stepped};
 
 #[derive(Parser)]
 #[command(
@@ -72,6 +72,37 @@ struct Followed {
 const MIN_GRID_M: f64 = 0.01;
 const MAX_GRID_M: f64 = 1.0;
 
+/// What viewers see of SLAM.
+struct Views {
+    particles: Sender<SlamParticles>,
+    maps: Sender<SlamMap>,
+}
+
+impl Views {
+    /// Particles after every step; a map every [`MAP_EVERY_STEPS`].
+    fn publish(&self, id: u32, step: &Stepped<'_>) -> Result<()> {
+        self.particles.publish(&view::particles(id, step))?;
+        if step.steps % MAP_EVERY_STEPS == 1 {
+            self.maps.publish(&view::map(id, step))?;
+        }
+        Ok(())
+    }
+}
+
+/// A step's pose estimate as the robot receives it.
+fn estimate_of(id: u32, step: &Stepped<'_>) -> EstimateSample {
+    let estimate = step.report.estimate;
+    EstimateSample {
+        agent_id: id,
+        reserved: 0,
+        tick: step.tick,
+        x: estimate.x,
+        y: estimate.y,
+        theta: estimate.theta,
+        effective_particles: step.report.effective_particles,
+    }
+}
+
 /// A scan as the filter takes it.
 fn scan_of(sample: &ScanSample) -> Scan {
     Scan {
@@ -81,6 +112,38 @@ fn scan_of(sample: &ScanSample) -> Scan {
         bumped: sample.bumped != 0,
         ranges: sample.ranges().iter().map(|r| f64::from(*r)).collect(),
     }
+}
+
+/// A follower and its streams for each robot `--follow` names.
+fn follow(
+    bus: &Bus,
+    args: &Args,
+    scenario: &shoal_physics::Scenario,
+    initial: &MotionModel,
+) -> Result<BTreeMap<u32, Followed>> {
+    let config = FilterConfig {
+        particles: args.particles.max(1),
+        cell_size: args.grid,
+        learning: args.learning == Learning::On,
+        window: args.window as usize,
+        sensor: scenario.sensor.clone(),
+        ..FilterConfig::default()
+    };
+    let arena = [scenario.arena.width, scenario.arena.height];
+    args.follow
+        .iter()
+        .map(|&id| {
+            let robot = Followed {
+                // Seeded by the id, so runs repeat.
+                follower: Follower::new(id, u64::from(id), initial.clone(), config.clone(), arena),
+                scans: robot_streams::scan_subscriber(bus, id)?,
+                estimates: robot_streams::estimate_publisher(bus, id)?,
+                models: robot_streams::model_publisher(bus, id)?,
+                last_scan: None,
+            };
+            Ok((id, robot))
+        })
+        .collect()
 }
 
 fn run(args: Args) -> Result<()> {
@@ -104,32 +167,12 @@ fn run(args: Args) -> Result<()> {
         BusLimits::default(),
     )?;
     let roster = shoal_broker::roster::reader(&bus)?;
-    let particles_out = robot_streams::slam_particles_publisher(&bus)?;
-    let maps_out = robot_streams::slam_map_publisher(&bus)?;
-    let progress = robot_streams::progress_publisher(&bus, "slam")?;
-    let config = FilterConfig {
-        particles: args.particles.max(1),
-        cell_size: args.grid,
-        learning: args.learning == Learning::On,
-        window: args.window as usize,
-        sensor: scenario.sensor.clone(),
-        ..FilterConfig::default()
+    let views = Views {
+        particles: robot_streams::slam_particles_publisher(&bus)?,
+        maps: robot_streams::slam_map_publisher(&bus)?,
     };
-    let arena = [scenario.arena.width, scenario.arena.height];
-    let mut followed: BTreeMap<u32, Followed> = BTreeMap::new();
-    for &id in &args.follow {
-        followed.insert(
-            id,
-            Followed {
-                // Seeded by the id, so runs repeat.
-                follower: Follower::new(id, u64::from(id), initial.clone(), config.clone(), arena),
-                scans: robot_streams::scan_subscriber(&bus, id)?,
-                estimates: robot_streams::estimate_publisher(&bus, id)?,
-                models: robot_streams::model_publisher(&bus, id)?,
-                last_scan: None,
-            },
-        );
-    }
+    let progress = robot_streams::progress_publisher(&bus, "slam")?;
+    let mut followed = follow(&bus, &args, &scenario, &initial)?;
     tracing::info!(follow = ?args.follow, learning = ?args.learning, "SLAM following");
     let mut newest_roster: u64 = 0;
     let mut last_report = std::time::Instant::now();
@@ -164,21 +207,9 @@ fn run(args: Args) -> Result<()> {
                 models,
                 ..
             } = robot;
-            follower.on_scans(scans, &bodies, |step| -> Result<()> {
-                particles_out.publish(&view::particles(id, &step))?;
-                if step.steps % MAP_EVERY_STEPS == 1 {
-                    maps_out.publish(&view::map(id, &step))?;
-                }
-                let estimate = step.report.estimate;
-                estimates.publish(&EstimateSample {
-                    agent_id: id,
-                    reserved: 0,
-                    tick: step.tick,
-                    x: estimate.x,
-                    y: estimate.y,
-                    theta: estimate.theta,
-                    effective_particles: step.report.effective_particles,
-                })?;
+            follower.on_scans(scans, &bodies, |step| {
+                views.publish(id, &step)?;
+                estimates.publish(&estimate_of(id, &step))?;
                 for param in Param::ALL {
                     let mixture = step.filter.model().command(step.command).param(param);
                     models.publish(&ModelUpdate::new(
@@ -189,7 +220,7 @@ fn run(args: Args) -> Result<()> {
                         mixture,
                     ))?;
                 }
-                Ok(())
+                Ok::<(), anyhow::Error>(())
             })?;
         }
         // A lockstep launcher paces its clock to this, so no scan is dropped.
