@@ -39,7 +39,7 @@ fn cell(value: Option<&Value>) -> String {
 }
 
 /// Prints `report` as JSON, or its one list of records as a Markdown table:
-/// one column per field any record has, `name` first.
+/// one column per field any record has, what a row is about first.
 pub fn print(report: &impl serde::Serialize, json: bool) -> anyhow::Result<()> {
     let value = serde_json::to_value(report)?;
     if json {
@@ -66,7 +66,8 @@ pub fn print(report: &impl serde::Serialize, json: bool) -> anyhow::Result<()> {
     if columns.is_empty() {
         return Ok(());
     }
-    if let Some(at) = columns.iter().position(|c| *c == "name") {
+    // What a row is about comes first.
+    if let Some(at) = columns.iter().position(|c| ["name", "measure"].contains(c)) {
         let name = columns.remove(at);
         columns.insert(0, name);
     }

@@ -175,177 +175,26 @@ fn figure(measure: &str, value: Option<f64>, goal: &str, met: bool) -> Figure {
     }
 }
 
-pub fn run(args: &ChaosArgs) -> Result<Report> {
-    let name = swarm_name("chaos", args.seed as usize);
-    let scratch = std::env::temp_dir().join(format!("shoal-chaos-{}", std::process::id()));
-    let dir = args.keep.clone().unwrap_or_else(|| scratch.clone());
-    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-    let shm_before = shared_memory_files();
-    let mut rng = StdRng::seed_from_u64(args.seed);
-    let scenario = open_arena(args.agents);
-    let period_s = scenario.timing.period_s;
-    let spread = scenario.formation.spread;
-    let mut swarm = RunningSwarm::launch(&name, scenario, false)?;
-    let segment = |k: usize| {
-        (
-            dir.join(format!("recording-{k}.rrd")),
-            dir.join(format!("poses-{k}")),
-        )
-    };
-    let (rrd, tum) = segment(0);
-    swarm.record(&crate::swarm::RecordOptions::file(&rrd, Some(&tum)))?;
-    // Everyone in, before the chaos starts.
-    let joined = Instant::now();
-    while swarm.observer.len() < args.agents && joined.elapsed() < Duration::from_secs(60) {
-        swarm.advance()?;
-    }
-    let started = Instant::now();
-    let mut kills: Vec<Kill> = Vec::new();
-    let mut restarts: Vec<(f64, u32, Pose)> = Vec::new();
-    let mut frozen: Option<(u32, f64)> = None;
-    let mut freezes = 0;
-    let mut next_kill = args.kill_every;
-    let mut next_freeze = 1.0;
-    let mut next_recorder = args.recorder_every;
-    let mut recorder_kills: Vec<f64> = Vec::new();
-    let mut crashes = Vec::new();
-    let mut next_progress = 10.0;
-    while started.elapsed().as_secs_f64() < args.seconds {
-        if swarm.termination_requested() {
-            anyhow::bail!("interrupted");
-        }
-        swarm.advance()?;
-        crashes.extend(swarm.take_deaths().into_iter().filter(|d| d.crashed));
-        let now = started.elapsed().as_secs_f64();
-        // One group of every robot not frozen: the killed one restarted and back in.
-        let expected = args.agents - usize::from(frozen.is_some());
-        let whole =
-            swarm.observer.len() >= expected && swarm.observer.metrics(spread).components == 1;
-        for kill in kills.iter_mut().filter(|k| k.regroup_s.is_none()) {
-            let back = swarm
-                .observer
-                .get(kill.id)
-                .is_some_and(|s| s.pid != kill.pid);
-            if whole && back {
-                kill.regroup_s = Some(now - kill.at_s);
-            }
-        }
-        let busy: Vec<u32> = restarts
-            .iter()
-            .map(|(_, id, _)| *id)
-            .chain(frozen.map(|(id, _)| id))
-            .collect();
-        let pick = |rng: &mut StdRng, swarm: &RunningSwarm| {
-            let ids: Vec<(u32, u32, Pose)> = swarm
-                .observer
-                .samples()
-                .filter(|s| !busy.contains(&s.agent_id))
-                .map(|s| (s.agent_id, s.pid, Pose::new(s.x, s.y, s.theta)))
-                .collect();
-            (!ids.is_empty()).then(|| ids[rng.random_range(0..ids.len())])
-        };
-        if now >= next_kill {
-            next_kill += args.kill_every;
-            if let Some(last) = kills.last_mut() {
-                last.stale_nodes = Some(dead_nodes(&name)?);
-            }
-            if let Some((id, pid, pose)) = pick(&mut rng, &swarm) {
-                swarm.signal_robot(id, libc::SIGKILL)?;
-                restarts.push((now + args.restart_after, id, pose));
-                kills.push(Kill {
-                    at_s: now,
-                    id,
-                    pid,
-                    stale_nodes: None,
-                    regroup_s: None,
-                });
-            }
-        }
-        let due: Vec<(f64, u32, Pose)> = restarts.iter().filter(|r| r.0 <= now).copied().collect();
-        restarts.retain(|r| r.0 > now);
-        for (_, id, pose) in due {
-            swarm.start(id, pose)?;
-        }
-        match frozen {
-            Some((id, until)) if now >= until => {
-                swarm.pause_robot(id, false)?;
-                frozen = None;
-                next_freeze = now + 1.0;
-            }
-            None if now >= next_freeze => {
-                if let Some((id, _, _)) = pick(&mut rng, &swarm) {
-                    swarm.pause_robot(id, true)?;
-                    frozen = Some((id, now + rng.random_range(3.0..15.0)));
-                    freezes += 1;
-                }
-            }
-            _ => {}
-        }
-        // A recorder kill needs time after it to see what the recording lost.
-        if now >= next_recorder && now + GAP_WINDOW_S < args.seconds {
-            next_recorder += args.recorder_every;
-            // The recorder's times are the swarm's clock, which started with it.
-            recorder_kills.push(swarm.sim_time());
-            swarm.kill_recorder()?;
-            let (rrd, tum) = segment(recorder_kills.len());
-            swarm.record(&crate::swarm::RecordOptions::file(&rrd, Some(&tum)))?;
-        }
-        if now >= next_progress {
-            next_progress += 10.0;
-            eprintln!(
-                "chaos: {now:4.0} s, {} kills, {freezes} freezes, {} recorder kills",
-                kills.len(),
-                recorder_kills.len()
-            );
-        }
-    }
-    if let Some((id, _)) = frozen {
-        swarm.pause_robot(id, false)?;
-    }
-    // The last kill is judged as the others were: one kill interval later.
-    if let Some(last) = kills.last_mut() {
-        while started.elapsed().as_secs_f64() < last.at_s + args.kill_every {
-            swarm.advance()?;
-        }
-        last.stale_nodes = Some(dead_nodes(&name)?);
-    }
-    swarm.shutdown()?;
-    // The launcher's own node and services go with it.
-    drop(swarm);
-    let left: Vec<String> = swarm_nodes(&name)?
-        .into_iter()
-        .map(|n| format!("node {} ({:?})", n.name, n.state))
-        .chain(
-            swarm_services(&name)?
-                .into_iter()
-                .map(|s| format!("service {s}")),
-        )
-        .collect();
-    let nodes_left = left.len();
-    for what in &left {
-        eprintln!("chaos: left on the bus: {what}");
-    }
-    // Robots exit within the shutdown's grace; give the kernel a moment to tidy.
-    std::thread::sleep(Duration::from_millis(500));
-    let processes_left = processes_of(&name);
-    let shm_left = shared_memory_files().saturating_sub(shm_before);
-
-    let ticks = recorded_ticks(&dir, period_s)?;
-    let recording_gap_s: Vec<f64> = recorder_kills
-        .iter()
-        .map(|at| longest_gap(&ticks, *at, GAP_WINDOW_S, period_s))
-        .collect();
-
+/// What the chaos measured, each against its goal; `left` counts what
+/// outlived the run: processes, shared-memory files, bus nodes and services.
+fn figures(
+    kills: &[Kill],
+    crashes: &[crate::swarm::Death],
+    recording_gap_s: &[f64],
+    left: [usize; 3],
+    seconds: f64,
+) -> Vec<Figure> {
     let stale: Vec<usize> = kills.iter().filter_map(|k| k.stale_nodes).collect();
+    let [processes_left, shm_left, nodes_left] = left;
     let regroup: Vec<f64> = kills.iter().filter_map(|k| k.regroup_s).collect();
     // A kill in the last seconds of the run had no time to heal.
     let never_whole = kills
         .iter()
-        .filter(|k| k.regroup_s.is_none() && k.at_s + HEAL_WINDOW_S < args.seconds)
+        .filter(|k| k.regroup_s.is_none() && k.at_s + HEAL_WINDOW_S < seconds)
         .count();
     let max_stale = stale.iter().copied().max().unwrap_or(0);
     let worst_gap = recording_gap_s.iter().copied().fold(0.0, f64::max);
-    let figures = vec![
+    vec![
         figure(
             "stale nodes after a kill (max)",
             Some(max_stale as f64),
@@ -400,7 +249,209 @@ pub fn run(args: &ChaosArgs) -> Result<Report> {
             "0",
             nodes_left == 0,
         ),
-    ];
+    ]
+}
+
+/// What the chaos did, and what it saw.
+struct Abuse {
+    kills: Vec<Kill>,
+    freezes: usize,
+    /// Sim times of the recorder kills.
+    recorder_kills: Vec<f64>,
+    crashes: Vec<crate::swarm::Death>,
+}
+
+/// `args.seconds` of chaos on `swarm`: kills and restarts, freezes, and
+/// recorder kills (each next recording segment from `segment(k)`).
+fn abuse(
+    swarm: &mut RunningSwarm,
+    args: &ChaosArgs,
+    name: &str,
+    segment: impl Fn(usize) -> (PathBuf, PathBuf),
+) -> Result<Abuse> {
+    let mut rng = StdRng::seed_from_u64(args.seed);
+    let spread = swarm.scenario.formation.spread;
+    let started = Instant::now();
+    let mut kills: Vec<Kill> = Vec::new();
+    let mut restarts: Vec<(f64, u32, Pose)> = Vec::new();
+    let mut frozen: Option<(u32, f64)> = None;
+    let mut freezes = 0;
+    let mut next_kill = args.kill_every;
+    let mut next_freeze = 1.0;
+    let mut next_recorder = args.recorder_every;
+    let mut recorder_kills: Vec<f64> = Vec::new();
+    let mut crashes = Vec::new();
+    let mut next_progress = 10.0;
+    while started.elapsed().as_secs_f64() < args.seconds {
+        if swarm.termination_requested() {
+            anyhow::bail!("interrupted");
+        }
+        swarm.advance()?;
+        crashes.extend(swarm.take_deaths().into_iter().filter(|d| d.crashed));
+        let now = started.elapsed().as_secs_f64();
+        // One group of every robot not frozen: the killed one restarted and back in.
+        let expected = args.agents - usize::from(frozen.is_some());
+        let whole =
+            swarm.observer.len() >= expected && swarm.observer.metrics(spread).components == 1;
+        for kill in kills.iter_mut().filter(|k| k.regroup_s.is_none()) {
+            let back = swarm
+                .observer
+                .get(kill.id)
+                .is_some_and(|s| s.pid != kill.pid);
+            if whole && back {
+                kill.regroup_s = Some(now - kill.at_s);
+            }
+        }
+        let busy: Vec<u32> = restarts
+            .iter()
+            .map(|(_, id, _)| *id)
+            .chain(frozen.map(|(id, _)| id))
+            .collect();
+        let pick = |rng: &mut StdRng, swarm: &RunningSwarm| {
+            let ids: Vec<(u32, u32, Pose)> = swarm
+                .observer
+                .samples()
+                .filter(|s| !busy.contains(&s.agent_id))
+                .map(|s| (s.agent_id, s.pid, Pose::new(s.x, s.y, s.theta)))
+                .collect();
+            (!ids.is_empty()).then(|| ids[rng.random_range(0..ids.len())])
+        };
+        if now >= next_kill {
+            next_kill += args.kill_every;
+            if let Some(last) = kills.last_mut() {
+                last.stale_nodes = Some(dead_nodes(name)?);
+            }
+            if let Some((id, pid, pose)) = pick(&mut rng, swarm) {
+                swarm.signal_robot(id, libc::SIGKILL)?;
+                restarts.push((now + args.restart_after, id, pose));
+                kills.push(Kill {
+                    at_s: now,
+                    id,
+                    pid,
+                    stale_nodes: None,
+                    regroup_s: None,
+                });
+            }
+        }
+        let due: Vec<(f64, u32, Pose)> = restarts.iter().filter(|r| r.0 <= now).copied().collect();
+        restarts.retain(|r| r.0 > now);
+        for (_, id, pose) in due {
+            swarm.start(id, pose)?;
+        }
+        match frozen {
+            Some((id, until)) if now >= until => {
+                swarm.pause_robot(id, false)?;
+                frozen = None;
+                next_freeze = now + 1.0;
+            }
+            None if now >= next_freeze => {
+                if let Some((id, _, _)) = pick(&mut rng, swarm) {
+                    swarm.pause_robot(id, true)?;
+                    frozen = Some((id, now + rng.random_range(3.0..15.0)));
+                    freezes += 1;
+                }
+            }
+            _ => {}
+        }
+        // A recorder kill needs time after it to see what the recording lost.
+        if now >= next_recorder && now + GAP_WINDOW_S < args.seconds {
+            next_recorder += args.recorder_every;
+            // The recorder's times are the swarm's clock, which started with it.
+            recorder_kills.push(swarm.sim_time());
+            swarm.kill_recorder()?;
+            let (rrd, tum) = segment(recorder_kills.len());
+            swarm.record(&crate::swarm::RecordOptions::file(&rrd, Some(&tum)))?;
+        }
+        if now >= next_progress {
+            next_progress += 10.0;
+            eprintln!(
+                "chaos: {now:4.0} s, {} kills, {freezes} freezes, {} recorder kills",
+                kills.len(),
+                recorder_kills.len()
+            );
+        }
+    }
+    if let Some((id, _)) = frozen {
+        swarm.pause_robot(id, false)?;
+    }
+    // The last kill is judged as the others were: one kill interval later.
+    if let Some(last) = kills.last_mut() {
+        while started.elapsed().as_secs_f64() < last.at_s + args.kill_every {
+            swarm.advance()?;
+        }
+        last.stale_nodes = Some(dead_nodes(name)?);
+    }
+    Ok(Abuse {
+        kills,
+        freezes,
+        recorder_kills,
+        crashes,
+    })
+}
+
+pub fn run(args: &ChaosArgs) -> Result<Report> {
+    let name = swarm_name("chaos", args.seed as usize);
+    let scratch = std::env::temp_dir().join(format!("shoal-chaos-{}", std::process::id()));
+    let dir = args.keep.clone().unwrap_or_else(|| scratch.clone());
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    let shm_before = shared_memory_files();
+    let scenario = open_arena(args.agents);
+    let period_s = scenario.timing.period_s;
+    let mut swarm = RunningSwarm::launch(&name, scenario, false)?;
+    let segment = |k: usize| {
+        (
+            dir.join(format!("recording-{k}.rrd")),
+            dir.join(format!("poses-{k}")),
+        )
+    };
+    let (rrd, tum) = segment(0);
+    swarm.record(&crate::swarm::RecordOptions::file(&rrd, Some(&tum)))?;
+    // Everyone in, before the chaos starts.
+    let joined = Instant::now();
+    while swarm.observer.len() < args.agents && joined.elapsed() < Duration::from_secs(60) {
+        swarm.advance()?;
+    }
+    let Abuse {
+        kills,
+        freezes,
+        recorder_kills,
+        crashes,
+    } = abuse(&mut swarm, args, &name, segment)?;
+    swarm.shutdown()?;
+    // The launcher's own node and services go with it.
+    drop(swarm);
+    let left: Vec<String> = swarm_nodes(&name)?
+        .into_iter()
+        .map(|n| format!("node {} ({:?})", n.name, n.state))
+        .chain(
+            swarm_services(&name)?
+                .into_iter()
+                .map(|s| format!("service {s}")),
+        )
+        .collect();
+    let nodes_left = left.len();
+    for what in &left {
+        eprintln!("chaos: left on the bus: {what}");
+    }
+    // Robots exit within the shutdown's grace; give the kernel a moment to tidy.
+    std::thread::sleep(Duration::from_millis(500));
+    let processes_left = processes_of(&name);
+    let shm_left = shared_memory_files().saturating_sub(shm_before);
+
+    let ticks = recorded_ticks(&dir, period_s)?;
+    let recording_gap_s: Vec<f64> = recorder_kills
+        .iter()
+        .map(|at| longest_gap(&ticks, *at, GAP_WINDOW_S, period_s))
+        .collect();
+
+    let stale: Vec<usize> = kills.iter().filter_map(|k| k.stale_nodes).collect();
+    let figures = figures(
+        &kills,
+        &crashes,
+        &recording_gap_s,
+        [processes_left, shm_left, nodes_left],
+        args.seconds,
+    );
     for crash in &crashes {
         eprintln!("chaos: {crash}");
     }
