@@ -67,105 +67,14 @@ pub fn load_scenario(path: Option<&PathBuf>) -> Result<Scenario> {
     })
 }
 
-pub fn up(options: UpOptions) -> Result<UpSummary> {
-    if options.record.viewer {
-        check_viewer_installed()?;
-    }
-    let mut scenario = load_scenario(options.scenario.as_ref())?;
-    if let Some(count) = options.agents {
-        scenario.agents.count = count;
-    }
-    if let Some(seed) = options.seed {
-        scenario.agents.seed = seed;
-    }
-    for id in &options.slam {
-        if !scenario.slam.follow.contains(id) {
-            scenario.slam.follow.push(*id);
-        }
-    }
-    let follow = scenario.slam.follow.clone();
-    let spread = scenario.formation.spread;
-    let mut swarm = RunningSwarm::launch(&options.swarm, scenario, options.lockstep)?;
-    if options.record.wanted() {
-        swarm.record(&options.record)?;
-    }
-    if !follow.is_empty() {
-        swarm.follow_with_slam(&follow, &[])?;
-    }
-    let progress = if std::io::stderr().is_terminal() {
-        let bar = ProgressBar::new_spinner();
-        bar.set_style(
-            ProgressStyle::with_template("{spinner} {elapsed} {msg}")
-                .unwrap_or_else(|_| ProgressStyle::default_spinner()),
-        );
-        bar.enable_steady_tick(Duration::from_millis(200));
-        Some(bar)
-    } else {
-        None
-    };
-    eprintln!(
-        "shoal: swarm `{}` up with {} robots ({}); Ctrl-C stops it",
-        swarm.name,
-        swarm.scenario.agents.count,
-        if swarm.lockstep() {
-            "lockstep"
-        } else {
-            "real time"
-        }
-    );
-    let mut converged_since: Option<f64> = None;
-    let mut last_report = Instant::now();
-    let mut last_line = Instant::now();
-    loop {
-        if swarm.termination_requested() {
-            break;
-        }
-        if options.duration_s.is_some_and(|d| swarm.sim_time() >= d) {
-            break;
-        }
-        swarm.advance()?;
-        for death in swarm.take_deaths() {
-            if let Some(bar) = &progress {
-                bar.suspend(|| eprintln!("shoal: {death}"));
-            } else {
-                eprintln!("shoal: {death}");
-            }
-        }
-        if swarm.running_children() == 0 && swarm.observer.is_empty() && !swarm.deaths().is_empty()
-        {
-            eprintln!("shoal: every robot of swarm `{}` has stopped", swarm.name);
-            break;
-        }
-        let metrics = swarm.observer.metrics(spread);
-        match (metrics.is_formed(), converged_since) {
-            (true, None) => converged_since = Some(swarm.sim_time()),
-            (false, Some(_)) => converged_since = None,
-            _ => {}
-        }
-        if last_report.elapsed() >= Duration::from_millis(250) {
-            last_report = Instant::now();
-            let message = format!(
-                "robots {} | tick {} | t {:.1} s | groups {} | spacing {:.2} s | cv {:.2}",
-                swarm.observer.len(),
-                swarm.observer.newest_tick,
-                swarm.sim_time(),
-                metrics.components,
-                metrics.spacing_ratio,
-                metrics.spacing_cv
-            );
-            match &progress {
-                Some(bar) => bar.set_message(message),
-                None if last_line.elapsed() >= Duration::from_secs(5) => {
-                    last_line = Instant::now();
-                    eprintln!("shoal: {message}");
-                }
-                None => {}
-            }
-        }
-    }
-    if let Some(bar) = progress {
-        bar.finish_and_clear();
-    }
+/// Stops the swarm and says how it ended; an error if a robot or helper
+/// crashed during the run.
+fn stop(
+    mut swarm: RunningSwarm,
+    options: &UpOptions,
+    converged_since: Option<f64>,
+) -> Result<UpSummary> {
+    let spread = swarm.scenario.formation.spread;
     let metrics = swarm.observer.metrics(spread);
     let summary = UpSummary {
         swarm: swarm.name.clone(),
@@ -233,4 +142,143 @@ pub fn up(options: UpOptions) -> Result<UpSummary> {
         );
     }
     Ok(summary)
+}
+
+/// The scenario `shoal up` runs: the file given (or the default arena),
+/// with the command line's robot count, seed and SLAM robots.
+fn scenario_for(options: &UpOptions) -> Result<Scenario> {
+    let mut scenario = load_scenario(options.scenario.as_ref())?;
+    if let Some(count) = options.agents {
+        scenario.agents.count = count;
+    }
+    if let Some(seed) = options.seed {
+        scenario.agents.seed = seed;
+    }
+    for id in &options.slam {
+        if !scenario.slam.follow.contains(id) {
+            scenario.slam.follow.push(*id);
+        }
+    }
+    Ok(scenario)
+}
+
+/// Where `shoal up` tells the user how the swarm is doing: a spinner line
+/// on a terminal, a line every few seconds otherwise.
+struct Status {
+    bar: Option<ProgressBar>,
+    last_update: Instant,
+    last_line: Instant,
+}
+
+impl Status {
+    fn new() -> Self {
+        let bar = std::io::stderr().is_terminal().then(|| {
+            let bar = ProgressBar::new_spinner();
+            bar.set_style(
+                ProgressStyle::with_template("{spinner} {elapsed} {msg}")
+                    .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+            );
+            bar.enable_steady_tick(Duration::from_millis(200));
+            bar
+        });
+        Self {
+            bar,
+            last_update: Instant::now(),
+            last_line: Instant::now(),
+        }
+    }
+
+    /// A line that must be seen (a death), above the spinner.
+    fn say(&self, line: &str) {
+        match &self.bar {
+            Some(bar) => bar.suspend(|| eprintln!("shoal: {line}")),
+            None => eprintln!("shoal: {line}"),
+        }
+    }
+
+    /// The swarm's state now; shown 4 times a second, or every 5 s as a line.
+    fn update(&mut self, message: impl FnOnce() -> String) {
+        if self.last_update.elapsed() < Duration::from_millis(250) {
+            return;
+        }
+        self.last_update = Instant::now();
+        match &self.bar {
+            Some(bar) => bar.set_message(message()),
+            None if self.last_line.elapsed() >= Duration::from_secs(5) => {
+                self.last_line = Instant::now();
+                eprintln!("shoal: {}", message());
+            }
+            None => {}
+        }
+    }
+
+    fn finish(self) {
+        if let Some(bar) = self.bar {
+            bar.finish_and_clear();
+        }
+    }
+}
+
+pub fn up(options: UpOptions) -> Result<UpSummary> {
+    if options.record.viewer {
+        check_viewer_installed()?;
+    }
+    let scenario = scenario_for(&options)?;
+    let follow = scenario.slam.follow.clone();
+    let spread = scenario.formation.spread;
+    let mut swarm = RunningSwarm::launch(&options.swarm, scenario, options.lockstep)?;
+    if options.record.wanted() {
+        swarm.record(&options.record)?;
+    }
+    if !follow.is_empty() {
+        swarm.follow_with_slam(&follow, &[])?;
+    }
+    let mut status = Status::new();
+    eprintln!(
+        "shoal: swarm `{}` up with {} robots ({}); Ctrl-C stops it",
+        swarm.name,
+        swarm.scenario.agents.count,
+        if swarm.lockstep() {
+            "lockstep"
+        } else {
+            "real time"
+        }
+    );
+    let mut converged_since: Option<f64> = None;
+    loop {
+        if swarm.termination_requested() {
+            break;
+        }
+        if options.duration_s.is_some_and(|d| swarm.sim_time() >= d) {
+            break;
+        }
+        swarm.advance()?;
+        for death in swarm.take_deaths() {
+            status.say(&death.to_string());
+        }
+        if swarm.running_children() == 0 && swarm.observer.is_empty() && !swarm.deaths().is_empty()
+        {
+            eprintln!("shoal: every robot of swarm `{}` has stopped", swarm.name);
+            break;
+        }
+        let metrics = swarm.observer.metrics(spread);
+        match (metrics.is_formed(), converged_since) {
+            (true, None) => converged_since = Some(swarm.sim_time()),
+            (false, Some(_)) => converged_since = None,
+            _ => {}
+        }
+        status.update(|| {
+            format!(
+                "robots {} | tick {} | t {:.1} s | groups {} | spacing {:.2} x spread | cv {:.2}",
+                swarm.observer.len(),
+                swarm.observer.newest_tick,
+                swarm.sim_time(),
+                metrics.components,
+                metrics.spacing_ratio,
+                metrics.spacing_cv
+            )
+        });
+    }
+    status.finish();
+    stop(swarm, &options, converged_since)
 }
