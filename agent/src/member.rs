@@ -10,7 +10,7 @@ use shoal_broker::{
 };
 use shoal_physics::{Neighbour, Pose, Scenario};
 
-use crate::robot::Robot;
+use crate::robot::{Decision, Robot};
 use crate::sensing::SensingRange;
 
 /// How many ticks of dead reckoning a robot keeps, to apply late SLAM estimates.
@@ -90,6 +90,33 @@ impl Member {
         }
     }
 
+    /// The scan taken this period, as the wire carries it.
+    fn scan_sample(
+        &self,
+        heard: &Heard,
+        decision: &Decision,
+        ranges: &[f64],
+        scenario: &Scenario,
+    ) -> ScanSample {
+        let mut scan = ScanSample {
+            agent_id: self.robot.id,
+            pid: self.pid,
+            tick: heard.tick,
+            sim_time: heard.sim_time,
+            command: decision.command.index() as u32,
+            bumped: u32::from(decision.outcome.bumped),
+            beam_count: ranges.len().min(MAX_BEAMS) as u32,
+            reserved: 0,
+            field_of_view: scenario.sensor.field_of_view,
+            max_range: scenario.sensor.max_range,
+            ranges: [0.0; MAX_BEAMS],
+        };
+        for (slot, range) in scan.ranges.iter_mut().zip(ranges) {
+            *slot = *range as f32;
+        }
+        scan
+    }
+
     /// One control period: sense, step, scan; `previous` is the last pose
     /// sample this robot published.
     pub fn period(&mut self, heard: &Heard, previous: &PoseSample, scenario: &Scenario) -> Said {
@@ -123,23 +150,7 @@ impl Member {
         let after = self.robot.body.pose;
         let bodies: Vec<DVec2> = sensed.iter().map(|n| n.position).collect();
         let ranges = self.robot.scan(scenario, &bodies);
-        let mut scan = ScanSample {
-            agent_id: self.robot.id,
-            pid: self.pid,
-            tick: heard.tick,
-            sim_time: heard.sim_time,
-            command: decision.command.index() as u32,
-            bumped: u32::from(decision.outcome.bumped),
-            beam_count: ranges.len().min(MAX_BEAMS) as u32,
-            reserved: 0,
-            field_of_view: scenario.sensor.field_of_view,
-            max_range: scenario.sensor.max_range,
-            ranges: [0.0; MAX_BEAMS],
-        };
-        for (slot, range) in scan.ranges.iter_mut().zip(&ranges) {
-            *slot = *range as f32;
-        }
-
+        let scan = self.scan_sample(heard, &decision, &ranges, scenario);
         let mut health = 0;
         if decision.outcome.bumped {
             health |= Health::BUMPED;

@@ -220,6 +220,11 @@ impl RunningSwarm {
         let count = swarm.scenario.agents.count;
         let poses = swarm.scenario.start_poses(0, count);
         for (id, pose) in poses.into_iter().enumerate() {
+            // Starting many robots takes a while: Ctrl-C stops it at once,
+            // and dropping the swarm stops the robots already started.
+            if swarm.termination_requested() {
+                bail!("interrupted while starting robots ({id} of {count} started)");
+            }
             swarm.start(id as u32, pose)?;
         }
         if let Some(clock) = &mut swarm.clock {
