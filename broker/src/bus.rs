@@ -1,4 +1,6 @@
 use core::fmt::Debug;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, OnceLock};
 
 use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::{
@@ -82,11 +84,42 @@ pub fn quiet_iceoryx() {
     set_log_level_from_env_or(LogLevel::Error);
 }
 
+/// Set by SIGINT or SIGTERM and never cleared, for the whole process.
+///
+/// iceoryx2 alone is not enough: it keeps only the last signal, in one
+/// slot that reading clears, and it also clears that slot whenever it
+/// creates a shared-memory segment (it watches the segment's zeroing for
+/// signals). A Ctrl-C or SIGTERM that arrived while a process opened
+/// services was lost: robots crossing cells "ignored SIGTERM" and were
+/// killed after the grace, and `shoal up` went on starting robots after
+/// Ctrl-C.
+static TERMINATION: OnceLock<Arc<AtomicBool>> = OnceLock::new();
+
+/// The process's termination flag, registered once. iceoryx2 installs its
+/// signal handlers on first use without keeping earlier ones, so it is
+/// made to install them first (a wait on `node`); signal-hook's handlers
+/// then call iceoryx2's after setting the flag.
+fn termination_flag(node: &Node<ipc::Service>) -> Arc<AtomicBool> {
+    Arc::clone(TERMINATION.get_or_init(|| {
+        let flag = Arc::new(AtomicBool::new(false));
+        if node.wait(core::time::Duration::ZERO).is_err() {
+            flag.store(true, Ordering::Relaxed);
+        }
+        for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+            if let Err(e) = signal_hook::flag::register(signal, Arc::clone(&flag)) {
+                tracing::warn!("cannot watch signal {signal}: {e}; relying on iceoryx2's handler");
+            }
+        }
+        flag
+    }))
+}
+
 /// One process's connection to one swarm.
 pub struct Bus {
     pub node: Node<ipc::Service>,
     pub swarm: String,
     pub limits: BusLimits,
+    terminating: Arc<AtomicBool>,
 }
 
 impl Bus {
@@ -101,6 +134,7 @@ impl Bus {
             .create::<ipc::Service>()
             .map_err(|e| BusError::iceoryx(format!("create node {node_name}"), e))?;
         Ok(Self {
+            terminating: termination_flag(&node),
             node,
             swarm: swarm.to_owned(),
             limits,
@@ -144,8 +178,16 @@ impl Bus {
             .map_err(|e| BusError::iceoryx(format!("open {name}"), e))
     }
 
-    /// Whether a termination signal (SIGTERM, SIGINT) arrived.
+    /// Whether a termination signal (SIGTERM, SIGINT) arrived, at any time
+    /// since the process joined a swarm.
     pub fn termination_requested(&self) -> bool {
-        self.node.wait(core::time::Duration::ZERO).is_err()
+        if self.terminating.load(Ordering::Relaxed) {
+            return true;
+        }
+        let requested = self.node.wait(core::time::Duration::ZERO).is_err();
+        if requested {
+            self.terminating.store(true, Ordering::Relaxed);
+        }
+        requested
     }
 }
