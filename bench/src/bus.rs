@@ -1,6 +1,7 @@
 //! Pose latency from one robot process to a neighbour process: over the
-//! iceoryx2 cell exchange (woken by an iceoryx2 event, or polling) and over a
-//! Unix datagram socket, in the same run, inside swarms of real robots.
+//! iceoryx2 cell exchange (woken by an iceoryx2 event, or polling), over a
+//! plain iceoryx2 service (what iceoryx2 itself costs) and over a Unix
+//! datagram socket, in the same run, inside swarms of real robots.
 
 use std::os::unix::net::UnixDatagram;
 use std::path::Path;
@@ -22,9 +23,10 @@ const BLOCK: usize = 50;
 const GAP: Duration = Duration::from_micros(200);
 /// The shortest window over which the robots' CPU time is measured.
 const CPU_WINDOW: Duration = Duration::from_secs(15);
-const TRANSPORTS: [Transport; 3] = [
+const TRANSPORTS: [Transport; 4] = [
     Transport::IceoryxEvent,
     Transport::IceoryxPoll,
+    Transport::RawIceoryxPoll,
     Transport::UnixSocket,
 ];
 
@@ -41,6 +43,10 @@ enum Transport {
     IceoryxEvent,
     /// Cell publish; the receiver spins on its subscriber.
     IceoryxPoll,
+    /// The same 168-byte sample on a plain iceoryx2 service of its own (one
+    /// publisher, one subscriber, no checks); the receiver spins on it. What
+    /// iceoryx2 itself costs, to tell it from what Shoal adds.
+    RawIceoryxPoll,
     /// A datagram on a Unix domain socket; the receiver blocks in recv.
     UnixSocket,
 }
@@ -98,6 +104,17 @@ pub fn probe(role: Role, swarm: &str, samples: usize, socket: &Path) -> Result<(
         .event()
         .open_or_create()
         .map_err(|e| anyhow::anyhow!("probe event: {e:?}"))?;
+    let raw_name = format!("{}probe-raw", names::prefix(swarm));
+    let raw = bus
+        .node
+        .service_builder(&Bus::service_name(&raw_name)?)
+        .publish_subscribe::<PoseSample>()
+        .max_publishers(1)
+        .max_subscribers(1)
+        .subscriber_max_buffer_size(2)
+        .enable_safe_overflow(true)
+        .open_or_create()
+        .map_err(|e| anyhow::anyhow!("probe raw service: {e:?}"))?;
     let mut cells = CellExchange::new(shoal_physics::Scenario::default_arena().bus.cell_size);
     match role {
         Role::Receive => {
@@ -107,6 +124,10 @@ pub fn probe(role: Role, swarm: &str, samples: usize, socket: &Path) -> Result<(
                 .map_err(|e| anyhow::anyhow!("{e:?}"))?;
             let key = cells.cell_of(centre, centre);
             cells.listen(&bus, key, 0)?;
+            let raw_subscriber = raw
+                .subscriber_builder()
+                .create()
+                .map_err(|e| anyhow::anyhow!("{e:?}"))?;
             let datagram = UnixDatagram::bind(socket)
                 .with_context(|| format!("binding {}", socket.display()))?;
             datagram.set_read_timeout(Some(Duration::from_secs(1)))?;
@@ -115,8 +136,8 @@ pub fn probe(role: Role, swarm: &str, samples: usize, socket: &Path) -> Result<(
             let acks = UnixDatagram::unbound()?;
             let ack_path = socket.with_extension("ack");
             let mut result = ProbeResult {
-                latencies: vec![Vec::new(); 3],
-                lost: vec![0; 3],
+                latencies: vec![Vec::new(); TRANSPORTS.len()],
+                lost: vec![0; TRANSPORTS.len()],
             };
             let mut buffer = [0u8; 512];
             for (sequence, transport) in schedule(samples).enumerate() {
@@ -147,6 +168,21 @@ pub fn probe(role: Role, swarm: &str, samples: usize, socket: &Path) -> Result<(
                         }
                         sent
                     }
+                    Transport::RawIceoryxPoll => {
+                        let mut sent = None;
+                        let deadline = Instant::now() + Duration::from_secs(1);
+                        while sent.is_none() && Instant::now() < deadline {
+                            while let Some(s) = raw_subscriber
+                                .receive()
+                                .map_err(|e| anyhow::anyhow!("{e:?}"))?
+                            {
+                                if s.tick == sequence as u64 {
+                                    sent = Some(s.sim_time.to_bits());
+                                }
+                            }
+                        }
+                        sent
+                    }
                     Transport::UnixSocket => match datagram.recv(&mut buffer) {
                         Ok(n) if n == size_of::<PoseSample>() => {
                             // SAFETY: n bytes of a PoseSample the sender wrote; read unaligned.
@@ -167,6 +203,10 @@ pub fn probe(role: Role, swarm: &str, samples: usize, socket: &Path) -> Result<(
             println!("{}", serde_json::to_string(&result)?);
         }
         Role::Send => {
+            let raw_publisher = raw
+                .publisher_builder()
+                .create()
+                .map_err(|e| anyhow::anyhow!("{e:?}"))?;
             let notifier = event
                 .notifier_builder()
                 .create()
@@ -195,6 +235,11 @@ pub fn probe(role: Role, swarm: &str, samples: usize, socket: &Path) -> Result<(
                         notifier.notify().map_err(|e| anyhow::anyhow!("{e:?}"))?;
                     }
                     Transport::IceoryxPoll => cells.publish(&bus, &sample)?,
+                    Transport::RawIceoryxPoll => {
+                        raw_publisher
+                            .send_copy(sample)
+                            .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+                    }
                     Transport::UnixSocket => {
                         datagram.send(as_bytes(&sample))?;
                     }
@@ -222,6 +267,9 @@ struct Row {
     /// This transport's p50 divided by the Unix socket's p50 in the same run.
     p50_vs_unix_socket: f64,
     p99_vs_unix_socket: f64,
+    /// This transport's p50 divided by raw iceoryx2's (polled) in the same run.
+    p50_vs_raw_iceoryx2: f64,
+    p99_vs_raw_iceoryx2: f64,
     /// CPU time of the swarm's robot processes per robot per control period.
     robot_cpu_ms_per_period: Option<f64>,
 }
@@ -305,14 +353,15 @@ pub fn run(sizes: &[usize], samples: usize, json: bool) -> Result<()> {
         });
         let mut sorted: Vec<Vec<u64>> = result.latencies.clone();
         sorted.iter_mut().for_each(|l| l.sort_unstable());
-        let socket_index = TRANSPORTS
-            .iter()
-            .position(|t| *t == Transport::UnixSocket)
-            .unwrap_or(2);
-        let (base50, base99) = (
-            percentile(&sorted[socket_index], 0.5),
-            percentile(&sorted[socket_index], 0.99),
-        );
+        let baseline = |transport: Transport| {
+            let index = TRANSPORTS.iter().position(|t| *t == transport).unwrap_or(0);
+            (
+                percentile(&sorted[index], 0.5),
+                percentile(&sorted[index], 0.99),
+            )
+        };
+        let (base50, base99) = baseline(Transport::UnixSocket);
+        let (raw50, raw99) = baseline(Transport::RawIceoryxPoll);
         for (index, transport) in TRANSPORTS.iter().enumerate() {
             let (p50, p99) = (
                 percentile(&sorted[index], 0.5),
@@ -329,6 +378,8 @@ pub fn run(sizes: &[usize], samples: usize, json: bool) -> Result<()> {
                 lost: result.lost[index],
                 p50_vs_unix_socket: p50 / base50,
                 p99_vs_unix_socket: p99 / base99,
+                p50_vs_raw_iceoryx2: p50 / raw50,
+                p99_vs_raw_iceoryx2: p99 / raw99,
                 robot_cpu_ms_per_period: robot_cpu,
             });
         }
