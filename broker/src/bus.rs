@@ -114,6 +114,24 @@ fn termination_flag(node: &Node<ipc::Service>) -> Arc<AtomicBool> {
     }))
 }
 
+/// Room each subscriber keeps for samples of publishers that went away.
+/// iceoryx2's default is 128; a subscriber's connection storage (about
+/// 3.6 KB a slot) is allocated at once for its service's publishers plus
+/// these, so 128 made every cell subscriber 544 KB: most of a robot's
+/// private memory. Shoal's subscribers borrow at most 2 samples (iceoryx2's
+/// default, which this must not be below) and copy each out at once.
+const EXPIRED_CONNECTION_BUFFER: usize = 4;
+
+/// iceoryx2's configuration (its global one) with Shoal's one change.
+fn node_config() -> Config {
+    let mut config = Config::global_config().clone();
+    config
+        .defaults
+        .publish_subscribe
+        .subscriber_expired_connection_buffer = EXPIRED_CONNECTION_BUFFER;
+    config
+}
+
 /// One process's connection to one swarm.
 pub struct Bus {
     pub node: Node<ipc::Service>,
@@ -131,6 +149,7 @@ impl Bus {
             .map_err(|e| BusError::iceoryx(format!("node name {node_name}"), e))?;
         let node = NodeBuilder::new()
             .name(&name)
+            .config(&node_config())
             .create::<ipc::Service>()
             .map_err(|e| BusError::iceoryx(format!("create node {node_name}"), e))?;
         Ok(Self {
