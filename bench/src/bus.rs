@@ -87,6 +87,29 @@ struct ProbeResult {
     lost: Vec<usize>,
 }
 
+/// Tries `receive` until it yields the probe sample's send time, for at
+/// most a second (the sample is then lost).
+fn poll_for_a_second(mut receive: impl FnMut() -> Result<Option<u64>>) -> Result<Option<u64>> {
+    let deadline = Instant::now() + Duration::from_secs(1);
+    while Instant::now() < deadline {
+        if let Some(sent) = receive()? {
+            return Ok(Some(sent));
+        }
+    }
+    Ok(None)
+}
+
+/// The send time of probe sample `sequence`, if it waits in the cells.
+fn from_cells(cells: &CellExchange, sequence: usize) -> Result<Option<u64>> {
+    let mut sent = None;
+    cells.receive(|s| {
+        if s.tick == sequence as u64 && s.agent_id == u32::MAX - 1 {
+            sent = Some(s.sim_time.to_bits());
+        }
+    })?;
+    Ok(sent)
+}
+
 pub fn probe(role: Role, swarm: &str, samples: usize, socket: &Path) -> Result<()> {
     let bus = Bus::join(
         swarm,
@@ -143,46 +166,23 @@ pub fn probe(role: Role, swarm: &str, samples: usize, socket: &Path) -> Result<(
             for (sequence, transport) in schedule(samples).enumerate() {
                 let index = TRANSPORTS.iter().position(|t| *t == transport).unwrap_or(0);
                 let sent = match transport {
-                    Transport::IceoryxEvent => {
+                    Transport::IceoryxEvent => poll_for_a_second(|| {
+                        let _ = listener.timed_wait(|_| {}, Duration::from_secs(1));
+                        from_cells(&cells, sequence)
+                    })?,
+                    Transport::IceoryxPoll => poll_for_a_second(|| from_cells(&cells, sequence))?,
+                    Transport::RawIceoryxPoll => poll_for_a_second(|| {
                         let mut sent = None;
-                        let deadline = Instant::now() + Duration::from_secs(1);
-                        while sent.is_none() && Instant::now() < deadline {
-                            let _ = listener.timed_wait(|_| {}, Duration::from_secs(1));
-                            cells.receive(|s| {
-                                if s.tick == sequence as u64 && s.agent_id == u32::MAX - 1 {
-                                    sent = Some(s.sim_time.to_bits());
-                                }
-                            })?;
-                        }
-                        sent
-                    }
-                    Transport::IceoryxPoll => {
-                        let mut sent = None;
-                        let deadline = Instant::now() + Duration::from_secs(1);
-                        while sent.is_none() && Instant::now() < deadline {
-                            cells.receive(|s| {
-                                if s.tick == sequence as u64 && s.agent_id == u32::MAX - 1 {
-                                    sent = Some(s.sim_time.to_bits());
-                                }
-                            })?;
-                        }
-                        sent
-                    }
-                    Transport::RawIceoryxPoll => {
-                        let mut sent = None;
-                        let deadline = Instant::now() + Duration::from_secs(1);
-                        while sent.is_none() && Instant::now() < deadline {
-                            while let Some(s) = raw_subscriber
-                                .receive()
-                                .map_err(|e| anyhow::anyhow!("{e:?}"))?
-                            {
-                                if s.tick == sequence as u64 {
-                                    sent = Some(s.sim_time.to_bits());
-                                }
+                        while let Some(s) = raw_subscriber
+                            .receive()
+                            .map_err(|e| anyhow::anyhow!("{e:?}"))?
+                        {
+                            if s.tick == sequence as u64 {
+                                sent = Some(s.sim_time.to_bits());
                             }
                         }
-                        sent
-                    }
+                        Ok(sent)
+                    })?,
                     Transport::UnixSocket => match datagram.recv(&mut buffer) {
                         Ok(n) if n == size_of::<PoseSample>() => {
                             // SAFETY: n bytes of a PoseSample the sender wrote; read unaligned.
