@@ -184,7 +184,6 @@ fn figures(
     left: [usize; 3],
     seconds: f64,
 ) -> Vec<Figure> {
-    let stale: Vec<usize> = kills.iter().filter_map(|k| k.stale_nodes).collect();
     let [processes_left, shm_left, nodes_left] = left;
     let regroup: Vec<f64> = kills.iter().filter_map(|k| k.regroup_s).collect();
     // A kill in the last seconds of the run had no time to heal.
@@ -192,7 +191,7 @@ fn figures(
         .iter()
         .filter(|k| k.regroup_s.is_none() && k.at_s + HEAL_WINDOW_S < seconds)
         .count();
-    let max_stale = stale.iter().copied().max().unwrap_or(0);
+    let max_stale = kills.iter().filter_map(|k| k.stale_nodes).max().unwrap_or(0);
     let worst_gap = recording_gap_s.iter().copied().fold(0.0, f64::max);
     vec![
         figure(
