@@ -80,7 +80,13 @@ pub fn run(options: AgentOptions) -> Result<()> {
         let said = member.period(&heard, &last, &scenario);
         if !said.died_nearby.is_empty() {
             tracing::info!(died_nearby = ?said.died_nearby, "dropped robots that fell silent nearby");
-            dead_suspected = true;
+            // A robot can fall silent because the machine is overloaded, not
+            // dead; sweeping lists every node on the machine, which would only
+            // load it more. Sweep for processes that are really gone.
+            dead_suspected |= dropped
+                .iter()
+                .filter(|s| said.died_nearby.contains(&s.agent_id))
+                .any(|s| !shoal_runtime::pid_alive(s.pid as i32));
         }
         ports.scans.publish(&said.scan)?;
         last = said.pose;

@@ -10,10 +10,10 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
 use serde::{Deserialize, Serialize};
-use shoal::experiment::scale::open_arena;
 use shoal::process::{ProcessUsage, usage};
 use shoal::swarm::RunningSwarm;
 use shoal_broker::{Bus, BusLimits, CellExchange, PoseSample, names};
+use shoal_physics::Scenario;
 
 /// Samples go out in blocks that alternate between transports, so that
 /// drifting background load touches all of them alike.
@@ -138,7 +138,7 @@ pub fn probe(role: Role, swarm: &str, samples: usize, socket: &Path) -> Result<(
         .enable_safe_overflow(true)
         .open_or_create()
         .map_err(|e| anyhow::anyhow!("probe raw service: {e:?}"))?;
-    let mut cells = CellExchange::new(shoal_physics::Scenario::default_arena().bus.cell_size);
+    let mut cells = CellExchange::new(Scenario::default_arena().bus.cell_size);
     match role {
         Role::Receive => {
             let listener = event
@@ -291,12 +291,12 @@ pub fn run(sizes: &[usize], samples: usize, json: bool) -> Result<()> {
         }
         let swarm_name = format!("bench{}-{agents}", std::process::id());
         let robots = agents - 2;
-        let scenario = open_arena(robots.max(1));
+        let scenario = Scenario::open_arena(robots.max(1));
         let centre = scenario.arena.width / 2.0;
         let swarm = if robots > 0 {
             Some(RunningSwarm::launch(
                 &swarm_name,
-                open_arena(robots),
+                Scenario::open_arena(robots),
                 false,
             )?)
         } else {

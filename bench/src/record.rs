@@ -5,9 +5,9 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 use serde::Serialize;
-use shoal::experiment::scale::open_arena;
 use shoal::process::{ProcessUsage, usage};
 use shoal::swarm::RunningSwarm;
+use shoal_physics::Scenario;
 
 #[derive(Debug, Serialize)]
 struct Row {
@@ -28,7 +28,7 @@ pub fn run(agents: &[usize], seconds: f64, json: bool) -> Result<()> {
     for &count in agents {
         let name = format!("benchrec{}-{count}", std::process::id());
         let out = std::env::temp_dir().join(format!("{name}.rrd"));
-        let mut swarm = RunningSwarm::launch(&name, open_arena(count), false)?;
+        let mut swarm = RunningSwarm::launch(&name, Scenario::open_arena(count), false)?;
         swarm.record(&shoal::swarm::RecordOptions::file(&out, None))?;
         std::thread::sleep(Duration::from_secs(3));
         let recorder = swarm.recorder_pid().context("the recorder did not start")?;

@@ -122,13 +122,24 @@ fn termination_flag(node: &Node<ipc::Service>) -> Arc<AtomicBool> {
 /// default, which this must not be below) and copy each out at once.
 const EXPIRED_CONNECTION_BUFFER: usize = 4;
 
-/// iceoryx2's configuration (its global one) with Shoal's one change.
+/// iceoryx2's configuration (its global one) with Shoal's changes.
 fn node_config() -> Config {
     let mut config = Config::global_config().clone();
     config
         .defaults
         .publish_subscribe
         .subscriber_expired_connection_buffer = EXPIRED_CONNECTION_BUFFER;
+    // By default every node, when created and when dropped, lists every node
+    // on the machine to clean up the dead ones: reading each one's details
+    // file. A thousand robots starting made that a million reads, and the
+    // machine spent its start-up on it (BENCHMARKS.md, session 10). Dead
+    // nodes are still cleaned where it matters: iceoryx2 cleans those of a
+    // service whenever a robot opens it, the launcher sweeps when a robot of
+    // its own ends, a robot sweeps when a neighbour's process is gone, and
+    // `shoal down` sweeps what a killed swarm left.
+    config.global.node.cleanup_dead_nodes_on_creation = false;
+    config.global.node.cleanup_dead_nodes_on_destruction = false;
+    config.global.service.cleanup_dead_nodes_on_open = false;
     config
 }
 

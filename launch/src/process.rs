@@ -5,6 +5,7 @@ use std::process::{Child, Command, Stdio};
 
 use anyhow::{Context, Result, bail};
 use shoal_physics::Pose;
+pub use shoal_runtime::pid_alive;
 
 /// A workspace binary beside this executable.
 pub fn sibling_binary(name: &str) -> Result<PathBuf> {
@@ -196,18 +197,6 @@ pub fn start_agent(
     command
         .spawn()
         .with_context(|| format!("starting robot {id}"))
-}
-
-/// Whether `pid` is a running (not zombie) process.
-pub fn pid_alive(pid: i32) -> bool {
-    match std::fs::read_to_string(format!("/proc/{pid}/stat")) {
-        // The state letter follows the parenthesised command name.
-        Ok(stat) => stat
-            .rsplit_once(')')
-            .and_then(|(_, rest)| rest.trim_start().chars().next())
-            .is_some_and(|s| s != 'Z' && s != 'X'),
-        Err(_) => false,
-    }
 }
 
 pub fn signal(pid: i32, signal: i32) -> Result<()> {

@@ -147,10 +147,36 @@ fn stop(
 /// The scenario `shoal up` runs: the file given (or the default arena),
 /// with the command line's robot count, seed and SLAM robots.
 fn scenario_for(options: &UpOptions) -> Result<Scenario> {
-    let mut scenario = load_scenario(options.scenario.as_ref())?;
-    if let Some(count) = options.agents {
-        scenario.agents.count = count;
-    }
+    let mut scenario = match (&options.scenario, options.agents) {
+        (None, Some(count)) => {
+            let scenario = Scenario::default_for(count);
+            if scenario.arena.width > Scenario::default_arena().arena.width {
+                tracing::info!(
+                    "{count} robots do not fit the default arena's start region; \
+                     using an open {:.0} x {:.0} m arena (--scenario FILE chooses another)",
+                    scenario.arena.width,
+                    scenario.arena.height
+                );
+            }
+            scenario
+        }
+        (path, count) => {
+            let mut scenario = load_scenario(path.as_ref())?;
+            if let Some(count) = count {
+                scenario.agents.count = count;
+            }
+            let crowded = scenario.crowded_starts();
+            if crowded > 0 {
+                tracing::warn!(
+                    "{crowded} of {} robots find no free place in agents.start_region {:?} \
+                     and start overlapping; a larger region holds them",
+                    scenario.agents.count,
+                    scenario.agents.start_region
+                );
+            }
+            scenario
+        }
+    };
     if let Some(seed) = options.seed {
         scenario.agents.seed = seed;
     }

@@ -177,6 +177,47 @@ impl Scenario {
         scenario
     }
 
+    /// How many robots the start region holds at the density the default
+    /// worlds start them at: a little sparser than their lattice.
+    pub fn start_capacity(&self) -> usize {
+        let [x0, y0, x1, y1] = self.agents.start_region;
+        let spacing = self.formation.spread * START_SPACING_OF_SPREAD;
+        ((x1 - x0) * (y1 - y0) / (spacing * spacing)).round() as usize
+    }
+
+    /// An open square arena big enough for `agents` at the default spacing,
+    /// starting them a little sparser than their lattice, at random.
+    pub fn open_arena(agents: usize) -> Self {
+        let mut scenario = Self::default_arena();
+        let spread = scenario.formation.spread;
+        let start_side = (agents as f64).sqrt() * spread * START_SPACING_OF_SPREAD;
+        let side = (start_side * 2.0 + 10.0).max(20.0);
+        scenario.arena = Arena {
+            width: side,
+            height: side,
+            walls: vec![],
+            obstacles: vec![],
+            surfaces: vec![],
+        };
+        let (lo, hi) = ((side - start_side) / 2.0, (side + start_side) / 2.0);
+        scenario.agents.start_region = [lo, lo, hi, hi];
+        scenario.agents.count = agents;
+        scenario
+    }
+
+    /// The world for `agents` robots when the user names none: the default
+    /// arena while its start region holds them, else an open arena sized for
+    /// them. Crowding hundreds of robots into the default 8 x 8 m start
+    /// region would have each hear every other and bump from the first period.
+    pub fn default_for(agents: usize) -> Self {
+        let mut scenario = Self::default_arena();
+        if agents > scenario.start_capacity() {
+            return Self::open_arena(agents);
+        }
+        scenario.agents.count = agents;
+        scenario
+    }
+
     /// The default world: a walled 20 x 20 m arena with a few obstacles, an
     /// interior wall and two surfaces (carpet and a slippery tile patch).
     pub fn default_arena() -> Self {
@@ -418,30 +459,47 @@ impl Scenario {
     /// Deterministic start poses for robots `first..first + count`: inside the
     /// start region, clear of walls, obstacles and each other.
     pub fn start_poses(&self, first: u32, count: usize) -> Vec<Pose> {
+        let (poses, _) = self.place_starts(first as usize + count);
+        poses.into_iter().skip(first as usize).collect()
+    }
+
+    /// How many of the scenario's robots find no free start in their
+    /// region and start overlapping a wall, an obstacle or another robot.
+    pub fn crowded_starts(&self) -> usize {
+        self.place_starts(self.agents.count).1
+    }
+
+    /// Start poses for the first `count` robots, and how many of them found
+    /// no free place.
+    fn place_starts(&self, count: usize) -> (Vec<Pose>, usize) {
         let mut rng = rand::rngs::StdRng::seed_from_u64(self.agents.seed ^ 0x5eed_0000);
         let [x0, y0, x1, y1] = self.agents.start_region;
         let clearance = 2.5 * self.agents.radius;
         let mut placed: Vec<DVec2> = Vec::new();
         let mut poses = Vec::new();
-        for index in 0..(first as usize + count) {
+        let mut crowded = 0;
+        for _ in 0..count {
             let mut candidate = DVec2::new(rng.random_range(x0..x1), rng.random_range(y0..y1));
+            let mut free = false;
             for _ in 0..1000 {
-                let free = !self.arena.blocks(candidate, self.agents.radius)
+                free = !self.arena.blocks(candidate, self.agents.radius)
                     && placed.iter().all(|p| p.distance(candidate) > clearance);
                 if free {
                     break;
                 }
                 candidate = DVec2::new(rng.random_range(x0..x1), rng.random_range(y0..y1));
             }
+            crowded += usize::from(!free);
             let theta = rng.random_range(-std::f64::consts::PI..std::f64::consts::PI);
             placed.push(candidate);
-            if index >= first as usize {
-                poses.push(Pose::new(candidate.x, candidate.y, theta));
-            }
+            poses.push(Pose::new(candidate.x, candidate.y, theta));
         }
-        poses
+        (poses, crowded)
     }
 }
+
+/// Start spacing of the default worlds, in formation spreads.
+const START_SPACING_OF_SPREAD: f64 = 1.3;
 
 /// Upper bounds on what a scenario may ask for. They are far beyond any
 /// swarm Shoal runs, and only there to refuse typos and overflow (a period of
@@ -707,5 +765,32 @@ mod tests {
                 assert!(a.position().distance(b.position()) > 2.0 * scenario.agents.radius);
             }
         }
+    }
+
+    #[test]
+    fn a_large_swarm_gets_an_arena_it_fits_in() {
+        let small = Scenario::default_for(20);
+        assert_eq!(
+            small.arena,
+            Scenario::default_arena().arena,
+            "20 robots fit the default"
+        );
+        assert_eq!(small.agents.count, 20);
+        let crowded = Scenario {
+            agents: AgentsSection {
+                count: 1000,
+                ..Scenario::default_arena().agents
+            },
+            ..Scenario::default_arena()
+        };
+        assert!(
+            crowded.crowded_starts() > 0,
+            "1000 robots cannot start 8 x 8 m apart"
+        );
+        let large = Scenario::default_for(1000);
+        assert_eq!(large.agents.count, 1000);
+        assert!(large.start_capacity() >= 1000);
+        assert_eq!(large.crowded_starts(), 0);
+        assert!(large.validate().is_ok());
     }
 }

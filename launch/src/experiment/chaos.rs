@@ -16,9 +16,8 @@ use rand::{Rng, SeedableRng};
 use serde::Serialize;
 use shoal_broker::SwarmNodeState;
 use shoal_broker::liveness::{swarm_nodes, swarm_services};
-use shoal_physics::Pose;
+use shoal_physics::{Pose, Scenario};
 
-use super::scale::open_arena;
 use super::swarm_name;
 use crate::swarm::RunningSwarm;
 
@@ -191,7 +190,11 @@ fn figures(
         .iter()
         .filter(|k| k.regroup_s.is_none() && k.at_s + HEAL_WINDOW_S < seconds)
         .count();
-    let max_stale = kills.iter().filter_map(|k| k.stale_nodes).max().unwrap_or(0);
+    let max_stale = kills
+        .iter()
+        .filter_map(|k| k.stale_nodes)
+        .max()
+        .unwrap_or(0);
     let worst_gap = recording_gap_s.iter().copied().fold(0.0, f64::max);
     vec![
         figure(
@@ -394,7 +397,7 @@ pub fn run(args: &ChaosArgs) -> Result<Report> {
     let dir = args.keep.clone().unwrap_or_else(|| scratch.clone());
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
     let shm_before = shared_memory_files();
-    let scenario = open_arena(args.agents);
+    let scenario = Scenario::open_arena(args.agents);
     let period_s = scenario.timing.period_s;
     let mut swarm = RunningSwarm::launch(&name, scenario, false)?;
     let segment = |k: usize| {

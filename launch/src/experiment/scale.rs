@@ -4,7 +4,7 @@ use std::time::Instant;
 
 use anyhow::Result;
 use serde::Serialize;
-use shoal_physics::{Arena, Scenario};
+use shoal_physics::Scenario;
 
 use super::{run_until_settled, swarm_name};
 use crate::process::{ProcessUsage, usage};
@@ -32,31 +32,14 @@ pub struct Report {
     pub rows: Vec<Row>,
 }
 
-/// An open square arena big enough for `agents` at the default spacing,
-/// starting them a little sparser than their lattice, at random.
-pub fn open_arena(agents: usize) -> Scenario {
-    let mut scenario = Scenario::default_arena();
-    let spread = scenario.formation.spread;
-    let start_side = (agents as f64).sqrt() * spread * 1.3;
-    let side = (start_side * 2.0 + 10.0).max(20.0);
-    scenario.arena = Arena {
-        width: side,
-        height: side,
-        walls: vec![],
-        obstacles: vec![],
-        surfaces: vec![],
-    };
-    let (lo, hi) = ((side - start_side) / 2.0, (side + start_side) / 2.0);
-    scenario.agents.start_region = [lo, lo, hi, hi];
-    scenario.agents.count = agents;
-    scenario
-}
-
 pub fn run(sizes: &[usize], max_s: f64) -> Result<Report> {
     let mut rows = Vec::new();
     for (index, &agents) in sizes.iter().enumerate() {
-        let mut swarm =
-            RunningSwarm::launch(&swarm_name("scale", index), open_arena(agents), true)?;
+        let mut swarm = RunningSwarm::launch(
+            &swarm_name("scale", index),
+            Scenario::open_arena(agents),
+            true,
+        )?;
         let pids = swarm.agent_pids();
         let before: ProcessUsage = pids.iter().filter_map(|p| usage(*p)).sum();
         let wall = Instant::now();
