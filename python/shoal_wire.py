@@ -32,6 +32,8 @@ class Pose(ctypes.Structure):
         ("visible", ctypes.c_uint32),
         ("neighbour_count", ctypes.c_uint32),
         ("neighbours", ctypes.c_uint32 * MAX_NEIGHBOURS),
+        ("missed_periods", ctypes.c_uint32),
+        ("neighbour_age_ms", ctypes.c_uint32),
     ]
 
     @staticmethod
@@ -108,7 +110,7 @@ class ModelUpdate(ctypes.Structure):
         return "shoal.ModelUpdate"
 
 
-assert ctypes.sizeof(Pose) == 168
+assert ctypes.sizeof(Pose) == 176
 assert ctypes.sizeof(ClockTick) == 24
 assert ctypes.sizeof(Scan) == 56 + 4 * MAX_BEAMS + 4
 assert ctypes.sizeof(Estimate) == 48

@@ -22,6 +22,9 @@ const WIDEN_BELOW: usize = 3;
 pub struct Heard<'a> {
     pub tick: u64,
     pub sim_time: f64,
+    /// When the robot acts, on the swarm's clock: wall time since the
+    /// swarm's epoch in real time, the tick's time in lockstep.
+    pub now_s: f64,
     /// Neighbour poses current for this period.
     pub current: &'a [PoseSample],
     /// Neighbours that fell silent since the last period.
@@ -46,6 +49,9 @@ pub struct Member {
     /// SLAM estimate forward.
     odometry_history: VecDeque<(u64, Pose)>,
     pid: u32,
+    /// The tick of this robot's last period, once it has had one.
+    last_period: Option<u64>,
+    missed_periods: u32,
 }
 
 impl Member {
@@ -55,6 +61,8 @@ impl Member {
             range: SensingRange::new(scenario.bus.max_ring),
             odometry_history: VecDeque::with_capacity(BELIEF_HISTORY_TICKS + 1),
             pid,
+            last_period: None,
+            missed_periods: 0,
         }
     }
 
@@ -129,15 +137,29 @@ impl Member {
             .filter(|s| DVec2::new(s.x, s.y).distance(me) <= radius)
             .map(|s| s.agent_id)
             .collect();
-        let sensed: Vec<Neighbour> = heard
+        let acted_on: Vec<&PoseSample> = heard
             .current
+            .iter()
+            .filter(|s| DVec2::new(s.x, s.y).distance(me) <= radius)
+            .collect();
+        let sensed: Vec<Neighbour> = acted_on
             .iter()
             .map(|s| Neighbour {
                 id: s.agent_id,
                 position: DVec2::new(s.x, s.y),
             })
-            .filter(|n| n.position.distance(me) <= radius)
             .collect();
+        let oldest_s = acted_on
+            .iter()
+            .map(|s| heard.now_s - s.sim_time)
+            .fold(0.0, f64::max);
+        if let Some(last) = self.last_period {
+            let missed = heard.tick.saturating_sub(last + 1);
+            self.missed_periods = self
+                .missed_periods
+                .saturating_add(u32::try_from(missed).unwrap_or(u32::MAX));
+        }
+        self.last_period = Some(heard.tick);
         let inner_radius = SensingRange::radius(self.range.sense_ring.saturating_sub(1), cell_size);
         let within_inner = sensed
             .iter()
@@ -183,6 +205,8 @@ impl Member {
             visible: sensed.len() as u32,
             neighbour_count: decision.tracked.len().min(MAX_NEIGHBOURS) as u32,
             neighbours,
+            missed_periods: self.missed_periods,
+            neighbour_age_ms: (oldest_s * 1000.0).round().min(f64::from(u32::MAX)) as u32,
             ..*previous
         };
 
@@ -221,6 +245,7 @@ mod tests {
         Heard {
             tick,
             sim_time: tick as f64 * 0.2,
+            now_s: tick as f64 * 0.2 + 0.01,
             current,
             dropped,
             rejected: 0,
@@ -258,6 +283,31 @@ mod tests {
         );
         let moved = Pose::new(said.pose.x, said.pose.y, said.pose.theta);
         assert_ne!(moved, start);
+    }
+
+    #[test]
+    fn a_period_says_how_late_it_ran_and_how_old_its_neighbours_were() {
+        let scenario = scenario();
+        let mut member = Member::new(0, Pose::new(5.0, 5.0, 0.0), &scenario, 1);
+        let mut fresh = PoseSample::standing(1, 2, 4, 5.6, 5.0, 0.0);
+        fresh.sim_time = 0.8;
+        let mut old = PoseSample::standing(2, 3, 3, 5.0, 5.6, 0.0);
+        old.sim_time = 0.6;
+        let others = [fresh, old];
+        // A robot joining late misses nothing before its first period.
+        let previous = member.standing(0, scenario.timing.period_s);
+        let first = member.period(&heard(5, &others, &[]), &previous, &scenario);
+        assert_eq!(first.pose.missed_periods, 0);
+        // It acts at 1.01 s on a pose whose period began at 0.6 s.
+        assert_eq!(first.pose.neighbour_age_ms, 410);
+        // Woken for tick 8 after tick 5, it missed 6 and 7.
+        let later = member.period(&heard(8, &others, &[]), &first.pose, &scenario);
+        assert_eq!(later.pose.missed_periods, 2);
+        let alone = member.period(&heard(9, &[], &[]), &later.pose, &scenario);
+        assert_eq!(
+            (alone.pose.missed_periods, alone.pose.neighbour_age_ms),
+            (2, 0)
+        );
     }
 
     #[test]

@@ -73,6 +73,10 @@ pub fn run(options: AgentOptions) -> Result<()> {
         let heard = Heard {
             tick,
             sim_time,
+            now_s: match ports.clock {
+                Some(_) => sim_time,
+                None => since_epoch_s(meta.epoch_unix_ms),
+            },
             current: &current,
             dropped: &dropped,
             rejected: ports.rejected(),
@@ -235,13 +239,16 @@ impl Listening {
 
 /// Sleeps until the next period boundary of the swarm's shared clock and
 /// returns its tick number and time.
+/// Wall-clock seconds since the swarm's epoch.
+fn since_epoch_s(epoch_unix_ms: u64) -> f64 {
+    let now_us = SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_micros() as u64);
+    now_us.saturating_sub(epoch_unix_ms * 1000) as f64 / 1e6
+}
+
 fn wait_for_next_period(epoch_unix_ms: u64, period_s: f64, last_tick: u64) -> (u64, f64) {
-    let elapsed = || {
-        let now_ms = SystemTime::now()
-            .duration_since(UNIX_EPOCH)
-            .map_or(0, |d| d.as_millis() as u64);
-        now_ms.saturating_sub(epoch_unix_ms) as f64 / 1000.0
-    };
+    let elapsed = || since_epoch_s(epoch_unix_ms);
     let next_tick = ((elapsed() / period_s).floor() as u64 + 1).max(last_tick + 1);
     let due = next_tick as f64 * period_s;
     let wait = due - elapsed();

@@ -37,6 +37,12 @@ pub struct PoseSample {
     pub visible: u32,
     pub neighbour_count: u32,
     pub neighbours: [u32; MAX_NEIGHBOURS],
+    /// Control periods this robot has missed since it started: in real time,
+    /// periods it woke too late for. None can be missed in lockstep.
+    pub missed_periods: u32,
+    /// How old the oldest neighbour pose it acted on this period was, ms:
+    /// from the start of that pose's period to when this robot acted.
+    pub neighbour_age_ms: u32,
 }
 
 impl PoseSample {
@@ -60,6 +66,8 @@ impl PoseSample {
             visible: 0,
             neighbour_count: 0,
             neighbours: [0; MAX_NEIGHBOURS],
+            missed_periods: 0,
+            neighbour_age_ms: 0,
         }
     }
 
@@ -206,7 +214,7 @@ mod tests {
     #[test]
     fn layouts_match_the_python_mirror() {
         // python/shoal_wire.py declares the same fields; these sizes pin the layout.
-        assert_eq!(core::mem::size_of::<PoseSample>(), 168);
+        assert_eq!(core::mem::size_of::<PoseSample>(), 176);
         assert_eq!(core::mem::size_of::<ClockTick>(), 24);
         assert_eq!(core::mem::size_of::<ScanSample>(), 56 + 4 * MAX_BEAMS + 4);
         assert_eq!(core::mem::size_of::<EstimateSample>(), 48);

@@ -4,14 +4,37 @@ use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 
 use glam::DVec2;
+use serde::Serialize;
 use shoal_broker::{PoseSample, SampleCheck};
 use shoal_physics::metrics::{FormationMetrics, formation_metrics};
+
+/// Neighbour ages are counted in 1 ms steps up to this; older ones in the last.
+const MAX_AGE_MS: usize = 10_000;
 
 pub struct Observer {
     latest: BTreeMap<u32, (PoseSample, Instant)>,
     check: SampleCheck,
     pub newest_tick: u64,
     pub newest_time: f64,
+    /// The most periods each robot ever heard from said it missed; kept
+    /// after it falls silent.
+    missed_periods: BTreeMap<u32, u32>,
+    /// How many samples, among those of robots with neighbours, acted on
+    /// neighbour poses this many ms old at most.
+    neighbour_ages: Vec<u64>,
+}
+
+/// Whether real time held, from what the robots' samples say.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct Timeliness {
+    /// Control periods a robot missed, on average over every robot heard
+    /// from, and the most any one missed.
+    pub missed_periods_mean: f64,
+    pub missed_periods_max: u32,
+    /// The age of the oldest neighbour pose a robot acted on in a period,
+    /// over every period heard of in which it had neighbours.
+    pub neighbour_age_p50_ms: Option<u32>,
+    pub neighbour_age_p99_ms: Option<u32>,
 }
 
 impl Observer {
@@ -21,6 +44,8 @@ impl Observer {
             check,
             newest_tick: 0,
             newest_time: 0.0,
+            missed_periods: BTreeMap::new(),
+            neighbour_ages: vec![0; MAX_AGE_MS + 1],
         }
     }
 
@@ -31,6 +56,11 @@ impl Observer {
         }
         self.newest_tick = self.newest_tick.max(sample.tick);
         self.newest_time = self.newest_time.max(sample.sim_time);
+        let missed = self.missed_periods.entry(sample.agent_id).or_default();
+        *missed = (*missed).max(sample.missed_periods);
+        if sample.visible > 0 {
+            self.neighbour_ages[(sample.neighbour_age_ms as usize).min(MAX_AGE_MS)] += 1;
+        }
         self.latest
             .insert(sample.agent_id, (sample, Instant::now()));
         true
@@ -72,8 +102,69 @@ impl Observer {
         self.check.rejected
     }
 
+    pub fn timeliness(&self) -> Timeliness {
+        let robots = self.missed_periods.len().max(1) as f64;
+        let total: u64 = self.neighbour_ages.iter().sum();
+        let percentile = |share: f64| {
+            let rank = (share * total as f64).ceil().max(1.0) as u64;
+            let mut seen = 0;
+            self.neighbour_ages.iter().position(|count| {
+                seen += count;
+                seen >= rank
+            })
+        };
+        Timeliness {
+            missed_periods_mean: self
+                .missed_periods
+                .values()
+                .map(|m| f64::from(*m))
+                .sum::<f64>()
+                / robots,
+            missed_periods_max: self.missed_periods.values().copied().max().unwrap_or(0),
+            neighbour_age_p50_ms: (total > 0)
+                .then(|| percentile(0.5))
+                .flatten()
+                .map(|a| a as u32),
+            neighbour_age_p99_ms: (total > 0)
+                .then(|| percentile(0.99))
+                .flatten()
+                .map(|a| a as u32),
+        }
+    }
+
     pub fn metrics(&self, spread: f64) -> FormationMetrics {
         let positions: Vec<DVec2> = self.samples().map(|s| DVec2::new(s.x, s.y)).collect();
         formation_metrics(&positions, spread)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use shoal_physics::Scenario;
+
+    #[test]
+    fn timeliness_counts_missed_periods_and_neighbour_age_percentiles() {
+        let mut observer = Observer::new(SampleCheck::for_scenario(&Scenario::default_arena()));
+        for (id, missed, age, visible) in
+            [(1, 0, 100, 2), (1, 3, 300, 2), (2, 1, 200, 1), (3, 0, 0, 0)]
+        {
+            let mut sample = PoseSample::standing(id, id, 1, 5.0, 5.0, 0.0);
+            (
+                sample.missed_periods,
+                sample.neighbour_age_ms,
+                sample.visible,
+            ) = (missed, age, visible);
+            assert!(observer.record(sample));
+        }
+        let t = observer.timeliness();
+        // Robots 1, 2 and 3 missed 3, 1 and 0 periods.
+        assert!((t.missed_periods_mean - 4.0 / 3.0).abs() < 1e-12);
+        assert_eq!(t.missed_periods_max, 3);
+        // Robot 3 had no neighbours: its age says nothing.
+        assert_eq!(
+            (t.neighbour_age_p50_ms, t.neighbour_age_p99_ms),
+            (Some(200), Some(300))
+        );
     }
 }

@@ -20,6 +20,10 @@ pub struct AgentStatus {
     pub tick: Option<u64>,
     pub health: Option<u32>,
     pub neighbours: Vec<u32>,
+    /// Control periods it has missed since it started.
+    pub missed_periods: Option<u32>,
+    /// How old the oldest neighbour pose it last acted on was.
+    pub neighbour_age_ms: Option<u32>,
     /// What the SLAM process knows of this robot, if it follows it.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub slam: Option<FollowedReport>,
@@ -84,6 +88,8 @@ pub fn gather(swarm: &str) -> Result<StatusReport> {
             neighbours: sample
                 .map(|s| s.neighbour_ids().to_vec())
                 .unwrap_or_default(),
+            missed_periods: sample.map(|s| s.missed_periods),
+            neighbour_age_ms: sample.map(|s| s.neighbour_age_ms),
             slam: slam
                 .as_ref()
                 .and_then(|r| r.followed.iter().find(|f| f.id == id).cloned()),

@@ -9,6 +9,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 use shoal_physics::Scenario;
 
+use crate::observer::Timeliness;
 use crate::swarm::{RecordOptions, RunningSwarm};
 
 pub struct UpOptions {
@@ -58,6 +59,9 @@ pub struct UpSummary {
     /// When the formation last became (and stayed) formed, in simulated seconds.
     pub converge_s: Option<f64>,
     pub rejected_samples: u64,
+    /// Whether real time held (in lockstep, ages are in simulated time).
+    #[serde(flatten)]
+    pub timeliness: Timeliness,
 }
 
 pub fn load_scenario(path: Option<&PathBuf>) -> Result<Scenario> {
@@ -90,6 +94,7 @@ fn stop(
         spacing_cv: metrics.spacing_cv,
         converge_s: converged_since,
         rejected_samples: swarm.rejected_samples(),
+        timeliness: swarm.observer.timeliness(),
     };
     eprintln!("shoal: stopping swarm `{}`", swarm.name);
     swarm.shutdown()?;
@@ -116,6 +121,18 @@ fn stop(
                 .converge_s
                 .map_or_else(|| "never".to_owned(), |t| format!("{t:.1} s"))
         );
+        if !summary.lockstep {
+            let t = &summary.timeliness;
+            let ms = |age: Option<u32>| age.map_or_else(|| "-".to_owned(), |a| format!("{a} ms"));
+            eprintln!(
+                "shoal: real time: {:.2} missed periods per robot (at most {}); the oldest neighbour \
+                 pose a robot acted on was {} old at p50, {} at p99",
+                t.missed_periods_mean,
+                t.missed_periods_max,
+                ms(t.neighbour_age_p50_ms),
+                ms(t.neighbour_age_p99_ms)
+            );
+        }
     }
     let crashed: Vec<&str> = swarm
         .deaths()
