@@ -129,8 +129,8 @@ impl Member {
     /// sample this robot published.
     pub fn period(&mut self, heard: &Heard, previous: &PoseSample, scenario: &Scenario) -> Said {
         let me = self.robot.body.pose.position();
-        let cell_size = scenario.bus.cell_size;
-        let radius = self.range.sense_radius(cell_size);
+        let step = scenario.bus.listen_step;
+        let radius = self.range.sense_radius(step);
         let died_nearby: Vec<u32> = heard
             .dropped
             .iter()
@@ -160,7 +160,7 @@ impl Member {
                 .saturating_add(u32::try_from(missed).unwrap_or(u32::MAX));
         }
         self.last_period = Some(heard.tick);
-        let inner_radius = SensingRange::radius(self.range.sense_ring.saturating_sub(1), cell_size);
+        let inner_radius = SensingRange::radius(self.range.sense_ring.saturating_sub(1), step);
         let within_inner = sensed
             .iter()
             .filter(|n| n.position.distance(me) <= inner_radius)

@@ -18,6 +18,11 @@ use crate::neighbours::NeighbourTable;
 /// How often a robot notes its last pose for `shoal restart`, and at most how
 /// often it sweeps the bus for dead nodes.
 const HOUSEKEEPING_PERIOD: Duration = Duration::from_secs(1);
+/// A robot notes its pose again only once it moved this far (metres) or
+/// turned this much (radians): a thousand robots standing in formation
+/// rewriting a file each every second kept the file system busy.
+const NOTED_POSE_MOVE_M: f64 = 0.05;
+const NOTED_POSE_TURN_RAD: f64 = 0.05;
 
 pub struct AgentOptions {
     pub swarm: String,
@@ -43,7 +48,7 @@ pub fn run(options: AgentOptions) -> Result<()> {
     let stale_after = Duration::from_secs_f64(period_s * scenario.timing.stale_periods);
 
     let mut last = member.standing(0, period_s);
-    ports.listen(&last, member.range.listen_ring);
+    ports.listen(&last, member.range.listen_radius(scenario.bus.listen_step));
     if let Some(clock) = &ports.clock {
         // Announce ourselves so the clock waits for us from the next tick on.
         last = member.standing(clock.latest()?.map_or(0, |t| t.tick), period_s);
@@ -54,6 +59,8 @@ pub fn run(options: AgentOptions) -> Result<()> {
     // robot hears everyone's first-tick pose, so all views agree from then on.
     let mut settled = ports.clock.is_none();
     let mut last_housekeeping = Instant::now();
+    let pose_note = runtime.pose_note(options.id)?;
+    let mut noted: Option<[f64; 3]> = None;
     let mut dead_suspected = false;
     while !ports.bus.termination_requested() {
         let (tick, sim_time) = match &ports.clock {
@@ -95,11 +102,19 @@ pub fn run(options: AgentOptions) -> Result<()> {
         ports.scans.publish(&said.scan)?;
         last = said.pose;
         ports.say(&mut last)?;
-        ports.listen(&last, member.range.listen_ring);
+        ports.listen(&last, member.range.listen_radius(scenario.bus.listen_step));
         if last_housekeeping.elapsed() >= HOUSEKEEPING_PERIOD {
             last_housekeeping = Instant::now();
-            if let Err(e) = runtime.write_last_pose(options.id, [last.x, last.y, last.theta]) {
-                tracing::warn!("cannot note last pose: {e}");
+            let pose = [last.x, last.y, last.theta];
+            let moved = noted.is_none_or(|[x, y, theta]| {
+                (pose[0] - x).hypot(pose[1] - y) >= NOTED_POSE_MOVE_M
+                    || (pose[2] - theta).abs() >= NOTED_POSE_TURN_RAD
+            });
+            if moved {
+                match pose_note.write(pose) {
+                    Ok(()) => noted = Some(pose),
+                    Err(e) => tracing::warn!("cannot note last pose: {e}"),
+                }
             }
             if std::mem::take(&mut dead_suspected) {
                 match remove_dead_nodes(&options.swarm) {
@@ -110,8 +125,8 @@ pub fn run(options: AgentOptions) -> Result<()> {
             }
         }
     }
-    runtime
-        .write_last_pose(options.id, [last.x, last.y, last.theta])
+    pose_note
+        .write([last.x, last.y, last.theta])
         .context("noting the last pose on the way out")?;
     tracing::info!(id = options.id, tick = last.tick, "robot left the swarm");
     Ok(())
@@ -203,10 +218,10 @@ impl Ports {
         Ok(())
     }
 
-    /// Listens to the cells within `ring` of the cell `pose` stands in.
-    fn listen(&mut self, pose: &PoseSample, ring: u32) {
+    /// Listens to the cells within `radius` of `pose`.
+    fn listen(&mut self, pose: &PoseSample, radius: f64) {
         self.listening
-            .update(&self.bus, &mut self.cells, pose, ring);
+            .update(&self.bus, &mut self.cells, pose, radius);
     }
 }
 
@@ -219,10 +234,9 @@ struct Listening {
 }
 
 impl Listening {
-    /// Listens to the cells within `ring` of the cell `pose` stands in.
-    fn update(&mut self, bus: &Bus, cells: &mut CellExchange, pose: &PoseSample, ring: u32) {
-        let center = cells.cell_of(pose.x, pose.y);
-        match cells.listen(bus, center, ring) {
+    /// Listens to the cells within `radius` of `pose`.
+    fn update(&mut self, bus: &Bus, cells: &mut CellExchange, pose: &PoseSample, radius: f64) {
+        match cells.listen(bus, (pose.x, pose.y), radius) {
             Ok(()) if self.failing => {
                 self.failing = false;
                 tracing::info!("listening to the cells around again");

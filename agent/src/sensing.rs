@@ -1,6 +1,5 @@
 //! How far a robot listens and senses. It listens to the cells within
-//! `listen_ring` of its own and senses robots up to a margin short of what
-//! that listening is sure to cover. When it widens its listening, it widens
+//! `listen_ring` steps of it and senses robots up to a margin short of that. When it widens its listening, it widens
 //! its sensing only two periods later: robots entering its sensing range were
 //! then already heard, which keeps lockstep runs deterministic.
 
@@ -29,14 +28,19 @@ impl SensingRange {
         }
     }
 
-    /// Listening to `ring` rings of `cell_size` cells covers at least `ring *
-    /// cell_size` around any point of the centre cell.
-    pub fn radius(ring: u32, cell_size: f64) -> f64 {
-        (f64::from(ring) * cell_size - SENSE_MARGIN_M).max(0.0)
+    /// How far a robot senses at `ring` rings of `step` metres: short of
+    /// what it listens to by the margin.
+    pub fn radius(ring: u32, step: f64) -> f64 {
+        (f64::from(ring) * step - SENSE_MARGIN_M).max(0.0)
     }
 
-    pub fn sense_radius(&self, cell_size: f64) -> f64 {
-        Self::radius(self.sense_ring, cell_size)
+    pub fn sense_radius(&self, step: f64) -> f64 {
+        Self::radius(self.sense_ring, step)
+    }
+
+    /// How far it listens.
+    pub fn listen_radius(&self, step: f64) -> f64 {
+        f64::from(self.listen_ring) * step
     }
 
     /// Updates the rings after a period in which the robot sensed `sensed`

@@ -145,8 +145,8 @@ pub fn probe(role: Role, swarm: &str, samples: usize, socket: &Path) -> Result<(
                 .listener_builder()
                 .create()
                 .map_err(|e| anyhow::anyhow!("{e:?}"))?;
-            let key = cells.cell_of(centre, centre);
-            cells.listen(&bus, key, 0)?;
+            // Only the cell the probe stands in.
+            cells.listen(&bus, (centre, centre), 0.0)?;
             let raw_subscriber = raw
                 .subscriber_builder()
                 .create()

@@ -1,6 +1,8 @@
 //! Neighbour discovery by spatial cells: a robot publishes its pose into the
-//! service of the grid cell it stands in and listens to the cells around it.
-//! What it costs depends on how many robots stand nearby, not on swarm size.
+//! service of the grid cell it stands in and listens to the cells within a
+//! radius of it. What it costs depends on how many robots stand nearby, not
+//! on swarm size: every robot it listens to is one iceoryx2 connection each
+//! way, so the cells it listens to should cover little beyond that radius.
 
 use std::collections::HashMap;
 use std::time::{Duration, Instant};
@@ -21,15 +23,17 @@ pub type CellKey = (i32, i32);
 const CELL_BUFFER: usize = 2;
 const RETRY_AFTER: Duration = Duration::from_secs(1);
 
-/// Publishers of the cells a robot stood in most recently. A robot on a
-/// border crosses back and forth; keeping its last few publishers avoids
-/// re-creating one each time.
-const KEPT_PUBLISHERS: usize = 4;
+/// How far outside its cell a robot still publishes into it. A robot on a
+/// border would otherwise cross back and forth, opening a publisher (one
+/// connection per listener) each time; and a publisher kept for each cell it
+/// stood in would add those connections for nothing. Listeners hear it all
+/// the same: robots sense a metre short of what they listen to.
+const PUBLISH_SLACK_M: f64 = 0.4;
 
 pub struct CellExchange {
     cell_size: f64,
-    /// Most recent first; the first is the cell the robot stands in.
-    publishers: Vec<(CellKey, Sender<PoseSample>)>,
+    /// The cell the robot publishes into, within [`PUBLISH_SLACK_M`] of it.
+    publisher: Option<(CellKey, Sender<PoseSample>)>,
     subscribers: HashMap<CellKey, Subscriber<ipc::Service, PoseSample, ()>>,
     /// Cells whose subscription failed (full), and when: they are retried
     /// only after [`RETRY_AFTER`], since opening a service is costly.
@@ -43,7 +47,7 @@ impl CellExchange {
     pub fn new(cell_size: f64) -> Self {
         Self {
             cell_size,
-            publishers: Vec::new(),
+            publisher: None,
             subscribers: HashMap::new(),
             failed: HashMap::new(),
             failures: 0,
@@ -69,55 +73,71 @@ impl CellExchange {
     }
 
     /// Publishes into the cell under the sample's pose, moving to a new cell's
-    /// service when the robot crossed a border.
+    /// service once the robot is clearly out of the old one.
     pub fn publish(&mut self, bus: &Bus, sample: &PoseSample) -> Result<(), BusError> {
-        let key = self.cell_of(sample.x, sample.y);
-        match self.publishers.iter().position(|(k, _)| *k == key) {
-            Some(0) => {}
-            Some(index) => {
-                let entry = self.publishers.remove(index);
-                self.publishers.insert(0, entry);
+        let slack = PUBLISH_SLACK_M.min(self.cell_size / 4.0);
+        let (key, publisher) = match self.publisher.take() {
+            Some((key, publisher))
+                if cell_distance(self.cell_size, key, sample.x, sample.y) <= slack =>
+            {
+                (key, publisher)
             }
-            None => {
+            // The old publisher is dropped first: its connections are
+            // released before the new one's are made.
+            _ => {
+                let key = self.cell_of(sample.x, sample.y);
                 let publisher = Sender::open(bus, &Self::topic(bus, key))
                     .inspect_err(|_| self.failures += 1)?;
-                self.publishers.insert(0, (key, publisher));
-                self.publishers.truncate(KEPT_PUBLISHERS);
+                (key, publisher)
             }
-        }
-        self.publishers[0].1.publish(sample)
+        };
+        let sent = publisher.publish(sample);
+        self.publisher = Some((key, publisher));
+        sent
     }
 
-    /// Listens to every cell within `ring` cells of `center` and to no other.
-    pub fn listen(&mut self, bus: &Bus, center: CellKey, ring: u32) -> Result<(), BusError> {
-        let ring = ring as i32;
-        let wanted = |k: &CellKey| (k.0 - center.0).abs() <= ring && (k.1 - center.1).abs() <= ring;
-        self.subscribers.retain(|k, _| wanted(k));
+    /// Every cell that comes within `radius` of `(x, y)`.
+    pub fn cells_within(&self, x: f64, y: f64, radius: f64) -> Vec<CellKey> {
+        let (low, high) = (
+            self.cell_of(x - radius, y - radius),
+            self.cell_of(x + radius, y + radius),
+        );
+        (low.0..=high.0)
+            .flat_map(|cx| (low.1..=high.1).map(move |cy| (cx, cy)))
+            .filter(|key| cell_distance(self.cell_size, *key, x, y) <= radius)
+            .collect()
+    }
+
+    /// Listens to every cell that comes within `radius` of `(x, y)`. A cell
+    /// is let go only once it is half a cell further than that, so a robot
+    /// that stands still near the edge does not open and drop it period
+    /// after period.
+    pub fn listen(&mut self, bus: &Bus, (x, y): (f64, f64), radius: f64) -> Result<(), BusError> {
+        let keep_within = radius + self.cell_size / 2.0;
+        let cell_size = self.cell_size;
+        self.subscribers
+            .retain(|k, _| cell_distance(cell_size, *k, x, y) <= keep_within);
         let mut first_error = None;
-        for dx in -ring..=ring {
-            for dy in -ring..=ring {
-                let key = (center.0 + dx, center.1 + dy);
-                if self.subscribers.contains_key(&key) {
-                    continue;
+        for key in self.cells_within(x, y, radius) {
+            if self.subscribers.contains_key(&key) {
+                continue;
+            }
+            if self
+                .failed
+                .get(&key)
+                .is_some_and(|at| at.elapsed() < RETRY_AFTER)
+            {
+                continue;
+            }
+            match subscribe(bus, &Self::topic(bus, key)) {
+                Ok(subscriber) => {
+                    self.failed.remove(&key);
+                    self.subscribers.insert(key, subscriber);
                 }
-                if self
-                    .failed
-                    .get(&key)
-                    .is_some_and(|at| at.elapsed() < RETRY_AFTER)
-                {
-                    continue;
-                }
-                let subscriber = subscribe(bus, &Self::topic(bus, key));
-                match subscriber {
-                    Ok(subscriber) => {
-                        self.failed.remove(&key);
-                        self.subscribers.insert(key, subscriber);
-                    }
-                    Err(e) => {
-                        self.failed.insert(key, Instant::now());
-                        self.failures += 1;
-                        first_error.get_or_insert(e);
-                    }
+                Err(e) => {
+                    self.failed.insert(key, Instant::now());
+                    self.failures += 1;
+                    first_error.get_or_insert(e);
                 }
             }
         }
@@ -136,5 +156,38 @@ impl CellExchange {
     /// Poses that failed their check since this exchange was made.
     pub fn rejected(&self) -> u64 {
         self.rejected.count()
+    }
+}
+
+/// How far the nearest point of cell `key`, of side `cell_size`, is from `(x, y)`.
+fn cell_distance(cell_size: f64, key: CellKey, x: f64, y: f64) -> f64 {
+    let gap = |p: f64, index: i32| {
+        let low = f64::from(index) * cell_size;
+        (low - p).max(p - (low + cell_size)).max(0.0)
+    };
+    gap(x, key.0).hypot(gap(y, key.1))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_robot_listens_to_the_cells_its_disc_touches_and_no_corner_beyond() {
+        let cells = CellExchange::new(1.75);
+        let (x, y, radius) = (10.3, 4.1, 3.5);
+        let listened = cells.cells_within(x, y, radius);
+        // Every point within the radius lies in a listened cell.
+        for step in 0..720 {
+            let angle = f64::from(step) * core::f64::consts::PI / 360.0;
+            for r in [0.0, radius / 2.0, radius * 0.999] {
+                let key = cells.cell_of(x + r * angle.cos(), y + r * angle.sin());
+                assert!(listened.contains(&key), "{key:?} at {r} m, {angle} rad");
+            }
+        }
+        // A square of cells around the robot's own would be 5 x 5 = 25 cells
+        // of 3.06 m^2; the disc leaves out its corners.
+        assert!(listened.len() < 25, "{}", listened.len());
+        assert_eq!(cells.cells_within(x, y, 0.0), vec![cells.cell_of(x, y)]);
     }
 }

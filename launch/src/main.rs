@@ -200,6 +200,11 @@ enum ExperimentKind {
         sizes: Vec<usize>,
         #[arg(long, default_value_t = 60.0)]
         max_seconds: f64,
+        /// Run each swarm in real time (robots keep their own period)
+        /// instead of in lockstep, and report missed periods and how old
+        /// the neighbour poses robots act on are.
+        #[arg(long)]
+        real_time: bool,
     },
 }
 
@@ -296,9 +301,14 @@ fn run(cli: Cli) -> Result<()> {
                 report::print(&experiment::healing::run(seeds, max_seconds)?, json)?
             }
             ExperimentKind::Chaos(args) => report::print(&experiment::chaos::run(&args)?, json)?,
-            ExperimentKind::Scale { sizes, max_seconds } => {
-                report::print(&experiment::scale::run(&sizes, max_seconds)?, json)?
-            }
+            ExperimentKind::Scale {
+                sizes,
+                max_seconds,
+                real_time,
+            } => report::print(
+                &experiment::scale::run(&sizes, max_seconds, real_time)?,
+                json,
+            )?,
             ExperimentKind::Learning {
                 seconds,
                 perturbed,

@@ -104,11 +104,20 @@ impl Default for TimingSection {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct BusSection {
-    /// Side of a spatial cell: a robot publishes into its own cell and listens
-    /// to the cells around it, so its cost follows local density, not swarm size.
+    /// Side of a spatial cell: a robot publishes into the cell it stands in
+    /// and listens to the cells near it, so its cost follows local density,
+    /// not swarm size. Smaller cells fit what it listens to closer to what it
+    /// senses (fewer robots heard for nothing) but cost more services, and
+    /// each service a robot listens to costs more than a robot it hears
+    /// (BENCHMARKS.md, session 10: 1.75 m cells took more CPU and twice the
+    /// memory of 3.5 m ones).
     pub cell_size: f64,
-    /// How many rings of cells a robot widens its listening to when it sees
-    /// fewer robots than it tracks.
+    /// How far one ring of listening reaches, metres: a robot listens to
+    /// every cell within `ring * listen_step` of it and senses robots up to
+    /// a metre short of that.
+    pub listen_step: f64,
+    /// How many rings a robot widens its listening to when it sees fewer
+    /// robots than it tracks.
     pub max_ring: u32,
     /// The most robots that may publish in one cell at once.
     pub max_per_cell: usize,
@@ -120,6 +129,7 @@ impl Default for BusSection {
     fn default() -> Self {
         Self {
             cell_size: 3.5,
+            listen_step: 3.5,
             max_ring: 3,
             max_per_cell: 24,
             max_listeners_per_cell: 216,
@@ -385,7 +395,28 @@ impl Scenario {
             true,
             MAX_ARENA_M,
         );
+        check.number(
+            "bus.listen_step",
+            bus.listen_step,
+            MIN_CELL_M,
+            true,
+            MAX_ARENA_M,
+        );
         check.count("bus.max_ring", bus.max_ring as usize, 0, MAX_RING);
+        let widest = 2.0 * f64::from(bus.max_ring.max(1)) * bus.listen_step / bus.cell_size + 2.0;
+        if widest * widest > MAX_LISTENED_CELLS {
+            check.fail(
+                "bus.cell_size",
+                format!(
+                    "{} m cells would have a robot listening to up to {:.0} cells at its widest \
+                     ({} rings of {} m); at most {MAX_LISTENED_CELLS} are allowed",
+                    bus.cell_size,
+                    widest * widest,
+                    bus.max_ring,
+                    bus.listen_step
+                ),
+            );
+        }
         check.count("bus.max_per_cell", bus.max_per_cell, 1, MAX_PER_CELL);
         check.count(
             "bus.max_listeners_per_cell",
@@ -513,6 +544,8 @@ const MIN_PERIOD_S: f64 = 0.001;
 const MAX_PERIOD_S: f64 = 60.0;
 const MAX_STALE_PERIODS: f64 = 1000.0;
 const MIN_CELL_M: f64 = 0.1;
+/// Each cell a robot listens to is a service it opens.
+const MAX_LISTENED_CELLS: f64 = 1024.0;
 const MAX_RING: usize = 16;
 const MAX_PER_CELL: usize = 1024;
 const MAX_LISTENERS_PER_CELL: usize = 16_384;

@@ -335,10 +335,14 @@ impl SwarmRuntime {
     }
 
     pub fn write_last_pose(&self, id: u32, pose: [f64; 3]) -> io::Result<()> {
-        write_atomically(
-            &self.pose_path(id),
-            &format!("{} {} {}\n", pose[0], pose[1], pose[2]),
-        )
+        write_atomically(&self.pose_path(id), &pose_line(pose))
+    }
+
+    /// Where robot `id` notes its pose as it goes, for `shoal restart`.
+    pub fn pose_note(&self, id: u32) -> io::Result<PoseNote> {
+        let path = self.pose_path(id);
+        let file = open_no_follow(&path, true).map_err(|e| with_path(e, &path, "creating"))?;
+        Ok(PoseNote { file, path })
     }
 
     pub fn read_last_pose(&self, id: u32) -> Option<[f64; 3]> {
@@ -373,6 +377,35 @@ impl SwarmRuntime {
 
 /// Readers never see half a file: write beside, then rename (a rename
 /// replaces a link at `path`, never what it points to).
+/// A robot's last pose, noted in place: one file, opened once, whose one
+/// line of fixed width is rewritten at its start. Writing a new file and
+/// renaming it over the old one takes the folder's lock, and a thousand
+/// robots queued on that lock for a fifth of the machine's time
+/// (BENCHMARKS.md, session 10). A write this small is never seen half done
+/// by a robot that is killed, and the pose is read only once it is dead.
+pub struct PoseNote {
+    file: std::fs::File,
+    path: PathBuf,
+}
+
+impl PoseNote {
+    pub fn write(&self, pose: [f64; 3]) -> io::Result<()> {
+        use std::os::unix::fs::FileExt;
+        self.file
+            .write_all_at(pose_line(pose).as_bytes(), 0)
+            .map_err(|e| with_path(e, &self.path, "noting the pose"))
+    }
+}
+
+/// A pose as one line of fixed width (26 characters a number), so that
+/// rewriting it in place never leaves the end of a longer one behind.
+fn pose_line(pose: [f64; 3]) -> String {
+    format!(
+        "{:>+26.16e} {:>+26.16e} {:>+26.16e}\n",
+        pose[0], pose[1], pose[2]
+    )
+}
+
 fn write_atomically(path: &Path, text: &str) -> io::Result<()> {
     use std::io::Write;
     let partial = partial_path(path);
@@ -498,6 +531,26 @@ mod tests {
         assert!(target.join("keep.txt").exists());
         std::fs::remove_dir_all(&root).expect("cleanup");
         std::fs::remove_dir_all(&target).expect("cleanup");
+    }
+
+    #[test]
+    fn a_pose_noted_in_place_reads_back_whatever_was_noted_before() {
+        let root = scratch("note");
+        let runtime = runtime_in(&root, "lab");
+        runtime.create("name = 'x'", &meta()).expect("created");
+        let note = runtime.pose_note(4).expect("note");
+        note.write([-123456.789, 1e-9, 3.0]).expect("long pose");
+        note.write([1.5, 2.0, -0.25]).expect("short pose");
+        assert_eq!(runtime.read_last_pose(4), Some([1.5, 2.0, -0.25]));
+        let pose = [0.1 + 0.2, 1.0 / 3.0, -std::f64::consts::PI];
+        note.write(pose).expect("exact pose");
+        assert_eq!(
+            runtime.read_last_pose(4),
+            Some(pose),
+            "noted to the last bit"
+        );
+        runtime.remove().expect("removed");
+        std::fs::remove_dir_all(&root).expect("cleanup");
     }
 
     #[test]

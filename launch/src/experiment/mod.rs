@@ -54,10 +54,15 @@ pub fn run_until(
             _ => {}
         }
     }
+    let ticks = match &swarm.clock {
+        Some(clock) => clock.tick - start_tick,
+        // In real time every robot keeps its own period: as many as passed.
+        None => ((swarm.sim_time() - start) / swarm.scenario.timing.period_s).round() as u64,
+    };
     Ok(Outcome {
         metrics: swarm.observer.metrics(spread),
         converge_s: formed_since,
-        ticks: swarm.clock.as_ref().map_or(0, |c| c.tick) - start_tick,
+        ticks,
     })
 }
 

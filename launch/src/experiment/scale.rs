@@ -7,6 +7,7 @@ use serde::Serialize;
 use shoal_physics::Scenario;
 
 use super::{run_until_settled, swarm_name};
+use crate::observer::Timeliness;
 use crate::process::{ProcessUsage, usage};
 use crate::swarm::RunningSwarm;
 
@@ -25,6 +26,11 @@ pub struct Row {
     pub private_mb_per_agent: f64,
     /// Simulated seconds per wall-clock second.
     pub speedup: f64,
+    /// Seconds from the first robot's start to the last one's.
+    pub start_s: f64,
+    /// In real time, whether it held (in lockstep, ages are simulated time).
+    #[serde(flatten)]
+    pub timeliness: Timeliness,
 }
 
 #[derive(Debug, Serialize)]
@@ -32,14 +38,18 @@ pub struct Report {
     pub rows: Vec<Row>,
 }
 
-pub fn run(sizes: &[usize], max_s: f64) -> Result<Report> {
+/// Runs each size for `max_s` simulated seconds, in lockstep (as fast as
+/// the robots compute) or in real time.
+pub fn run(sizes: &[usize], max_s: f64, real_time: bool) -> Result<Report> {
     let mut rows = Vec::new();
     for (index, &agents) in sizes.iter().enumerate() {
+        let launched = Instant::now();
         let mut swarm = RunningSwarm::launch(
             &swarm_name("scale", index),
             Scenario::open_arena(agents),
-            true,
+            !real_time,
         )?;
+        let start_s = launched.elapsed().as_secs_f64();
         let pids = swarm.agent_pids();
         let before: ProcessUsage = pids.iter().filter_map(|p| usage(*p)).sum();
         let wall = Instant::now();
@@ -62,15 +72,21 @@ pub fn run(sizes: &[usize], max_s: f64) -> Result<Report> {
             rss_mb_per_agent: after_total.rss_mb / measured,
             private_mb_per_agent: after_total.private_mb / measured,
             speedup: outcome.ticks as f64 * swarm.scenario.timing.period_s / wall_s,
+            start_s,
+            timeliness: swarm.observer.timeliness(),
         };
         eprintln!(
-            "scale: {agents} robots: groups {}, spacing {:.2}, formed after {:?} s, {:.3} ms CPU per robot per tick, {:.1} MB RSS per robot, {:.1}x real time",
+            "scale: {agents} robots: started in {:.1} s, groups {}, spacing {:.2}, formed after {:?} s, {:.3} ms CPU per robot per tick, {:.1} MB RSS per robot, {:.1}x real time, {:.2} missed periods per robot, neighbour age p50 {:?} ms p99 {:?} ms",
+            row.start_s,
             row.components,
             row.spacing_ratio,
             row.converge_s,
             row.cpu_ms_per_agent_tick,
             row.rss_mb_per_agent,
-            row.speedup
+            row.speedup,
+            row.timeliness.missed_periods_mean,
+            row.timeliness.neighbour_age_p50_ms,
+            row.timeliness.neighbour_age_p99_ms
         );
         rows.push(row);
     }
