@@ -13,6 +13,7 @@ use shoal_physics::{Pose, Scenario};
 use shoal_runtime::SwarmRuntime;
 
 use crate::process::{Pinned, Tie, start_agent, stop_processes};
+use crate::swarm::shutdown_grace;
 
 fn alive_robot(nodes: &[SwarmNode], id: u32) -> Option<&SwarmNode> {
     nodes
@@ -180,8 +181,11 @@ pub fn down(swarm: &str) -> Result<usize> {
     };
     let before = alive(false)?;
     if !before.is_empty() {
-        stop_processes(&alive(true)?, DOWN_GRACE);
-        stop_processes(&alive(false)?, DOWN_GRACE);
+        // The launcher stops its robots itself, with their grace.
+        let robots = before.len();
+        stop_processes(&alive(true)?, DOWN_GRACE + shutdown_grace(robots));
+        let rest = alive(false)?;
+        stop_processes(&rest, DOWN_GRACE.max(shutdown_grace(rest.len())));
     }
     remove_dead_nodes(swarm)?;
     let runtime = SwarmRuntime::locate(swarm);

@@ -16,9 +16,9 @@ pub struct Observer {
     check: SampleCheck,
     pub newest_tick: u64,
     pub newest_time: f64,
-    /// The most periods each robot ever heard from said it missed; kept
-    /// after it falls silent.
-    missed_periods: BTreeMap<u32, u32>,
+    /// Periods each robot heard from said it had missed: when timeliness
+    /// was last reset, and most recently. Kept after it falls silent.
+    missed_periods: BTreeMap<u32, (u32, u32)>,
     /// How many samples, among those of robots with neighbours, acted on
     /// neighbour poses this many ms old at most.
     neighbour_ages: Vec<u64>,
@@ -56,8 +56,8 @@ impl Observer {
         }
         self.newest_tick = self.newest_tick.max(sample.tick);
         self.newest_time = self.newest_time.max(sample.sim_time);
-        let missed = self.missed_periods.entry(sample.agent_id).or_default();
-        *missed = (*missed).max(sample.missed_periods);
+        let (_, latest) = self.missed_periods.entry(sample.agent_id).or_default();
+        *latest = (*latest).max(sample.missed_periods);
         if sample.visible > 0 {
             self.neighbour_ages[(sample.neighbour_age_ms as usize).min(MAX_AGE_MS)] += 1;
         }
@@ -102,7 +102,22 @@ impl Observer {
         self.check.rejected
     }
 
+    /// Counts timeliness from now on: periods missed while the swarm was
+    /// still starting say little about whether it runs in real time.
+    pub fn reset_timeliness(&mut self) {
+        for (since, latest) in self.missed_periods.values_mut() {
+            *since = *latest;
+        }
+        self.neighbour_ages.fill(0);
+    }
+
+    /// Timeliness since the swarm was launched, or since the last reset.
     pub fn timeliness(&self) -> Timeliness {
+        let missed = || {
+            self.missed_periods
+                .values()
+                .map(|(since, latest)| latest - since)
+        };
         let robots = self.missed_periods.len().max(1) as f64;
         let total: u64 = self.neighbour_ages.iter().sum();
         let percentile = |share: f64| {
@@ -114,13 +129,8 @@ impl Observer {
             })
         };
         Timeliness {
-            missed_periods_mean: self
-                .missed_periods
-                .values()
-                .map(|m| f64::from(*m))
-                .sum::<f64>()
-                / robots,
-            missed_periods_max: self.missed_periods.values().copied().max().unwrap_or(0),
+            missed_periods_mean: missed().map(f64::from).sum::<f64>() / robots,
+            missed_periods_max: missed().max().unwrap_or(0),
             neighbour_age_p50_ms: (total > 0)
                 .then(|| percentile(0.5))
                 .flatten()
@@ -165,6 +175,22 @@ mod tests {
         assert_eq!(
             (t.neighbour_age_p50_ms, t.neighbour_age_p99_ms),
             (Some(200), Some(300))
+        );
+        // From a reset on, only what happened after it counts.
+        observer.reset_timeliness();
+        assert_eq!(observer.timeliness().missed_periods_max, 0);
+        assert_eq!(observer.timeliness().neighbour_age_p50_ms, None);
+        let mut sample = PoseSample::standing(1, 1, 2, 5.0, 5.0, 0.0);
+        (
+            sample.missed_periods,
+            sample.neighbour_age_ms,
+            sample.visible,
+        ) = (5, 250, 3);
+        assert!(observer.record(sample));
+        let t = observer.timeliness();
+        assert_eq!(
+            (t.missed_periods_max, t.neighbour_age_p50_ms),
+            (2, Some(250))
         );
     }
 }

@@ -17,8 +17,14 @@ use crate::clock::LockstepClock;
 use crate::observer::Observer;
 use crate::process::{Pinned, Tie, pid_alive, sibling_binary, start_agent, stop_processes};
 
-/// How long robots get to leave cleanly before they are killed.
-const SHUTDOWN_GRACE: Duration = Duration::from_secs(5);
+/// How long robots get to leave cleanly before they are killed: a robot
+/// leaves in milliseconds, but a thousand leaving at once queue on the
+/// kernel for seconds (their shared mappings unmapped together), and every
+/// one killed leaves resources the launcher must then clean up one node at
+/// a time, a third of a second each (BENCHMARKS.md, session 10).
+pub(crate) fn shutdown_grace(robots: usize) -> Duration {
+    Duration::from_secs(5) + Duration::from_millis(15) * robots as u32
+}
 /// How long a helper (the recorder writing its footer) gets to leave cleanly.
 const HELPER_GRACE: Duration = Duration::from_secs(10);
 /// How long the launcher waits for its robots to announce themselves.
@@ -515,7 +521,7 @@ impl RunningSwarm {
                 processes.extend(Pinned::shoal_process(node.pid));
             }
         }
-        stop_processes(&processes, SHUTDOWN_GRACE);
+        stop_processes(&processes, shutdown_grace(processes.len()));
         for child in self.children.running.values_mut() {
             let _ = child.wait();
         }

@@ -59,7 +59,8 @@ pub struct UpSummary {
     /// When the formation last became (and stayed) formed, in simulated seconds.
     pub converge_s: Option<f64>,
     pub rejected_samples: u64,
-    /// Whether real time held (in lockstep, ages are in simulated time).
+    /// Whether real time held once every robot had started (in lockstep,
+    /// ages are in simulated time).
     #[serde(flatten)]
     pub timeliness: Timeliness,
 }
@@ -125,8 +126,8 @@ fn stop(
             let t = &summary.timeliness;
             let ms = |age: Option<u32>| age.map_or_else(|| "-".to_owned(), |a| format!("{a} ms"));
             eprintln!(
-                "shoal: real time: {:.2} missed periods per robot (at most {}); the oldest neighbour \
-                 pose a robot acted on was {} old at p50, {} at p99",
+                "shoal: real time, once every robot had started: {:.2} missed periods per robot \
+                 (at most {}); the oldest neighbour pose a robot acted on was {} old at p50, {} at p99",
                 t.missed_periods_mean,
                 t.missed_periods_max,
                 ms(t.neighbour_age_p50_ms),
@@ -270,6 +271,7 @@ pub fn up(options: UpOptions) -> Result<UpSummary> {
     let follow = scenario.slam.follow.clone();
     let spread = scenario.formation.spread;
     let mut swarm = RunningSwarm::launch(&options.swarm, scenario, options.lockstep)?;
+    swarm.observer.reset_timeliness();
     if options.record.wanted() {
         swarm.record(&options.record)?;
     }

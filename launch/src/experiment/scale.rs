@@ -28,7 +28,8 @@ pub struct Row {
     pub speedup: f64,
     /// Seconds from the first robot's start to the last one's.
     pub start_s: f64,
-    /// In real time, whether it held (in lockstep, ages are simulated time).
+    /// In real time, whether it held once every robot had started (in
+    /// lockstep, ages are simulated time).
     #[serde(flatten)]
     pub timeliness: Timeliness,
 }
@@ -50,6 +51,7 @@ pub fn run(sizes: &[usize], max_s: f64, real_time: bool) -> Result<Report> {
             !real_time,
         )?;
         let start_s = launched.elapsed().as_secs_f64();
+        swarm.observer.reset_timeliness();
         let pids = swarm.agent_pids();
         let before: ProcessUsage = pids.iter().filter_map(|p| usage(*p)).sum();
         let wall = Instant::now();
