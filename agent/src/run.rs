@@ -125,8 +125,10 @@ pub fn run(options: AgentOptions) -> Result<()> {
             }
         }
     }
-    pose_note
-        .write([last.x, last.y, last.theta])
+    // Once, on the way out, a whole new file: the last pose is there even if
+    // the noted one was removed meanwhile.
+    runtime
+        .write_last_pose(options.id, [last.x, last.y, last.theta])
         .context("noting the last pose on the way out")?;
     tracing::info!(id = options.id, tick = last.tick, "robot left the swarm");
     Ok(())
