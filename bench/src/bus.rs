@@ -43,7 +43,7 @@ enum Transport {
     IceoryxEvent,
     /// Cell publish; the receiver spins on its subscriber.
     IceoryxPoll,
-    /// The same 168-byte sample on a plain iceoryx2 service of its own (one
+    /// The same 176-byte sample on a plain iceoryx2 service of its own (one
     /// publisher, one subscriber, no checks); the receiver spins on it. What
     /// iceoryx2 itself costs, to tell it from what Shoal adds.
     RawIceoryxPoll,
