@@ -40,6 +40,12 @@ fn twelve_robots_form_one_group_at_the_desired_spacing_and_leave_nothing_behind(
         "spacing {ratio} x spread: {summary}"
     );
     assert!(summary["converge_s"].as_f64().is_some(), "{summary}");
+    // In lockstep no period is missed, and a robot acts on the poses its
+    // neighbours published one tick (0.2 s) before.
+    assert_eq!(summary["missed_periods_max"], 0, "{summary}");
+    assert_eq!(summary["neighbour_age_p50_ms"], 200, "{summary}");
+    let p99 = summary["neighbour_age_p99_ms"].as_u64().expect("age p99");
+    assert!((200..=400).contains(&p99), "{summary}");
     assert_eq!(residue(swarm), (0, vec![]), "nodes or services left behind");
 }
 
