@@ -253,8 +253,6 @@ impl Listening {
     }
 }
 
-/// Sleeps until the next period boundary of the swarm's shared clock and
-/// returns its tick number and time.
 /// Wall-clock seconds since the swarm's epoch.
 fn since_epoch_s(epoch_unix_ms: u64) -> f64 {
     let now_us = SystemTime::now()
@@ -263,6 +261,8 @@ fn since_epoch_s(epoch_unix_ms: u64) -> f64 {
     now_us.saturating_sub(epoch_unix_ms * 1000) as f64 / 1e6
 }
 
+/// Sleeps until the next period boundary of the swarm's shared clock and
+/// returns its tick number and time.
 fn wait_for_next_period(epoch_unix_ms: u64, period_s: f64, last_tick: u64) -> (u64, f64) {
     let elapsed = || since_epoch_s(epoch_unix_ms);
     let next_tick = ((elapsed() / period_s).floor() as u64 + 1).max(last_tick + 1);

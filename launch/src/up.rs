@@ -169,11 +169,10 @@ fn scenario_for(options: &UpOptions) -> Result<Scenario> {
         (None, Some(count)) => {
             let scenario = Scenario::default_for(count);
             if scenario.arena.width > Scenario::default_arena().arena.width {
-                tracing::info!(
-                    "{count} robots do not fit the default arena's start region; \
+                eprintln!(
+                    "shoal: {count} robots do not fit the default arena's start region; \
                      using an open {:.0} x {:.0} m arena (--scenario FILE chooses another)",
-                    scenario.arena.width,
-                    scenario.arena.height
+                    scenario.arena.width, scenario.arena.height
                 );
             }
             scenario
