@@ -1,5 +1,7 @@
 //! How good a formation is: the numbers the thesis's pictures show.
 
+use std::collections::HashMap;
+
 use glam::DVec2;
 use serde::Serialize;
 
@@ -38,13 +40,9 @@ pub fn formation_metrics(positions: &[DVec2], spread: f64) -> FormationMetrics {
     if n == 0 {
         return FormationMetrics::default();
     }
+    let grid = Grid::new(positions, LINK_FACTOR * spread);
     let nearest: Vec<f64> = (0..n)
-        .map(|i| {
-            (0..n)
-                .filter(|&j| j != i)
-                .map(|j| positions[i].distance(positions[j]))
-                .fold(f64::INFINITY, f64::min)
-        })
+        .map(|i| grid.nearest(i))
         .filter(|d| d.is_finite())
         .collect();
     let (spacing_ratio, spacing_cv) = if nearest.is_empty() {
@@ -64,14 +62,74 @@ pub fn formation_metrics(positions: &[DVec2], spread: f64) -> FormationMetrics {
     };
     FormationMetrics {
         agents: n,
-        components: components(positions, LINK_FACTOR * spread),
+        components: components(&grid),
         spacing_ratio,
         spacing_cv,
     }
 }
 
-fn components(positions: &[DVec2], link: f64) -> usize {
-    let n = positions.len();
+/// Positions bucketed in square cells of side `side`: every position within
+/// `side` of a point lies in the 3 x 3 cells around that point's own, so the
+/// metrics of a thousand robots need not compare every pair (they did, 20
+/// times a second in `shoal up`, for a tenth of a core).
+struct Grid<'a> {
+    positions: &'a [DVec2],
+    side: f64,
+    cells: HashMap<(i64, i64), Vec<usize>>,
+}
+
+impl<'a> Grid<'a> {
+    fn new(positions: &'a [DVec2], side: f64) -> Self {
+        let mut grid = Self {
+            positions,
+            side,
+            cells: HashMap::new(),
+        };
+        for (i, p) in positions.iter().enumerate() {
+            grid.cells.entry(grid.key(*p)).or_default().push(i);
+        }
+        grid
+    }
+
+    fn key(&self, p: DVec2) -> (i64, i64) {
+        (
+            (p.x / self.side).floor() as i64,
+            (p.y / self.side).floor() as i64,
+        )
+    }
+
+    /// The others in the 3 x 3 cells around position `i`.
+    fn around(&self, i: usize) -> impl Iterator<Item = usize> + '_ {
+        let (cx, cy) = self.key(self.positions[i]);
+        (cx - 1..=cx + 1)
+            .flat_map(move |x| (cy - 1..=cy + 1).map(move |y| (x, y)))
+            .filter_map(|key| self.cells.get(&key))
+            .flatten()
+            .copied()
+            .filter(move |&j| j != i)
+    }
+
+    /// The distance from position `i` to its nearest other.
+    fn nearest(&self, i: usize) -> f64 {
+        let p = self.positions[i];
+        let near = self
+            .around(i)
+            .map(|j| p.distance(self.positions[j]))
+            .fold(f64::INFINITY, f64::min);
+        if near <= self.side {
+            return near;
+        }
+        // Nothing within a cell's side: the nearest may lie further out.
+        (0..self.positions.len())
+            .filter(|&j| j != i)
+            .map(|j| p.distance(self.positions[j]))
+            .fold(f64::INFINITY, f64::min)
+    }
+}
+
+/// Groups of positions linked by gaps of at most the grid's side.
+fn components(grid: &Grid) -> usize {
+    let n = grid.positions.len();
     let mut parent: Vec<usize> = (0..n).collect();
     fn root(parent: &mut [usize], mut i: usize) -> usize {
         while parent[i] != i {
@@ -81,8 +139,8 @@ fn components(positions: &[DVec2], link: f64) -> usize {
         i
     }
     for i in 0..n {
-        for j in i + 1..n {
-            if positions[i].distance(positions[j]) <= link {
+        for j in grid.around(i).filter(|&j| j > i) {
+            if grid.positions[i].distance(grid.positions[j]) <= grid.side {
                 let (a, b) = (root(&mut parent, i), root(&mut parent, j));
                 parent[a] = b;
             }
@@ -114,5 +172,49 @@ mod tests {
             DVec2::new(11.0, 0.0),
         ];
         assert_eq!(formation_metrics(&clusters, 1.0).components, 2);
+    }
+
+    #[test]
+    fn the_grid_agrees_with_comparing_every_pair() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        for (count, side) in [(2, 1.0), (50, 3.0), (400, 20.0), (400, 60.0)] {
+            let positions: Vec<DVec2> = (0..count)
+                .map(|_| DVec2::new(rng.random_range(0.0..side), rng.random_range(0.0..side)))
+                .collect();
+            let n = positions.len();
+            let link = LINK_FACTOR;
+            let nearest: Vec<f64> = (0..n)
+                .map(|i| {
+                    (0..n)
+                        .filter(|&j| j != i)
+                        .map(|j| positions[i].distance(positions[j]))
+                        .fold(f64::INFINITY, f64::min)
+                })
+                .collect();
+            let mut groups: Vec<usize> = (0..n).collect();
+            // Label propagation over every pair, slow and plain.
+            loop {
+                let mut changed = false;
+                for i in 0..n {
+                    for j in 0..n {
+                        if positions[i].distance(positions[j]) <= link && groups[j] < groups[i] {
+                            groups[i] = groups[j];
+                            changed = true;
+                        }
+                    }
+                }
+                if !changed {
+                    break;
+                }
+            }
+            groups.sort_unstable();
+            groups.dedup();
+            let grid = Grid::new(&positions, link);
+            for (i, expected) in nearest.iter().enumerate() {
+                assert_eq!(grid.nearest(i), *expected, "{count} in {side} m, robot {i}");
+            }
+            assert_eq!(components(&grid), groups.len(), "{count} in {side} m");
+        }
     }
 }
