@@ -3,6 +3,7 @@
 mod bus;
 mod diagnose;
 mod record;
+mod scan;
 mod slam;
 
 use anyhow::Result;
@@ -58,6 +59,16 @@ enum Commands {
         #[arg(long)]
         json: bool,
     },
+    /// One robot's range scan among this many robots around it, against
+    /// casting every beam at every robot.
+    Scan {
+        #[arg(long, value_delimiter = ',', default_value = "0,8,20,40")]
+        robots: Vec<usize>,
+        #[arg(long, default_value_t = 5000)]
+        repeats: usize,
+        #[arg(long)]
+        json: bool,
+    },
     /// Internal: one end of the latency probe.
     #[command(hide = true)]
     Probe {
@@ -90,6 +101,11 @@ fn main() -> Result<()> {
             steps,
             json,
         } => slam::run(&particles, steps, json),
+        Commands::Scan {
+            robots,
+            repeats,
+            json,
+        } => scan::run(&robots, repeats, json),
         Commands::Probe {
             role,
             swarm,

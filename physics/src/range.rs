@@ -52,10 +52,59 @@ impl RangeSensor {
         radius: f64,
     ) -> Vec<f64> {
         let origin = pose.position();
-        (0..self.beams)
-            .map(|i| {
-                let direction = DVec2::from_angle(pose.theta + self.bearing(i));
-                ray_distance(arena, origin, direction, robots, radius).min(self.max_range)
+        let directions: Vec<DVec2> = (0..self.beams)
+            .map(|i| DVec2::from_angle(pose.theta + self.bearing(i)))
+            .collect();
+        let mut ranges: Vec<f64> = directions
+            .iter()
+            .map(|direction| ray_distance(arena, origin, *direction, &[], radius))
+            .collect();
+        // A robot can only stop the beams that point at it: casting each beam
+        // against every robot around was most of a scan's cost.
+        for center in robots {
+            for beams in self.beams_towards(pose, *center, radius) {
+                for i in beams {
+                    ranges[i] = ranges[i].min(ray_circle(origin, directions[i], *center, radius));
+                }
+            }
+        }
+        for range in &mut ranges {
+            *range = range.min(self.max_range);
+        }
+        ranges
+    }
+
+    /// The beams that may hit a body of `radius` at `center`, with a beam to
+    /// spare on each side; all of them when the sensor is inside it.
+    fn beams_towards(
+        &self,
+        pose: &Pose,
+        center: DVec2,
+        radius: f64,
+    ) -> Vec<std::ops::RangeInclusive<usize>> {
+        let last = self.beams.saturating_sub(1);
+        let offset = center - pose.position();
+        let distance = offset.length();
+        let step = if last == 0 {
+            0.0
+        } else {
+            self.field_of_view / last as f64
+        };
+        if self.beams == 0 || distance <= radius || step <= 0.0 || !distance.is_finite() {
+            return vec![0..=last];
+        }
+        let half_width = (radius / distance).asin() + step;
+        let bearing = (offset.to_angle() - pose.theta + std::f64::consts::PI)
+            .rem_euclid(std::f64::consts::TAU)
+            - std::f64::consts::PI;
+        let index = |angle: f64| (angle + self.field_of_view / 2.0) / step;
+        [-std::f64::consts::TAU, 0.0, std::f64::consts::TAU]
+            .into_iter()
+            .filter_map(|turn| {
+                let low = index(bearing + turn - half_width).floor();
+                let high = index(bearing + turn + half_width).ceil();
+                (high >= 0.0 && low <= last as f64)
+                    .then(|| (low.max(0.0) as usize)..=(high.min(last as f64) as usize))
             })
             .collect()
     }
@@ -170,6 +219,44 @@ mod tests {
                 radius: 0.25,
             }],
             surfaces: vec![],
+        }
+    }
+
+    #[test]
+    fn a_scan_reads_exactly_what_casting_every_beam_at_every_robot_reads() {
+        use rand::Rng;
+        let mut rng = rand::rngs::StdRng::seed_from_u64(11);
+        let arena = room();
+        for (beams, field_of_view) in [
+            (181, std::f64::consts::PI),
+            (360, std::f64::consts::TAU),
+            (7, 0.5),
+            (1, 1.0),
+        ] {
+            let sensor = RangeSensor {
+                beams,
+                field_of_view,
+                max_range: 4.0,
+                ..RangeSensor::default()
+            };
+            for _ in 0..200 {
+                let pose = Pose::new(
+                    rng.random_range(0.2..3.8),
+                    rng.random_range(0.2..2.8),
+                    rng.random_range(-7.0..7.0),
+                );
+                let robots: Vec<DVec2> = (0..rng.random_range(0..12))
+                    .map(|_| DVec2::new(rng.random_range(-1.0..5.0), rng.random_range(-1.0..4.0)))
+                    .collect();
+                let every_pair: Vec<f64> = (0..beams)
+                    .map(|i| {
+                        let direction = DVec2::from_angle(pose.theta + sensor.bearing(i));
+                        ray_distance(&arena, pose.position(), direction, &robots, 0.15)
+                            .min(sensor.max_range)
+                    })
+                    .collect();
+                assert_eq!(sensor.cast_exact(&arena, &pose, &robots, 0.15), every_pair);
+            }
         }
     }
 
