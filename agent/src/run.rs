@@ -18,11 +18,6 @@ use crate::neighbours::NeighbourTable;
 /// How often a robot notes its last pose for `shoal restart`, and at most how
 /// often it sweeps the bus for dead nodes.
 const HOUSEKEEPING_PERIOD: Duration = Duration::from_secs(1);
-/// A robot notes its pose again only once it moved this far (metres) or
-/// turned this much (radians): a thousand robots standing in formation
-/// rewriting a file each every second kept the file system busy.
-const NOTED_POSE_MOVE_M: f64 = 0.05;
-const NOTED_POSE_TURN_RAD: f64 = 0.05;
 
 pub struct AgentOptions {
     pub swarm: String,
@@ -59,8 +54,7 @@ pub fn run(options: AgentOptions) -> Result<()> {
     // robot hears everyone's first-tick pose, so all views agree from then on.
     let mut settled = ports.clock.is_none();
     let mut last_housekeeping = Instant::now();
-    let pose_note = runtime.pose_note(options.id)?;
-    let mut noted: Option<[f64; 3]> = None;
+    let mut pose_note = runtime.pose_note(options.id)?;
     let mut dead_suspected = false;
     while !ports.bus.termination_requested() {
         let (tick, sim_time) = match &ports.clock {
@@ -105,16 +99,8 @@ pub fn run(options: AgentOptions) -> Result<()> {
         ports.listen(&last, member.range.listen_radius(scenario.bus.listen_step));
         if last_housekeeping.elapsed() >= HOUSEKEEPING_PERIOD {
             last_housekeeping = Instant::now();
-            let pose = [last.x, last.y, last.theta];
-            let moved = noted.is_none_or(|[x, y, theta]| {
-                (pose[0] - x).hypot(pose[1] - y) >= NOTED_POSE_MOVE_M
-                    || (pose[2] - theta).abs() >= NOTED_POSE_TURN_RAD
-            });
-            if moved {
-                match pose_note.write(pose) {
-                    Ok(()) => noted = Some(pose),
-                    Err(e) => tracing::warn!("cannot note last pose: {e}"),
-                }
+            if let Err(e) = pose_note.note_if_moved([last.x, last.y, last.theta]) {
+                tracing::warn!("cannot note last pose: {e}");
             }
             if std::mem::take(&mut dead_suspected) {
                 match remove_dead_nodes(&options.swarm) {

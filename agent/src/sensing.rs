@@ -1,7 +1,8 @@
 //! How far a robot listens and senses. It listens to the cells within
-//! `listen_ring` steps of it and senses robots up to a margin short of that. When it widens its listening, it widens
-//! its sensing only two periods later: robots entering its sensing range were
-//! then already heard, which keeps lockstep runs deterministic.
+//! `listen_ring` steps of it and senses robots up to a margin short of
+//! that. When it widens its listening, it widens its sensing only two
+//! periods later: robots entering its sensing range were then already
+//! heard, which keeps lockstep runs deterministic.
 
 /// Ticks between widening the listening and widening the sensing.
 const WIDEN_DELAY_TICKS: u64 = 2;

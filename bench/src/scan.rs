@@ -8,7 +8,7 @@ use std::time::Instant;
 use anyhow::Result;
 use glam::DVec2;
 use serde::Serialize;
-use shoal_physics::range::{RangeSensor, ray_distance};
+use shoal_physics::range::RangeSensor;
 use shoal_physics::{Pose, Scenario};
 
 #[derive(Debug, Serialize)]
@@ -55,13 +55,7 @@ pub fn run(robots: &[usize], repeats: usize, json: bool) -> Result<()> {
             sensor.cast_exact(&arena, &pose, &around, radius)
         });
         let every_pair = time_per_call(repeats, || {
-            (0..sensor.beams)
-                .map(|i| {
-                    let direction = DVec2::from_angle(pose.theta + sensor.bearing(i));
-                    ray_distance(&arena, pose.position(), direction, &around, radius)
-                        .min(sensor.max_range)
-                })
-                .collect()
+            sensor.cast_every_pair(&arena, &pose, &around, radius)
         });
         rows.push(Row {
             robots_around: count,

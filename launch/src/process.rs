@@ -5,7 +5,6 @@ use std::process::{Child, Command, Stdio};
 
 use anyhow::{Context, Result, bail};
 use shoal_physics::Pose;
-pub use shoal_runtime::pid_alive;
 
 /// A workspace binary beside this executable.
 pub fn sibling_binary(name: &str) -> Result<PathBuf> {

@@ -61,7 +61,7 @@ pub fn gather(swarm: &str) -> Result<StatusReport> {
     // The report of a SLAM process that is gone says nothing of today.
     let slam = SwarmRuntime::locate(swarm)
         .read_slam_report()
-        .filter(|r| crate::process::pid_alive(r.pid as i32));
+        .filter(|r| shoal_runtime::pid_alive(r.pid as i32));
     let mut agents = Vec::new();
     let mut stale_nodes = 0;
     for node in swarm_nodes(swarm)? {

@@ -15,7 +15,8 @@ use shoal_runtime::{SwarmMeta, SwarmRuntime};
 
 use crate::clock::LockstepClock;
 use crate::observer::Observer;
-use crate::process::{Pinned, Tie, pid_alive, sibling_binary, start_agent, stop_processes};
+use crate::process::{Pinned, Tie, sibling_binary, start_agent, stop_processes};
+use shoal_runtime::pid_alive;
 
 /// How long robots get to leave cleanly before they are killed: a robot
 /// leaves in milliseconds, but a thousand leaving at once queue on the

@@ -168,7 +168,7 @@ fn scenario_for(options: &UpOptions) -> Result<Scenario> {
     let mut scenario = match (&options.scenario, options.agents) {
         (None, Some(count)) => {
             let scenario = Scenario::default_for(count);
-            if scenario.arena.width > Scenario::default_arena().arena.width {
+            if scenario.arena != Scenario::default_arena().arena {
                 eprintln!(
                     "shoal: {count} robots do not fit the default arena's start region; \
                      using an open {:.0} x {:.0} m arena (--scenario FILE chooses another)",

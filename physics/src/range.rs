@@ -74,6 +74,24 @@ impl RangeSensor {
         ranges
     }
 
+    /// The same ranges as [`Self::cast_exact`], cast the plain way: every
+    /// beam against every robot. The reference the fast cast is held to,
+    /// and `shoal-bench scan`'s baseline.
+    pub fn cast_every_pair(
+        &self,
+        arena: &Arena,
+        pose: &Pose,
+        robots: &[DVec2],
+        radius: f64,
+    ) -> Vec<f64> {
+        (0..self.beams)
+            .map(|i| {
+                let direction = DVec2::from_angle(pose.theta + self.bearing(i));
+                ray_distance(arena, pose.position(), direction, robots, radius).min(self.max_range)
+            })
+            .collect()
+    }
+
     /// The beams that may hit a body of `radius` at `center`, with a beam to
     /// spare on each side; all of them when the sensor is inside it.
     fn beams_towards(
@@ -248,13 +266,7 @@ mod tests {
                 let robots: Vec<DVec2> = (0..rng.random_range(0..12))
                     .map(|_| DVec2::new(rng.random_range(-1.0..5.0), rng.random_range(-1.0..4.0)))
                     .collect();
-                let every_pair: Vec<f64> = (0..beams)
-                    .map(|i| {
-                        let direction = DVec2::from_angle(pose.theta + sensor.bearing(i));
-                        ray_distance(&arena, pose.position(), direction, &robots, 0.15)
-                            .min(sensor.max_range)
-                    })
-                    .collect();
+                let every_pair = sensor.cast_every_pair(&arena, &pose, &robots, 0.15);
                 assert_eq!(sensor.cast_exact(&arena, &pose, &robots, 0.15), every_pair);
             }
         }

@@ -342,7 +342,11 @@ impl SwarmRuntime {
     pub fn pose_note(&self, id: u32) -> io::Result<PoseNote> {
         let path = self.pose_path(id);
         let file = open_no_follow(&path, true).map_err(|e| with_path(e, &path, "creating"))?;
-        Ok(PoseNote { file, path })
+        Ok(PoseNote {
+            file,
+            path,
+            noted: None,
+        })
     }
 
     pub fn read_last_pose(&self, id: u32) -> Option<[f64; 3]> {
@@ -375,8 +379,6 @@ impl SwarmRuntime {
     }
 }
 
-/// Readers never see half a file: write beside, then rename (a rename
-/// replaces a link at `path`, never what it points to).
 /// A robot's last pose, noted in place: one file, opened once, whose one
 /// line of fixed width is rewritten at its start. Writing a new file and
 /// renaming it over the old one takes the folder's lock, and a thousand
@@ -386,7 +388,15 @@ impl SwarmRuntime {
 pub struct PoseNote {
     file: std::fs::File,
     path: PathBuf,
+    /// The pose the file holds, once one was written.
+    noted: Option<[f64; 3]>,
 }
+
+/// A pose is noted again only once the robot moved this far (metres) or
+/// turned this much (radians): a thousand robots standing in formation
+/// need not rewrite anything.
+const NOTED_POSE_MOVE_M: f64 = 0.05;
+const NOTED_POSE_TURN_RAD: f64 = 0.05;
 
 impl PoseNote {
     pub fn write(&self, pose: [f64; 3]) -> io::Result<()> {
@@ -394,6 +404,20 @@ impl PoseNote {
         self.file
             .write_all_at(pose_line(pose).as_bytes(), 0)
             .map_err(|e| with_path(e, &self.path, "noting the pose"))
+    }
+
+    /// Notes `pose` if the robot moved or turned enough since the pose
+    /// noted last (or none was).
+    pub fn note_if_moved(&mut self, pose: [f64; 3]) -> io::Result<()> {
+        let moved = self.noted.is_none_or(|[x, y, theta]| {
+            (pose[0] - x).hypot(pose[1] - y) >= NOTED_POSE_MOVE_M
+                || (pose[2] - theta).abs() >= NOTED_POSE_TURN_RAD
+        });
+        if moved {
+            self.write(pose)?;
+            self.noted = Some(pose);
+        }
+        Ok(())
     }
 }
 
@@ -406,6 +430,8 @@ fn pose_line(pose: [f64; 3]) -> String {
     )
 }
 
+/// Readers never see half a file: write beside, then rename (a rename
+/// replaces a link at `path`, never what it points to).
 fn write_atomically(path: &Path, text: &str) -> io::Result<()> {
     use std::io::Write;
     let partial = partial_path(path);
@@ -549,6 +575,16 @@ mod tests {
             Some(pose),
             "noted to the last bit"
         );
+        let mut note = runtime.pose_note(5).expect("note");
+        note.note_if_moved([1.0, 1.0, 0.0]).expect("first pose");
+        note.note_if_moved([1.01, 1.0, 0.01]).expect("barely moved");
+        assert_eq!(
+            runtime.read_last_pose(5),
+            Some([1.0, 1.0, 0.0]),
+            "not worth a write"
+        );
+        note.note_if_moved([1.1, 1.0, 0.0]).expect("moved");
+        assert_eq!(runtime.read_last_pose(5), Some([1.1, 1.0, 0.0]));
         runtime.remove().expect("removed");
         std::fs::remove_dir_all(&root).expect("cleanup");
     }

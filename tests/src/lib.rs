@@ -100,7 +100,7 @@ pub fn wait_until(timeout: Duration, mut condition: impl FnMut() -> bool) -> boo
     false
 }
 
-pub use shoal::process::pid_alive;
+pub use shoal_runtime::pid_alive;
 
 /// A `shoal up` running in the background. Dropping it stops the swarm with
 /// Ctrl-C (SIGINT), as a user would, so no test leaves robots behind.

@@ -4,8 +4,8 @@
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
-use shoal::process::pid_alive;
 use shoal_e2e::*;
+use shoal_runtime::pid_alive;
 
 #[test]
 fn a_swarm_named_like_a_users_folder_leaves_that_folder_alone() {

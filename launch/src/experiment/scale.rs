@@ -26,7 +26,7 @@ pub struct Row {
     pub private_mb_per_agent: f64,
     /// Simulated seconds per wall-clock second.
     pub speedup: f64,
-    /// Seconds from the first robot's start to the last one's.
+    /// Seconds the launcher took to start every robot.
     pub start_s: f64,
     /// In real time, whether it held once every robot had started (in
     /// lockstep, ages are simulated time).
