@@ -52,9 +52,7 @@ impl RangeSensor {
         radius: f64,
     ) -> Vec<f64> {
         let origin = pose.position();
-        let directions: Vec<DVec2> = (0..self.beams)
-            .map(|i| DVec2::from_angle(pose.theta + self.bearing(i)))
-            .collect();
+        let directions = self.directions(pose);
         let mut ranges: Vec<f64> = directions
             .iter()
             .map(|direction| ray_distance(arena, origin, *direction, &[], radius))
@@ -84,11 +82,18 @@ impl RangeSensor {
         robots: &[DVec2],
         radius: f64,
     ) -> Vec<f64> {
-        (0..self.beams)
-            .map(|i| {
-                let direction = DVec2::from_angle(pose.theta + self.bearing(i));
+        self.directions(pose)
+            .into_iter()
+            .map(|direction| {
                 ray_distance(arena, pose.position(), direction, robots, radius).min(self.max_range)
             })
+            .collect()
+    }
+
+    /// Each beam's direction in the world from `pose`.
+    fn directions(&self, pose: &Pose) -> Vec<DVec2> {
+        (0..self.beams)
+            .map(|i| DVec2::from_angle(pose.theta + self.bearing(i)))
             .collect()
     }
 
