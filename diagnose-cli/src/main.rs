@@ -81,6 +81,21 @@ struct DiagnoseArgs {
     /// Seconds each comparison predicts ahead.
     #[arg(long, default_value_t = 1.0)]
     horizon: f64,
+    /// Family-wise level of the test an effect must pass to be named
+    /// (Bonferroni over the library's kinds): the share of recordings
+    /// without a mismatch that may name one.
+    #[arg(long, default_value_t = Options::default().select_alpha, value_parser = level)]
+    select_alpha: f64,
+}
+
+/// A probability strictly between 0 and 1, for clap.
+fn level(text: &str) -> std::result::Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(p) if p > 0.0 && p < 1.0 => Ok(p),
+        _ => Err(format!(
+            "expected a level between 0 and 1 (e.g. 0.01), got {text:?}"
+        )),
+    }
 }
 
 #[derive(Subcommand)]
@@ -317,6 +332,7 @@ fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
     };
     let options = Options {
         horizon_s: args.horizon,
+        select_alpha: args.select_alpha,
         ..Options::default()
     };
     let diagnosis = diagnose(&recording, &model, &options);
@@ -471,6 +487,9 @@ struct ExperimentArgs {
     /// Only these cases (e.g. null,latency); default: all.
     #[arg(long, value_delimiter = ',')]
     cases: Vec<String>,
+    /// Family-wise level of the entry test (see `shoal diagnose --help`).
+    #[arg(long, default_value_t = Options::default().select_alpha, value_parser = level)]
+    select_alpha: f64,
     #[arg(long)]
     json: bool,
 }
@@ -487,7 +506,11 @@ fn run_experiment(args: &ExperimentArgs) -> Result<()> {
             } else {
                 args.seeds
             };
-            let row = run_case(&case, noise, 1000..1000 + n, args.duration);
+            let options = Options {
+                select_alpha: args.select_alpha,
+                ..Options::default()
+            };
+            let row = run_case(&case, noise, 1000..1000 + n, args.duration, &options);
             eprintln!(
                 "{} / {}: detected {:.0}%, runs naming an effect not there {:.0}%",
                 row.noise,

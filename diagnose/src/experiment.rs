@@ -328,6 +328,7 @@ pub fn run_case(
     noise: &NoiseColour,
     seeds: std::ops::Range<u64>,
     duration_s: f64,
+    options: &Options,
 ) -> Row {
     let truth = UnicycleModel::with_effects(case.truth.clone());
     let true_kinds: Vec<&str> = case.truth.iter().map(|e| e.effect.kind()).collect();
@@ -340,7 +341,7 @@ pub fn run_case(
     for seed in seeds {
         let recording = generate(&truth, &run_settings(Some(case), noise, seed, duration_s));
         let started = std::time::Instant::now();
-        let diagnosis = diagnose(&recording, &UnicycleModel::plain(), &Options::default());
+        let diagnosis = diagnose(&recording, &UnicycleModel::plain(), options);
         seconds += started.elapsed().as_secs_f64();
         before += diagnosis.baseline.heldout_rmse_pos_m;
         after += diagnosis.improved.heldout_rmse_pos_m;

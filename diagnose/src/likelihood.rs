@@ -20,6 +20,9 @@ pub struct Noise {
     pub along: f64,
     /// Across the heading, after removing what the heading error explains.
     pub across: f64,
+    /// How the across variance grows with the square of the distance
+    /// driven in the segment (per m^2).
+    pub across_per_m2: f64,
     pub theta: f64,
 }
 
@@ -97,31 +100,53 @@ fn decorrelated(segment: &Segment, r: &Residual) -> f64 {
 fn variances(noise: &Noise, s: &Segment, multiplier: f64) -> [f64; 3] {
     [
         noise.along * multiplier,
-        (noise.across + noise.theta * s.distance * s.distance / 12.0) * multiplier,
+        (noise.across + noise.across_per_m2 * s.distance * s.distance) * multiplier,
         noise.theta * multiplier,
     ]
     .map(|v| v.max(VARIANCE_FLOOR))
 }
 
 /// Estimates the noise of `residuals` (moments, given the model's multipliers).
+///
+/// The across variance grows with the square of the distance driven: a
+/// heading error turns into a sideways one in proportion to the distance.
+/// How fast is learned from the data (a regression of the squared across
+/// residuals on the squared distance) rather than assumed: a random walk
+/// in heading gives a twelfth of its variance per m^2, but the error of the
+/// observed start heading, which motion capture or odometry adds, counts
+/// in full, and the two mix in proportions no model knows beforehand.
+/// Where the distances hardly vary, the random walk's share is taken.
 pub fn estimate_noise(
     model: &UnicycleModel,
     segments: &[Segment],
     residuals: &[Residual],
 ) -> Noise {
     let n = segments.len().max(1) as f64;
-    let (mut along, mut across, mut theta, mut lever) = (0.0, 0.0, 0.0, 0.0);
+    let (mut along, mut theta) = (0.0, 0.0);
+    let (mut d2_sum, mut y_sum, mut d2d2, mut d2y) = (0.0, 0.0, 0.0, 0.0);
     for (s, r) in segments.iter().zip(residuals) {
         let m = model.noise_multiplier(s.speed, s.t_start);
         along += r[0] * r[0] / m;
-        across += decorrelated(s, r).powi(2) / m;
         theta += r[2] * r[2] / m;
-        lever += s.distance * s.distance / 12.0;
+        let (d2, y) = (s.distance * s.distance, decorrelated(s, r).powi(2) / m);
+        d2_sum += d2;
+        y_sum += y;
+        d2d2 += d2 * d2;
+        d2y += d2 * y;
     }
     let theta = (theta / n).max(VARIANCE_FLOOR);
+    let (d2_mean, y_mean) = (d2_sum / n, y_sum / n);
+    let d2_var = d2d2 / n - d2_mean * d2_mean;
+    // The squared distance must spread over at least a tenth of its mean.
+    let across_per_m2 = if d2_var > (0.1 * d2_mean).powi(2) && d2_var > 0.0 {
+        ((d2y / n - d2_mean * y_mean) / d2_var).max(0.0)
+    } else {
+        theta / 12.0
+    };
     Noise {
         along: (along / n).max(VARIANCE_FLOOR),
-        across: (across / n - theta * lever / n).max(VARIANCE_FLOOR),
+        across: (y_mean - across_per_m2 * d2_mean).max(VARIANCE_FLOOR),
+        across_per_m2,
         theta,
     }
 }
@@ -248,63 +273,71 @@ fn long_run_factors_around(
     standardised: &[[f64; 3]],
     local_mean: Option<usize>,
 ) -> [f64; 3] {
-    let n = standardised.len();
-    let mut factors = [1.0; 3];
+    std::array::from_fn(|c| {
+        let series: Vec<f64> = standardised.iter().map(|z| z[c]).collect();
+        long_run_factor_around(segments, &series, local_mean)
+    })
+}
+
+/// [`long_run_factors`] of one series over the segments: how much its
+/// correlation in time inflates the variance of its sum.
+pub fn long_run_factor(segments: &[Segment], series: &[f64]) -> f64 {
+    long_run_factor_around(segments, series, None)
+}
+
+fn long_run_factor_around(segments: &[Segment], series: &[f64], local_mean: Option<usize>) -> f64 {
+    let n = series.len();
     if n < 20 {
-        return factors;
+        return 1.0;
     }
     let max_lag = (n / 10).clamp(1, 40);
-    for (c, factor) in factors.iter_mut().enumerate() {
-        let mean = standardised.iter().map(|z| z[c]).sum::<f64>() / n as f64;
-        let centred: Vec<f64> = match local_mean {
-            None => standardised.iter().map(|z| z[c] - mean).collect(),
-            Some(half) => (0..n)
-                .map(|i| {
-                    let (lo, hi) = (i.saturating_sub(half), (i + half + 1).min(n));
-                    let local =
-                        standardised[lo..hi].iter().map(|z| z[c]).sum::<f64>() / (hi - lo) as f64;
-                    standardised[i][c] - local
-                })
-                .collect(),
-        };
-        let variance = centred.iter().map(|x| x * x).sum::<f64>() / n as f64;
-        if variance <= 0.0 {
-            continue;
-        }
-        // rho_k over pairs k segments apart with no gap between them.
-        let rho: Vec<f64> = (1..=max_lag)
-            .map(|k| {
-                let (mut sum, mut pairs) = (0.0, 0usize);
-                for i in 0..n - k {
-                    if segments[i + k].from
-                        == segments[i].from + k * (segments[i].to - segments[i].from)
-                    {
-                        sum += centred[i] * centred[i + k];
-                        pairs += 1;
-                    }
-                }
-                if pairs < 10 {
-                    0.0
-                } else {
-                    sum / pairs as f64 / variance
-                }
+    let mean = series.iter().sum::<f64>() / n as f64;
+    let centred: Vec<f64> = match local_mean {
+        None => series.iter().map(|x| x - mean).collect(),
+        Some(half) => (0..n)
+            .map(|i| {
+                let (lo, hi) = (i.saturating_sub(half), (i + half + 1).min(n));
+                let local = series[lo..hi].iter().sum::<f64>() / (hi - lo) as f64;
+                series[i] - local
             })
-            .collect();
-        let rho1 = rho[0].clamp(-0.97, 0.97);
-        let alpha = 4.0 * rho1 * rho1 / ((1.0 - rho1).powi(2) * (1.0 + rho1).powi(2));
-        let bandwidth = (1.1447 * (alpha * n as f64).cbrt())
-            .ceil()
-            .clamp(1.0, max_lag as f64) as usize;
-        let weighted: f64 = rho[..bandwidth]
-            .iter()
-            .enumerate()
-            .map(|(k, r)| (1.0 - (k + 1) as f64 / (bandwidth + 1) as f64) * r)
-            .sum();
-        // Negative correlation would shrink the variance; never claim more
-        // evidence than independent segments give.
-        *factor = (1.0 + 2.0 * weighted).max(1.0);
+            .collect(),
+    };
+    let variance = centred.iter().map(|x| x * x).sum::<f64>() / n as f64;
+    if variance <= 0.0 {
+        return 1.0;
     }
-    factors
+    // rho_k over pairs k segments apart with no gap between them.
+    let rho: Vec<f64> = (1..=max_lag)
+        .map(|k| {
+            let (mut sum, mut pairs) = (0.0, 0usize);
+            for i in 0..n - k {
+                if segments[i + k].from
+                    == segments[i].from + k * (segments[i].to - segments[i].from)
+                {
+                    sum += centred[i] * centred[i + k];
+                    pairs += 1;
+                }
+            }
+            if pairs < 10 {
+                0.0
+            } else {
+                sum / pairs as f64 / variance
+            }
+        })
+        .collect();
+    let rho1 = rho[0].clamp(-0.97, 0.97);
+    let alpha = 4.0 * rho1 * rho1 / ((1.0 - rho1).powi(2) * (1.0 + rho1).powi(2));
+    let bandwidth = (1.1447 * (alpha * n as f64).cbrt())
+        .ceil()
+        .clamp(1.0, max_lag as f64) as usize;
+    let weighted: f64 = rho[..bandwidth]
+        .iter()
+        .enumerate()
+        .map(|(k, r)| (1.0 - (k + 1) as f64 / (bandwidth + 1) as f64) * r)
+        .sum();
+    // Negative correlation would shrink the variance; never claim more
+    // evidence than independent segments give.
+    (1.0 + 2.0 * weighted).max(1.0)
 }
 
 #[cfg(test)]
