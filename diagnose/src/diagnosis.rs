@@ -632,12 +632,18 @@ fn enters(
     segs: &[Segment],
     base: &[ScopedEffect],
     candidate: &ScopedEffect,
-    delta_bic: f64,
+    (delta_bic, factors): (f64, [f64; 3]),
     options: &Options,
 ) -> bool {
+    let dof = extra_params(candidate);
+    let threshold = entry_threshold(dof, options.select_alpha);
+    // The statistic with each residual component's factor, as the round
+    // judged it: the test takes the smaller of the two corrections' χ², as
+    // either kernel estimate can fall short of a persistent noise's.
+    let by_components = dof as f64 * log_n_eff(segs, factors) - delta_bic;
     delta_bic < 0.0
-        && robust_chi2(grid, segs, base, candidate)
-            > entry_threshold(extra_params(candidate), options.select_alpha)
+        && by_components > threshold
+        && robust_chi2(grid, segs, base, candidate) > threshold
 }
 
 /// The likelihood-ratio statistic of adding `candidate` to `base`, made
@@ -884,7 +890,7 @@ impl Selection<'_> {
             .filter(|(g, c)| *g < delta_bic + 2.0 && c.effect.kind() != chosen.effect.kind())
             .cloned()
             .collect();
-        if !enters(grid, segs, base, &chosen, delta_bic, options) {
+        if !enters(grid, segs, base, &chosen, (delta_bic, factors), options) {
             return Round::Done;
         }
         let (chosen, delta_bic) = self.scoped(base, chosen, delta_bic, &judge, &mut tied);
@@ -981,7 +987,7 @@ impl Selection<'_> {
             let factors = factors_with(grid, segs, &rest, &found[k]);
             let rest_nll = components_of(grid, segs, &rest);
             let needed = calibrated_gain(grid, segs, rest_nll, &rest, &found[k], factors);
-            if !enters(grid, segs, &rest, &found[k], needed, options) {
+            if !enters(grid, segs, &rest, &found[k], (needed, factors), options) {
                 *found = refit.effects;
                 evidence.remove(k);
             } else {
