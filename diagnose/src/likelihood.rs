@@ -137,11 +137,15 @@ pub fn estimate_noise(
     let theta = (theta / n).max(VARIANCE_FLOOR);
     let (d2_mean, y_mean) = (d2_sum / n, y_sum / n);
     let d2_var = d2d2 / n - d2_mean * d2_mean;
+    // Heading variance that is all random walk gives a twelfth of it per
+    // m^2, all observation error a quarter: the mix lies between, and a
+    // regression that leaves that range is fitting a mismatch, not noise.
     // The squared distance must spread over at least a tenth of its mean.
+    let (random_walk, observed) = (theta / 12.0, theta / 4.0);
     let across_per_m2 = if d2_var > (0.1 * d2_mean).powi(2) && d2_var > 0.0 {
-        ((d2y / n - d2_mean * y_mean) / d2_var).max(0.0)
+        ((d2y / n - d2_mean * y_mean) / d2_var).clamp(random_walk, observed)
     } else {
-        theta / 12.0
+        random_walk
     };
     Noise {
         along: (along / n).max(VARIANCE_FLOOR),
