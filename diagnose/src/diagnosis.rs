@@ -1181,4 +1181,16 @@ mod tests {
             [0.0, 0.0, 1.0, 2.0]
         );
     }
+
+    #[test]
+    fn the_entry_test_is_bonferroni_over_the_library_at_its_level() {
+        // One parameter at 1% over the library's kinds: the two-sided
+        // normal quantile squared, z(1 - 0.01 / (2 K))^2.
+        let per_kind = 0.01 / EFFECT_KINDS.len() as f64;
+        let z = statrs::distribution::Normal::standard().inverse_cdf(1.0 - per_kind / 2.0);
+        assert!((entry_threshold(1, 0.01) - z * z).abs() < 1e-6);
+        // More parameters and a stricter level ask for more.
+        assert!(entry_threshold(2, 0.01) > entry_threshold(1, 0.01));
+        assert!(entry_threshold(1, 0.001) > entry_threshold(1, 0.01));
+    }
 }

@@ -415,4 +415,52 @@ mod tests {
         );
         assert!(noise[0] < 1.4, "the noise alone is white: {noise:?}");
     }
+
+    /// Segments of 0 to 0.3 m whose across residuals (after the heading's
+    /// share) have variance `across + per_m2 d^2`, with heading variance
+    /// `theta`.
+    fn across_growing(per_m2: f64, theta: f64) -> (Vec<Segment>, Vec<Residual>) {
+        let n = 20_000;
+        let mut rng = rand::rngs::StdRng::seed_from_u64(11);
+        let normal = rand_distr::StandardNormal;
+        let mut segments = chain(n);
+        let residuals = segments
+            .iter_mut()
+            .enumerate()
+            .map(|(i, s)| {
+                s.distance = 0.3 * (i % 100) as f64 / 100.0;
+                let heading = theta.sqrt() * rng.sample::<f64, _>(normal);
+                let across =
+                    (1e-5 + per_m2 * s.distance * s.distance).sqrt() * rng.sample::<f64, _>(normal);
+                [
+                    1e-3 * rng.sample::<f64, _>(normal),
+                    across + 0.5 * s.distance * heading,
+                    heading,
+                ]
+            })
+            .collect();
+        (segments, residuals)
+    }
+
+    #[test]
+    fn the_across_growth_with_distance_is_learned_within_what_heading_noise_gives() {
+        let theta = 4e-4;
+        let plain = UnicycleModel::plain();
+        // Inside the physical range (a twelfth to a quarter of the heading
+        // variance per m^2): recovered.
+        let (segments, residuals) = across_growing(theta / 6.0, theta);
+        let noise = estimate_noise(&plain, &segments, &residuals);
+        assert!(
+            (noise.across_per_m2 / (theta / 6.0) - 1.0).abs() < 0.15,
+            "{noise:?}"
+        );
+        assert!((noise.across / 1e-5 - 1.0).abs() < 0.15, "{noise:?}");
+        // Far above it, a mismatch rather than noise: held to a quarter.
+        let (segments, residuals) = across_growing(theta * 3.0, theta);
+        let noise = estimate_noise(&plain, &segments, &residuals);
+        assert!(
+            (noise.across_per_m2 - noise.theta / 4.0).abs() < 1e-12,
+            "{noise:?}"
+        );
+    }
 }
