@@ -1,6 +1,6 @@
 //! The whole diagnosis: locate the mismatch, name it by forward selection
-//! of effects on BIC, and measure the fit before and after on held-out,
-//! time-blocked folds.
+//! of effects (each must pass a calibrated test, lower BIC and predict
+//! held-out, time-blocked folds better), and measure the fit before and after.
 
 use std::collections::BTreeMap;
 
