@@ -270,7 +270,16 @@ fn report_text(d: &Diagnosis) -> String {
         line(format!("  not explained: tried {}: {}", u.tried, u.reason));
     }
     for e in &d.effects {
-        line(format!("  {} (ΔBIC {:.0})", e.sentence, e.delta_bic));
+        line(format!(
+            "  {} (χ² {:.1} on {} parameters, {:.1} needed at {}; p {:.1e} after correcting for the library's kinds; ΔBIC {:.0})",
+            e.sentence,
+            e.test.chi2,
+            e.test.dof,
+            e.test.needed,
+            e.test.level,
+            e.test.p_adjusted,
+            e.delta_bic
+        ));
         if !e.indistinguishable_from.is_empty() {
             line(format!(
                 "    these data explain it equally well as: {}",

@@ -75,6 +75,8 @@ pub struct FoundEffect {
     #[serde(rename = "where")]
     pub place: Where,
     pub delta_bic: f64,
+    /// The test that let it in.
+    pub test: EntryTest,
     pub sentence: String,
     /// Other kinds that explain the run as well (within 2 of BIC): this
     /// data cannot tell them apart, so they are one finding. The kinds of
@@ -95,6 +97,29 @@ pub struct Alternative {
     pub params: BTreeMap<&'static str, f64>,
     pub delta_bic: f64,
     pub sentence: String,
+}
+
+/// The figures of the test an effect passed to be named (see [`enters`]).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct EntryTest {
+    /// The likelihood-ratio statistic corrected for correlation in time:
+    /// the smaller of the two corrections.
+    pub chi2: f64,
+    /// Its degrees of freedom: the effect's parameters, plus two where it
+    /// acts in part of the run or the map.
+    pub dof: usize,
+    /// What `chi2` had to exceed at `level`.
+    pub needed: f64,
+    /// The family-wise level (`--select-alpha`).
+    pub level: f64,
+    /// The p-value, Bonferroni-adjusted over the library's kinds.
+    pub p_adjusted: f64,
+}
+
+impl EntryTest {
+    fn passed(&self) -> bool {
+        self.chi2 > self.needed
+    }
 }
 
 /// A mismatch the library could only fit with a parameter on the edge of
@@ -416,6 +441,7 @@ impl OperatingPoint {
 /// What selection learned of an effect it accepted.
 struct Evidence {
     delta_bic: f64,
+    test: EntryTest,
     heldout_gain: f64,
     alternatives: Vec<Alternative>,
 }
@@ -454,6 +480,7 @@ fn describe(
             region,
         },
         delta_bic: evidence.delta_bic,
+        test: evidence.test,
         sentence,
         indistinguishable_from: evidence.alternatives.iter().map(|a| a.kind).collect(),
         alternatives: evidence.alternatives,
@@ -632,18 +659,37 @@ fn enters(
     segs: &[Segment],
     base: &[ScopedEffect],
     candidate: &ScopedEffect,
-    (delta_bic, factors): (f64, [f64; 3]),
+    judged: (f64, [f64; 3]),
     options: &Options,
 ) -> bool {
+    judged.0 < 0.0 && entry_test(grid, segs, base, candidate, judged, options).passed()
+}
+
+/// The entry test of `candidate`, judged `delta_bic` with `factors`.
+fn entry_test(
+    grid: &CommandGrid,
+    segs: &[Segment],
+    base: &[ScopedEffect],
+    candidate: &ScopedEffect,
+    (delta_bic, factors): (f64, [f64; 3]),
+    options: &Options,
+) -> EntryTest {
     let dof = extra_params(candidate);
-    let threshold = entry_threshold(dof, options.select_alpha);
     // The statistic with each residual component's factor, as the round
-    // judged it: the test takes the smaller of the two corrections' χ², as
-    // either kernel estimate can fall short of a persistent noise's.
+    // judged it, and with the factor of the effect's own gain: the smaller
+    // counts, as either kernel estimate can fall short of a persistent
+    // noise's long-run variance.
     let by_components = dof as f64 * log_n_eff(segs, factors) - delta_bic;
-    delta_bic < 0.0
-        && by_components > threshold
-        && robust_chi2(grid, segs, base, candidate) > threshold
+    let chi2 = by_components.min(robust_chi2(grid, segs, base, candidate));
+    let kinds = EFFECT_KINDS.len() as f64;
+    let p = ChiSquared::new(dof.max(1) as f64).map_or(1.0, |d| d.sf(chi2.max(0.0)));
+    EntryTest {
+        chi2,
+        dof,
+        needed: entry_threshold(dof, options.select_alpha),
+        level: options.select_alpha,
+        p_adjusted: (p * kinds).min(1.0),
+    }
 }
 
 /// The likelihood-ratio statistic of adding `candidate` to `base`, made
@@ -804,6 +850,7 @@ enum Round {
     Chosen {
         chosen: ScopedEffect,
         delta_bic: f64,
+        test: EntryTest,
         /// Rival explanations within 2 of BIC.
         tied: Vec<(f64, ScopedEffect)>,
         remaining: Vec<ScopedEffect>,
@@ -894,6 +941,7 @@ impl Selection<'_> {
             return Round::Done;
         }
         let (chosen, delta_bic) = self.scoped(base, chosen, delta_bic, &judge, &mut tied);
+        let test = entry_test(grid, segs, base, &chosen, (delta_bic, factors), options);
         let tied_kinds: Vec<&'static str> = tied.iter().map(|(_, c)| c.effect.kind()).collect();
         // Later rounds only try what helped on its own (an effect that did
         // not lower the likelihood alone is rarely needed in company), and
@@ -913,6 +961,7 @@ impl Selection<'_> {
         Round::Chosen {
             chosen,
             delta_bic,
+            test,
             tied,
             remaining,
         }
@@ -1030,6 +1079,7 @@ fn select(selection: &Selection, located: &[Located], at: OperatingPoint) -> Sel
             let Round::Chosen {
                 chosen,
                 delta_bic,
+                test,
                 tied,
                 remaining: next,
             } = selection.round(&base, &remaining)
@@ -1055,6 +1105,7 @@ fn select(selection: &Selection, located: &[Located], at: OperatingPoint) -> Sel
             out.found.push(chosen);
             out.evidence.push(Evidence {
                 delta_bic,
+                test,
                 heldout_gain: gain_heldout,
                 // An alternative fitted onto a physical edge is no explanation.
                 alternatives: tied
