@@ -7,12 +7,12 @@ use std::collections::BTreeMap;
 use serde::Serialize;
 use shoal_physics::effects::EFFECT_KINDS;
 use shoal_physics::{CommandGrid, Effect, ScopedEffect, UnicycleModel};
-use statrs::distribution::{ChiSquared, ContinuousCDF};
+use statrs::distribution::{ChiSquared, ContinuousCDF, FisherSnedecor};
 
 use crate::covariates::{self, Covariate};
 use crate::fit::{Fitted, fit, nll_of};
 use crate::likelihood::{
-    Residual, component_nll, estimate_noise, long_run_factor, long_run_factors,
+    LongRun, Residual, component_nll, estimate_noise, long_run_factor, long_run_factors,
     long_run_factors_of_noise, residuals, rmse, segment_nll, standardised,
 };
 use crate::locate::{Located, locate};
@@ -680,13 +680,19 @@ fn entry_test(
     // counts, as either kernel estimate can fall short of a persistent
     // noise's long-run variance.
     let by_components = dof as f64 * log_n_eff(segs, factors) - delta_bic;
-    let chi2 = by_components.min(robust_chi2(grid, segs, base, candidate));
+    let (robust, long_run) = robust_chi2(grid, segs, base, candidate);
+    // The effect's own statistic is held to the fixed-b threshold of its
+    // estimate (see [`LongRun::dof`]): stated on the χ² scale, it is the
+    // statistic shrunk by how much that threshold exceeds χ²'s.
+    let needed = entry_threshold(dof, options.select_alpha);
+    let widened = fixed_b_threshold(dof, options.select_alpha, long_run.dof);
+    let chi2 = by_components.min(robust * needed / widened);
     let kinds = EFFECT_KINDS.len() as f64;
     let p = ChiSquared::new(dof.max(1) as f64).map_or(1.0, |d| d.sf(chi2.max(0.0)));
     EntryTest {
         chi2,
         dof,
-        needed: entry_threshold(dof, options.select_alpha),
+        needed,
         level: options.select_alpha,
         p_adjusted: (p * kinds).min(1.0),
     }
@@ -705,7 +711,7 @@ fn robust_chi2(
     segs: &[Segment],
     base: &[ScopedEffect],
     candidate: &ScopedEffect,
-) -> f64 {
+) -> (f64, LongRun) {
     let per_segment = |effects: Vec<ScopedEffect>| {
         let model = UnicycleModel::with_effects(effects);
         let r = residuals(&model, grid, segs);
@@ -715,7 +721,21 @@ fn robust_chi2(
     let without = per_segment(base.to_vec());
     let with = per_segment(base.iter().cloned().chain([candidate.clone()]).collect());
     let gains: Vec<f64> = without.iter().zip(&with).map(|(a, b)| a - b).collect();
-    2.0 * gains.iter().sum::<f64>() / long_run_factor(segs, &gains)
+    let long_run = long_run_factor(segs, &gains);
+    (2.0 * gains.iter().sum::<f64>() / long_run.factor, long_run)
+}
+
+/// [`entry_threshold`] for a statistic whose long-run variance was
+/// estimated with `estimate_dof` degrees of freedom: dof x F(dof,
+/// m - dof + 1) x m / (m - dof + 1) at the same level (Sun 2014). It
+/// approaches the χ² threshold as the estimate's degrees of freedom grow.
+fn fixed_b_threshold(dof: usize, alpha: f64, estimate_dof: f64) -> f64 {
+    let k = dof.max(1) as f64;
+    let m = estimate_dof.max(k + 1.0);
+    let per_kind = alpha / EFFECT_KINDS.len() as f64;
+    FisherSnedecor::new(k, m - k + 1.0)
+        .map(|f| k * f.inverse_cdf(1.0 - per_kind) * m / (m - k + 1.0))
+        .unwrap_or(f64::INFINITY)
 }
 
 /// The χ² an entering effect with `dof` parameters must exceed:
@@ -1243,5 +1263,15 @@ mod tests {
         // More parameters and a stricter level ask for more.
         assert!(entry_threshold(2, 0.01) > entry_threshold(1, 0.01));
         assert!(entry_threshold(1, 0.001) > entry_threshold(1, 0.01));
+    }
+
+    #[test]
+    fn the_fixed_b_threshold_is_chi2_for_a_precise_estimate_and_higher_for_a_rough_one() {
+        let chi2 = entry_threshold(1, 0.01);
+        assert!((fixed_b_threshold(1, 0.01, 1e7) - chi2).abs() < 0.01);
+        // A 5 s noise on a 10-minute run: bandwidth about 28 of 600.
+        let rough = fixed_b_threshold(1, 0.01, 600.0 / (29.0 * 2.0 / 3.0));
+        assert!(rough > chi2 + 2.0, "{rough} against {chi2}");
+        assert!(fixed_b_threshold(2, 0.01, 31.0) > fixed_b_threshold(1, 0.01, 31.0));
     }
 }

@@ -285,14 +285,35 @@ fn long_run_factors_around(
 
 /// [`long_run_factors`] of one series over the segments: how much its
 /// correlation in time inflates the variance of its sum.
-pub fn long_run_factor(segments: &[Segment], series: &[f64]) -> f64 {
-    long_run_factor_around(segments, series, None)
+pub fn long_run_factor(segments: &[Segment], series: &[f64]) -> LongRun {
+    long_run_around(segments, series, None)
+}
+
+/// A long-run variance factor and how it was estimated.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LongRun {
+    /// Long-run variance over variance: 1 for white noise.
+    pub factor: f64,
+    /// Degrees of freedom of the estimate (Sun 2014: n / (bandwidth x 2/3)
+    /// for Bartlett's kernel): a statistic divided by `factor` is close to
+    /// k F(k, dof - k + 1) x dof / (dof - k + 1) rather than χ²(k), which
+    /// accounts for the estimate's own randomness and bias where the noise
+    /// is persistent and the bandwidth therefore wide.
+    pub dof: f64,
 }
 
 fn long_run_factor_around(segments: &[Segment], series: &[f64], local_mean: Option<usize>) -> f64 {
+    long_run_around(segments, series, local_mean).factor
+}
+
+fn long_run_around(segments: &[Segment], series: &[f64], local_mean: Option<usize>) -> LongRun {
     let n = series.len();
+    let white = LongRun {
+        factor: 1.0,
+        dof: n as f64,
+    };
     if n < 20 {
-        return 1.0;
+        return white;
     }
     let max_lag = (n / 10).clamp(1, 40);
     let mean = series.iter().sum::<f64>() / n as f64;
@@ -308,7 +329,7 @@ fn long_run_factor_around(segments: &[Segment], series: &[f64], local_mean: Opti
     };
     let variance = centred.iter().map(|x| x * x).sum::<f64>() / n as f64;
     if variance <= 0.0 {
-        return 1.0;
+        return white;
     }
     // rho_k over pairs k segments apart with no gap between them.
     let rho: Vec<f64> = (1..=max_lag)
@@ -341,7 +362,10 @@ fn long_run_factor_around(segments: &[Segment], series: &[f64], local_mean: Opti
         .sum();
     // Negative correlation would shrink the variance; never claim more
     // evidence than independent segments give.
-    (1.0 + 2.0 * weighted).max(1.0)
+    LongRun {
+        factor: (1.0 + 2.0 * weighted).max(1.0),
+        dof: n as f64 / ((bandwidth + 1) as f64 * 2.0 / 3.0),
+    }
 }
 
 #[cfg(test)]
