@@ -12,8 +12,8 @@ use statrs::distribution::{ChiSquared, ContinuousCDF, FisherSnedecor};
 use crate::covariates::{self, Covariate};
 use crate::fit::{Fitted, fit, nll_of};
 use crate::likelihood::{
-    LongRun, Residual, component_nll, estimate_noise, long_run_factor, long_run_factors,
-    long_run_factors_of_noise, residuals, rmse, segment_nll, standardised,
+    LongRun, Residual, component_nll, estimate_noise, long_run_factor, long_run_factors_of_noise,
+    long_run_of_components, residuals, rmse, segment_nll, standardised,
 };
 use crate::locate::{Located, locate};
 use crate::recording::Recording;
@@ -597,18 +597,19 @@ fn region_driven(segments: &[Segment], [a, b]: [f64; 2]) -> Option<[f64; 4]> {
 }
 
 /// How much correlation in time inflates each residual component of the
-/// model `base` plus `candidate` (see [`long_run_factors`]).
+/// model `base` plus `candidate` (see [`long_run_factors`]), with the
+/// estimates' degrees of freedom.
 fn factors_with(
     grid: &CommandGrid,
     segs: &[Segment],
     base: &[ScopedEffect],
     candidate: &ScopedEffect,
-) -> [f64; 3] {
+) -> [LongRun; 3] {
     let model =
         UnicycleModel::with_effects(base.iter().cloned().chain([candidate.clone()]).collect());
     let r = residuals(&model, grid, segs);
     let noise = estimate_noise(&model, segs, &r);
-    long_run_factors(segs, &standardised(&model, &noise, segs, &r))
+    long_run_of_components(segs, &standardised(&model, &noise, segs, &r))
 }
 
 /// BIC gain of adding `candidate` (already fitted) to `base`, with the
@@ -659,7 +660,7 @@ fn enters(
     segs: &[Segment],
     base: &[ScopedEffect],
     candidate: &ScopedEffect,
-    judged: (f64, [f64; 3]),
+    judged: (f64, [LongRun; 3]),
     options: &Options,
 ) -> bool {
     judged.0 < 0.0 && entry_test(grid, segs, base, candidate, judged, options).passed()
@@ -671,9 +672,10 @@ fn entry_test(
     segs: &[Segment],
     base: &[ScopedEffect],
     candidate: &ScopedEffect,
-    (delta_bic, factors): (f64, [f64; 3]),
+    (delta_bic, long_runs): (f64, [LongRun; 3]),
     options: &Options,
 ) -> EntryTest {
+    let factors = long_runs.map(|l| l.factor);
     let dof = extra_params(candidate);
     // The statistic with each residual component's factor, as the round
     // judged it, and with the factor of the effect's own gain: the smaller
@@ -681,12 +683,19 @@ fn entry_test(
     // noise's long-run variance.
     let by_components = dof as f64 * log_n_eff(segs, factors) - delta_bic;
     let (robust, long_run) = robust_chi2(grid, segs, base, candidate);
-    // The effect's own statistic is held to the fixed-b threshold of its
-    // estimate (see [`LongRun::dof`]): stated on the χ² scale, it is the
-    // statistic shrunk by how much that threshold exceeds χ²'s.
+    // Each statistic is held to the fixed-b threshold of its estimate (see
+    // [`LongRun::dof`]; for the components', the roughest of the three):
+    // stated on the χ² scale, it is shrunk by how much that threshold
+    // exceeds χ²'s.
     let needed = entry_threshold(dof, options.select_alpha);
-    let widened = fixed_b_threshold(dof, options.select_alpha, long_run.dof);
-    let chi2 = by_components.min(robust * needed / widened);
+    let on_chi2_scale = |statistic: f64, estimate_dof: f64| {
+        statistic * needed / fixed_b_threshold(dof, options.select_alpha, estimate_dof)
+    };
+    let roughest = long_runs
+        .iter()
+        .map(|l| l.dof)
+        .fold(f64::INFINITY, f64::min);
+    let chi2 = on_chi2_scale(by_components, roughest).min(on_chi2_scale(robust, long_run.dof));
     let kinds = EFFECT_KINDS.len() as f64;
     let p = ChiSquared::new(dof.max(1) as f64).map_or(1.0, |d| d.sf(chi2.max(0.0)));
     EntryTest {
@@ -940,7 +949,8 @@ impl Selection<'_> {
         let Some(best_fit) = confirmed.iter().min_by(|a, b| a.nll.total_cmp(&b.nll)) else {
             return Round::Done;
         };
-        let factors = factors_with(grid, segs, base, &best_fit.effects[0]);
+        let long_runs = factors_with(grid, segs, base, &best_fit.effects[0]);
+        let factors = long_runs.map(|l| l.factor);
         let judge = |c: &ScopedEffect| calibrated_gain(grid, segs, base_nll, base, c, factors);
         let mut judged: Vec<(f64, ScopedEffect)> = confirmed
             .iter()
@@ -957,11 +967,11 @@ impl Selection<'_> {
             .filter(|(g, c)| *g < delta_bic + 2.0 && c.effect.kind() != chosen.effect.kind())
             .cloned()
             .collect();
-        if !enters(grid, segs, base, &chosen, (delta_bic, factors), options) {
+        if !enters(grid, segs, base, &chosen, (delta_bic, long_runs), options) {
             return Round::Done;
         }
         let (chosen, delta_bic) = self.scoped(base, chosen, delta_bic, &judge, &mut tied);
-        let test = entry_test(grid, segs, base, &chosen, (delta_bic, factors), options);
+        let test = entry_test(grid, segs, base, &chosen, (delta_bic, long_runs), options);
         let tied_kinds: Vec<&'static str> = tied.iter().map(|(_, c)| c.effect.kind()).collect();
         // Later rounds only try what helped on its own (an effect that did
         // not lower the likelihood alone is rarely needed in company), and
@@ -1053,10 +1063,11 @@ impl Selection<'_> {
             let refit = fit(grid, segs, fixed, &others, options.max_iters);
             let rest: Vec<ScopedEffect> =
                 fixed.iter().cloned().chain(refit.effects.clone()).collect();
-            let factors = factors_with(grid, segs, &rest, &found[k]);
+            let long_runs = factors_with(grid, segs, &rest, &found[k]);
             let rest_nll = components_of(grid, segs, &rest);
+            let factors = long_runs.map(|l| l.factor);
             let needed = calibrated_gain(grid, segs, rest_nll, &rest, &found[k], factors);
-            if !enters(grid, segs, &rest, &found[k], (needed, factors), options) {
+            if !enters(grid, segs, &rest, &found[k], (needed, long_runs), options) {
                 *found = refit.effects;
                 evidence.remove(k);
             } else {

@@ -256,7 +256,15 @@ pub fn component_nll(
 /// gain by it keeps likelihood-ratio tests calibrated (a composite, or
 /// quasi-, likelihood with an effective sample size of n / factor).
 pub fn long_run_factors(segments: &[Segment], standardised: &[[f64; 3]]) -> [f64; 3] {
-    long_run_factors_around(segments, standardised, None)
+    long_run_of_components(segments, standardised).map(|l| l.factor)
+}
+
+/// [`long_run_factors`] with each estimate's degrees of freedom.
+pub fn long_run_of_components(segments: &[Segment], standardised: &[[f64; 3]]) -> [LongRun; 3] {
+    std::array::from_fn(|c| {
+        let series: Vec<f64> = standardised.iter().map(|z| z[c]).collect();
+        long_run_around(segments, &series, None)
+    })
 }
 
 /// Half-width, in segments, of the local mean that
