@@ -81,11 +81,27 @@ struct DiagnoseArgs {
     /// Seconds each comparison predicts ahead.
     #[arg(long, default_value_t = 1.0)]
     horizon: f64,
+    #[command(flatten)]
+    naming: Naming,
+}
+
+/// How sure diagnosis must be before it names an effect.
+#[derive(clap::Args)]
+struct Naming {
     /// Family-wise level of the test an effect must pass to be named
     /// (Bonferroni over the library's kinds): the share of recordings
     /// without a mismatch that may name one.
     #[arg(long, default_value_t = Options::default().select_alpha, value_parser = level)]
     select_alpha: f64,
+}
+
+impl Naming {
+    fn options(&self) -> Options {
+        Options {
+            select_alpha: self.select_alpha,
+            ..Options::default()
+        }
+    }
 }
 
 /// A probability strictly between 0 and 1, for clap.
@@ -341,8 +357,7 @@ fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
     };
     let options = Options {
         horizon_s: args.horizon,
-        select_alpha: args.select_alpha,
-        ..Options::default()
+        ..args.naming.options()
     };
     let diagnosis = diagnose(&recording, &model, &options);
     if diagnosis.segments < MIN_SEGMENTS {
@@ -496,15 +511,15 @@ struct ExperimentArgs {
     /// Only these cases (e.g. null,latency); default: all.
     #[arg(long, value_delimiter = ',')]
     cases: Vec<String>,
-    /// Family-wise level of the entry test (see `shoal diagnose --help`).
-    #[arg(long, default_value_t = Options::default().select_alpha, value_parser = level)]
-    select_alpha: f64,
+    #[command(flatten)]
+    naming: Naming,
     #[arg(long)]
     json: bool,
 }
 
 fn run_experiment(args: &ExperimentArgs) -> Result<()> {
     let mut rows = Vec::new();
+    let options = args.naming.options();
     for noise in &args.noise {
         for case in cases(args.duration) {
             if !args.cases.is_empty() && !args.cases.iter().any(|c| c == case.name) {
@@ -514,10 +529,6 @@ fn run_experiment(args: &ExperimentArgs) -> Result<()> {
                 args.nulls
             } else {
                 args.seeds
-            };
-            let options = Options {
-                select_alpha: args.select_alpha,
-                ..Options::default()
             };
             let row = run_case(&case, noise, 1000..1000 + n, args.duration, &options);
             eprintln!(

@@ -27,7 +27,7 @@ pub struct Options {
     pub grid_dt: f64,
     /// A narrower scope (part of the run, a region) replaces an effect
     /// acting everywhere when it lowers BIC by more than this.
-    pub min_bic_gain: f64,
+    pub min_scope_bic_gain: f64,
     /// Family-wise level of the test an effect must pass to enter: its
     /// calibrated likelihood-ratio statistic against the library's kinds,
     /// Bonferroni-corrected (see [`entry_threshold`]).
@@ -48,7 +48,7 @@ impl Default for Options {
         Self {
             horizon_s: 1.0,
             grid_dt: 0.02,
-            min_bic_gain: 10.0,
+            min_scope_bic_gain: 10.0,
             select_alpha: 0.01,
             max_effects: 4,
             alpha: 0.01,
@@ -99,7 +99,7 @@ pub struct Alternative {
     pub sentence: String,
 }
 
-/// The figures of the test an effect passed to be named (see [`enters`]).
+/// The figures of the test an effect passed to be named (see [`entry_test`]).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct EntryTest {
     /// The likelihood-ratio statistic corrected for correlation in time:
@@ -114,11 +114,16 @@ pub struct EntryTest {
     pub level: f64,
     /// The p-value, Bonferroni-adjusted over the library's kinds.
     pub p_adjusted: f64,
+    /// Whether the effect also lowers the calibrated BIC (reported as the
+    /// finding's `delta_bic`).
+    #[serde(skip)]
+    lowers_bic: bool,
 }
 
 impl EntryTest {
+    /// An effect enters when it passes the test and lowers BIC.
     fn passed(&self) -> bool {
-        self.chi2 > self.needed
+        self.chi2 > self.needed && self.lowers_bic
     }
 }
 
@@ -597,7 +602,7 @@ fn region_driven(segments: &[Segment], [a, b]: [f64; 2]) -> Option<[f64; 4]> {
 }
 
 /// How much correlation in time inflates each residual component of the
-/// model `base` plus `candidate` (see [`long_run_factors`]), with the
+/// model `base` plus `candidate` (see [`long_run_of_components`]), with the
 /// estimates' degrees of freedom.
 fn factors_with(
     grid: &CommandGrid,
@@ -614,7 +619,7 @@ fn factors_with(
 
 /// BIC gain of adding `candidate` (already fitted) to `base`, with the
 /// likelihood gain of each component divided by how much that component's
-/// correlation in time inflates it (`factors`, see [`long_run_factors`]),
+/// correlation in time inflates it (`factors`, see [`long_run_of_components`]),
 /// and the penalty counted on the effective number of observations.
 /// Negative is better. One round judges all its candidates with the same
 /// factors, estimated from the residuals of its best-fitting candidate: an
@@ -648,25 +653,14 @@ fn log_n_eff(segs: &[Segment], factors: [f64; 3]) -> f64 {
     n_eff.max(2.0).ln()
 }
 
-/// Whether an effect judged `delta_bic` (see [`calibrated_gain`]) passes
-/// the entry test: its calibrated likelihood-ratio statistic must exceed
-/// what `dof` parameters fitted to noise reach with probability
-/// `select_alpha` over all the library's kinds. The test's level, unlike
-/// BIC's penalty, does not tighten as the recording grows: a longer
-/// recording can name a smaller effect, while null runs stay at the same
-/// rate (shown in EXPERIMENTS.md 5b).
-fn enters(
-    grid: &CommandGrid,
-    segs: &[Segment],
-    base: &[ScopedEffect],
-    candidate: &ScopedEffect,
-    judged: (f64, [LongRun; 3]),
-    options: &Options,
-) -> bool {
-    judged.0 < 0.0 && entry_test(grid, segs, base, candidate, judged, options).passed()
-}
-
-/// The entry test of `candidate`, judged `delta_bic` with `factors`.
+/// The entry test of `candidate`, judged `delta_bic` (see
+/// [`calibrated_gain`]) with the residual components' `long_runs`: its
+/// calibrated likelihood-ratio statistic must exceed what `dof`
+/// parameters fitted to noise reach with probability `select_alpha` over
+/// all the library's kinds. The test's level, unlike BIC's penalty, does
+/// not tighten as the recording grows: a longer recording can name a
+/// smaller effect, while null runs stay at the same rate (shown in
+/// EXPERIMENTS.md 5b).
 fn entry_test(
     grid: &CommandGrid,
     segs: &[Segment],
@@ -696,14 +690,14 @@ fn entry_test(
         .map(|l| l.dof)
         .fold(f64::INFINITY, f64::min);
     let chi2 = on_chi2_scale(by_components, roughest).min(on_chi2_scale(robust, long_run.dof));
-    let kinds = EFFECT_KINDS.len() as f64;
     let p = ChiSquared::new(dof.max(1) as f64).map_or(1.0, |d| d.sf(chi2.max(0.0)));
     EntryTest {
         chi2,
         dof,
         needed,
         level: options.select_alpha,
-        p_adjusted: (p * kinds).min(1.0),
+        p_adjusted: (p * EFFECT_KINDS.len() as f64).min(1.0),
+        lowers_bic: delta_bic < 0.0,
     }
 }
 
@@ -741,18 +735,21 @@ fn robust_chi2(
 fn fixed_b_threshold(dof: usize, alpha: f64, estimate_dof: f64) -> f64 {
     let k = dof.max(1) as f64;
     let m = estimate_dof.max(k + 1.0);
-    let per_kind = alpha / EFFECT_KINDS.len() as f64;
     FisherSnedecor::new(k, m - k + 1.0)
-        .map(|f| k * f.inverse_cdf(1.0 - per_kind) * m / (m - k + 1.0))
+        .map(|f| k * f.inverse_cdf(1.0 - per_kind(alpha)) * m / (m - k + 1.0))
         .unwrap_or(f64::INFINITY)
+}
+
+/// Each kind's share of the family-wise level `alpha` (Bonferroni).
+fn per_kind(alpha: f64) -> f64 {
+    alpha / EFFECT_KINDS.len() as f64
 }
 
 /// The χ² an entering effect with `dof` parameters must exceed:
 /// Bonferroni over the library's kinds at family-wise level `alpha`.
 fn entry_threshold(dof: usize, alpha: f64) -> f64 {
-    let per_kind = alpha / EFFECT_KINDS.len() as f64;
     ChiSquared::new(dof.max(1) as f64)
-        .map(|d| d.inverse_cdf(1.0 - per_kind))
+        .map(|d| d.inverse_cdf(1.0 - per_kind(alpha)))
         .unwrap_or(f64::INFINITY)
 }
 
@@ -967,11 +964,17 @@ impl Selection<'_> {
             .filter(|(g, c)| *g < delta_bic + 2.0 && c.effect.kind() != chosen.effect.kind())
             .cloned()
             .collect();
-        if !enters(grid, segs, base, &chosen, (delta_bic, long_runs), options) {
+        let test = entry_test(grid, segs, base, &chosen, (delta_bic, long_runs), options);
+        if !test.passed() {
             return Round::Done;
         }
-        let (chosen, delta_bic) = self.scoped(base, chosen, delta_bic, &judge, &mut tied);
-        let test = entry_test(grid, segs, base, &chosen, (delta_bic, long_runs), options);
+        let (scoped, delta_bic) = self.scoped(base, chosen.clone(), delta_bic, &judge, &mut tied);
+        let test = if scoped == chosen {
+            test
+        } else {
+            entry_test(grid, segs, base, &scoped, (delta_bic, long_runs), options)
+        };
+        let chosen = scoped;
         let tied_kinds: Vec<&'static str> = tied.iter().map(|(_, c)| c.effect.kind()).collect();
         // Later rounds only try what helped on its own (an effect that did
         // not lower the likelihood alone is rarely needed in company), and
@@ -1029,7 +1032,7 @@ impl Selection<'_> {
             (fitted, gain)
         };
         let (scoped_fit, scoped_gain) = confirm(&scoped);
-        if scoped_gain >= delta_bic - options.min_bic_gain {
+        if scoped_gain >= delta_bic - options.min_scope_bic_gain {
             return (chosen, delta_bic);
         }
         if let Some(zone) = zone_of_span(segs, &scoped_fit)
@@ -1067,7 +1070,7 @@ impl Selection<'_> {
             let rest_nll = components_of(grid, segs, &rest);
             let factors = long_runs.map(|l| l.factor);
             let needed = calibrated_gain(grid, segs, rest_nll, &rest, &found[k], factors);
-            if !enters(grid, segs, &rest, &found[k], (needed, long_runs), options) {
+            if !entry_test(grid, segs, &rest, &found[k], (needed, long_runs), options).passed() {
                 *found = refit.effects;
                 evidence.remove(k);
             } else {

@@ -255,43 +255,35 @@ pub fn component_nll(
 /// bandwidth, as in a Newey-West (HAC) variance. Dividing a log-likelihood
 /// gain by it keeps likelihood-ratio tests calibrated (a composite, or
 /// quasi-, likelihood with an effective sample size of n / factor).
-pub fn long_run_factors(segments: &[Segment], standardised: &[[f64; 3]]) -> [f64; 3] {
-    long_run_of_components(segments, standardised).map(|l| l.factor)
-}
-
-/// [`long_run_factors`] with each estimate's degrees of freedom.
 pub fn long_run_of_components(segments: &[Segment], standardised: &[[f64; 3]]) -> [LongRun; 3] {
-    std::array::from_fn(|c| {
-        let series: Vec<f64> = standardised.iter().map(|z| z[c]).collect();
-        long_run_around(segments, &series, None)
-    })
+    components_around(segments, standardised, None)
 }
 
 /// Half-width, in segments, of the local mean that
 /// [`long_run_factors_of_noise`] removes.
 const LOCAL_MEAN_HALF_WIDTH: usize = 25;
 
-/// [`long_run_factors`] of the noise alone, for a model that may still miss
+/// [`long_run_of_components`]' factors for the noise alone, for a model that may still miss
 /// an effect: a mismatch that comes and goes over minutes (a zone driven
 /// into, a fault that starts) would otherwise pass for correlated noise and
 /// hide itself. A local mean over about 50 segments is removed first, which
 /// keeps the correlation of noise over seconds.
 pub fn long_run_factors_of_noise(segments: &[Segment], standardised: &[[f64; 3]]) -> [f64; 3] {
-    long_run_factors_around(segments, standardised, Some(LOCAL_MEAN_HALF_WIDTH))
+    components_around(segments, standardised, Some(LOCAL_MEAN_HALF_WIDTH)).map(|l| l.factor)
 }
 
-fn long_run_factors_around(
+fn components_around(
     segments: &[Segment],
     standardised: &[[f64; 3]],
     local_mean: Option<usize>,
-) -> [f64; 3] {
+) -> [LongRun; 3] {
     std::array::from_fn(|c| {
         let series: Vec<f64> = standardised.iter().map(|z| z[c]).collect();
-        long_run_factor_around(segments, &series, local_mean)
+        long_run_around(segments, &series, local_mean)
     })
 }
 
-/// [`long_run_factors`] of one series over the segments: how much its
+/// [`long_run_of_components`] of one series over the segments: how much its
 /// correlation in time inflates the variance of its sum.
 pub fn long_run_factor(segments: &[Segment], series: &[f64]) -> LongRun {
     long_run_around(segments, series, None)
@@ -308,10 +300,6 @@ pub struct LongRun {
     /// accounts for the estimate's own randomness and bias where the noise
     /// is persistent and the bandwidth therefore wide.
     pub dof: f64,
-}
-
-fn long_run_factor_around(segments: &[Segment], series: &[f64], local_mean: Option<usize>) -> f64 {
-    long_run_around(segments, series, local_mean).factor
 }
 
 fn long_run_around(segments: &[Segment], series: &[f64], local_mean: Option<usize>) -> LongRun {
@@ -407,7 +395,7 @@ mod tests {
         let white: Vec<[f64; 3]> = (0..n)
             .map(|_| [rng.sample(normal), rng.sample(normal), rng.sample(normal)])
             .collect();
-        let f = long_run_factors(&segments, &white);
+        let f = long_run_of_components(&segments, &white).map(|l| l.factor);
         assert!(f.iter().all(|f| *f < 1.25), "{f:?}");
         // AR(1) with rho = 0.6: long-run factor (1 + rho) / (1 - rho) = 4.
         let mut x = 0.0;
@@ -417,7 +405,7 @@ mod tests {
                 [x, x, x]
             })
             .collect();
-        let f = long_run_factors(&segments, &ar);
+        let f = long_run_of_components(&segments, &ar).map(|l| l.factor);
         assert!(f.iter().all(|f| (2.8..=4.6).contains(f)), "{f:?}");
     }
 
@@ -439,7 +427,7 @@ mod tests {
                 [z + shift; 3]
             })
             .collect();
-        let whole = long_run_factors(&segments, &shifted);
+        let whole = long_run_of_components(&segments, &shifted).map(|l| l.factor);
         let noise = long_run_factors_of_noise(&segments, &shifted);
         assert!(
             whole[0] > 3.0,

@@ -151,7 +151,7 @@ pub fn holm(p: &[f64]) -> Vec<f64> {
 ///
 /// `long_run` is how much the residuals' correlation in time inflates the
 /// variance of a sum over segments (per component, see
-/// [`crate::likelihood::long_run_factors`]); groups are mostly runs of
+/// [`crate::likelihood::long_run_of_components`]); groups are mostly runs of
 /// consecutive segments, so their sums are scaled by it.
 pub fn locate(
     segments: &[Segment],
