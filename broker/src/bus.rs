@@ -122,9 +122,26 @@ fn termination_flag(node: &Node<ipc::Service>) -> Arc<AtomicBool> {
 /// default, which this must not be below) and copy each out at once.
 const EXPIRED_CONNECTION_BUFFER: usize = 4;
 
-/// iceoryx2's configuration (its global one) with Shoal's changes.
-fn node_config() -> Config {
+/// The iceoryx2 domain of this process's host
+/// ([`shoal_runtime::host`]): iceoryx2's global configuration, with files
+/// under a prefix of the host's own when the host is not this machine's
+/// (iceoryx2's way to keep groups of processes apart on one machine).
+pub fn domain_config() -> Config {
     let mut config = Config::global_config().clone();
+    let host = shoal_runtime::host::current();
+    if host.separate {
+        // A host name is letters, digits, `-` and `_`: a valid file name.
+        match FileName::new(format!("shoal_{}_", host.name).as_bytes()) {
+            Ok(prefix) => config.global.prefix = prefix,
+            Err(e) => tracing::error!("host `{}` cannot name iceoryx2 files: {e:?}", host.name),
+        }
+    }
+    config
+}
+
+/// iceoryx2's configuration for this host's domain, with Shoal's changes.
+fn node_config() -> Config {
+    let mut config = domain_config();
     config
         .defaults
         .publish_subscribe

@@ -20,7 +20,7 @@ pub use check::{Rejected, Rejection, SampleCheck, Wire};
 pub use clock::{ClockListener, ClockSource};
 pub use liveness::{SwarmNode, SwarmNodeState};
 pub use ports::{Receiver, Sender};
-pub use roster::{RosterPublisher, RosterReader};
+pub use roster::{RosterPublisher, RosterReader, RosterReaders};
 pub use wire::{
     ClockTick, EstimateSample, Health, HelperProgress, MAX_BEAMS, MAX_MAP_SIDE, MAX_NEIGHBOURS,
     MAX_SHOWN_PARTICLES, ModelUpdate, PoseSample, ScanSample, SlamMap, SlamParticles,

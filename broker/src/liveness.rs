@@ -28,7 +28,7 @@ pub fn swarm_nodes(swarm: &str) -> Result<Vec<SwarmNode>, BusError> {
     crate::bus::quiet_iceoryx();
     let prefix = names::prefix(swarm);
     let mut nodes = Vec::new();
-    Node::<ipc::Service>::list(Config::global_config(), |state| {
+    Node::<ipc::Service>::list(&crate::bus::domain_config(), |state| {
         let (view_details, alive) = match &state {
             NodeState::Alive(view) => (view.details().clone(), true),
             NodeState::Dead(view) => (view.details().clone(), false),
@@ -60,7 +60,7 @@ pub fn remove_dead_nodes(swarm: &str) -> Result<usize, BusError> {
     crate::bus::quiet_iceoryx();
     let prefix = names::prefix(swarm);
     let mut dead = Vec::new();
-    Node::<ipc::Service>::list(Config::global_config(), |state| {
+    Node::<ipc::Service>::list(&crate::bus::domain_config(), |state| {
         if let NodeState::Dead(view) = state {
             let ours = view
                 .details()
@@ -88,7 +88,7 @@ pub fn swarm_services(swarm: &str) -> Result<Vec<String>, BusError> {
     crate::bus::quiet_iceoryx();
     let prefix = names::prefix(swarm);
     let mut services = Vec::new();
-    ipc::Service::list(Config::global_config(), |details| {
+    ipc::Service::list(&crate::bus::domain_config(), |details| {
         let name = details.static_details.name().as_str().to_owned();
         if name.starts_with(&prefix) {
             services.push(name);

@@ -31,3 +31,27 @@ pub fn publisher(bus: &Bus) -> Result<RosterPublisher, BusError> {
 pub fn reader(bus: &Bus) -> Result<RosterReader, BusError> {
     Receiver::open(bus, &topic(bus), "roster pose")
 }
+
+/// How many observers read the roster now: a host's link carries the whole
+/// swarm's poses only while someone here (a recorder, `shoal status`) reads
+/// them.
+pub struct RosterReaders {
+    service: iceoryx2::service::port_factory::publish_subscribe::PortFactory<
+        iceoryx2::prelude::ipc::Service,
+        PoseSample,
+        (),
+    >,
+}
+
+impl RosterReaders {
+    pub fn open(bus: &Bus) -> Result<Self, BusError> {
+        Ok(Self {
+            service: bus.publish_subscribe::<PoseSample>(&topic(bus))?,
+        })
+    }
+
+    pub fn count(&self) -> usize {
+        use iceoryx2::service::port_factory::PortFactory;
+        self.service.dynamic_config().number_of_subscribers()
+    }
+}

@@ -21,6 +21,35 @@ fn alive_robot(nodes: &[SwarmNode], id: u32) -> Option<&SwarmNode> {
         .find(|n| n.agent_id == Some(id) && n.state == SwarmNodeState::Alive)
 }
 
+/// The other host that runs robot `id`, as this host's link knows it.
+fn remote_host_of(runtime: &SwarmRuntime, id: u32) -> Option<String> {
+    runtime.read_link_report().and_then(|report| {
+        report
+            .hosts
+            .into_iter()
+            .find(|h| h.robots.iter().any(|r| r.id == id))
+            .map(|h| h.name)
+    })
+}
+
+/// Refuses to act here on robots another host runs, naming that host.
+fn refuse_remote(swarm: &str, runtime: &SwarmRuntime, ids: &[u32], verb: &str) -> Result<()> {
+    let remote: Vec<String> = ids
+        .iter()
+        .filter_map(|&id| {
+            remote_host_of(runtime, id).map(|host| {
+                format!(
+                    "robot {id} runs on host `{host}`: run `shoal {verb} {id} --swarm {swarm} --host {host}` there"
+                )
+            })
+        })
+        .collect();
+    if !remote.is_empty() {
+        bail!("{}", remote.join("; "));
+    }
+    Ok(())
+}
+
 /// Signals robots by id: SIGKILL, or SIGTERM when `graceful`.
 pub fn kill(swarm: &str, ids: &[u32], graceful: bool) -> Result<()> {
     let nodes = swarm_nodes(swarm)?;
@@ -55,6 +84,7 @@ pub fn kill(swarm: &str, ids: &[u32], graceful: bool) -> Result<()> {
             None => missing.push(id),
         }
     }
+    refuse_remote(swarm, &runtime, &missing, "kill")?;
     if !missing.is_empty() {
         bail!("no live robot with id {missing:?} in swarm `{swarm}`");
     }
@@ -80,6 +110,7 @@ pub fn restart(swarm: &str, ids: &[u32], at: Option<[f64; 2]>) -> Result<()> {
         bail!("robot id {id} is above the highest id Shoal runs, {MAX_ROBOT_ID}");
     }
     let (runtime, scenario) = open_swarm(swarm)?;
+    refuse_remote(swarm, &runtime, ids, "restart")?;
     let nodes = swarm_nodes(swarm)?;
     for &id in ids {
         if let Some(node) = alive_robot(&nodes, id) {
@@ -119,8 +150,17 @@ pub fn spawn(swarm: &str, count: usize, at: Option<[f64; 2]>) -> Result<Vec<u32>
     let _ids_lock = runtime.lock("ids", true)?;
     let highest_node = swarm_nodes(swarm)?.iter().filter_map(|n| n.agent_id).max();
     let highest_file = runtime.known_agent_ids().into_iter().max();
+    // Ids are unique across the hosts of a swarm: above every other host's too.
+    let highest_remote = runtime.read_link_report().and_then(|report| {
+        report
+            .hosts
+            .iter()
+            .flat_map(|h| h.robots.iter().map(|r| r.id))
+            .max()
+    });
     let first = highest_node
         .max(highest_file)
+        .max(highest_remote)
         .map_or(0, |h| h + 1)
         .max(scenario.agents.count as u32);
     if u64::from(first) + count as u64 > u64::from(MAX_ROBOT_ID) + 1 {

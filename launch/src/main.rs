@@ -16,6 +16,18 @@ use clap::{Parser, Subcommand};
 struct Cli {
     #[command(subcommand)]
     command: Commands,
+    /// This machine's part of a swarm that spans hosts (default: the
+    /// machine's name, or SHOAL_HOST). Two hosts on one machine are kept
+    /// apart as two machines would be.
+    #[arg(long, global = true)]
+    host: Option<String>,
+}
+
+/// How the hosts of a swarm are joined.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum LinkKind {
+    /// Zenoh: peers find each other by scouting or --connect.
+    Zenoh,
 }
 
 #[derive(Subcommand)]
@@ -52,9 +64,25 @@ enum Commands {
         /// Watch the run live in a Rerun viewer started now (`rerun` on PATH).
         #[arg(long)]
         viewer: bool,
-        /// Stream the run live to a Rerun viewer already running at ADDR (HOST:PORT).
-        #[arg(long, value_name = "ADDR", conflicts_with = "viewer")]
-        connect: Option<String>,
+        /// Without --link: stream the run live to a Rerun viewer already
+        /// running at ADDR (HOST:PORT). With --link zenoh: a Zenoh endpoint
+        /// of another host to connect to, e.g. tcp/10.0.0.2:7447 (repeatable).
+        #[arg(long, value_name = "ADDR")]
+        connect: Vec<String>,
+        /// Join this host's robots to the swarm's other hosts.
+        #[arg(long, value_enum)]
+        link: Option<LinkKind>,
+        /// The first robot's id; the others follow. Ids must be unique
+        /// across the hosts of a swarm.
+        #[arg(long, default_value_t = 0)]
+        first_id: u32,
+        /// With --link zenoh: a Zenoh configuration file (JSON5), for
+        /// endpoints, scouting, TLS and access control.
+        #[arg(long, requires = "link")]
+        zenoh_config: Option<PathBuf>,
+        /// With --link zenoh: a Zenoh endpoint to listen on, e.g. tcp/0.0.0.0:7447 (repeatable).
+        #[arg(long, requires = "link")]
+        listen: Vec<String>,
         /// Start a SLAM process following these robots, e.g. 0,3.
         #[arg(long, value_delimiter = ',')]
         slam: Vec<u32>,
@@ -213,11 +241,14 @@ enum ExperimentKind {
 fn become_binary(binary: &str, args: &[String]) -> Result<()> {
     use std::os::unix::process::CommandExt;
     let path = shoal::process::sibling_binary(binary)?;
-    let error = std::process::Command::new(&path).args(args).exec();
+    let mut command = std::process::Command::new(&path);
+    shoal_runtime::host::pass_to(&mut command);
+    let error = command.args(args).exec();
     Err(anyhow::Error::new(error).context(format!("starting {}", path.display())))
 }
 
 fn run(cli: Cli) -> Result<()> {
+    shoal_runtime::host::choose(cli.host.as_deref())?;
     match cli.command {
         Commands::Up {
             agents,
@@ -232,20 +263,46 @@ fn run(cli: Cli) -> Result<()> {
             viewer,
             connect,
             slam,
+            link,
+            first_id,
+            zenoh_config,
+            listen,
         } => {
+            let (link, viewer_at) = match link {
+                Some(LinkKind::Zenoh) => (
+                    Some(shoal::swarm::LinkOptions {
+                        zenoh_config,
+                        listen,
+                        connect,
+                    }),
+                    None,
+                ),
+                None => match connect.as_slice() {
+                    [] => (None, None),
+                    [addr] if !viewer => (None, Some(addr.clone())),
+                    [_] => anyhow::bail!("--viewer starts a viewer; --connect streams to a running one: choose one"),
+                    _ => anyhow::bail!(
+                        "--connect names one Rerun viewer, or with --link zenoh the Zenoh endpoints of other hosts"
+                    ),
+                },
+            };
             up::up(up::UpOptions {
                 swarm,
                 scenario,
                 agents,
                 seed,
-                lockstep,
+                launch: shoal::swarm::Launch {
+                    lockstep,
+                    first_id,
+                    link,
+                },
                 duration_s: duration,
                 json,
                 record: shoal::swarm::RecordOptions {
                     out: record,
                     tum,
                     viewer,
-                    connect,
+                    connect: viewer_at,
                 },
                 slam,
             })?;

@@ -192,6 +192,7 @@ pub fn start_agent(
         .stdin(Stdio::null())
         .stdout(log_file.try_clone()?)
         .stderr(log_file);
+    shoal_runtime::host::pass_to(&mut command);
     tie.apply(&mut command);
     command
         .spawn()

@@ -12,6 +12,8 @@ use shoal_runtime::{FollowedReport, SwarmRuntime};
 #[derive(Debug, Serialize)]
 pub struct AgentStatus {
     pub id: u32,
+    /// The host that runs it (`--host`).
+    pub host: String,
     pub pid: i32,
     pub state: &'static str,
     pub x: Option<f64>,
@@ -32,6 +34,10 @@ pub struct AgentStatus {
 #[derive(Debug, Serialize)]
 pub struct StatusReport {
     pub swarm: String,
+    /// The host this report was made on.
+    pub host: String,
+    /// Every host of the swarm heard from, this one first.
+    pub hosts: Vec<String>,
     pub agents: Vec<AgentStatus>,
     /// Dead nodes of this swarm whose resources nobody has removed yet.
     pub stale_nodes: usize,
@@ -62,6 +68,7 @@ pub fn gather(swarm: &str) -> Result<StatusReport> {
     let slam = SwarmRuntime::locate(swarm)
         .read_slam_report()
         .filter(|r| shoal_runtime::pid_alive(r.pid as i32));
+    let host = shoal_runtime::host::current().name.clone();
     let mut agents = Vec::new();
     let mut stale_nodes = 0;
     for node in swarm_nodes(swarm)? {
@@ -74,6 +81,7 @@ pub fn gather(swarm: &str) -> Result<StatusReport> {
             .filter(|s| s.pid as i32 == node.pid && node.state == SwarmNodeState::Alive);
         agents.push(AgentStatus {
             id,
+            host: host.clone(),
             pid: node.pid,
             state: if node.state == SwarmNodeState::Alive {
                 "alive"
@@ -95,9 +103,35 @@ pub fn gather(swarm: &str) -> Result<StatusReport> {
                 .and_then(|r| r.followed.iter().find(|f| f.id == id).cloned()),
         });
     }
+    let mut hosts = vec![host.clone()];
+    // Robots of other hosts, as this host's link last heard them summarised.
+    if let Some(link) = SwarmRuntime::locate(swarm).read_link_report() {
+        for remote in link.hosts {
+            for robot in &remote.robots {
+                agents.push(AgentStatus {
+                    id: robot.id,
+                    host: remote.name.clone(),
+                    pid: robot.pid as i32,
+                    state: "alive",
+                    x: Some(robot.x),
+                    y: Some(robot.y),
+                    theta: Some(robot.theta),
+                    tick: Some(robot.tick),
+                    health: None,
+                    neighbours: robot.neighbours.clone(),
+                    missed_periods: Some(robot.missed_periods),
+                    neighbour_age_ms: Some(robot.neighbour_age_ms),
+                    slam: None,
+                });
+            }
+            hosts.push(remote.name);
+        }
+    }
     agents.sort_by_key(|a| (a.id, a.state));
     Ok(StatusReport {
         swarm: swarm.to_owned(),
+        host,
+        hosts,
         agents,
         stale_nodes,
         slam: slam.map(|r| r.followed).unwrap_or_default(),
@@ -107,15 +141,22 @@ pub fn gather(swarm: &str) -> Result<StatusReport> {
 pub fn print_table(report: &StatusReport) {
     let alive = report.agents.iter().filter(|a| a.state == "alive").count();
     println!(
-        "swarm `{}`: {alive} alive, {} stale nodes",
-        report.swarm, report.stale_nodes
+        "swarm `{}` seen from host `{}`: {alive} alive, {} stale nodes{}",
+        report.swarm,
+        report.host,
+        report.stale_nodes,
+        if report.hosts.len() > 1 {
+            format!(" (hosts: {})", report.hosts.join(", "))
+        } else {
+            String::new()
+        }
     );
     for f in report.slam.iter().filter(|f| f.paused) {
         println!("SLAM follows robot {} (paused: no scans from it)", f.id);
     }
     println!(
-        "{:>5} {:>8} {:>6} {:>8} {:>8} {:>7}  {:<26} neighbours",
-        "id", "pid", "state", "x", "y", "theta", "slam"
+        "{:>5} {:<10} {:>8} {:>6} {:>8} {:>8} {:>7}  {:<26} neighbours",
+        "id", "host", "pid", "state", "x", "y", "theta", "slam"
     );
     for a in &report.agents {
         let num = |v: Option<f64>| v.map_or_else(|| "-".to_owned(), |v| format!("{v:.2}"));
@@ -132,8 +173,9 @@ pub fn print_table(report: &StatusReport) {
             },
         );
         println!(
-            "{:>5} {:>8} {:>6} {:>8} {:>8} {:>7}  {:<26} {}",
+            "{:>5} {:<10} {:>8} {:>6} {:>8} {:>8} {:>7}  {:<26} {}",
             a.id,
+            a.host,
             a.pid,
             a.state,
             num(a.x),

@@ -153,10 +153,71 @@ impl RecordOptions {
     }
 }
 
+/// How this host's part of a swarm joins the other hosts' (`--link zenoh`).
+#[derive(Clone, Debug, Default)]
+pub struct LinkOptions {
+    /// A Zenoh configuration file: mode, endpoints, TLS, access control.
+    pub zenoh_config: Option<std::path::PathBuf>,
+    pub listen: Vec<String>,
+    pub connect: Vec<String>,
+}
+
+impl LinkOptions {
+    fn args(&self, swarm: &str) -> Vec<std::ffi::OsString> {
+        let mut args: Vec<std::ffi::OsString> = vec!["--swarm".into(), swarm.into()];
+        if let Some(file) = &self.zenoh_config {
+            args.extend(["--zenoh-config".into(), file.clone().into_os_string()]);
+        }
+        for endpoint in &self.listen {
+            args.extend(["--listen".into(), endpoint.into()]);
+        }
+        for endpoint in &self.connect {
+            args.extend(["--connect".into(), endpoint.into()]);
+        }
+        args
+    }
+}
+
+/// How a swarm is started beyond its scenario.
+#[derive(Clone, Debug, Default)]
+pub struct Launch {
+    /// Step all robots on one clock (faster than real time, deterministic).
+    pub lockstep: bool,
+    /// The first robot's id; the others follow it.
+    pub first_id: u32,
+    /// Join the swarm's parts on other hosts.
+    pub link: Option<LinkOptions>,
+}
+
+/// How long the launcher waits for its link to have heard the other hosts.
+const LINK_TIMEOUT: Duration = Duration::from_secs(20);
+const LINK_BINARY: &str = "shoal-link";
+
 impl RunningSwarm {
     /// Starts `scenario.agents.count` robots in swarm `name`.
     pub fn launch(name: &str, scenario: Scenario, lockstep: bool) -> Result<Self> {
+        Self::launch_with(
+            name,
+            scenario,
+            &Launch {
+                lockstep,
+                ..Launch::default()
+            },
+        )
+    }
+
+    /// Starts `scenario.agents.count` robots in swarm `name`, with ids from
+    /// `launch.first_id`, linked to the swarm's other hosts if asked.
+    pub fn launch_with(name: &str, scenario: Scenario, launch: &Launch) -> Result<Self> {
+        let lockstep = launch.lockstep;
         names::validate_swarm(name)?;
+        if lockstep && launch.link.is_some() {
+            bail!(
+                "--lockstep cannot span hosts: its clock waits for every robot's answer through this \
+                 machine's shared memory each tick, which across a network would pace the swarm to \
+                 its slowest round trip; run a linked swarm in real time"
+            );
+        }
         // Two launchers of one swarm started together would both pass the
         // check below; the lock makes the second one fail.
         let launch_lock = SwarmRuntime::locate(name)
@@ -225,14 +286,18 @@ impl RunningSwarm {
             _launch_lock: launch_lock,
         };
         let count = swarm.scenario.agents.count;
+        if let Some(link) = &launch.link {
+            swarm.start_helper(LINK_BINARY, &link.args(name))?;
+            swarm.await_link(launch.first_id, count)?;
+        }
         let poses = swarm.scenario.start_poses(0, count);
-        for (id, pose) in poses.into_iter().enumerate() {
+        for (index, pose) in poses.into_iter().enumerate() {
             // Starting many robots takes a while: Ctrl-C stops it at once,
             // and dropping the swarm stops the robots already started.
             if swarm.termination_requested() {
-                bail!("interrupted while starting robots ({id} of {count} started)");
+                bail!("interrupted while starting robots ({index} of {count} started)");
             }
-            swarm.start(id as u32, pose)?;
+            swarm.start(launch.first_id + index as u32, pose)?;
         }
         if let Some(clock) = &mut swarm.clock {
             let observer = &mut swarm.observer;
@@ -255,6 +320,65 @@ impl RunningSwarm {
             }
         }
         Ok(swarm)
+    }
+
+    /// Waits until the link has heard the other hosts, and refuses robot
+    /// ids `first_id..first_id + count` if another host runs one of them.
+    fn await_link(&mut self, first_id: u32, count: usize) -> Result<()> {
+        let started = Instant::now();
+        let report = loop {
+            self.reap_helpers();
+            if let Some(death) = self.children.deaths.iter().find(|d| d.who == LINK_BINARY) {
+                self.keep_logs = true;
+                bail!("the link to the other hosts failed: {death}");
+            }
+            if self.termination_requested() {
+                bail!("interrupted while linking to the other hosts");
+            }
+            if let Some(report) = self.runtime.read_link_report().filter(|r| r.ready) {
+                break report;
+            }
+            if started.elapsed() > LINK_TIMEOUT {
+                self.keep_logs = true;
+                bail!(
+                    "the link to the other hosts did not get ready within {} s; its log is kept in {}",
+                    LINK_TIMEOUT.as_secs(),
+                    self.runtime.dir.display()
+                );
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        };
+        let ours = u64::from(first_id)..u64::from(first_id) + count as u64;
+        let clashes: Vec<String> = report
+            .hosts
+            .iter()
+            .filter_map(|host| {
+                let ids: Vec<String> = host
+                    .robots
+                    .iter()
+                    .filter(|r| ours.contains(&u64::from(r.id)))
+                    .map(|r| r.id.to_string())
+                    .collect();
+                (!ids.is_empty()).then(|| format!("host `{}` runs robots {}", host.name, ids.join(", ")))
+            })
+            .collect();
+        if !clashes.is_empty() {
+            bail!(
+                "robot ids {}..={} of this host `{}` are taken: {}; robot ids must be unique across the swarm: choose another --first-id",
+                ours.start,
+                ours.end.saturating_sub(1),
+                report.host,
+                clashes.join("; ")
+            );
+        }
+        let remote: usize = report.hosts.iter().map(|h| h.robots.len()).sum();
+        eprintln!(
+            "shoal: linked host `{}` to {} other host(s) of swarm `{}` ({remote} robots there)",
+            report.host,
+            report.hosts.len(),
+            self.name
+        );
+        Ok(())
     }
 
     /// Starts robot `id` at `pose` as a child of this process.
@@ -317,6 +441,7 @@ impl RunningSwarm {
             .stdin(Stdio::null())
             .stdout(log.try_clone()?)
             .stderr(log);
+        shoal_runtime::host::pass_to(&mut command);
         self.tie().apply(&mut command);
         let child = command
             .spawn()

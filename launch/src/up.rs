@@ -10,14 +10,15 @@ use serde::Serialize;
 use shoal_physics::Scenario;
 
 use crate::observer::Timeliness;
-use crate::swarm::{RecordOptions, RunningSwarm};
+use crate::swarm::{Launch, RecordOptions, RunningSwarm};
 
 pub struct UpOptions {
     pub swarm: String,
     pub scenario: Option<PathBuf>,
     pub agents: Option<usize>,
     pub seed: Option<u64>,
-    pub lockstep: bool,
+    /// Clock mode, robot ids and the link to other hosts.
+    pub launch: Launch,
     pub duration_s: Option<f64>,
     pub json: bool,
     pub record: RecordOptions,
@@ -269,7 +270,7 @@ pub fn up(options: UpOptions) -> Result<UpSummary> {
     let scenario = scenario_for(&options)?;
     let follow = scenario.slam.follow.clone();
     let spread = scenario.formation.spread;
-    let mut swarm = RunningSwarm::launch(&options.swarm, scenario, options.lockstep)?;
+    let mut swarm = RunningSwarm::launch_with(&options.swarm, scenario, &options.launch)?;
     swarm.observer.reset_timeliness();
     if options.record.wanted() {
         swarm.record(&options.record)?;

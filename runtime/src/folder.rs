@@ -42,6 +42,66 @@ pub struct FollowedReport {
     pub stride_m: Option<f64>,
 }
 
+/// What this host's link (`shoal-link`) knows of the swarm's other hosts,
+/// for `shoal status`, `kill` and `spawn` here.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct LinkReport {
+    pub pid: u32,
+    pub host: String,
+    /// Set once the link has listened long enough to have heard every host
+    /// it found: only then does an id it does not list belong to no one.
+    pub ready: bool,
+    pub hosts: Vec<RemoteHost>,
+    /// Remote robots refused because a robot of this host has their id.
+    pub clashes: Vec<IdClash>,
+    pub traffic: LinkTraffic,
+}
+
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct RemoteHost {
+    pub name: String,
+    pub robots: Vec<RemoteRobot>,
+}
+
+/// A robot of another host, as that host last summarised it.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct RemoteRobot {
+    pub id: u32,
+    /// Its process on its own host.
+    pub pid: u32,
+    pub x: f64,
+    pub y: f64,
+    pub theta: f64,
+    pub tick: u64,
+    pub neighbours: Vec<u32>,
+    pub missed_periods: u32,
+    pub neighbour_age_ms: u32,
+}
+
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct IdClash {
+    pub id: u32,
+    /// The other host that runs a robot with this id.
+    pub host: String,
+}
+
+/// What crossed the network since the link started.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct LinkTraffic {
+    pub poses_sent: u64,
+    pub poses_received: u64,
+    pub bytes_sent: u64,
+    pub bytes_received: u64,
+    /// Messages that failed to decode or their plausibility check.
+    pub rejected: u64,
+    /// Remote robots standing in this host's cells for its robots now.
+    pub proxies: usize,
+    /// Cells whose remote poses this host asks for now.
+    pub cells_wanted: usize,
+    /// Whether it asks for every remote pose (a recorder or status listens here).
+    pub whole_swarm: bool,
+}
+
 #[derive(Clone, Debug)]
 pub struct SwarmRuntime {
     /// The per-user root all swarms' folders live in.
@@ -58,11 +118,20 @@ const OWNER_MARK_TEXT: &str =
     "This folder was created by Shoal for one swarm and is removed when the swarm stops.\n";
 
 impl SwarmRuntime {
-    /// `$SHOAL_RUNTIME_DIR/<swarm>`, or `<tmp>/shoal-<uid>/<swarm>`.
+    /// `$SHOAL_RUNTIME_DIR/<swarm>`, or `<tmp>/shoal-<uid>/<swarm>`; for a
+    /// host of a swarm that is not this machine's own (`--host`), in
+    /// `host-<name>/` below that, so two hosts on one machine keep
+    /// separate folders as two machines would.
     pub fn locate(swarm: &str) -> Self {
-        let root = std::env::var_os("SHOAL_RUNTIME_DIR")
+        let base = std::env::var_os("SHOAL_RUNTIME_DIR")
             .map(PathBuf::from)
             .unwrap_or_else(|| std::env::temp_dir().join(format!("shoal-{}", current_uid())));
+        let host = crate::host::current();
+        let root = if host.separate {
+            base.join(format!("host-{}", host.name))
+        } else {
+            base
+        };
         Self {
             dir: root.join(swarm),
             root,
@@ -332,6 +401,23 @@ impl SwarmRuntime {
     pub fn read_slam_report(&self) -> Option<SlamReport> {
         let text = read_no_follow(&self.slam_report_path()).ok()?;
         toml::from_str(&text).ok()
+    }
+
+    fn link_report_path(&self) -> PathBuf {
+        self.dir.join("link.toml")
+    }
+
+    pub fn write_link_report(&self, report: &LinkReport) -> io::Result<()> {
+        let text = toml::to_string(report).map_err(io::Error::other)?;
+        write_atomically(&self.link_report_path(), &text)
+    }
+
+    /// The link's report, if a link runs for this host (its process is alive).
+    pub fn read_link_report(&self) -> Option<LinkReport> {
+        let text = read_no_follow(&self.link_report_path()).ok()?;
+        toml::from_str::<LinkReport>(&text)
+            .ok()
+            .filter(|r| crate::pid_alive(r.pid as i32))
     }
 
     pub fn write_last_pose(&self, id: u32, pose: [f64; 3]) -> io::Result<()> {

@@ -4,13 +4,17 @@
 //! stays free of I/O.
 
 pub mod folder;
+pub mod host;
 pub mod process_main;
 
 use std::path::Path;
 
 use shoal_physics::{Scenario, scenario::ScenarioError};
 
-pub use folder::{FollowedReport, SlamReport, SwarmMeta, SwarmRuntime};
+pub use folder::{
+    FollowedReport, IdClash, LinkReport, LinkTraffic, RemoteHost, RemoteRobot, SlamReport,
+    SwarmMeta, SwarmRuntime,
+};
 
 /// Reads and checks a scenario file; errors name the file (and the line
 /// and field, for what is in it).

@@ -18,6 +18,15 @@ pub fn run_main(
         // Logs that go to a file (a robot's log) stay readable text.
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .init();
+    // Every process of a host belongs to its domain: a host name that
+    // cannot be one is an error here, not a silent fall back to another.
+    if let Ok(host) = std::env::var(crate::host::HOST_ENV)
+        && !host.is_empty()
+        && let Err(e) = crate::host::validate(&host)
+    {
+        eprintln!("{name}: error: {} {e}", crate::host::HOST_ENV);
+        return ExitCode::FAILURE;
+    }
     match body() {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
