@@ -1,0 +1,361 @@
+//! One swarm on two hosts linked over Zenoh: hosts `a` and `b` are separate
+//! iceoryx2 domains and runtime folders, started as a user would on two
+//! machines, on loopback and (where `ip netns` works, as root) in two
+//! network namespaces joined by a veth pair, so the poses cross a real
+//! network interface.
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::Duration;
+
+use serde_json::Value;
+use shoal_e2e::{bin, scratch, serial, status_metrics, wait_until};
+
+const SPREAD: f64 = 1.0;
+
+/// Host `a` stands in the left half of a 20 x 13 m arena, `b` in the right.
+fn scenario(dir: &Path, host: &str) -> PathBuf {
+    let (region, seed) = match host {
+        "a" => ("[4.0, 4.0, 9.5, 9.0]", 1),
+        _ => ("[10.5, 4.0, 16.0, 9.0]", 2),
+    };
+    let path = dir.join(format!("{host}.toml"));
+    std::fs::write(
+        &path,
+        format!(
+            "name = \"two-hosts-{host}\"\n[arena]\nwidth = 20.0\nheight = 13.0\n\
+             [agents]\ncount = 10\nstart_region = {region}\nseed = {seed}\n\
+             [formation]\ngoal = [10.0, 6.5]\nspread = {SPREAD}\n"
+        ),
+    )
+    .expect("write the scenario");
+    path
+}
+
+/// One host's `shoal up --link zenoh`, optionally inside a network namespace.
+struct Host {
+    name: String,
+    child: Option<Child>,
+    log: PathBuf,
+}
+
+impl Host {
+    fn start(
+        swarm: &str,
+        name: &str,
+        first_id: u32,
+        scenario: &Path,
+        zenoh: &[&str],
+        netns: Option<&str>,
+    ) -> Self {
+        let log = std::env::temp_dir().join(format!("shoal-e2e-{swarm}-{name}.log"));
+        let out = std::fs::File::create(&log).expect("create the host's log");
+        let mut command = match netns {
+            Some(ns) => {
+                let mut command = Command::new("ip");
+                command.args(["netns", "exec", ns]).arg(bin("shoal"));
+                command
+            }
+            None => Command::new(bin("shoal")),
+        };
+        command
+            .args(["up", "--swarm", swarm, "--host", name, "--link", "zenoh"])
+            .args(["--first-id", &first_id.to_string()])
+            .arg("--scenario")
+            .arg(scenario)
+            .args(zenoh)
+            .stdin(Stdio::null())
+            .stdout(out.try_clone().expect("clone the log handle"))
+            .stderr(out);
+        Self {
+            name: name.to_owned(),
+            child: Some(command.spawn().expect("start shoal up")),
+            log,
+        }
+    }
+
+    fn log(&self) -> String {
+        std::fs::read_to_string(&self.log).unwrap_or_default()
+    }
+
+    /// SIGKILL of every process of the host, as a machine that loses power.
+    fn kill_all(&mut self) {
+        let Some(mut child) = self.child.take() else {
+            return;
+        };
+        for pid in descendants(child.id() as i32)
+            .into_iter()
+            .chain([child.id() as i32])
+        {
+            // SAFETY: kill(2) of processes this test started.
+            unsafe { libc::kill(pid, libc::SIGKILL) };
+        }
+        let _ = child.wait();
+    }
+
+    /// Ctrl-C, as a user stops it; what it printed.
+    fn stop(&mut self) -> String {
+        if let Some(mut child) = self.child.take() {
+            // SAFETY: kill(2) of a child this test started.
+            unsafe { libc::kill(child.id() as i32, libc::SIGINT) };
+            let _ = child.wait();
+        }
+        self.log()
+    }
+}
+
+impl Drop for Host {
+    fn drop(&mut self) {
+        self.stop();
+    }
+}
+
+/// Every process below `pid`, children first found first.
+fn descendants(pid: i32) -> Vec<i32> {
+    let mut found = Vec::new();
+    let mut queue = vec![pid];
+    while let Some(parent) = queue.pop() {
+        let children = std::fs::read_to_string(format!("/proc/{parent}/task/{parent}/children"))
+            .unwrap_or_default();
+        for child in children.split_whitespace().filter_map(|c| c.parse().ok()) {
+            found.push(child);
+            queue.push(child);
+        }
+    }
+    found
+}
+
+fn status(swarm: &str, host: &str) -> Value {
+    let output = Command::new(bin("shoal"))
+        .args(["status", "--swarm", swarm, "--host", host, "--json"])
+        .output()
+        .expect("run shoal status");
+    assert!(
+        output.status.success(),
+        "status failed: {}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    serde_json::from_slice(&output.stdout).expect("status prints JSON")
+}
+
+/// Alive robots by host, in one status.
+fn alive_on(status: &Value, host: &str) -> Vec<u64> {
+    status["agents"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter(|a| a["state"] == "alive" && a["host"] == host)
+        .filter_map(|a| a["id"].as_u64())
+        .collect()
+}
+
+/// Whether a robot of host `a` lists a robot of host `b` as a neighbour.
+fn linked_across(status: &Value) -> bool {
+    status["agents"].as_array().into_iter().flatten().any(|a| {
+        a["host"] == "a"
+            && a["neighbours"]
+                .as_array()
+                .into_iter()
+                .flatten()
+                .any(|n| n.as_u64().is_some_and(|n| n >= 100))
+    })
+}
+
+fn groups(status: &Value) -> usize {
+    status_metrics(status, SPREAD).components
+}
+
+/// What both hosts said, for a failure.
+fn logs(hosts: &[&Host]) -> String {
+    hosts
+        .iter()
+        .map(|h| format!("--- host {}:\n{}", h.name, h.log()))
+        .collect()
+}
+
+/// The scenario of the issue, for hosts joined by `a_zenoh` and `b_zenoh`
+/// arguments, each optionally in a network namespace.
+fn two_hosts_form_drop_and_rejoin(
+    swarm: &str,
+    a_zenoh: &[&str],
+    b_zenoh: &[&str],
+    netns: Option<(&str, &str)>,
+) {
+    let dir = scratch(swarm);
+    let (a_scenario, b_scenario) = (scenario(&dir, "a"), scenario(&dir, "b"));
+    let mut a = Host::start(swarm, "a", 0, &a_scenario, a_zenoh, netns.map(|n| n.0));
+    let b_start = || Host::start(swarm, "b", 100, &b_scenario, b_zenoh, netns.map(|n| n.1));
+    let mut b = b_start();
+
+    let mut last = Value::Null;
+    let formed = wait_until(Duration::from_secs(30), || {
+        last = status(swarm, "a");
+        alive_on(&last, "a").len() == 10
+            && alive_on(&last, "b").len() == 10
+            && groups(&last) == 1
+            && linked_across(&last)
+    });
+    assert!(
+        formed,
+        "20 robots in one group linked across hosts within 30 s\nstatus: {last}\n{}",
+        logs(&[&a, &b])
+    );
+    assert_eq!(last["stale_nodes"], 0, "{last}");
+
+    b.kill_all();
+    let dropped = wait_until(Duration::from_secs(10), || {
+        last = status(swarm, "a");
+        alive_on(&last, "a").len() == 10
+            && alive_on(&last, "b").is_empty()
+            && last["stale_nodes"] == 0
+            && groups(&last) == 1
+    });
+    assert!(
+        dropped,
+        "host a alone: 10 alive, 0 stale nodes, one group within 10 s of host b's death\nstatus: {last}\n{}",
+        logs(&[&a, &b])
+    );
+
+    let b = b_start();
+    let rejoined = wait_until(Duration::from_secs(30), || {
+        last = status(swarm, "a");
+        alive_on(&last, "a").len() == 10 && alive_on(&last, "b").len() == 10
+    });
+    assert!(
+        rejoined,
+        "host b's robots rejoin within 30 s\nstatus: {last}\n{}",
+        logs(&[&a, &b])
+    );
+    drop(b);
+    let said = a.stop();
+    assert!(said.contains("linked host `a`"), "{said}");
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .map(|a| a.port())
+        .expect("a free port")
+}
+
+#[test]
+fn two_hosts_on_loopback_form_one_swarm_drop_a_dead_host_and_take_it_back() {
+    let _serial = serial();
+    let endpoint = format!("tcp/127.0.0.1:{}", free_port());
+    two_hosts_form_drop_and_rejoin(
+        "e2e-hosts",
+        &["--listen", &endpoint],
+        &["--connect", &endpoint],
+        None,
+    );
+}
+
+#[test]
+fn a_robot_id_another_host_runs_and_a_lockstep_across_hosts_are_refused() {
+    let _serial = serial();
+    let swarm = "e2e-hosts-refuse";
+    let dir = scratch(swarm);
+    let endpoint = format!("tcp/127.0.0.1:{}", free_port());
+    let mut a = Host::start(swarm, "a", 0, &scenario(&dir, "a"), &["--listen", &endpoint], None);
+    let up = wait_until(Duration::from_secs(30), || {
+        alive_on(&status(swarm, "a"), "a").len() == 10
+    });
+    assert!(up, "host a up\n{}", a.log());
+    let clash = Command::new(bin("shoal"))
+        .args(["up", "--swarm", swarm, "--host", "b", "--link", "zenoh"])
+        .args(["--first-id", "5", "--agents", "3", "--connect", &endpoint])
+        .output()
+        .expect("run shoal up");
+    let said = String::from_utf8_lossy(&clash.stderr);
+    assert!(!clash.status.success(), "{said}");
+    assert!(
+        said.contains("host `a` runs robots 5, 6, 7") && said.contains("this host `b`"),
+        "{said}"
+    );
+    // Host a goes on untouched: still its 10 robots, none of b's.
+    let after = status(swarm, "a");
+    assert_eq!(alive_on(&after, "a").len(), 10, "{after}");
+    assert!(alive_on(&after, "b").is_empty(), "{after}");
+
+    let lockstep = Command::new(bin("shoal"))
+        .args(["up", "--swarm", swarm, "--host", "c", "--link", "zenoh", "--lockstep"])
+        .output()
+        .expect("run shoal up");
+    assert!(!lockstep.status.success());
+    assert!(
+        String::from_utf8_lossy(&lockstep.stderr).contains("--lockstep cannot span hosts"),
+        "{}",
+        String::from_utf8_lossy(&lockstep.stderr)
+    );
+    a.stop();
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+/// Two network namespaces joined by a veth pair; removed when dropped.
+struct Namespaces {
+    names: [String; 2],
+}
+
+impl Namespaces {
+    /// None where `ip` cannot make them.
+    fn create(tag: &str) -> Option<Self> {
+        let names = [format!("shoal-{tag}-a"), format!("shoal-{tag}-b")];
+        let veth = [format!("sv{tag}a"), format!("sv{tag}b")];
+        let ip = |args: &[&str]| {
+            Command::new("ip")
+                .args(args)
+                .stderr(Stdio::null())
+                .status()
+                .is_ok_and(|s| s.success())
+        };
+        let spaces = Self { names };
+        let [na, nb] = &spaces.names;
+        let [va, vb] = &veth;
+        let made = ip(&["netns", "add", na])
+            && ip(&["netns", "add", nb])
+            && ip(&["link", "add", va, "type", "veth", "peer", "name", vb])
+            && ip(&["link", "set", va, "netns", na])
+            && ip(&["link", "set", vb, "netns", nb])
+            && ip(&["-n", na, "addr", "add", "10.213.0.1/24", "dev", va])
+            && ip(&["-n", nb, "addr", "add", "10.213.0.2/24", "dev", vb])
+            && ip(&["-n", na, "link", "set", va, "up"])
+            && ip(&["-n", nb, "link", "set", vb, "up"])
+            && ip(&["-n", na, "link", "set", "lo", "up"])
+            && ip(&["-n", nb, "link", "set", "lo", "up"]);
+        made.then_some(spaces)
+    }
+}
+
+impl Drop for Namespaces {
+    fn drop(&mut self) {
+        for name in &self.names {
+            // Deleting a namespace deletes its end of the veth pair, and the pair with it.
+            let _ = Command::new("ip")
+                .args(["netns", "delete", name])
+                .stderr(Stdio::null())
+                .status();
+        }
+    }
+}
+
+#[test]
+fn two_hosts_in_separate_network_namespaces_link_over_a_veth_pair() {
+    let _serial = serial();
+    let tag = (std::process::id() % 100_000).to_string();
+    // SAFETY: geteuid has no preconditions.
+    if unsafe { libc::geteuid() } != 0 {
+        // CI runs as root (and scripts/test installs iproute2), so there it runs.
+        eprintln!("skipped: network namespaces need root");
+        return;
+    }
+    let spaces = Namespaces::create(&tag)
+        .expect("as root, `ip netns` makes two namespaces joined by a veth pair (iproute2 installed?)");
+    let [na, nb] = &spaces.names;
+    two_hosts_form_drop_and_rejoin(
+        "e2e-hosts-netns",
+        &["--listen", "tcp/10.213.0.1:7447"],
+        &["--connect", "tcp/10.213.0.1:7447"],
+        Some((na, nb)),
+    );
+}
