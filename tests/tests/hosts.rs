@@ -174,12 +174,14 @@ fn logs(hosts: &[&Host]) -> String {
 }
 
 /// The scenario of the issue, for hosts joined by `a_zenoh` and `b_zenoh`
-/// arguments, each optionally in a network namespace.
+/// arguments, each optionally in a network namespace. With `cut_network`,
+/// first the network between them is cut (`cut_network(true)`) and mended.
 fn two_hosts_form_drop_and_rejoin(
     swarm: &str,
     a_zenoh: &[&str],
     b_zenoh: &[&str],
     netns: Option<(&str, &str)>,
+    cut_network: Option<&dyn Fn(bool)>,
 ) {
     let dir = scratch(swarm);
     let (a_scenario, b_scenario) = (scenario(&dir, "a"), scenario(&dir, "b"));
@@ -188,6 +190,7 @@ fn two_hosts_form_drop_and_rejoin(
     let mut b = b_start();
 
     let mut last = Value::Null;
+    let phase = std::time::Instant::now();
     let formed = wait_until(Duration::from_secs(30), || {
         last = status(swarm, "a");
         alive_on(&last, "a").len() == 10
@@ -201,8 +204,41 @@ fn two_hosts_form_drop_and_rejoin(
         logs(&[&a, &b])
     );
     assert_eq!(last["stale_nodes"], 0, "{last}");
+    eprintln!("{swarm}: one group of 20 across hosts after {:?}", phase.elapsed());
+
+    if let Some(cut) = cut_network {
+        cut(true);
+        let phase = std::time::Instant::now();
+        let apart = wait_until(Duration::from_secs(10), || {
+            last = status(swarm, "a");
+            alive_on(&last, "a").len() == 10 && alive_on(&last, "b").is_empty() && groups(&last) == 1
+        });
+        assert!(
+            apart,
+            "host a alone within 10 s of the network's cut\nstatus: {last}\n{}",
+            logs(&[&a, &b])
+        );
+        eprintln!("{swarm}: host a alone {:?} after the cut", phase.elapsed());
+        // Cut for longer than Zenoh's lease (10 s), so the session is lost
+        // and the hosts must find each other again, not only resend.
+        std::thread::sleep(Duration::from_secs(12).saturating_sub(phase.elapsed()));
+        cut(false);
+        let phase = std::time::Instant::now();
+        // Host b's link connects to --connect's endpoint again.
+        let mended = wait_until(Duration::from_secs(40), || {
+            last = status(swarm, "a");
+            alive_on(&last, "b").len() == 10 && groups(&last) == 1
+        });
+        assert!(
+            mended,
+            "host b's robots back in one group within 40 s of the network's mending\nstatus: {last}\n{}",
+            logs(&[&a, &b])
+        );
+        eprintln!("{swarm}: together again {:?} after the mending", phase.elapsed());
+    }
 
     b.kill_all();
+    let phase = std::time::Instant::now();
     let dropped = wait_until(Duration::from_secs(10), || {
         last = status(swarm, "a");
         alive_on(&last, "a").len() == 10
@@ -216,7 +252,9 @@ fn two_hosts_form_drop_and_rejoin(
         logs(&[&a, &b])
     );
 
+    eprintln!("{swarm}: host a alone {:?} after host b's SIGKILL", phase.elapsed());
     let b = b_start();
+    let phase = std::time::Instant::now();
     let rejoined = wait_until(Duration::from_secs(30), || {
         last = status(swarm, "a");
         alive_on(&last, "a").len() == 10 && alive_on(&last, "b").len() == 10
@@ -226,6 +264,7 @@ fn two_hosts_form_drop_and_rejoin(
         "host b's robots rejoin within 30 s\nstatus: {last}\n{}",
         logs(&[&a, &b])
     );
+    eprintln!("{swarm}: 20 again {:?} after host b's restart", phase.elapsed());
     drop(b);
     let said = a.stop();
     assert!(said.contains("linked host `a`"), "{said}");
@@ -247,6 +286,7 @@ fn two_hosts_on_loopback_form_one_swarm_drop_a_dead_host_and_take_it_back() {
         "e2e-hosts",
         &["--listen", &endpoint],
         &["--connect", &endpoint],
+        None,
         None,
     );
 }
@@ -295,6 +335,8 @@ fn a_robot_id_another_host_runs_and_a_lockstep_across_hosts_are_refused() {
 /// Two network namespaces joined by a veth pair; removed when dropped.
 struct Namespaces {
     names: [String; 2],
+    /// The veth pair's ends, in the first and the second namespace.
+    veth: [String; 2],
 }
 
 impl Namespaces {
@@ -309,9 +351,9 @@ impl Namespaces {
                 .status()
                 .is_ok_and(|s| s.success())
         };
-        let spaces = Self { names };
+        let spaces = Self { names, veth };
         let [na, nb] = &spaces.names;
-        let [va, vb] = &veth;
+        let [va, vb] = &spaces.veth;
         let made = ip(&["netns", "add", na])
             && ip(&["netns", "add", nb])
             && ip(&["link", "add", va, "type", "veth", "peer", "name", vb])
@@ -352,10 +394,19 @@ fn two_hosts_in_separate_network_namespaces_link_over_a_veth_pair() {
     let spaces = Namespaces::create(&tag)
         .expect("as root, `ip netns` makes two namespaces joined by a veth pair (iproute2 installed?)");
     let [na, nb] = &spaces.names;
+    let cut = |down: bool| {
+        let done = Command::new("ip")
+            .args(["-n", nb, "link", "set", &spaces.veth[1]])
+            .arg(if down { "down" } else { "up" })
+            .status()
+            .is_ok_and(|s| s.success());
+        assert!(done, "set host b's network {}", if down { "down" } else { "up" });
+    };
     two_hosts_form_drop_and_rejoin(
         "e2e-hosts-netns",
         &["--listen", "tcp/10.213.0.1:7447"],
         &["--connect", "tcp/10.213.0.1:7447"],
         Some((na, nb)),
+        Some(&cut),
     );
 }
