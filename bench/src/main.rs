@@ -2,6 +2,7 @@
 
 mod bus;
 mod diagnose;
+mod link;
 mod record;
 mod scan;
 mod slam;
@@ -69,6 +70,18 @@ enum Commands {
         #[arg(long)]
         json: bool,
     },
+    /// Two hosts of this many robots each on this machine, linked over
+    /// Zenoh on loopback: wire bytes and link CPU, and pose latency across
+    /// hosts against within one, in the same run.
+    Link {
+        #[arg(long, default_value_t = 50)]
+        agents: usize,
+        /// Seconds each phase measures.
+        #[arg(long, default_value_t = 30.0)]
+        seconds: f64,
+        #[arg(long)]
+        json: bool,
+    },
     /// Internal: one end of the latency probe.
     #[command(hide = true)]
     Probe {
@@ -96,6 +109,11 @@ fn main() -> Result<()> {
             json,
         } => record::run(&agents, seconds, json),
         Commands::Diagnose { minutes, json } => diagnose::run(&minutes, json),
+        Commands::Link {
+            agents,
+            seconds,
+            json,
+        } => link::run(agents, seconds, json),
         Commands::Slam {
             particles,
             steps,

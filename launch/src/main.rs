@@ -280,7 +280,9 @@ fn run(cli: Cli) -> Result<()> {
                 None => match connect.as_slice() {
                     [] => (None, None),
                     [addr] if !viewer => (None, Some(addr.clone())),
-                    [_] => anyhow::bail!("--viewer starts a viewer; --connect streams to a running one: choose one"),
+                    [_] => anyhow::bail!(
+                        "--viewer starts a viewer; --connect streams to a running one: choose one"
+                    ),
                     _ => anyhow::bail!(
                         "--connect names one Rerun viewer, or with --link zenoh the Zenoh endpoints of other hosts"
                     ),

@@ -359,7 +359,8 @@ impl RunningSwarm {
                     .filter(|r| ours.contains(&u64::from(r.id)))
                     .map(|r| r.id.to_string())
                     .collect();
-                (!ids.is_empty()).then(|| format!("host `{}` runs robots {}", host.name, ids.join(", ")))
+                (!ids.is_empty())
+                    .then(|| format!("host `{}` runs robots {}", host.name, ids.join(", ")))
             })
             .collect();
         if !clashes.is_empty() {

@@ -7,7 +7,9 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, anyhow, bail};
 use shoal_broker::roster::{self, RosterReaders};
-use shoal_broker::{Bus, BusLimits, CellExchange, CellKey, PoseSample, RosterPublisher, SampleCheck, names};
+use shoal_broker::{
+    Bus, BusLimits, CellExchange, CellKey, PoseSample, RosterPublisher, SampleCheck, names,
+};
 use shoal_link::interest::Interest;
 use shoal_link::keys;
 use shoal_link::wire::{HostSummary, RemotePose};
@@ -106,7 +108,9 @@ pub fn run(options: &Options) -> Result<()> {
     let runtime = SwarmRuntime::locate(&options.swarm);
     let meta = runtime.read_meta()?;
     if meta.lockstep {
-        bail!("a lockstep swarm cannot span hosts: its clock waits on every robot through this machine's shared memory");
+        bail!(
+            "a lockstep swarm cannot span hosts: its clock waits on every robot through this machine's shared memory"
+        );
     }
     let scenario = runtime.read_scenario()?;
     let session = zenoh::open(zenoh_config(options)?)
@@ -291,7 +295,8 @@ impl Gateway {
             }
             return Ok(());
         }
-        let Some(mut sample) = pose.in_local_time(self.epoch_unix_ms, self.scenario.timing.period_s)
+        let Some(mut sample) =
+            pose.in_local_time(self.epoch_unix_ms, self.scenario.timing.period_s)
         else {
             return Ok(());
         };
@@ -318,10 +323,11 @@ impl Gateway {
         proxy.host = host;
         // Robots here hear it only where one of them listens: a far robot
         // goes to the roster alone, and opens no cell nobody needs.
-        if wanted_here {
-            if let Err(e) = proxy.cells.publish(&self.bus, &sample) {
-                tracing::warn!("cannot stand in for robot {id}: {:#}", anyhow::Error::from(e));
-            }
+        if wanted_here && let Err(e) = proxy.cells.publish(&self.bus, &sample) {
+            tracing::warn!(
+                "cannot stand in for robot {id}: {:#}",
+                anyhow::Error::from(e)
+            );
         }
         proxy.roster.publish(&sample)?;
         Ok(())
@@ -361,7 +367,12 @@ impl Gateway {
             return;
         }
         let present = message.kind() == SampleKind::Put;
-        tracing::info!(host = name, present, "host {}", if present { "joined" } else { "left" });
+        tracing::info!(
+            host = name,
+            present,
+            "host {}",
+            if present { "joined" } else { "left" }
+        );
         if !present {
             self.proxies.retain(|_, proxy| proxy.host != name);
             self.clashes.retain(|(_, host)| *host != name);
@@ -379,8 +390,10 @@ impl Gateway {
     /// Forgets robots silent for the stale period, as robots do.
     fn expire(&mut self) {
         let stale_after = self.stale_after;
-        self.local.retain(|_, (_, heard)| heard.elapsed() <= stale_after);
-        self.proxies.retain(|_, proxy| proxy.heard.elapsed() <= stale_after);
+        self.local
+            .retain(|_, (_, heard)| heard.elapsed() <= stale_after);
+        self.proxies
+            .retain(|_, proxy| proxy.heard.elapsed() <= stale_after);
         let local = &self.local;
         self.clashes.retain(|(id, _)| local.contains_key(id));
     }
@@ -406,7 +419,10 @@ impl Gateway {
                 .collect(),
         };
         self.session
-            .put(keys::summary(&self.swarm, &self.host), serde_json::to_vec(&summary)?)
+            .put(
+                keys::summary(&self.swarm, &self.host),
+                serde_json::to_vec(&summary)?,
+            )
             .wait()
             .map_err(zenoh_error("sending this host's summary"))
     }
@@ -488,8 +504,11 @@ impl Gateway {
                 .collect(),
             traffic: self.traffic.clone(),
         };
-        self.runtime
-            .write_link_report(&report)
-            .with_context(|| format!("writing the link's report in {}", self.runtime.dir.display()))
+        self.runtime.write_link_report(&report).with_context(|| {
+            format!(
+                "writing the link's report in {}",
+                self.runtime.dir.display()
+            )
+        })
     }
 }

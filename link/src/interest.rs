@@ -73,7 +73,10 @@ mod tests {
         assert_eq!(interest.update(&wanted, &[(4.6, 5.0)]), Change::default());
         // Moved 1.1 m: cell 4 is 4.1 m away and goes; nothing is added.
         let moved = interest.update(&wanted, &[(3.9, 5.0)]);
-        assert!(moved.add.is_empty() && moved.drop.contains(&(4, 2)), "{moved:?}");
+        assert!(
+            moved.add.is_empty() && moved.drop.contains(&(4, 2)),
+            "{moved:?}"
+        );
         // No robot left: every cell goes.
         let gone = interest.update(&wanted, &[]);
         assert!(gone.add.is_empty());

@@ -117,7 +117,9 @@ impl RemotePose {
     pub fn in_local_time(&self, local_epoch_unix_ms: u64, period_s: f64) -> Option<PoseSample> {
         let shift_s = (self.epoch_unix_ms as f64 - local_epoch_unix_ms as f64) / 1000.0;
         let sim_time = self.sample.sim_time + shift_s;
-        if !(sim_time >= 0.0) || !(period_s > 0.0) {
+        // NaN fails both comparisons, so it is refused too.
+        let valid = sim_time >= 0.0 && period_s > 0.0;
+        if !valid {
             return None;
         }
         Some(PoseSample {

@@ -123,10 +123,14 @@ impl SwarmRuntime {
     /// `host-<name>/` below that, so two hosts on one machine keep
     /// separate folders as two machines would.
     pub fn locate(swarm: &str) -> Self {
+        Self::locate_on(swarm, crate::host::current())
+    }
+
+    /// The folder of swarm `swarm`'s part on `host` (of this machine).
+    pub fn locate_on(swarm: &str, host: &crate::host::Host) -> Self {
         let base = std::env::var_os("SHOAL_RUNTIME_DIR")
             .map(PathBuf::from)
             .unwrap_or_else(|| std::env::temp_dir().join(format!("shoal-{}", current_uid())));
-        let host = crate::host::current();
         let root = if host.separate {
             base.join(format!("host-{}", host.name))
         } else {

@@ -72,7 +72,8 @@ pub fn machine_name() -> String {
     }
 }
 
-fn host_named(name: String) -> Host {
+/// The host called `name` (already validated).
+pub fn host_named(name: String) -> Host {
     let separate = name != machine_name();
     Host { name, separate }
 }
@@ -92,10 +93,7 @@ pub fn choose(name: Option<&str>) -> Result<&'static Host, InvalidHost> {
     let chosen = CURRENT.get_or_init(|| host_named(name.clone()));
     if chosen.name != name {
         // Only a bug can ask twice with different names; keep the first.
-        tracing::error!(
-            "host already chosen as `{}`, not `{name}`",
-            chosen.name
-        );
+        tracing::error!("host already chosen as `{}`, not `{name}`", chosen.name);
     }
     Ok(chosen)
 }

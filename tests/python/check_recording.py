@@ -5,7 +5,8 @@ Usage: check_recording.py RECORDING.rrd
 Prints {"entities": [...], "ticks": N, "max_sim_time": S, "robots": [...],
 "poses": {"<id>@<tick>": [x, y], ...}, "events": [...],
 "slam_rows": {"<entity>": rows logged},
-"motion": {"<id>@<tick>": [x, y, theta, command_v, command_omega]}, "period_s": P}
+"motion": {"<id>@<tick>": [x, y, theta, command_v, command_omega]}, "period_s": P,
+"hosts": {"<id>": host it was last tagged with}}
 (motion: the rows `shoal diagnose run.rrd --robot N` reads).
 """
 
@@ -25,6 +26,7 @@ def main(path: str) -> None:
     slam_rows = {}
     motion = {}
     period_s = None
+    hosts = {}
     for chunk in rrx.RrdReader(path).stream().to_chunks():
         entities.add(chunk.entity_path)
         batch = chunk.to_record_batch()
@@ -53,6 +55,11 @@ def main(path: str) -> None:
                         motion[f"{robot}@{tick}"] = [xs[i], ys[i], thetas[i], vs[i], omegas[i]]
         if chunk.entity_path.startswith("/world/slam/") or chunk.entity_path.startswith("/slam/"):
             slam_rows[chunk.entity_path] = slam_rows.get(chunk.entity_path, 0) + batch.num_rows
+        parts = chunk.entity_path.strip("/").split("/")
+        if len(parts) == 3 and parts[0] == "robots" and parts[2] == "host":
+            texts = [n for n in names if n.endswith(":text")]
+            for row in batch.column(names.index(texts[0])).to_pylist():
+                hosts[parts[1]] = row[0] if isinstance(row, list) else row
         if chunk.entity_path == "/events":
             texts = [n for n in names if n.endswith(":text")]
             if texts:
@@ -70,6 +77,7 @@ def main(path: str) -> None:
                 "slam_rows": slam_rows,
                 "motion": motion,
                 "period_s": period_s,
+                "hosts": hosts,
             }
         )
     )

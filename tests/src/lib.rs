@@ -209,3 +209,21 @@ pub fn scratch(name: &str) -> PathBuf {
     std::fs::create_dir_all(&dir).expect("scratch folder");
     dir
 }
+
+/// What `tests/python/check_recording.py` finds in a recording, read with
+/// the official Rerun reader.
+pub fn inspect_recording(recording: &std::path::Path) -> Value {
+    let script = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("python/check_recording.py");
+    let output = Command::new("python3")
+        .arg(script)
+        .arg(recording)
+        .output()
+        .expect("python3");
+    assert!(
+        output.status.success(),
+        "{} does not open in the Rerun reader: {}",
+        recording.display(),
+        String::from_utf8_lossy(&output.stderr)
+    );
+    serde_json::from_slice(&output.stdout).expect("JSON from the reader")
+}

@@ -402,21 +402,9 @@ fn a_swarm_under_kills_freezes_and_recorder_crashes_heals_and_leaves_nothing() {
     for figure in report["figures"].as_array().expect("figures") {
         assert_eq!(figure["met"], true, "{figure}\n{report}\n{said}");
     }
-    let script = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("python/check_recording.py");
     for segment in 0..3 {
         let rrd = dir.join(format!("recording-{segment}.rrd"));
-        let read = Command::new("python3")
-            .arg(&script)
-            .arg(&rrd)
-            .output()
-            .expect("python3");
-        assert!(
-            read.status.success(),
-            "{} does not open in the Rerun reader: {}",
-            rrd.display(),
-            String::from_utf8_lossy(&read.stderr)
-        );
-        let content: serde_json::Value = serde_json::from_slice(&read.stdout).expect("JSON");
+        let content = inspect_recording(&rrd);
         assert!(
             content["ticks"].as_u64() > Some(20),
             "{}: {content}",

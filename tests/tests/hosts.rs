@@ -9,7 +9,7 @@ use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
 use serde_json::Value;
-use shoal_e2e::{bin, scratch, serial, status_metrics, wait_until};
+use shoal_e2e::{bin, inspect_recording, scratch, serial, status_metrics, wait_until};
 
 const SPREAD: f64 = 1.0;
 
@@ -185,7 +185,16 @@ fn two_hosts_form_drop_and_rejoin(
 ) {
     let dir = scratch(swarm);
     let (a_scenario, b_scenario) = (scenario(&dir, "a"), scenario(&dir, "b"));
-    let mut a = Host::start(swarm, "a", 0, &a_scenario, a_zenoh, netns.map(|n| n.0));
+    // Host a records: the recording is to hold both hosts' robots, each
+    // tagged with its host.
+    let recording = dir.join("a.rrd");
+    let recording_arg = recording.to_str().expect("utf-8 path");
+    let a_args: Vec<&str> = a_zenoh
+        .iter()
+        .copied()
+        .chain(["--record", recording_arg])
+        .collect();
+    let mut a = Host::start(swarm, "a", 0, &a_scenario, &a_args, netns.map(|n| n.0));
     let b_start = || Host::start(swarm, "b", 100, &b_scenario, b_zenoh, netns.map(|n| n.1));
     let mut b = b_start();
 
@@ -204,14 +213,19 @@ fn two_hosts_form_drop_and_rejoin(
         logs(&[&a, &b])
     );
     assert_eq!(last["stale_nodes"], 0, "{last}");
-    eprintln!("{swarm}: one group of 20 across hosts after {:?}", phase.elapsed());
+    eprintln!(
+        "{swarm}: one group of 20 across hosts after {:?}",
+        phase.elapsed()
+    );
 
     if let Some(cut) = cut_network {
         cut(true);
         let phase = std::time::Instant::now();
         let apart = wait_until(Duration::from_secs(10), || {
             last = status(swarm, "a");
-            alive_on(&last, "a").len() == 10 && alive_on(&last, "b").is_empty() && groups(&last) == 1
+            alive_on(&last, "a").len() == 10
+                && alive_on(&last, "b").is_empty()
+                && groups(&last) == 1
         });
         assert!(
             apart,
@@ -234,7 +248,10 @@ fn two_hosts_form_drop_and_rejoin(
             "host b's robots back in one group within 40 s of the network's mending\nstatus: {last}\n{}",
             logs(&[&a, &b])
         );
-        eprintln!("{swarm}: together again {:?} after the mending", phase.elapsed());
+        eprintln!(
+            "{swarm}: together again {:?} after the mending",
+            phase.elapsed()
+        );
     }
 
     b.kill_all();
@@ -252,7 +269,10 @@ fn two_hosts_form_drop_and_rejoin(
         logs(&[&a, &b])
     );
 
-    eprintln!("{swarm}: host a alone {:?} after host b's SIGKILL", phase.elapsed());
+    eprintln!(
+        "{swarm}: host a alone {:?} after host b's SIGKILL",
+        phase.elapsed()
+    );
     let b = b_start();
     let phase = std::time::Instant::now();
     let rejoined = wait_until(Duration::from_secs(30), || {
@@ -264,10 +284,26 @@ fn two_hosts_form_drop_and_rejoin(
         "host b's robots rejoin within 30 s\nstatus: {last}\n{}",
         logs(&[&a, &b])
     );
-    eprintln!("{swarm}: 20 again {:?} after host b's restart", phase.elapsed());
+    eprintln!(
+        "{swarm}: 20 again {:?} after host b's restart",
+        phase.elapsed()
+    );
     drop(b);
     let said = a.stop();
     assert!(said.contains("linked host `a`"), "{said}");
+    let found = inspect_recording(&recording);
+    let robots: Vec<u64> = found["robots"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter_map(Value::as_u64)
+        .collect();
+    assert!(
+        (0..10).chain(100..110).all(|id| robots.contains(&id)),
+        "host a's recording holds both hosts' robots: {robots:?}"
+    );
+    assert_eq!(found["hosts"]["3"], "a", "{}", found["hosts"]);
+    assert_eq!(found["hosts"]["105"], "b", "{}", found["hosts"]);
     let _ = std::fs::remove_dir_all(dir);
 }
 
@@ -297,7 +333,14 @@ fn a_robot_id_another_host_runs_and_a_lockstep_across_hosts_are_refused() {
     let swarm = "e2e-hosts-refuse";
     let dir = scratch(swarm);
     let endpoint = format!("tcp/127.0.0.1:{}", free_port());
-    let mut a = Host::start(swarm, "a", 0, &scenario(&dir, "a"), &["--listen", &endpoint], None);
+    let mut a = Host::start(
+        swarm,
+        "a",
+        0,
+        &scenario(&dir, "a"),
+        &["--listen", &endpoint],
+        None,
+    );
     let up = wait_until(Duration::from_secs(30), || {
         alive_on(&status(swarm, "a"), "a").len() == 10
     });
@@ -319,7 +362,16 @@ fn a_robot_id_another_host_runs_and_a_lockstep_across_hosts_are_refused() {
     assert!(alive_on(&after, "b").is_empty(), "{after}");
 
     let lockstep = Command::new(bin("shoal"))
-        .args(["up", "--swarm", swarm, "--host", "c", "--link", "zenoh", "--lockstep"])
+        .args([
+            "up",
+            "--swarm",
+            swarm,
+            "--host",
+            "c",
+            "--link",
+            "zenoh",
+            "--lockstep",
+        ])
         .output()
         .expect("run shoal up");
     assert!(!lockstep.status.success());
@@ -391,8 +443,9 @@ fn two_hosts_in_separate_network_namespaces_link_over_a_veth_pair() {
         eprintln!("skipped: network namespaces need root");
         return;
     }
-    let spaces = Namespaces::create(&tag)
-        .expect("as root, `ip netns` makes two namespaces joined by a veth pair (iproute2 installed?)");
+    let spaces = Namespaces::create(&tag).expect(
+        "as root, `ip netns` makes two namespaces joined by a veth pair (iproute2 installed?)",
+    );
     let [na, nb] = &spaces.names;
     let cut = |down: bool| {
         let done = Command::new("ip")
@@ -400,7 +453,11 @@ fn two_hosts_in_separate_network_namespaces_link_over_a_veth_pair() {
             .arg(if down { "down" } else { "up" })
             .status()
             .is_ok_and(|s| s.success());
-        assert!(done, "set host b's network {}", if down { "down" } else { "up" });
+        assert!(
+            done,
+            "set host b's network {}",
+            if down { "down" } else { "up" }
+        );
     };
     two_hosts_form_drop_and_rejoin(
         "e2e-hosts-netns",

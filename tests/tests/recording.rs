@@ -9,22 +9,6 @@ use serde_json::Value;
 use shoal_broker::{Bus, BusLimits, names};
 use shoal_e2e::*;
 
-/// What `tests/python/check_recording.py` finds in a recording.
-fn inspect(recording: &Path) -> Value {
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("python/check_recording.py");
-    let output = Command::new("python3")
-        .arg(script)
-        .arg(recording)
-        .output()
-        .expect("python3");
-    assert!(
-        output.status.success(),
-        "the Rerun reader failed: {}",
-        String::from_utf8_lossy(&output.stderr)
-    );
-    serde_json::from_slice(&output.stdout).expect("JSON from the reader")
-}
-
 fn rerun_cli(args: &[&str]) -> std::process::Output {
     Command::new("rerun")
         .args(args)
@@ -87,7 +71,7 @@ fn a_recording_holds_the_swarm_as_the_robots_published_it() {
         String::from_utf8_lossy(&stats.stderr)
     );
 
-    let found = inspect(&recording);
+    let found = inspect_recording(&recording);
     let entities: Vec<&str> = found["entities"]
         .as_array()
         .expect("entities")
@@ -215,7 +199,7 @@ fn a_recorder_killed_with_sigkill_leaves_a_readable_file() {
     let _ = recorder.wait();
     drop(swarm);
 
-    let found = inspect(&recording);
+    let found = inspect_recording(&recording);
     // Flushed at least every second: of 4.5 s, at least the first 3 s survive.
     let ticks = found["ticks"].as_u64().expect("ticks");
     assert!(
@@ -330,7 +314,7 @@ fn a_recording_holds_what_slam_learns() {
         "--record",
         recording.to_str().expect("utf-8"),
     ]);
-    let found = inspect(&recording);
+    let found = inspect_recording(&recording);
     let rows = |entity: &str| found["slam_rows"][entity].as_u64().unwrap_or(0);
     // One particle batch per SLAM step, and at least a few dozen steps in 12 s.
     assert!(
@@ -422,7 +406,7 @@ fn a_run_streams_live_to_a_viewer_and_still_writes_its_file() {
     ]);
     viewer.stop();
     for (what, file) in [("streamed", &live), ("written", &recording)] {
-        let found = inspect(file);
+        let found = inspect_recording(file);
         assert_eq!(
             found["robots"].as_array().map(Vec::len),
             Some(4),
@@ -504,7 +488,7 @@ fn the_demo_records_slam_healing_and_a_diagnosis() {
             .is_some_and(|d| !d.is_empty()),
         "{summary}"
     );
-    let found = inspect(&recording);
+    let found = inspect_recording(&recording);
     let rows = |entity: &str| found["slam_rows"][entity].as_u64().unwrap_or(0);
     for robot in [0, 1] {
         assert!(
@@ -603,7 +587,7 @@ fn the_viewer_option_starts_rerun_and_streams_the_run_to_it() {
         "{}",
         String::from_utf8_lossy(&output.stderr)
     );
-    let found = inspect(&live);
+    let found = inspect_recording(&live);
     assert_eq!(found["robots"].as_array().map(Vec::len), Some(3), "{found}");
     assert!(
         found["ticks"].as_u64().expect("ticks") >= 15,

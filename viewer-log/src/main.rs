@@ -116,6 +116,15 @@ fn run(args: Args) -> Result<()> {
         recorder.forget_silent(newest_tick, silent_ticks)?;
         if last_flush.elapsed() >= FLUSH_EVERY {
             last_flush = Instant::now();
+            if let Some(link) = runtime.read_link_report() {
+                recorder.set_remote_hosts(
+                    link.pid,
+                    link.hosts
+                        .into_iter()
+                        .flat_map(|h| h.robots.into_iter().map(move |r| (r.id, h.name.clone())))
+                        .collect(),
+                );
+            }
             recorder.flush()?;
             if !runtime.is_up() {
                 recorder.event(&format!("swarm `{}` stopped", args.swarm))?;

@@ -40,6 +40,14 @@ pub struct Recorder {
     /// The model the robots ran with: what their executed commands mean.
     motion: shoal_physics::MotionModel,
     period_s: f64,
+    /// This host's name, and the host of each robot that runs on another
+    /// (`shoal up --link`): a linked recording holds every host's robots.
+    own_host: String,
+    remote_hosts: HashMap<u32, String>,
+    /// The link's pid: the pid its stand-ins for other hosts' robots carry.
+    link_pid: Option<u32>,
+    /// The host last logged for each robot.
+    logged_hosts: HashMap<u32, String>,
     /// Streaming to a viewer, which may be closed at any time.
     live: bool,
     /// Whether the user was told the viewer is unreachable.
@@ -66,10 +74,20 @@ impl Recorder {
             files,
             motion: scenario.motion.clone(),
             period_s: scenario.timing.period_s,
+            own_host: shoal_runtime::host::current().name.clone(),
+            remote_hosts: HashMap::new(),
+            link_pid: None,
+            logged_hosts: HashMap::new(),
             live,
             told_viewer_gone: false,
             stats: RecorderStats::default(),
         })
+    }
+
+    /// Which robots run on other hosts, and where (from this host's link).
+    pub fn set_remote_hosts(&mut self, link_pid: u32, remote: HashMap<u32, String>) {
+        self.link_pid = Some(link_pid);
+        self.remote_hosts = remote;
     }
 
     /// Takes one sample that passed the bus checks.
@@ -203,6 +221,24 @@ impl Recorder {
                 .log("world/robots/trails", &rerun::LineStrips2D::new(trails))?;
         }
         for s in &robots {
+            // Each robot is tagged with its host when first seen and when
+            // that changes (a robot id restarted on another host).
+            // A robot of another host is untagged until the link has named
+            // its host.
+            let host = if Some(s.pid) == self.link_pid {
+                self.remote_hosts.get(&s.agent_id)
+            } else {
+                Some(&self.own_host)
+            };
+            if let Some(host) = host
+                && self.logged_hosts.get(&s.agent_id) != Some(host)
+            {
+                self.rec.log(
+                    format!("robots/{}/host", s.agent_id),
+                    &rerun::TextDocument::new(host.as_str()),
+                )?;
+                self.logged_hosts.insert(s.agent_id, host.clone());
+            }
             // Health rarely changes; logging it only then keeps the file small.
             if self.last_health.insert(s.agent_id, s.health) != Some(s.health) {
                 self.rec.log(
