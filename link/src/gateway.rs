@@ -38,7 +38,7 @@ const LISTEN_FIRST: Duration = Duration::from_millis(1500);
 const GIVE_UP_WAITING: Duration = Duration::from_secs(5);
 /// Zenoh buffers this many received samples per subscriber between polls.
 const RECEIVE_BUFFER: usize = 8192;
-const POLL: Duration = Duration::from_millis(5);
+const POLL: Duration = Duration::from_millis(1);
 
 type Inbox = Subscriber<FifoChannelHandler<Sample>>;
 
