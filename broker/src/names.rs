@@ -5,12 +5,7 @@ use crate::bus::BusError;
 
 /// Checks a swarm name: letters, digits, `-` and `_`, at most 32 characters.
 pub fn validate_swarm(swarm: &str) -> Result<(), BusError> {
-    let valid = !swarm.is_empty()
-        && swarm.len() <= 32
-        && swarm
-            .chars()
-            .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
-    if valid {
+    if shoal_runtime::host::is_plain_name(swarm) {
         Ok(())
     } else {
         Err(BusError::InvalidSwarm(swarm.to_owned()))

@@ -114,6 +114,8 @@ pub struct SwarmRuntime {
 /// `SHOAL_RUNTIME_DIR` that names a user's own folder is refused, not
 /// emptied.
 const OWNER_MARK: &str = ".shoal-swarm";
+const SLAM_REPORT: &str = "slam.toml";
+const LINK_REPORT: &str = "link.toml";
 const OWNER_MARK_TEXT: &str =
     "This folder was created by Shoal for one swarm and is removed when the swarm stops.\n";
 
@@ -392,35 +394,35 @@ impl SwarmRuntime {
         })
     }
 
-    fn slam_report_path(&self) -> PathBuf {
-        self.dir.join("slam.toml")
+    /// A helper's report (`slam.toml`, `link.toml`) in the swarm's folder,
+    /// written whole so a reader never sees half of one.
+    fn write_report(&self, file: &str, report: &impl Serialize) -> io::Result<()> {
+        let text = toml::to_string(report).map_err(io::Error::other)?;
+        write_atomically(&self.dir.join(file), &text)
+    }
+
+    fn read_report<T: serde::de::DeserializeOwned>(&self, file: &str) -> Option<T> {
+        let text = read_no_follow(&self.dir.join(file)).ok()?;
+        toml::from_str(&text).ok()
     }
 
     /// What the SLAM process says of the robots it follows, for `shoal status`.
     pub fn write_slam_report(&self, report: &SlamReport) -> io::Result<()> {
-        let text = toml::to_string(report).map_err(io::Error::other)?;
-        write_atomically(&self.slam_report_path(), &text)
+        self.write_report(SLAM_REPORT, report)
     }
 
     pub fn read_slam_report(&self) -> Option<SlamReport> {
-        let text = read_no_follow(&self.slam_report_path()).ok()?;
-        toml::from_str(&text).ok()
+        self.read_report(SLAM_REPORT)
     }
 
-    fn link_report_path(&self) -> PathBuf {
-        self.dir.join("link.toml")
-    }
-
+    /// What this host's link knows of the other hosts.
     pub fn write_link_report(&self, report: &LinkReport) -> io::Result<()> {
-        let text = toml::to_string(report).map_err(io::Error::other)?;
-        write_atomically(&self.link_report_path(), &text)
+        self.write_report(LINK_REPORT, report)
     }
 
     /// The link's report, if a link runs for this host (its process is alive).
     pub fn read_link_report(&self) -> Option<LinkReport> {
-        let text = read_no_follow(&self.link_report_path()).ok()?;
-        toml::from_str::<LinkReport>(&text)
-            .ok()
+        self.read_report::<LinkReport>(LINK_REPORT)
             .filter(|r| crate::pid_alive(r.pid as i32))
     }
 

@@ -31,15 +31,20 @@ pub struct InvalidHost(pub String);
 
 static CURRENT: OnceLock<Host> = OnceLock::new();
 
-/// Checks a host name: letters, digits, `-` and `_`, at most 32 characters
-/// (it becomes part of file names and Zenoh key expressions).
-pub fn validate(name: &str) -> Result<(), InvalidHost> {
-    let valid = !name.is_empty()
+/// Whether `name` is 1-32 letters, digits, `-` and `_`: what a swarm or
+/// host name may be, since it becomes part of file, service and Zenoh key
+/// names.
+pub fn is_plain_name(name: &str) -> bool {
+    !name.is_empty()
         && name.len() <= 32
         && name
             .chars()
-            .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
-    if valid {
+            .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
+}
+
+/// Checks a host name (see [`is_plain_name`]).
+pub fn validate(name: &str) -> Result<(), InvalidHost> {
+    if is_plain_name(name) {
         Ok(())
     } else {
         Err(InvalidHost(name.to_owned()))
