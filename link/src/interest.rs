@@ -62,21 +62,21 @@ mod tests {
 
     #[test]
     fn cells_are_asked_for_near_robots_and_let_go_only_well_away() {
+        // 2 m cells, a 3 m radius: cell 0 spans x in [0, 2), cell 4 [8, 10).
         let interest = Interest::new(2.0, 3.0);
-        let start = interest.update(&BTreeSet::new(), &[(5.0, 5.0)]);
+        let start = interest.update(&BTreeSet::new(), &[(4.5, 5.0)]);
         assert!(start.drop.is_empty());
         let wanted: BTreeSet<CellKey> = start.add.iter().copied().collect();
-        // Within the radius: 3 m from (5, 5) reaches cells 0 and 4, not 5.
-        assert!(wanted.contains(&(0, 2)) && wanted.contains(&(4, 2)));
-        assert!(!wanted.contains(&(5, 2)), "{wanted:?}");
-        // Moved 0.4 m: cell 4 is 3.4 m away, within the half cell kept.
-        assert_eq!(interest.update(&wanted, &[(4.6, 5.0)]), Change::default());
-        // Moved 1.1 m: cell 4 is 4.1 m away and goes; nothing is added.
-        let moved = interest.update(&wanted, &[(3.9, 5.0)]);
-        assert!(
-            moved.add.is_empty() && moved.drop.contains(&(4, 2)),
-            "{moved:?}"
-        );
+        // From x = 4.5: cell 0 is 2.5 m away, cell 4 3.5 m.
+        assert!(wanted.contains(&(0, 2)) && wanted.contains(&(3, 2)));
+        assert!(!wanted.contains(&(4, 2)), "{wanted:?}");
+        // From x = 4.9 cell 0 is still within reach: nothing changes.
+        assert_eq!(interest.update(&wanted, &[(4.9, 5.0)]), Change::default());
+        // From x = 6.2 cell 4 comes within 3 m, and cell 0 is 4.2 m away,
+        // beyond the half cell it is kept for.
+        let moved = interest.update(&wanted, &[(6.2, 5.0)]);
+        assert!(moved.add.contains(&(4, 2)), "{moved:?}");
+        assert!(moved.drop.contains(&(0, 2)), "{moved:?}");
         // No robot left: every cell goes.
         let gone = interest.update(&wanted, &[]);
         assert!(gone.add.is_empty());
