@@ -159,34 +159,6 @@ impl CellExchange {
     }
 }
 
-/// The cells of this host's domain that some robot listens to now (a
-/// service with a subscriber): what a link between hosts must bring in.
-pub fn listened_cells(bus: &Bus) -> Result<Vec<CellKey>, BusError> {
-    use iceoryx2::service::Service;
-    use iceoryx2::service::port_factory::PortFactory;
-    let mut cells = Vec::new();
-    ipc::Service::list(&crate::bus::domain_config(), |details| {
-        let name = details.static_details.name().as_str();
-        cells.extend(names::cell_of_service(&bus.swarm, name));
-        CallbackProgression::Continue
-    })
-    .map_err(|e| BusError::iceoryx("list services", e))?;
-    // Opened, never created: a cell nobody uses any more may vanish meanwhile.
-    cells.retain(|&(cx, cy)| {
-        Bus::service_name(&names::cell(&bus.swarm, cx, cy))
-            .ok()
-            .and_then(|name| {
-                bus.node
-                    .service_builder(&name)
-                    .publish_subscribe::<PoseSample>()
-                    .open()
-                    .ok()
-            })
-            .is_some_and(|service| service.dynamic_config().number_of_subscribers() > 0)
-    });
-    Ok(cells)
-}
-
 /// How far the nearest point of cell `key`, of side `cell_size`, is from `(x, y)`.
 fn cell_distance(cell_size: f64, key: CellKey, x: f64, y: f64) -> f64 {
     let gap = |p: f64, index: i32| {

@@ -20,14 +20,6 @@ pub fn cell(swarm: &str, cx: i32, cy: i32) -> String {
     format!("shoal/{swarm}/cell/{cx}_{cy}")
 }
 
-/// The cell a service name of this swarm names, if it is a cell's.
-pub fn cell_of_service(swarm: &str, service: &str) -> Option<(i32, i32)> {
-    let (cx, cy) = service
-        .strip_prefix(&format!("shoal/{swarm}/cell/"))?
-        .split_once('_')?;
-    Some((cx.parse().ok()?, cy.parse().ok()?))
-}
-
 pub fn roster(swarm: &str) -> String {
     format!("shoal/{swarm}/roster")
 }
@@ -96,14 +88,6 @@ mod tests {
         assert_eq!(agent_id_of_node("a", &agent_node("a", 17)), Some(17));
         assert_eq!(agent_id_of_node("b", &agent_node("a", 17)), None);
         assert_eq!(agent_id_of_node("a", "shoal/a/agent/x"), None);
-    }
-
-    #[test]
-    fn cells_round_trip_through_service_names() {
-        assert_eq!(cell_of_service("a", &cell("a", -3, 12)), Some((-3, 12)));
-        assert_eq!(cell_of_service("b", &cell("a", 1, 2)), None);
-        assert_eq!(cell_of_service("a", "shoal/a/cell/1"), None);
-        assert_eq!(cell_of_service("a", &roster("a")), None);
     }
 
     #[test]

@@ -8,10 +8,9 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result, anyhow, bail};
 use shoal_broker::roster::{self, RosterReaders};
 use shoal_broker::{
-    Bus, BusLimits, CellExchange, CellKey, PoseSample, RosterPublisher, SampleCheck,
-    listened_cells, names,
+    Bus, BusLimits, CellExchange, CellKey, PoseSample, RosterPublisher, SampleCheck, names,
 };
-use shoal_link::interest;
+use shoal_link::interest::Interest;
 use shoal_link::keys;
 use shoal_link::wire::{HostSummary, RemotePose};
 use shoal_physics::Scenario;
@@ -30,10 +29,6 @@ pub struct Options {
 
 /// How often a host tells the others who runs on it.
 const SUMMARY_PERIOD: Duration = Duration::from_secs(1);
-/// How often the link reads which cells its robots listen to: a robot
-/// that starts listening to a cell hears the other hosts' robots in it
-/// this much later than this host's.
-const INTEREST_PERIOD: Duration = Duration::from_millis(250);
 /// A host not summarised for this long is taken as gone for `shoal status`.
 const SUMMARY_STALE: Duration = Duration::from_secs(3);
 /// How long the link listens for the other hosts before it says it is
@@ -78,6 +73,7 @@ struct Gateway {
     hosts: BTreeMap<String, HostState>,
     cell_inboxes: BTreeMap<CellKey, Inbox>,
     whole_swarm: Option<Inbox>,
+    interest: Interest,
     clashes: BTreeSet<(u32, String)>,
     traffic: LinkTraffic,
     stale_after: Duration,
@@ -165,6 +161,10 @@ pub fn run(options: &Options) -> Result<()> {
         roster_readers: RosterReaders::open(&bus)?,
         bus,
         check: SampleCheck::for_scenario(&scenario),
+        interest: Interest::new(
+            scenario.bus.cell_size,
+            f64::from(scenario.bus.max_ring) * scenario.bus.listen_step,
+        ),
         stale_after: Duration::from_secs_f64(
             scenario.timing.period_s * scenario.timing.stale_periods.max(2.0),
         ),
@@ -183,7 +183,6 @@ pub fn run(options: &Options) -> Result<()> {
     tracing::info!(host = gateway.host, swarm = gateway.swarm, "link up");
     let started = Instant::now();
     let mut last_summary = Instant::now() - SUMMARY_PERIOD;
-    let mut last_interest = Instant::now() - INTEREST_PERIOD;
     while !gateway.bus.termination_requested() && gateway.runtime.is_up() {
         gateway.send_local()?;
         gateway.receive_remote()?;
@@ -193,14 +192,11 @@ pub fn run(options: &Options) -> Result<()> {
         while let Ok(Some(sample)) = hosts_inbox.try_recv() {
             gateway.heard_host(&sample);
         }
-        if last_interest.elapsed() >= INTEREST_PERIOD {
-            last_interest = Instant::now();
-            gateway.update_interest()?;
-        }
         if last_summary.elapsed() >= SUMMARY_PERIOD {
             last_summary = Instant::now();
             gateway.expire();
             gateway.summarise()?;
+            gateway.update_interest()?;
             gateway.report(started.elapsed())?;
         }
         std::thread::sleep(POLL);
@@ -434,9 +430,9 @@ impl Gateway {
     /// Asks for the cells this host's robots listen to, or for every pose
     /// while an observer here reads the whole swarm.
     fn update_interest(&mut self) -> Result<()> {
-        let listened: BTreeSet<CellKey> = listened_cells(&self.bus)?.into_iter().collect();
-        let asked: BTreeSet<CellKey> = self.cell_inboxes.keys().copied().collect();
-        let change = interest::change(&asked, &listened);
+        let robots: Vec<(f64, f64)> = self.local.values().map(|(s, _)| (s.x, s.y)).collect();
+        let wanted: BTreeSet<CellKey> = self.cell_inboxes.keys().copied().collect();
+        let change = self.interest.update(&wanted, &robots);
         for cell in change.drop {
             self.cell_inboxes.remove(&cell);
         }
