@@ -49,8 +49,8 @@ struct Traffic {
     /// Bytes the loopback interface sent (both directions between the
     /// hosts, TCP and Zenoh headers included) per robot of the swarm per second.
     wire_bytes_per_robot_per_s: f64,
-    /// Pose messages each link sent, per second.
-    poses_sent_per_s: [f64; 2],
+    /// Pose messages each link handed to Zenoh, per second.
+    poses_offered_per_s: [f64; 2],
     /// Each link's CPU time over wall time (1.0 is one core).
     link_cpu_share: [f64; 2],
 }
@@ -101,7 +101,7 @@ fn loopback_tx_bytes() -> u64 {
 
 fn link_state(swarm: &str, host: &Host) -> Option<(i32, u64)> {
     let report = SwarmRuntime::locate_on(swarm, host).read_link_report()?;
-    Some((report.pid as i32, report.traffic.poses_sent))
+    Some((report.pid as i32, report.traffic.poses_offered))
 }
 
 /// Wire bytes and link CPU over `seconds`.
@@ -124,7 +124,7 @@ fn measure_traffic(
     let after = hosts.map(|h| link_state(swarm, h).unwrap_or_default());
     Ok(Traffic {
         wire_bytes_per_robot_per_s: bytes as f64 / (robots as f64 * wall),
-        poses_sent_per_s: [0, 1].map(|i| after[i].1.saturating_sub([a, b][i].1) as f64 / wall),
+        poses_offered_per_s: [0, 1].map(|i| after[i].1.saturating_sub([a, b][i].1) as f64 / wall),
         link_cpu_share: [0, 1]
             .map(|i| (usage([a, b][i].0).unwrap_or_default().cpu_s - cpu_before[i]) / wall),
     })

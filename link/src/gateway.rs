@@ -231,8 +231,8 @@ impl Gateway {
                 sample,
             }
             .encode();
-            self.traffic.poses_sent += 1;
-            self.traffic.bytes_sent += bytes.len() as u64;
+            self.traffic.poses_offered += 1;
+            self.traffic.bytes_offered += bytes.len() as u64;
             self.session
                 .put(&key, bytes)
                 .wait()

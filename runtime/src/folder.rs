@@ -85,12 +85,14 @@ pub struct IdClash {
     pub host: String,
 }
 
-/// What crossed the network since the link started.
+/// What the link handed to Zenoh and took from it since it started.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct LinkTraffic {
-    pub poses_sent: u64,
+    /// Poses handed to Zenoh, which sends each only to hosts that asked
+    /// for its cell (none, when no other host's robots are near).
+    pub poses_offered: u64,
     pub poses_received: u64,
-    pub bytes_sent: u64,
+    pub bytes_offered: u64,
     pub bytes_received: u64,
     /// Messages that failed to decode or their plausibility check.
     pub rejected: u64,
