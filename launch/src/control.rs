@@ -102,7 +102,7 @@ fn open_swarm(swarm: &str) -> Result<(SwarmRuntime, Scenario)> {
 
 /// The highest robot id a command accepts: ids index start poses, which
 /// are drawn in order, so an id of a million would take minutes to place.
-const MAX_ROBOT_ID: u32 = 65_535;
+pub(crate) const MAX_ROBOT_ID: u32 = 65_535;
 
 /// Starts a new process for each id, at its last pose or at `at`.
 pub fn restart(swarm: &str, ids: &[u32], at: Option<[f64; 2]>) -> Result<()> {

@@ -218,6 +218,16 @@ impl RunningSwarm {
                  its slowest round trip; run a linked swarm in real time"
             );
         }
+        if u64::from(launch.first_id) + scenario.agents.count as u64
+            > u64::from(crate::control::MAX_ROBOT_ID) + 1
+        {
+            bail!(
+                "{} robots from --first-id {} would pass the highest id Shoal runs, {}",
+                scenario.agents.count,
+                launch.first_id,
+                crate::control::MAX_ROBOT_ID
+            );
+        }
         // Two launchers of one swarm started together would both pass the
         // check below; the lock makes the second one fail.
         let launch_lock = SwarmRuntime::locate(name)
