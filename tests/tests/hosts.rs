@@ -467,3 +467,155 @@ fn two_hosts_in_separate_network_namespaces_link_over_a_veth_pair() {
         Some(&cut),
     );
 }
+
+/// Runs `openssl` with `args` in `dir`; the test needs it (Debian's openssl).
+fn openssl(dir: &Path, args: &[&str]) {
+    let ok = Command::new("openssl")
+        .args(args)
+        .current_dir(dir)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    assert!(ok, "openssl {} (is openssl installed?)", args.join(" "));
+}
+
+/// A certificate authority `name` in `dir`: `name.key`, `name.pem`.
+fn certificate_authority(dir: &Path, name: &str) {
+    let (key, pem, subject) = (
+        format!("{name}.key"),
+        format!("{name}.pem"),
+        format!("/CN={name}"),
+    );
+    openssl(
+        dir,
+        &[
+            "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-days", "2", "-keyout", &key, "-out",
+            &pem, "-subj", &subject,
+        ],
+    );
+}
+
+#[test]
+fn hosts_link_over_tls_and_a_host_without_the_swarms_authority_stays_out() {
+    let _serial = serial();
+    let swarm = "e2e-hosts-tls";
+    let dir = scratch(swarm);
+    // The swarm's authority signs host a's certificate; a stranger has another.
+    certificate_authority(&dir, "swarm-ca");
+    certificate_authority(&dir, "stranger-ca");
+    openssl(
+        &dir,
+        &[
+            "req",
+            "-newkey",
+            "rsa:2048",
+            "-nodes",
+            "-keyout",
+            "a.key",
+            "-out",
+            "a.csr",
+            "-subj",
+            "/CN=localhost",
+        ],
+    );
+    std::fs::write(
+        dir.join("san.cnf"),
+        "subjectAltName=DNS:localhost,IP:127.0.0.1\n",
+    )
+    .expect("write san.cnf");
+    openssl(
+        &dir,
+        &[
+            "x509",
+            "-req",
+            "-in",
+            "a.csr",
+            "-CA",
+            "swarm-ca.pem",
+            "-CAkey",
+            "swarm-ca.key",
+            "-CAcreateserial",
+            "-out",
+            "a.pem",
+            "-days",
+            "2",
+            "-extfile",
+            "san.cnf",
+        ],
+    );
+    let endpoint = format!("tls/localhost:{}", free_port());
+    let config = |name: &str, body: String| {
+        let path = dir.join(name);
+        std::fs::write(&path, body).expect("write a Zenoh configuration");
+        path
+    };
+    let d = dir.display();
+    let a_config = config(
+        "a.json5",
+        format!(
+            "{{ listen: {{ endpoints: [\"{endpoint}\"] }}, scouting: {{ multicast: {{ enabled: false }} }},\n\
+             transport: {{ link: {{ tls: {{ listen_private_key: \"{d}/a.key\", listen_certificate: \"{d}/a.pem\",\n\
+             root_ca_certificate: \"{d}/swarm-ca.pem\" }} }} }} }}\n"
+        ),
+    );
+    let b_config = |ca: &str| {
+        config(
+            &format!("b-{ca}.json5"),
+            format!(
+                "{{ connect: {{ endpoints: [\"{endpoint}\"] }}, scouting: {{ multicast: {{ enabled: false }} }},\n\
+                 transport: {{ link: {{ tls: {{ root_ca_certificate: \"{d}/{ca}.pem\" }} }} }} }}\n"
+            ),
+        )
+    };
+    let a_args = ["--zenoh-config", a_config.to_str().expect("utf-8")];
+    let mut a = Host::start(swarm, "a", 0, &scenario(&dir, "a"), &a_args, None);
+
+    // Host b trusting another authority cannot verify host a: it never joins.
+    let stranger = b_config("stranger-ca");
+    let mut b = Host::start(
+        swarm,
+        "b",
+        100,
+        &scenario(&dir, "b"),
+        &["--zenoh-config", stranger.to_str().expect("utf-8")],
+        None,
+    );
+    let mut last = Value::Null;
+    let alone = wait_until(Duration::from_secs(30), || {
+        last = status(swarm, "a");
+        alive_on(&last, "a").len() == 10
+    });
+    assert!(alone, "host a up\nstatus: {last}\n{}", logs(&[&a, &b]));
+    std::thread::sleep(Duration::from_secs(5));
+    last = status(swarm, "a");
+    assert!(
+        alive_on(&last, "b").is_empty(),
+        "a host without the swarm's authority joined\nstatus: {last}\n{}",
+        logs(&[&a, &b])
+    );
+    b.stop();
+
+    // With the swarm's authority it joins, over TLS.
+    let trusted = b_config("swarm-ca");
+    let b = Host::start(
+        swarm,
+        "b",
+        100,
+        &scenario(&dir, "b"),
+        &["--zenoh-config", trusted.to_str().expect("utf-8")],
+        None,
+    );
+    let joined = wait_until(Duration::from_secs(30), || {
+        last = status(swarm, "a");
+        alive_on(&last, "b").len() == 10 && linked_across(&last)
+    });
+    assert!(
+        joined,
+        "host b joins over TLS\nstatus: {last}\n{}",
+        logs(&[&a, &b])
+    );
+    drop(b);
+    a.stop();
+    let _ = std::fs::remove_dir_all(dir);
+}
