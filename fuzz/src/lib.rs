@@ -56,10 +56,15 @@ pub enum Target {
     SlamMap,
     /// `shoal diagnose --bag`: a ROS 2 bag (MCAP, CDR), bytes mutated.
     RosBag,
+    /// A pose message from another host (`shoal-link`), bytes mutated:
+    /// decoded, shifted into this host's clock and checked as a bus sample.
+    LinkPose,
+    /// A host's summary from another host (`shoal-link`), JSON mutated.
+    HostSummary,
 }
 
 impl Target {
-    pub const ALL: [Target; 16] = [
+    pub const ALL: [Target; 18] = [
         Target::Scenario,
         Target::MotionModel,
         Target::EffectsModel,
@@ -76,6 +81,8 @@ impl Target {
         Target::SlamParticles,
         Target::SlamMap,
         Target::RosBag,
+        Target::LinkPose,
+        Target::HostSummary,
     ];
 
     fn is_text(self) -> bool {
@@ -155,7 +162,39 @@ impl Target {
                 )
                 .map(|_| ()),
             ),
+            Target::LinkPose => {
+                let bytes = mutate_bytes(rng, &seeds.link_pose);
+                message_outcome(
+                    shoal_link::wire::RemotePose::decode(&bytes)
+                        .map_err(|e| e.to_string())
+                        .and_then(|pose| {
+                            pose.in_local_time(pose.epoch_unix_ms, 0.2)
+                                .ok_or_else(|| "a time before this host's clock".to_owned())
+                        })
+                        .and_then(|sample| sample.check().map_err(|e| e.to_string())),
+                )
+            }
+            Target::HostSummary => message_outcome(
+                serde_json::from_str::<shoal_link::wire::HostSummary>(&mutate(
+                    rng,
+                    &seeds.host_summary,
+                ))
+                .map(|_| ())
+                .map_err(|e| e.to_string()),
+            ),
         }
+    }
+}
+
+/// Judges a network message's rejection: it must say what is wrong.
+fn message_outcome(result: Result<(), String>) -> Outcome {
+    match result {
+        Ok(()) => Outcome::Accepted,
+        Err(message) => Outcome::Rejected {
+            clear: !message.is_empty(),
+            line: false,
+            message,
+        },
     }
 }
 
@@ -485,6 +524,8 @@ pub struct Seeds {
     poses_csv: String,
     mrclam_odometry: String,
     mrclam_groundtruth: String,
+    link_pose: Vec<u8>,
+    host_summary: String,
 }
 
 impl Seeds {
@@ -555,6 +596,27 @@ impl Seeds {
             poses_csv: poses,
             mrclam_odometry: odometry,
             mrclam_groundtruth: truth,
+            link_pose: shoal_link::wire::RemotePose {
+                epoch_unix_ms: 1_764_000_000_000,
+                sample: shoal_broker::PoseSample::example(),
+            }
+            .encode(),
+            host_summary: serde_json::to_string(&shoal_link::wire::HostSummary {
+                host: "b".into(),
+                epoch_unix_ms: 1_764_000_000_000,
+                robots: vec![shoal_runtime::RemoteRobot {
+                    id: 100,
+                    pid: 4321,
+                    x: 3.5,
+                    y: 2.0,
+                    theta: 0.25,
+                    tick: 80,
+                    neighbours: vec![101, 3],
+                    missed_periods: 0,
+                    neighbour_age_ms: 210,
+                }],
+            })
+            .unwrap_or_default(),
         }
     }
 }
