@@ -38,6 +38,9 @@ fn main() {
             last = Instant::now();
             eprintln!("{:.0}s errors {errors}", started.elapsed().as_secs_f64());
         }
-        std::thread::sleep(Duration::from_millis(5));
+        // Ends on Ctrl-C or SIGTERM, so the node's resources are removed.
+        if link.node().wait(Duration::from_millis(5)).is_err() {
+            break;
+        }
     }
 }
