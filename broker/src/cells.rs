@@ -56,10 +56,7 @@ impl CellExchange {
     }
 
     pub fn cell_of(&self, x: f64, y: f64) -> CellKey {
-        (
-            (x / self.cell_size).floor() as i32,
-            (y / self.cell_size).floor() as i32,
-        )
+        cell_at(self.cell_size, x, y)
     }
 
     fn topic(bus: &Bus, key: CellKey) -> Topic {
@@ -157,6 +154,14 @@ impl CellExchange {
     pub fn rejected(&self) -> u64 {
         self.rejected.count()
     }
+}
+
+/// The cell of side `cell_size` that `(x, y)` stands in.
+pub fn cell_at(cell_size: f64, x: f64, y: f64) -> CellKey {
+    (
+        (x / cell_size).floor() as i32,
+        (y / cell_size).floor() as i32,
+    )
 }
 
 /// How far the nearest point of cell `key`, of side `cell_size`, is from `(x, y)`.

@@ -21,23 +21,16 @@ fn alive_robot(nodes: &[SwarmNode], id: u32) -> Option<&SwarmNode> {
         .find(|n| n.agent_id == Some(id) && n.state == SwarmNodeState::Alive)
 }
 
-/// The other host that runs robot `id`, as this host's link knows it.
-fn remote_host_of(runtime: &SwarmRuntime, id: u32) -> Option<String> {
-    runtime.read_link_report().and_then(|report| {
-        report
-            .hosts
-            .into_iter()
-            .find(|h| h.robots.iter().any(|r| r.id == id))
-            .map(|h| h.name)
-    })
-}
-
-/// Refuses to act here on robots another host runs, naming that host.
+/// Refuses to act here on robots another host runs (as this host's link
+/// knows them), naming that host.
 fn refuse_remote(swarm: &str, runtime: &SwarmRuntime, ids: &[u32], verb: &str) -> Result<()> {
+    let Some(report) = runtime.read_link_report() else {
+        return Ok(());
+    };
     let remote: Vec<String> = ids
         .iter()
         .filter_map(|&id| {
-            remote_host_of(runtime, id).map(|host| {
+            report.host_of(id).map(|host| {
                 format!(
                     "robot {id} runs on host `{host}`: run `shoal {verb} {id} --swarm {swarm} --host {host}` there"
                 )
@@ -151,13 +144,9 @@ pub fn spawn(swarm: &str, count: usize, at: Option<[f64; 2]>) -> Result<Vec<u32>
     let highest_node = swarm_nodes(swarm)?.iter().filter_map(|n| n.agent_id).max();
     let highest_file = runtime.known_agent_ids().into_iter().max();
     // Ids are unique across the hosts of a swarm: above every other host's too.
-    let highest_remote = runtime.read_link_report().and_then(|report| {
-        report
-            .hosts
-            .iter()
-            .flat_map(|h| h.robots.iter().map(|r| r.id))
-            .max()
-    });
+    let highest_remote = runtime
+        .read_link_report()
+        .and_then(|report| report.robots().map(|(_, r)| r.id).max());
     let first = highest_node
         .max(highest_file)
         .max(highest_remote)

@@ -106,26 +106,22 @@ pub fn gather(swarm: &str) -> Result<StatusReport> {
     let mut hosts = vec![host.clone()];
     // Robots of other hosts, as this host's link last heard them summarised.
     if let Some(link) = SwarmRuntime::locate(swarm).read_link_report() {
-        for remote in link.hosts {
-            for robot in &remote.robots {
-                agents.push(AgentStatus {
-                    id: robot.id,
-                    host: remote.name.clone(),
-                    pid: robot.pid as i32,
-                    state: "alive",
-                    x: Some(robot.x),
-                    y: Some(robot.y),
-                    theta: Some(robot.theta),
-                    tick: Some(robot.tick),
-                    health: None,
-                    neighbours: robot.neighbours.clone(),
-                    missed_periods: Some(robot.missed_periods),
-                    neighbour_age_ms: Some(robot.neighbour_age_ms),
-                    slam: None,
-                });
-            }
-            hosts.push(remote.name);
-        }
+        agents.extend(link.robots().map(|(host, robot)| AgentStatus {
+            id: robot.id,
+            host: host.to_owned(),
+            pid: robot.pid as i32,
+            state: "alive",
+            x: Some(robot.x),
+            y: Some(robot.y),
+            theta: Some(robot.theta),
+            tick: Some(robot.tick),
+            health: None,
+            neighbours: robot.neighbours.clone(),
+            missed_periods: Some(robot.missed_periods),
+            neighbour_age_ms: Some(robot.neighbour_age_ms),
+            slam: None,
+        }));
+        hosts.extend(link.hosts.into_iter().map(|h| h.name));
     }
     agents.sort_by_key(|a| (a.id, a.state));
     Ok(StatusReport {

@@ -569,9 +569,8 @@ impl RunningSwarm {
                 if children.reap(runtime) > 0 {
                     remove_dead_nodes(&self.name)?;
                 }
-                let period = self.scenario.timing.period_s;
                 observer.expire(Duration::from_secs_f64(
-                    period * self.scenario.timing.stale_periods.max(2.0),
+                    self.scenario.timing.observer_stale_s(),
                 ));
             }
         }

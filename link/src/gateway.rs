@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result, anyhow, bail};
 use shoal_broker::roster::{self, RosterReaders};
 use shoal_broker::{
-    Bus, BusLimits, CellExchange, CellKey, PoseSample, RosterPublisher, SampleCheck, names,
+    Bus, BusLimits, CellExchange, CellKey, PoseSample, RosterPublisher, SampleCheck, cell_at, names,
 };
 use shoal_link::interest::Interest;
 use shoal_link::keys;
@@ -83,6 +83,16 @@ fn zenoh_error(what: &str) -> impl FnOnce(zenoh::Error) -> anyhow::Error + '_ {
     move |e| anyhow!("{what}: {e}")
 }
 
+/// Asks the other hosts for what they put on `key`, kept until polled.
+fn inbox(session: &zenoh::Session, key: String, buffer: usize) -> Result<Inbox> {
+    session
+        .declare_subscriber(&key)
+        .allowed_origin(Locality::Remote)
+        .with(FifoChannel::new(buffer))
+        .wait()
+        .map_err(|e| anyhow!("listening to {key}: {e}"))
+}
+
 fn zenoh_config(options: &Options) -> Result<zenoh::Config> {
     let mut config = match &options.zenoh_config {
         Some(path) => zenoh::Config::from_file(path)
@@ -148,12 +158,7 @@ pub fn run(options: &Options) -> Result<()> {
         .with(FifoChannel::new(256))
         .wait()
         .map_err(zenoh_error("watching hosts"))?;
-    let summaries: Inbox = session
-        .declare_subscriber(keys::all_summaries(&options.swarm))
-        .allowed_origin(Locality::Remote)
-        .with(FifoChannel::new(256))
-        .wait()
-        .map_err(zenoh_error("listening to host summaries"))?;
+    let summaries = inbox(&session, keys::all_summaries(&options.swarm), 256)?;
     let mut gateway = Gateway {
         swarm: options.swarm.clone(),
         host,
@@ -165,9 +170,7 @@ pub fn run(options: &Options) -> Result<()> {
             scenario.bus.cell_size,
             f64::from(scenario.bus.max_ring) * scenario.bus.listen_step,
         ),
-        stale_after: Duration::from_secs_f64(
-            scenario.timing.period_s * scenario.timing.stale_periods.max(2.0),
-        ),
+        stale_after: Duration::from_secs_f64(scenario.timing.observer_stale_s()),
         scenario,
         runtime,
         epoch_unix_ms: meta.epoch_unix_ms,
@@ -217,12 +220,11 @@ impl Gateway {
                 out.push(sample);
             }
         })?;
-        let cells = CellExchange::new(self.scenario.bus.cell_size);
         for sample in out {
             self.local.insert(sample.agent_id, (sample, now));
             let key = keys::pose(
                 &self.swarm,
-                cells.cell_of(sample.x, sample.y),
+                cell_at(self.scenario.bus.cell_size, sample.x, sample.y),
                 &self.host,
                 sample.agent_id,
             );
@@ -308,8 +310,11 @@ impl Gateway {
         // neighbour's process lives find this one, which lives as long as
         // the link carries the robot.
         sample.pid = std::process::id();
-        let cell = CellExchange::new(self.scenario.bus.cell_size).cell_of(sample.x, sample.y);
-        let wanted_here = self.cell_inboxes.contains_key(&cell);
+        let wanted_here = self.cell_inboxes.contains_key(&cell_at(
+            self.scenario.bus.cell_size,
+            sample.x,
+            sample.y,
+        ));
         let proxy = match self.proxies.entry(id) {
             std::collections::hash_map::Entry::Occupied(entry) => entry.into_mut(),
             std::collections::hash_map::Entry::Vacant(entry) => entry.insert(Proxy {
@@ -387,7 +392,7 @@ impl Gateway {
         }
     }
 
-    /// Forgets robots silent for the stale period, as robots do.
+    /// Forgets robots silent for an observer's stale period.
     fn expire(&mut self) {
         let stale_after = self.stale_after;
         self.local
@@ -437,28 +442,23 @@ impl Gateway {
             self.cell_inboxes.remove(&cell);
         }
         for cell in change.add {
-            let inbox = self
-                .session
-                .declare_subscriber(keys::cell_poses(&self.swarm, cell))
-                .allowed_origin(Locality::Remote)
-                .with(FifoChannel::new(RECEIVE_BUFFER))
-                .wait()
-                .map_err(zenoh_error("asking for a cell's poses"))?;
-            self.cell_inboxes.insert(cell, inbox);
+            let cell_inbox = inbox(
+                &self.session,
+                keys::cell_poses(&self.swarm, cell),
+                RECEIVE_BUFFER,
+            )?;
+            self.cell_inboxes.insert(cell, cell_inbox);
         }
         // The launcher and this link always read the roster; anyone else
         // (a recorder, `shoal status`) wants every robot of the swarm.
         let observers = self.roster_readers.count().saturating_sub(2);
         match (observers > 0, self.whole_swarm.is_some()) {
             (true, false) => {
-                self.whole_swarm = Some(
-                    self.session
-                        .declare_subscriber(keys::all_poses(&self.swarm))
-                        .allowed_origin(Locality::Remote)
-                        .with(FifoChannel::new(RECEIVE_BUFFER))
-                        .wait()
-                        .map_err(zenoh_error("asking for every pose"))?,
-                );
+                self.whole_swarm = Some(inbox(
+                    &self.session,
+                    keys::all_poses(&self.swarm),
+                    RECEIVE_BUFFER,
+                )?);
             }
             (false, true) => self.whole_swarm = None,
             _ => {}

@@ -92,6 +92,16 @@ pub struct TimingSection {
     pub stale_periods: f64,
 }
 
+impl TimingSection {
+    /// How long a process that watches robots without stepping with them
+    /// (the launcher, a host's link) keeps one that fell silent, seconds:
+    /// the robots' stale period, but never under two periods, since such a
+    /// process does not wake on the robots' ticks.
+    pub fn observer_stale_s(&self) -> f64 {
+        self.period_s * self.stale_periods.max(2.0)
+    }
+}
+
 impl Default for TimingSection {
     fn default() -> Self {
         Self {

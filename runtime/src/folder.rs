@@ -57,6 +57,22 @@ pub struct LinkReport {
     pub traffic: LinkTraffic,
 }
 
+impl LinkReport {
+    /// Every robot of the other hosts, with its host's name.
+    pub fn robots(&self) -> impl Iterator<Item = (&str, &RemoteRobot)> {
+        self.hosts
+            .iter()
+            .flat_map(|h| h.robots.iter().map(move |r| (h.name.as_str(), r)))
+    }
+
+    /// The other host that runs robot `id`.
+    pub fn host_of(&self, id: u32) -> Option<&str> {
+        self.robots()
+            .find(|(_, r)| r.id == id)
+            .map(|(host, _)| host)
+    }
+}
+
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct RemoteHost {
     pub name: String,

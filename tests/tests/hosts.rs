@@ -11,25 +11,15 @@ use std::time::Duration;
 use serde_json::Value;
 use shoal_e2e::{bin, inspect_recording, scratch, serial, status_metrics, wait_until};
 
+/// The formation spread of `scenarios/two-hosts-*.toml`.
 const SPREAD: f64 = 1.0;
 
-/// Host `a` stands in the left half of a 20 x 13 m arena, `b` in the right.
-fn scenario(dir: &Path, host: &str) -> PathBuf {
-    let (region, seed) = match host {
-        "a" => ("[4.0, 4.0, 9.5, 9.0]", 1),
-        _ => ("[10.5, 4.0, 16.0, 9.0]", 2),
-    };
-    let path = dir.join(format!("{host}.toml"));
-    std::fs::write(
-        &path,
-        format!(
-            "name = \"two-hosts-{host}\"\n[arena]\nwidth = 20.0\nheight = 13.0\n\
-             [agents]\ncount = 10\nstart_region = {region}\nseed = {seed}\n\
-             [formation]\ngoal = [10.0, 6.5]\nspread = {SPREAD}\n"
-        ),
-    )
-    .expect("write the scenario");
-    path
+/// Host `a`'s or `b`'s scenario: the left or right half of a 20 x 13 m
+/// arena (`scenarios/two-hosts-*.toml`).
+fn scenario(host: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../scenarios")
+        .join(format!("two-hosts-{host}.toml"))
 }
 
 /// One host's `shoal up --link zenoh`, optionally inside a network namespace.
@@ -184,7 +174,7 @@ fn two_hosts_form_drop_and_rejoin(
     cut_network: Option<&dyn Fn(bool)>,
 ) {
     let dir = scratch(swarm);
-    let (a_scenario, b_scenario) = (scenario(&dir, "a"), scenario(&dir, "b"));
+    let (a_scenario, b_scenario) = (scenario("a"), scenario("b"));
     // Host a records: the recording is to hold both hosts' robots, each
     // tagged with its host.
     let recording = dir.join("a.rrd");
@@ -331,13 +321,12 @@ fn two_hosts_on_loopback_form_one_swarm_drop_a_dead_host_and_take_it_back() {
 fn a_robot_id_another_host_runs_and_a_lockstep_across_hosts_are_refused() {
     let _serial = serial();
     let swarm = "e2e-hosts-refuse";
-    let dir = scratch(swarm);
     let endpoint = format!("tcp/127.0.0.1:{}", free_port());
     let mut a = Host::start(
         swarm,
         "a",
         0,
-        &scenario(&dir, "a"),
+        &scenario("a"),
         &["--listen", &endpoint],
         None,
     );
@@ -381,7 +370,6 @@ fn a_robot_id_another_host_runs_and_a_lockstep_across_hosts_are_refused() {
         String::from_utf8_lossy(&lockstep.stderr)
     );
     a.stop();
-    let _ = std::fs::remove_dir_all(dir);
 }
 
 /// Two network namespaces joined by a veth pair; removed when dropped.
@@ -569,24 +557,34 @@ fn hosts_link_over_tls_and_a_host_without_the_swarms_authority_stays_out() {
         )
     };
     let a_args = ["--zenoh-config", a_config.to_str().expect("utf-8")];
-    let mut a = Host::start(swarm, "a", 0, &scenario(&dir, "a"), &a_args, None);
+    let mut a = Host::start(swarm, "a", 0, &scenario("a"), &a_args, None);
 
+    // Host b, started trusting authority `ca`.
+    let b_start = |ca: &str| {
+        let config = b_config(ca);
+        Host::start(
+            swarm,
+            "b",
+            100,
+            &scenario("b"),
+            &["--zenoh-config", config.to_str().expect("utf-8")],
+            None,
+        )
+    };
     // Host b trusting another authority cannot verify host a: it never joins.
-    let stranger = b_config("stranger-ca");
-    let mut b = Host::start(
-        swarm,
-        "b",
-        100,
-        &scenario(&dir, "b"),
-        &["--zenoh-config", stranger.to_str().expect("utf-8")],
-        None,
-    );
+    let mut b = b_start("stranger-ca");
     let mut last = Value::Null;
     let alone = wait_until(Duration::from_secs(30), || {
         last = status(swarm, "a");
         alive_on(&last, "a").len() == 10
     });
     assert!(alone, "host a up\nstatus: {last}\n{}", logs(&[&a, &b]));
+    // Host b runs (its robots are up on its own side), only apart: what
+    // keeps it out is the certificate, not a failed start.
+    let b_alone = wait_until(Duration::from_secs(30), || {
+        alive_on(&status(swarm, "b"), "b").len() == 10
+    });
+    assert!(b_alone, "host b up on its own\n{}", logs(&[&a, &b]));
     std::thread::sleep(Duration::from_secs(5));
     last = status(swarm, "a");
     assert!(
@@ -597,15 +595,7 @@ fn hosts_link_over_tls_and_a_host_without_the_swarms_authority_stays_out() {
     b.stop();
 
     // With the swarm's authority it joins, over TLS.
-    let trusted = b_config("swarm-ca");
-    let b = Host::start(
-        swarm,
-        "b",
-        100,
-        &scenario(&dir, "b"),
-        &["--zenoh-config", trusted.to_str().expect("utf-8")],
-        None,
-    );
+    let b = b_start("swarm-ca");
     let joined = wait_until(Duration::from_secs(30), || {
         last = status(swarm, "a");
         alive_on(&last, "b").len() == 10 && linked_across(&last)

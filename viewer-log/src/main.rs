@@ -119,9 +119,8 @@ fn run(args: Args) -> Result<()> {
             if let Some(link) = runtime.read_link_report() {
                 recorder.set_remote_hosts(
                     link.pid,
-                    link.hosts
-                        .into_iter()
-                        .flat_map(|h| h.robots.into_iter().map(move |r| (r.id, h.name.clone())))
+                    link.robots()
+                        .map(|(host, r)| (r.id, host.to_owned()))
                         .collect(),
                 );
             }
