@@ -122,6 +122,27 @@ fn termination_flag(node: &Node<ipc::Service>) -> Arc<AtomicBool> {
 /// default, which this must not be below) and copy each out at once.
 const EXPIRED_CONNECTION_BUFFER: usize = 4;
 
+/// Allocations from this size on get a mapping of their own.
+const OWN_MAPPING_FROM_BYTES: i32 = 64 * 1024;
+
+/// Gives the memory of a dropped port back to the system. A subscriber's
+/// connection storage (about 100 KB, sized for its cell's publishers and
+/// touched whole when made) came from the heap, and a robot that had
+/// crossed cells kept the storage of every subscriber it dropped resident as
+/// free heap. From [`OWN_MAPPING_FROM_BYTES`] on, glibc maps each allocation
+/// apart and unmaps it when freed. Called once, first thing, by processes
+/// that open and drop ports as they move (robots).
+pub fn return_dropped_port_memory() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: mallopt only sets a tuning parameter of glibc's allocator; it
+    // is called before this process allocates from other threads.
+    unsafe {
+        if libc::mallopt(libc::M_MMAP_THRESHOLD, OWN_MAPPING_FROM_BYTES) != 1 {
+            tracing::warn!("glibc refused mallopt(M_MMAP_THRESHOLD); dropped ports' memory stays on the heap");
+        }
+    }
+}
+
 /// The iceoryx2 domain of this process's host
 /// ([`shoal_runtime::host`]): iceoryx2's global configuration, with files
 /// under a prefix of the host's own when the host is not this machine's

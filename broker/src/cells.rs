@@ -30,6 +30,15 @@ const RETRY_AFTER: Duration = Duration::from_secs(1);
 /// the same: robots sense a metre short of what they listen to.
 const PUBLISH_SLACK_M: f64 = 0.4;
 
+/// How far beyond its listening radius a robot keeps a cell it listens to,
+/// so that one standing still near the edge does not open and drop the
+/// cell's service period after period. Every cell kept costs a subscriber
+/// (about 100 KB of connection storage, sized for the cell's publishers),
+/// so the margin is what a robot's jitter needs, not more: half a cell kept
+/// about 14 cells per robot where 8 to 10 are needed, a third of its memory
+/// (BENCHMARKS.md, session 13).
+const LISTEN_SLACK_M: f64 = 0.5;
+
 pub struct CellExchange {
     cell_size: f64,
     /// The cell the robot publishes into, within [`PUBLISH_SLACK_M`] of it.
@@ -105,12 +114,10 @@ impl CellExchange {
             .collect()
     }
 
-    /// Listens to every cell that comes within `radius` of `(x, y)`. A cell
-    /// is let go only once it is half a cell further than that, so a robot
-    /// that stands still near the edge does not open and drop it period
-    /// after period.
+    /// Listens to every cell that comes within `radius` of `(x, y)`; a cell
+    /// is let go only once it is [`LISTEN_SLACK_M`] further than that.
     pub fn listen(&mut self, bus: &Bus, (x, y): (f64, f64), radius: f64) -> Result<(), BusError> {
-        let keep_within = radius + self.cell_size / 2.0;
+        let keep_within = radius + LISTEN_SLACK_M.min(self.cell_size / 2.0);
         let cell_size = self.cell_size;
         self.subscribers
             .retain(|k, _| cell_distance(cell_size, *k, x, y) <= keep_within);
