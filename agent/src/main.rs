@@ -23,7 +23,6 @@ struct Args {
 }
 
 fn main() -> std::process::ExitCode {
-    shoal_broker::bus::return_dropped_port_memory();
     let args = Args::parse();
     let name = format!("shoal-agent {}", args.id);
     shoal_runtime::process_main::run_main(&name, "info", || {

@@ -122,24 +122,19 @@ fn termination_flag(node: &Node<ipc::Service>) -> Arc<AtomicBool> {
 /// default, which this must not be below) and copy each out at once.
 const EXPIRED_CONNECTION_BUFFER: usize = 4;
 
-/// Allocations from this size on get a mapping of their own.
-const OWN_MAPPING_FROM_BYTES: i32 = 64 * 1024;
-
-/// Gives the memory of a dropped port back to the system. A subscriber's
+/// Gives the memory of dropped ports back to the system. A subscriber's
 /// connection storage (about 100 KB, sized for its cell's publishers and
-/// touched whole when made) came from the heap, and a robot that had
-/// crossed cells kept the storage of every subscriber it dropped resident as
-/// free heap. From [`OWN_MAPPING_FROM_BYTES`] on, glibc maps each allocation
-/// apart and unmaps it when freed. Called once, first thing, by processes
-/// that open and drop ports as they move (robots).
-pub fn return_dropped_port_memory() {
+/// touched whole when made) comes from the heap, and glibc keeps what is
+/// freed in the middle of the heap resident: a robot that had crossed cells
+/// or listened wider while the swarm gathered kept the storage of every
+/// subscriber it had dropped. `malloc_trim` hands those pages back; it is
+/// called only when ports were dropped, a few times a minute at most.
+pub fn release_freed_memory() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
-    // SAFETY: mallopt only sets a tuning parameter of glibc's allocator; it
-    // is called before this process allocates from other threads.
+    // SAFETY: malloc_trim only returns free pages of glibc's heap to the
+    // system; it takes the allocator's lock like any allocation.
     unsafe {
-        if libc::mallopt(libc::M_MMAP_THRESHOLD, OWN_MAPPING_FROM_BYTES) != 1 {
-            tracing::warn!("glibc refused mallopt(M_MMAP_THRESHOLD); dropped ports' memory stays on the heap");
-        }
+        libc::malloc_trim(0);
     }
 }
 

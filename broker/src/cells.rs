@@ -88,9 +88,13 @@ impl CellExchange {
             {
                 (key, publisher)
             }
-            // The old publisher is dropped first: its connections are
-            // released before the new one's are made.
-            _ => {
+            stale => {
+                // The old publisher is dropped first: its connections are
+                // released before the new one's are made.
+                if stale.is_some() {
+                    drop(stale);
+                    crate::bus::release_freed_memory();
+                }
                 let key = self.cell_of(sample.x, sample.y);
                 let publisher = Sender::open(bus, &Self::topic(bus, key))
                     .inspect_err(|_| self.failures += 1)?;
@@ -119,8 +123,12 @@ impl CellExchange {
     pub fn listen(&mut self, bus: &Bus, (x, y): (f64, f64), radius: f64) -> Result<(), BusError> {
         let keep_within = radius + LISTEN_SLACK_M.min(self.cell_size / 2.0);
         let cell_size = self.cell_size;
+        let listened = self.subscribers.len();
         self.subscribers
             .retain(|k, _| cell_distance(cell_size, *k, x, y) <= keep_within);
+        if self.subscribers.len() < listened {
+            crate::bus::release_freed_memory();
+        }
         let mut first_error = None;
         for key in self.cells_within(x, y, radius) {
             if self.subscribers.contains_key(&key) {
