@@ -9,10 +9,12 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::ipc;
 use serde::{Deserialize, Serialize};
 use shoal::process::{ProcessUsage, usage};
 use shoal::swarm::RunningSwarm;
-use shoal_broker::{Bus, BusLimits, CellExchange, PoseSample, names};
+use shoal_broker::{Bus, BusLimits, CellExchange, PoseSample, cell_at, names};
 use shoal_physics::Scenario;
 
 /// Samples go out in blocks that alternate between transports, so that
@@ -23,9 +25,10 @@ const BLOCK: usize = 50;
 const GAP: Duration = Duration::from_micros(200);
 /// The shortest window over which the robots' CPU time is measured.
 const CPU_WINDOW: Duration = Duration::from_secs(15);
-const TRANSPORTS: [Transport; 4] = [
+const TRANSPORTS: [Transport; 5] = [
     Transport::IceoryxEvent,
     Transport::IceoryxPoll,
+    Transport::RawIceoryxCellPoll,
     Transport::RawIceoryxPoll,
     Transport::UnixSocket,
 ];
@@ -47,12 +50,33 @@ enum Transport {
     /// publisher, one subscriber, no checks); the receiver spins on it. What
     /// iceoryx2 itself costs, to tell it from what Shoal adds.
     RawIceoryxPoll,
+    /// The same sample on the probe cell's own iceoryx2 service, with plain
+    /// iceoryx2 ports (no exchange, no checks); the receiver spins on it.
+    /// The cell's robots are connected to it as to the exchange, so this is
+    /// what iceoryx2 costs with the cell's fan-out: the method, apart from
+    /// what Shoal's code adds.
+    RawIceoryxCellPoll,
     /// A datagram on a Unix domain socket; the receiver blocks in recv.
     UnixSocket,
 }
 
+/// Which transport carries each sample: blocks of [`BLOCK`], each round of
+/// blocks in a new order, the same for sender and receiver (a fixed seed
+/// per round). In a fixed order, whichever transport came right after the
+/// event-woken one measured about 2 µs slower at p50 whatever it was
+/// (BENCHMARKS.md, session 13).
 fn schedule(samples: usize) -> impl Iterator<Item = Transport> {
-    (0..samples * TRANSPORTS.len()).map(|i| TRANSPORTS[(i / BLOCK) % TRANSPORTS.len()])
+    use rand::SeedableRng;
+    use rand::seq::SliceRandom;
+    let rounds = samples.div_ceil(BLOCK);
+    (0..rounds as u64)
+        .flat_map(|round| {
+            let mut order = TRANSPORTS;
+            order.shuffle(&mut rand::rngs::StdRng::seed_from_u64(round));
+            order
+        })
+        .flat_map(|transport| std::iter::repeat_n(transport, BLOCK))
+        .take(samples * TRANSPORTS.len())
 }
 
 fn monotonic_ns() -> u64 {
@@ -110,6 +134,21 @@ fn from_cells(cells: &CellExchange, sequence: usize) -> Result<Option<u64>> {
     Ok(sent)
 }
 
+/// The send time of probe sample `sequence`, if it waits at a plain
+/// iceoryx2 subscriber (every waiting sample is read, as the exchange does).
+fn from_raw(
+    subscriber: &Subscriber<ipc::Service, PoseSample, ()>,
+    sequence: usize,
+) -> Result<Option<u64>> {
+    let mut sent = None;
+    while let Some(s) = subscriber.receive().map_err(|e| anyhow::anyhow!("{e:?}"))? {
+        if s.tick == sequence as u64 && s.agent_id == u32::MAX - 1 {
+            sent = Some(s.sim_time.to_bits());
+        }
+    }
+    Ok(sent)
+}
+
 pub fn probe(role: Role, swarm: &str, samples: usize, socket: &Path) -> Result<()> {
     let bus = Bus::join(
         swarm,
@@ -138,7 +177,9 @@ pub fn probe(role: Role, swarm: &str, samples: usize, socket: &Path) -> Result<(
         .enable_safe_overflow(true)
         .open_or_create()
         .map_err(|e| anyhow::anyhow!("probe raw service: {e:?}"))?;
-    let mut cells = CellExchange::new(Scenario::default_arena().bus.cell_size);
+    let cell_size = Scenario::default_arena().bus.cell_size;
+    let raw_cell = CellExchange::cell_service(&bus, cell_at(cell_size, centre, centre))?;
+    let mut cells = CellExchange::new(cell_size);
     match role {
         Role::Receive => {
             let listener = event
@@ -148,6 +189,10 @@ pub fn probe(role: Role, swarm: &str, samples: usize, socket: &Path) -> Result<(
             // Only the cell the probe stands in.
             cells.listen(&bus, (centre, centre), 0.0)?;
             let raw_subscriber = raw
+                .subscriber_builder()
+                .create()
+                .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+            let raw_cell_subscriber = raw_cell
                 .subscriber_builder()
                 .create()
                 .map_err(|e| anyhow::anyhow!("{e:?}"))?;
@@ -171,18 +216,12 @@ pub fn probe(role: Role, swarm: &str, samples: usize, socket: &Path) -> Result<(
                         from_cells(&cells, sequence)
                     })?,
                     Transport::IceoryxPoll => poll_for_a_second(|| from_cells(&cells, sequence))?,
-                    Transport::RawIceoryxPoll => poll_for_a_second(|| {
-                        let mut sent = None;
-                        while let Some(s) = raw_subscriber
-                            .receive()
-                            .map_err(|e| anyhow::anyhow!("{e:?}"))?
-                        {
-                            if s.tick == sequence as u64 {
-                                sent = Some(s.sim_time.to_bits());
-                            }
-                        }
-                        Ok(sent)
-                    })?,
+                    Transport::RawIceoryxPoll => {
+                        poll_for_a_second(|| from_raw(&raw_subscriber, sequence))?
+                    }
+                    Transport::RawIceoryxCellPoll => {
+                        poll_for_a_second(|| from_raw(&raw_cell_subscriber, sequence))?
+                    }
                     Transport::UnixSocket => match datagram.recv(&mut buffer) {
                         Ok(n) if n == size_of::<PoseSample>() => {
                             // SAFETY: n bytes of a PoseSample the sender wrote; read unaligned.
@@ -204,6 +243,10 @@ pub fn probe(role: Role, swarm: &str, samples: usize, socket: &Path) -> Result<(
         }
         Role::Send => {
             let raw_publisher = raw
+                .publisher_builder()
+                .create()
+                .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+            let raw_cell_publisher = raw_cell
                 .publisher_builder()
                 .create()
                 .map_err(|e| anyhow::anyhow!("{e:?}"))?;
@@ -240,6 +283,11 @@ pub fn probe(role: Role, swarm: &str, samples: usize, socket: &Path) -> Result<(
                             .send_copy(sample)
                             .map_err(|e| anyhow::anyhow!("{e:?}"))?;
                     }
+                    Transport::RawIceoryxCellPoll => {
+                        raw_cell_publisher
+                            .send_copy(sample)
+                            .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+                    }
                     Transport::UnixSocket => {
                         datagram.send(as_bytes(&sample))?;
                     }
@@ -270,6 +318,10 @@ struct Row {
     /// This transport's p50 divided by raw iceoryx2's (polled) in the same run.
     p50_vs_raw_iceoryx2: f64,
     p99_vs_raw_iceoryx2: f64,
+    /// This transport's p50 divided by raw iceoryx2's on the probe's cell
+    /// service (same fan-out) in the same run: what Shoal's code adds.
+    p50_vs_raw_iceoryx2_cell: f64,
+    p99_vs_raw_iceoryx2_cell: f64,
     /// CPU time of the swarm's robot processes per robot per control period.
     robot_cpu_ms_per_period: Option<f64>,
 }
@@ -362,6 +414,7 @@ pub fn run(sizes: &[usize], samples: usize, json: bool) -> Result<()> {
         };
         let (base50, base99) = baseline(Transport::UnixSocket);
         let (raw50, raw99) = baseline(Transport::RawIceoryxPoll);
+        let (cell50, cell99) = baseline(Transport::RawIceoryxCellPoll);
         for (index, transport) in TRANSPORTS.iter().enumerate() {
             let (p50, p99) = (
                 percentile(&sorted[index], 0.5),
@@ -380,6 +433,8 @@ pub fn run(sizes: &[usize], samples: usize, json: bool) -> Result<()> {
                 p99_vs_unix_socket: p99 / base99,
                 p50_vs_raw_iceoryx2: p50 / raw50,
                 p99_vs_raw_iceoryx2: p99 / raw99,
+                p50_vs_raw_iceoryx2_cell: p50 / cell50,
+                p99_vs_raw_iceoryx2_cell: p99 / cell99,
                 robot_cpu_ms_per_period: robot_cpu,
             });
         }

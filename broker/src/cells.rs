@@ -9,6 +9,7 @@ use std::time::{Duration, Instant};
 
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
+use iceoryx2::service::port_factory::publish_subscribe::PortFactory;
 
 use crate::bus::{Bus, BusError};
 use crate::check::Rejected;
@@ -76,6 +77,15 @@ impl CellExchange {
             buffer: CELL_BUFFER,
             history: 0,
         }
+    }
+
+    /// The iceoryx2 service of cell `key` itself, for tools that measure
+    /// what iceoryx2 costs on it apart from what the exchange adds.
+    pub fn cell_service(
+        bus: &Bus,
+        key: CellKey,
+    ) -> Result<PortFactory<ipc::Service, PoseSample, ()>, BusError> {
+        bus.publish_subscribe::<PoseSample>(&Self::topic(bus, key))
     }
 
     /// Publishes into the cell under the sample's pose, moving to a new cell's
