@@ -301,13 +301,13 @@ impl RunningSwarm {
             swarm.await_link(launch.first_id, count)?;
         }
         let poses = swarm.scenario.start_poses(0, count);
-        for (index, pose) in poses.into_iter().enumerate() {
+        for (started, index) in inside_out(&poses).into_iter().enumerate() {
             // Starting many robots takes a while: Ctrl-C stops it at once,
             // and dropping the swarm stops the robots already started.
             if swarm.termination_requested() {
-                bail!("interrupted while starting robots ({index} of {count} started)");
+                bail!("interrupted while starting robots ({started} of {count} started)");
             }
-            swarm.start(launch.first_id + index as u32, pose)?;
+            swarm.start(launch.first_id + index as u32, poses[index])?;
         }
         if let Some(clock) = &mut swarm.clock {
             let observer = &mut swarm.observer;
@@ -821,5 +821,39 @@ impl RunningSwarm {
                 }
                 Err(_) => false,
             });
+    }
+}
+
+/// The order to start robots at `poses` in: from the middle of the group
+/// outwards, so each robot starts beside robots already running. Started
+/// in id order, robots scattered over the whole start region, each found too
+/// few neighbours, listened as far as it could (the widest ring: about 40
+/// cells where it needs 9), and every robot started after it connected to
+/// all those listeners: start-up of 1000 robots took 17-37 s.
+fn inside_out(poses: &[Pose]) -> Vec<usize> {
+    let n = poses.len().max(1) as f64;
+    let (cx, cy) = poses
+        .iter()
+        .fold((0.0, 0.0), |(x, y), p| (x + p.x / n, y + p.y / n));
+    let mut order: Vec<usize> = (0..poses.len()).collect();
+    order.sort_by(|&a, &b| {
+        let d = |p: &Pose| (p.x - cx).hypot(p.y - cy);
+        d(&poses[a]).total_cmp(&d(&poses[b]))
+    });
+    order
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn robots_start_from_the_middle_outwards_each_once() {
+        let poses: Vec<Pose> = [(9.0, 0.0), (0.0, 1.0), (5.0, 5.0), (10.0, 10.0), (1.0, 9.0)]
+            .into_iter()
+            .map(|(x, y)| Pose { x, y, theta: 0.0 })
+            .collect();
+        assert_eq!(inside_out(&poses), vec![2, 4, 0, 1, 3]);
+        assert!(inside_out(&[]).is_empty());
     }
 }
