@@ -155,6 +155,14 @@ pub fn domain_config() -> Config {
     config
 }
 
+/// The folder where iceoryx2 keeps this host's node and service files:
+/// its `global.root-path`, which iceoryx2 reads from its configuration
+/// files (`config/iceoryx2.toml`, `~/.config/iceoryx2/iceoryx2.toml`,
+/// `/etc/iceoryx2/iceoryx2.toml`) for every iceoryx2 program alike.
+pub fn iceoryx_root() -> std::path::PathBuf {
+    domain_config().global.root_path().to_string().into()
+}
+
 /// iceoryx2's configuration for this host's domain, with Shoal's changes.
 fn node_config() -> Config {
     let mut config = domain_config();

@@ -163,6 +163,54 @@ fn stop(
     Ok(summary)
 }
 
+/// From this many robots on, where iceoryx2 keeps its files shows in the
+/// start-up time.
+const MANY_ROBOTS: usize = 200;
+
+/// Says how to start a big swarm faster when iceoryx2 keeps its files on a
+/// disk. iceoryx2 writes a file into a node's folder for every port and
+/// service a robot opens, and deletes it when the port goes: tens of
+/// thousands for 1000 robots. On this machine's ext4 (no journal) that was
+/// a third of start-up: 1000 robots started in 22-37 s with iceoryx2's
+/// default `/tmp/iceoryx2`, 7.8 s with its root in `/dev/shm`
+/// (BENCHMARKS.md, session 13). The root is the user's to choose: every
+/// iceoryx2 program of the machine, Python ones included, must agree on it.
+fn warn_if_iceoryx_on_disk(robots: usize) {
+    if robots < MANY_ROBOTS {
+        return;
+    }
+    let root = shoal_broker::bus::iceoryx_root();
+    if in_memory(&root) == Some(false) {
+        eprintln!(
+            "shoal: iceoryx2 keeps its node and service files in {} on a disk file system; \
+             {robots} robots start several times faster with iceoryx2's root in memory: \
+             write `[global]` and `root-path = \"/dev/shm/iceoryx2/\"` into \
+             ~/.config/iceoryx2/iceoryx2.toml (every iceoryx2 program of this user then \
+             uses it; README, \"Many robots\")",
+            root.display()
+        );
+    }
+}
+
+/// Whether `path`, or the nearest folder above it that exists, is on a
+/// file system in memory (tmpfs, ramfs); `None` if that cannot be told.
+fn in_memory(path: &std::path::Path) -> Option<bool> {
+    use std::os::unix::ffi::OsStrExt;
+    const RAMFS_MAGIC: i64 = 0x8584_58f6;
+    let existing = path.ancestors().find(|p| p.exists())?;
+    let name = std::ffi::CString::new(existing.as_os_str().as_bytes()).ok()?;
+    // SAFETY: statfs writes into the zeroed struct we own; `name` is a
+    // valid C string for the call's duration.
+    let mut fs: libc::statfs = unsafe { std::mem::zeroed() };
+    if unsafe { libc::statfs(name.as_ptr(), &mut fs) } != 0 {
+        return None;
+    }
+    // f_type and the constants are of different widths on other targets.
+    #[allow(clippy::unnecessary_cast)]
+    let (kind, tmpfs) = (fs.f_type as i64, libc::TMPFS_MAGIC as i64);
+    Some(kind == tmpfs || kind == RAMFS_MAGIC)
+}
+
 /// The scenario `shoal up` runs: the file given (or the default arena),
 /// with the command line's robot count, seed and SLAM robots.
 fn scenario_for(options: &UpOptions) -> Result<Scenario> {
@@ -268,6 +316,7 @@ pub fn up(options: UpOptions) -> Result<UpSummary> {
         check_viewer_installed()?;
     }
     let scenario = scenario_for(&options)?;
+    warn_if_iceoryx_on_disk(scenario.agents.count);
     let follow = scenario.slam.follow.clone();
     let spread = scenario.formation.spread;
     let mut swarm = RunningSwarm::launch_with(&options.swarm, scenario, &options.launch)?;
@@ -326,4 +375,19 @@ pub fn up(options: UpOptions) -> Result<UpSummary> {
     }
     status.finish();
     stop(swarm, &options, converged_since)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dev_shm_is_in_memory_and_a_missing_folder_is_judged_by_its_parent() {
+        assert_eq!(in_memory(std::path::Path::new("/dev/shm")), Some(true));
+        assert_eq!(
+            in_memory(std::path::Path::new("/dev/shm/no/such/folder")),
+            Some(true)
+        );
+        assert_eq!(in_memory(std::path::Path::new("/proc")), Some(false));
+    }
 }
