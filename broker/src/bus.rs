@@ -128,7 +128,7 @@ const EXPIRED_CONNECTION_BUFFER: usize = 4;
 /// freed in the middle of the heap resident: a robot that had crossed cells
 /// or listened wider while the swarm gathered kept the storage of every
 /// subscriber it had dropped. `malloc_trim` hands those pages back; it is
-/// called only when ports were dropped, a few times a minute at most.
+/// called only when a robot has dropped a port.
 pub fn release_freed_memory() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     // SAFETY: malloc_trim only returns free pages of glibc's heap to the

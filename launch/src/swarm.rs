@@ -829,7 +829,7 @@ impl RunningSwarm {
 /// in id order, robots scattered over the whole start region, each found too
 /// few neighbours, listened as far as it could (the widest ring: about 40
 /// cells where it needs 9), and every robot started after it connected to
-/// all those listeners: start-up of 1000 robots took 17-37 s.
+/// all those listeners (BENCHMARKS.md, session 13).
 fn inside_out(poses: &[Pose]) -> Vec<usize> {
     let n = poses.len().max(1) as f64;
     let (cx, cy) = poses
