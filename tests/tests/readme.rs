@@ -5,9 +5,14 @@ use shoal_physics::Scenario;
 #[test]
 fn the_readme_scenario_example_parses() {
     let readme = include_str!("../../README.md");
-    let start = readme
-        .find("```toml\n")
-        .expect("a TOML example in README.md")
+    // Other sections show TOML too (iceoryx2's configuration).
+    let section = readme
+        .find("## Scenarios")
+        .expect("a Scenarios section in README.md");
+    let start = section
+        + readme[section..]
+            .find("```toml\n")
+            .expect("a TOML example in README.md's Scenarios")
         + "```toml\n".len();
     let end = start + readme[start..].find("```").expect("the end of the example");
     let scenario =
