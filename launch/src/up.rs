@@ -171,7 +171,7 @@ const MANY_ROBOTS: usize = 200;
 /// disk. iceoryx2 writes a file into a node's folder for every port and
 /// service a robot opens, and deletes it when the port goes: tens of
 /// thousands for 1000 robots. On this machine's ext4 (no journal) that was
-/// a third of start-up: 1000 robots started in 22-37 s with iceoryx2's
+/// a third of start-up: 1000 robots started in 22-29 s with iceoryx2's
 /// default `/tmp/iceoryx2`, 7.8 s with its root in `/dev/shm`
 /// (BENCHMARKS.md, session 13). The root is the user's to choose: every
 /// iceoryx2 program of the machine, Python ones included, must agree on it.
