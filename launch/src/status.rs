@@ -55,6 +55,14 @@ pub fn gather(swarm: &str) -> Result<StatusReport> {
     let node_name = names::tool_node(swarm, &format!("status-{}", std::process::id()));
     let bus = Bus::join(swarm, &node_name, BusLimits::default())?;
     let roster = shoal_broker::roster::reader(&bus)?;
+    // The robots alive now: once each has been heard, listening longer
+    // tells nothing more (a formed swarm of 1000 answered in 0.85 s when
+    // status always listened three periods).
+    let expected: Vec<(u32, i32)> = swarm_nodes(swarm)?
+        .into_iter()
+        .filter(|n| n.state == SwarmNodeState::Alive)
+        .filter_map(|n| Some((n.agent_id?, n.pid)))
+        .collect();
     let mut latest: BTreeMap<u32, PoseSample> = BTreeMap::new();
     let started = Instant::now();
     while started.elapsed() < listen {
@@ -62,6 +70,12 @@ pub fn gather(swarm: &str) -> Result<StatusReport> {
         roster.receive(|s| {
             latest.insert(s.agent_id, s);
         })?;
+        let heard_all = expected
+            .iter()
+            .all(|(id, pid)| latest.get(id).is_some_and(|s| s.pid as i32 == *pid));
+        if heard_all {
+            break;
+        }
         std::thread::sleep(Duration::from_millis(10));
     }
     // The report of a SLAM process that is gone says nothing of today.
