@@ -10,7 +10,7 @@ use shoal_broker::{
     Receiver, RosterPublisher, SampleCheck, ScanSample, Sender, names,
 };
 use shoal_physics::{Pose, Scenario};
-use shoal_runtime::SwarmRuntime;
+use shoal_runtime::{SwarmRuntime, Sweep};
 
 use crate::member::{Heard, Member};
 use crate::neighbours::NeighbourTable;
@@ -55,7 +55,9 @@ pub fn run(options: AgentOptions) -> Result<()> {
     let mut settled = ports.clock.is_none();
     let mut last_housekeeping = Instant::now();
     let mut pose_note = runtime.pose_note(options.id)?;
-    let mut dead_suspected = false;
+    // When this robot first noticed a neighbour whose process is gone,
+    // since the last sweep it took part in.
+    let mut dead_noticed: Option<std::time::SystemTime> = None;
     while !ports.bus.termination_requested() {
         let (tick, sim_time) = match &ports.clock {
             Some(clock) => match clock.wait_after(last.tick, Duration::from_millis(100))? {
@@ -88,10 +90,13 @@ pub fn run(options: AgentOptions) -> Result<()> {
             // A robot can fall silent because the machine is overloaded, not
             // dead; sweeping lists every node on the machine, which would only
             // load it more. Sweep for processes that are really gone.
-            dead_suspected |= dropped
+            let gone = dropped
                 .iter()
                 .filter(|s| said.died_nearby.contains(&s.agent_id))
                 .any(|s| !shoal_runtime::pid_alive(s.pid as i32));
+            if gone {
+                dead_noticed.get_or_insert_with(std::time::SystemTime::now);
+            }
         }
         ports.scans.publish(&said.scan)?;
         last = said.pose;
@@ -102,11 +107,25 @@ pub fn run(options: AgentOptions) -> Result<()> {
             if let Err(e) = pose_note.note_if_moved([last.x, last.y, last.theta]) {
                 tracing::warn!("cannot note last pose: {e}");
             }
-            if std::mem::take(&mut dead_suspected) {
-                match remove_dead_nodes(&options.swarm) {
-                    Ok(0) => {}
-                    Ok(n) => tracing::info!("removed the stale resources of {n} dead nodes"),
-                    Err(e) => tracing::warn!("{:#}", anyhow::Error::from(e)),
+            if let Some(since) = dead_noticed {
+                // Its neighbours noticed the same death: one of them sweeps.
+                match runtime
+                    .sweep_unless_swept_since(since, false, || remove_dead_nodes(&options.swarm))
+                {
+                    Ok(Sweep::Busy) => {}
+                    Ok(Sweep::AlreadyDone | Sweep::Done(Ok(0))) => dead_noticed = None,
+                    Ok(Sweep::Done(Ok(n))) => {
+                        tracing::info!("removed the stale resources of {n} dead nodes");
+                        dead_noticed = None;
+                    }
+                    Ok(Sweep::Done(Err(e))) => {
+                        tracing::warn!("{:#}", anyhow::Error::from(e));
+                        dead_noticed = None;
+                    }
+                    Err(e) => {
+                        tracing::warn!("cannot take the swarm's sweep lock: {e}");
+                        dead_noticed = None;
+                    }
                 }
             }
         }

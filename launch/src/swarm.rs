@@ -7,11 +7,13 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::{Context, Result, bail};
-use shoal_broker::liveness::{SwarmNodeState, remove_dead_nodes, swarm_nodes};
+use shoal_broker::liveness::{
+    SwarmNodeState, remove_dead_nodes, remove_dead_nodes_while, swarm_nodes,
+};
 use shoal_broker::robot_streams::{self};
 use shoal_broker::{Bus, BusLimits, HelperProgress, RosterReader, SampleCheck, names};
 use shoal_physics::{Pose, Scenario};
-use shoal_runtime::{SwarmMeta, SwarmRuntime};
+use shoal_runtime::{SwarmMeta, SwarmRuntime, Sweep};
 
 use crate::clock::LockstepClock;
 use crate::observer::Observer;
@@ -526,6 +528,7 @@ impl RunningSwarm {
         self.reap_helpers();
         let children = &mut self.children;
         let runtime = &self.runtime;
+        let bus = &self.bus;
         let observer = &mut self.observer;
         match &mut self.clock {
             Some(clock) => {
@@ -556,7 +559,7 @@ impl RunningSwarm {
                     observer.forget(id);
                 }
                 if ended > 0 {
-                    remove_dead_nodes(&self.name)?;
+                    sweep_after_deaths(runtime, bus, &self.name)?;
                 }
             }
             None => {
@@ -567,7 +570,7 @@ impl RunningSwarm {
                 // A robot of ours that ended leaves its node behind; sweep it
                 // now rather than wait for a neighbour to suspect it.
                 if children.reap(runtime) > 0 {
-                    remove_dead_nodes(&self.name)?;
+                    sweep_after_deaths(runtime, bus, &self.name)?;
                 }
                 observer.expire(Duration::from_secs_f64(
                     self.scenario.timing.observer_stale_s(),
@@ -822,6 +825,23 @@ impl RunningSwarm {
                 Err(_) => false,
             });
     }
+}
+
+/// Removes what robots of ours that ended left on the bus, unless a sweep
+/// that started since has finished (a robot that noticed the same deaths
+/// may have swept): waits for a sweep under way rather than list every
+/// node of the machine beside it. Stops early on Ctrl-C or SIGTERM; what
+/// is left then is removed when the swarm stops.
+fn sweep_after_deaths(runtime: &SwarmRuntime, bus: &Bus, swarm: &str) -> Result<()> {
+    let outcome = runtime
+        .sweep_unless_swept_since(SystemTime::now(), true, || {
+            remove_dead_nodes_while(swarm, || !bus.termination_requested())
+        })
+        .with_context(|| format!("sweeping the dead nodes of swarm `{swarm}`"))?;
+    if let Sweep::Done(removed) = outcome {
+        removed?;
+    }
+    Ok(())
 }
 
 /// The order to start robots at `poses` in: from the middle of the group

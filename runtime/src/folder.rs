@@ -17,6 +17,21 @@ pub struct SwarmMeta {
     pub period_s: f64,
 }
 
+/// The lock whose holder sweeps the swarm's dead nodes; it holds when the
+/// last finished sweep started.
+const SWEEP_LOCK: &str = "sweep";
+
+/// What came of [`SwarmRuntime::sweep_unless_swept_since`].
+#[derive(Debug, PartialEq, Eq)]
+pub enum Sweep<R> {
+    /// This process swept; what the sweep returned.
+    Done(R),
+    /// A sweep that started after the dead node was noticed has finished.
+    AlreadyDone,
+    /// Another process is sweeping now.
+    Busy,
+}
+
 /// The SLAM process's view of each robot it follows.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SlamReport {
@@ -213,6 +228,61 @@ impl SwarmRuntime {
         }
     }
 
+    /// Runs `sweep`, a removal of the swarm's dead nodes, unless a sweep
+    /// that started at or after `since` has finished meanwhile: one process
+    /// of the swarm sweeps at a time, and the others take its result. A
+    /// sweep lists every node of the machine, reading each one's details:
+    /// when 50 of 1000 robots were killed, each of their neighbours swept
+    /// at once and the swarm spent three minutes on it (BENCHMARKS.md,
+    /// session 13). With `wait` false a sweep under way makes this return
+    /// [`Sweep::Busy`] at once; the caller asks again later.
+    pub fn sweep_unless_swept_since<R>(
+        &self,
+        since: std::time::SystemTime,
+        wait: bool,
+        sweep: impl FnOnce() -> R,
+    ) -> io::Result<Sweep<R>> {
+        use std::io::{Seek, Write};
+        if self.last_sweep_start().is_some_and(|start| start >= since) {
+            return Ok(Sweep::AlreadyDone);
+        }
+        let mut lock = match self.lock(SWEEP_LOCK, wait) {
+            Ok(file) => file,
+            Err(e) if e.kind() == io::ErrorKind::WouldBlock => return Ok(Sweep::Busy),
+            Err(e) => return Err(e),
+        };
+        // One may have finished between the look above and the lock.
+        if self.last_sweep_start().is_some_and(|start| start >= since) {
+            return Ok(Sweep::AlreadyDone);
+        }
+        let started = std::time::SystemTime::now();
+        let result = sweep();
+        let started_ms = started
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_millis());
+        lock.set_len(0)?;
+        lock.rewind()?;
+        write!(lock, "{started_ms}")?;
+        Ok(Sweep::Done(result))
+    }
+
+    /// When the last finished sweep of dead nodes started, as its sweeper
+    /// wrote it into the sweep lock.
+    fn last_sweep_start(&self) -> Option<std::time::SystemTime> {
+        let text = read_no_follow(&self.lock_path(SWEEP_LOCK)).ok()?;
+        let ms: u64 = text.trim().parse().ok()?;
+        Some(std::time::UNIX_EPOCH + std::time::Duration::from_millis(ms))
+    }
+
+    fn lock_path(&self, role: &str) -> PathBuf {
+        let name = self
+            .dir
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        self.root.join(format!("{name}.{role}.lock"))
+    }
+
     /// Takes the swarm's `role` lock (`launch`: one `shoal up` per swarm;
     /// `ids`: one command picking new robot ids at a time). The lock lives
     /// beside the swarm's folder, in the root, and is released when the
@@ -221,12 +291,7 @@ impl SwarmRuntime {
     pub fn lock(&self, role: &str, wait: bool) -> io::Result<std::fs::File> {
         use std::os::fd::AsRawFd;
         self.check_root()?;
-        let name = self
-            .dir
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default();
-        let path = self.root.join(format!("{name}.{role}.lock"));
+        let path = self.lock_path(role);
         let file = {
             use std::os::unix::fs::OpenOptionsExt;
             std::fs::OpenOptions::new()
@@ -667,6 +732,44 @@ mod tests {
         assert!(target.join("keep.txt").exists());
         std::fs::remove_dir_all(&root).expect("cleanup");
         std::fs::remove_dir_all(&target).expect("cleanup");
+    }
+
+    #[test]
+    fn one_sweep_serves_every_death_noticed_before_it_started() {
+        let root = scratch("sweep");
+        let runtime = runtime_in(&root, "lab");
+        let noticed = std::time::SystemTime::now() - std::time::Duration::from_secs(1);
+        assert_eq!(
+            runtime
+                .sweep_unless_swept_since(noticed, false, || 3)
+                .expect("sweep"),
+            Sweep::Done(3)
+        );
+        // Noticed before that sweep started: nothing more to do.
+        assert_eq!(
+            runtime
+                .sweep_unless_swept_since(noticed, false, || 4)
+                .expect("sweep"),
+            Sweep::AlreadyDone
+        );
+        // While another process holds the lock, a robot does not wait.
+        let later = std::time::SystemTime::now() + std::time::Duration::from_secs(1);
+        let held = runtime.lock(SWEEP_LOCK, false).expect("lock");
+        assert_eq!(
+            runtime
+                .sweep_unless_swept_since(later, false, || 5)
+                .expect("sweep"),
+            Sweep::Busy
+        );
+        drop(held);
+        // Noticed after the last sweep started: it sweeps again.
+        assert_eq!(
+            runtime
+                .sweep_unless_swept_since(later, false, || 6)
+                .expect("sweep"),
+            Sweep::Done(6)
+        );
+        std::fs::remove_dir_all(&root).expect("cleanup");
     }
 
     #[test]

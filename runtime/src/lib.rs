@@ -13,7 +13,7 @@ use shoal_physics::{Scenario, scenario::ScenarioError};
 
 pub use folder::{
     FollowedReport, IdClash, LinkReport, LinkTraffic, RemoteHost, RemoteRobot, SlamReport,
-    SwarmMeta, SwarmRuntime,
+    SwarmMeta, SwarmRuntime, Sweep,
 };
 
 /// Reads and checks a scenario file; errors name the file (and the line
