@@ -17,8 +17,8 @@ pub struct SwarmMeta {
     pub period_s: f64,
 }
 
-/// The lock whose holder sweeps the swarm's dead nodes; it holds when the
-/// last finished sweep started.
+/// The lock whose holder sweeps the swarm's dead nodes. The file says when
+/// the last finished sweep started (ms since the Unix epoch).
 const SWEEP_LOCK: &str = "sweep";
 
 /// What came of [`SwarmRuntime::sweep_unless_swept_since`].
