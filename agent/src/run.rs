@@ -108,24 +108,21 @@ pub fn run(options: AgentOptions) -> Result<()> {
                 tracing::warn!("cannot note last pose: {e}");
             }
             if let Some(since) = dead_noticed {
-                // Its neighbours noticed the same death: one of them sweeps.
-                match runtime
-                    .sweep_unless_swept_since(since, false, || remove_dead_nodes(&options.swarm))
-                {
-                    Ok(Sweep::Busy) => {}
-                    Ok(Sweep::AlreadyDone | Sweep::Done(Ok(0))) => dead_noticed = None,
-                    Ok(Sweep::Done(Ok(n))) => {
+                // Its neighbours noticed the same death: one of them sweeps,
+                // and the others take its result. A sweep under way is
+                // waited for at the next housekeeping, not here.
+                let outcome = runtime
+                    .sweep_unless_swept_since(since, false, || remove_dead_nodes(&options.swarm));
+                if !matches!(outcome, Ok(Sweep::Busy)) {
+                    dead_noticed = None;
+                }
+                match outcome {
+                    Ok(Sweep::Done(Ok(n))) if n > 0 => {
                         tracing::info!("removed the stale resources of {n} dead nodes");
-                        dead_noticed = None;
                     }
-                    Ok(Sweep::Done(Err(e))) => {
-                        tracing::warn!("{:#}", anyhow::Error::from(e));
-                        dead_noticed = None;
-                    }
-                    Err(e) => {
-                        tracing::warn!("cannot take the swarm's sweep lock: {e}");
-                        dead_noticed = None;
-                    }
+                    Ok(Sweep::Done(Err(e))) => tracing::warn!("{:#}", anyhow::Error::from(e)),
+                    Err(e) => tracing::warn!("cannot take the swarm's sweep lock: {e}"),
+                    Ok(_) => {}
                 }
             }
         }

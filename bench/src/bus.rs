@@ -89,9 +89,12 @@ fn monotonic_ns() -> u64 {
     ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
 }
 
+/// The robot id the probe's samples carry, above any robot's.
+const PROBE_ID: u32 = u32::MAX - 1;
+
 /// Where both probe ends meet: the middle of the arena, among the robots.
 fn probe_sample(sequence: u64, x: f64) -> PoseSample {
-    PoseSample::standing(u32::MAX - 1, std::process::id(), sequence, x, x, 0.0)
+    PoseSample::standing(PROBE_ID, std::process::id(), sequence, x, x, 0.0)
 }
 
 fn as_bytes(sample: &PoseSample) -> &[u8] {
@@ -123,14 +126,16 @@ fn poll_for_a_second(mut receive: impl FnMut() -> Result<Option<u64>>) -> Result
     Ok(None)
 }
 
+/// The send time `sample` carries if it is probe sample `sequence`.
+fn probe_send_time(sample: &PoseSample, sequence: usize) -> Option<u64> {
+    (sample.tick == sequence as u64 && sample.agent_id == PROBE_ID)
+        .then_some(sample.sim_time.to_bits())
+}
+
 /// The send time of probe sample `sequence`, if it waits in the cells.
 fn from_cells(cells: &CellExchange, sequence: usize) -> Result<Option<u64>> {
     let mut sent = None;
-    cells.receive(|s| {
-        if s.tick == sequence as u64 && s.agent_id == u32::MAX - 1 {
-            sent = Some(s.sim_time.to_bits());
-        }
-    })?;
+    cells.receive(|s| sent = sent.or(probe_send_time(&s, sequence)))?;
     Ok(sent)
 }
 
@@ -142,9 +147,7 @@ fn from_raw(
 ) -> Result<Option<u64>> {
     let mut sent = None;
     while let Some(s) = subscriber.receive().map_err(|e| anyhow::anyhow!("{e:?}"))? {
-        if s.tick == sequence as u64 && s.agent_id == u32::MAX - 1 {
-            sent = Some(s.sim_time.to_bits());
-        }
+        sent = sent.or(probe_send_time(&s, sequence));
     }
     Ok(sent)
 }
@@ -227,7 +230,7 @@ pub fn probe(role: Role, swarm: &str, samples: usize, socket: &Path) -> Result<(
                             // SAFETY: n bytes of a PoseSample the sender wrote; read unaligned.
                             let s: PoseSample =
                                 unsafe { std::ptr::read_unaligned(buffer.as_ptr().cast()) };
-                            (s.tick == sequence as u64).then_some(s.sim_time.to_bits())
+                            probe_send_time(&s, sequence)
                         }
                         _ => None,
                     },

@@ -203,6 +203,34 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_robot_keeps_about_ten_cells_half_a_metre_past_its_radius_not_fourteen() {
+        // The mean number of cells within `r` of a robot, over a grid of
+        // positions in one cell of the default 3.5 m (BENCHMARKS.md,
+        // session 13: `cargo test -p shoal-broker keeps_about_ten --
+        // --nocapture` prints them).
+        let (cell, radius) = (3.5, 3.5);
+        let cells = CellExchange::new(cell);
+        let mean = |r: f64| {
+            let steps = 40;
+            let at = |i: usize| (i as f64 + 0.5) * cell / steps as f64;
+            let total: usize = (0..steps)
+                .flat_map(|i| (0..steps).map(move |j| (at(i), at(j))))
+                .map(|(x, y)| cells.cells_within(x, y, r).len())
+                .sum();
+            total as f64 / (steps * steps) as f64
+        };
+        let needed = mean(radius);
+        let kept = mean(radius + LISTEN_SLACK_M);
+        let half_a_cell = mean(radius + cell / 2.0);
+        println!(
+            "cells within {radius} m: {needed:.2}; kept now: {kept:.2}; half a cell: {half_a_cell:.2}"
+        );
+        assert!((7.5..9.0).contains(&needed), "{needed}");
+        assert!(kept < 10.5, "{kept}");
+        assert!(half_a_cell > 13.5, "{half_a_cell}");
+    }
+
+    #[test]
     fn a_robot_listens_to_the_cells_its_disc_touches_and_no_corner_beyond() {
         let cells = CellExchange::new(1.75);
         let (x, y, radius) = (10.3, 4.1, 3.5);

@@ -55,11 +55,13 @@ pub fn gather(swarm: &str) -> Result<StatusReport> {
     let node_name = names::tool_node(swarm, &format!("status-{}", std::process::id()));
     let bus = Bus::join(swarm, &node_name, BusLimits::default())?;
     let roster = shoal_broker::roster::reader(&bus)?;
-    // The robots alive now: once each has been heard, listening longer
-    // tells nothing more (a formed swarm of 1000 answered in 0.85 s when
-    // status always listened three periods).
-    let expected: Vec<(u32, i32)> = swarm_nodes(swarm)?
-        .into_iter()
+    // The swarm's nodes, listed once (each listing reads every node's
+    // details). Once every live robot among them has been heard, listening
+    // longer tells nothing more: a formed swarm of 1000 answered in 0.85 s
+    // when status always listened three periods.
+    let nodes = swarm_nodes(swarm)?;
+    let expected: Vec<(u32, i32)> = nodes
+        .iter()
         .filter(|n| n.state == SwarmNodeState::Alive)
         .filter_map(|n| Some((n.agent_id?, n.pid)))
         .collect();
@@ -85,7 +87,7 @@ pub fn gather(swarm: &str) -> Result<StatusReport> {
     let host = shoal_runtime::host::current().name.clone();
     let mut agents = Vec::new();
     let mut stale_nodes = 0;
-    for node in swarm_nodes(swarm)? {
+    for node in nodes {
         if node.state == SwarmNodeState::Dead {
             stale_nodes += 1;
         }

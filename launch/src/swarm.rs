@@ -851,14 +851,13 @@ fn sweep_after_deaths(runtime: &SwarmRuntime, bus: &Bus, swarm: &str) -> Result<
 /// cells where it needs 9), and every robot started after it connected to
 /// all those listeners (BENCHMARKS.md, session 13).
 fn inside_out(poses: &[Pose]) -> Vec<usize> {
-    let n = poses.len().max(1) as f64;
-    let (cx, cy) = poses
-        .iter()
-        .fold((0.0, 0.0), |(x, y), p| (x + p.x / n, y + p.y / n));
+    let positions: Vec<_> = poses.iter().map(Pose::position).collect();
+    let middle = shoal_physics::metrics::centroid(&positions);
     let mut order: Vec<usize> = (0..poses.len()).collect();
     order.sort_by(|&a, &b| {
-        let d = |p: &Pose| (p.x - cx).hypot(p.y - cy);
-        d(&poses[a]).total_cmp(&d(&poses[b]))
+        positions[a]
+            .distance(middle)
+            .total_cmp(&positions[b].distance(middle))
     });
     order
 }
