@@ -152,11 +152,21 @@ fn from_raw(
     Ok(sent)
 }
 
-pub fn probe(role: Role, swarm: &str, samples: usize, socket: &Path) -> Result<()> {
+pub fn probe(
+    role: Role,
+    swarm: &str,
+    samples: usize,
+    socket: &Path,
+    listeners_per_cell: usize,
+) -> Result<()> {
+    let limits = BusLimits {
+        max_listeners_per_cell: listeners_per_cell,
+        ..BusLimits::default()
+    };
     let bus = Bus::join(
         swarm,
         &names::tool_node(swarm, &format!("probe-{role:?}")),
-        BusLimits::default(),
+        limits,
     )?;
     let centre = std::env::var("SHOAL_PROBE_AT")
         .ok()
@@ -310,6 +320,8 @@ pub fn probe(role: Role, swarm: &str, samples: usize, socket: &Path) -> Result<(
 #[derive(Debug, Serialize)]
 struct Row {
     agents: usize,
+    /// Listener slots of each cell's service.
+    listeners_per_cell: usize,
     transport: Transport,
     p50_us: f64,
     p99_us: f64,
@@ -337,8 +349,15 @@ fn percentile(sorted: &[u64], q: f64) -> f64 {
     sorted[index] as f64 / 1000.0
 }
 
-pub fn run(sizes: &[usize], samples: usize, json: bool) -> Result<()> {
+pub fn run(
+    sizes: &[usize],
+    samples: usize,
+    listeners_per_cell: Option<usize>,
+    json: bool,
+) -> Result<()> {
     let me = std::env::current_exe()?;
+    let listeners_per_cell =
+        listeners_per_cell.unwrap_or(Scenario::default_arena().bus.max_listeners_per_cell);
     let mut rows = Vec::new();
     for &agents in sizes {
         if agents < 2 {
@@ -346,14 +365,15 @@ pub fn run(sizes: &[usize], samples: usize, json: bool) -> Result<()> {
         }
         let swarm_name = format!("bench{}-{agents}", std::process::id());
         let robots = agents - 2;
-        let scenario = Scenario::open_arena(robots.max(1));
+        let arena = |robots: usize| {
+            let mut scenario = Scenario::open_arena(robots);
+            scenario.bus.max_listeners_per_cell = listeners_per_cell;
+            scenario
+        };
+        let scenario = arena(robots.max(1));
         let centre = scenario.arena.width / 2.0;
         let swarm = if robots > 0 {
-            Some(RunningSwarm::launch(
-                &swarm_name,
-                Scenario::open_arena(robots),
-                false,
-            )?)
+            Some(RunningSwarm::launch(&swarm_name, arena(robots), false)?)
         } else {
             None
         };
@@ -380,6 +400,8 @@ pub fn run(sizes: &[usize], samples: usize, json: bool) -> Result<()> {
                 ])
                 .arg("--socket")
                 .arg(&socket)
+                .arg("--listeners-per-cell")
+                .arg(listeners_per_cell.to_string())
                 .env("SHOAL_PROBE_AT", centre.to_string())
                 .stdout(Stdio::piped())
                 .spawn()
@@ -425,6 +447,7 @@ pub fn run(sizes: &[usize], samples: usize, json: bool) -> Result<()> {
             );
             rows.push(Row {
                 agents,
+                listeners_per_cell,
                 transport: *transport,
                 p50_us: p50,
                 p99_us: p99,

@@ -29,6 +29,10 @@ enum Commands {
         /// Poses sent per transport and swarm size.
         #[arg(long, default_value_t = 2000)]
         samples: usize,
+        /// Listener slots of every cell's service (`bus.max_listeners_per_cell`;
+        /// default: the scenario default). A send visits every slot.
+        #[arg(long)]
+        listeners_per_cell: Option<usize>,
         #[arg(long)]
         json: bool,
     },
@@ -93,6 +97,8 @@ enum Commands {
         samples: usize,
         #[arg(long)]
         socket: std::path::PathBuf,
+        #[arg(long)]
+        listeners_per_cell: usize,
     },
 }
 
@@ -101,8 +107,9 @@ fn main() -> Result<()> {
         Commands::Bus {
             agents,
             samples,
+            listeners_per_cell,
             json,
-        } => bus::run(&agents, samples, json),
+        } => bus::run(&agents, samples, listeners_per_cell, json),
         Commands::Record {
             agents,
             seconds,
@@ -129,6 +136,7 @@ fn main() -> Result<()> {
             swarm,
             samples,
             socket,
-        } => bus::probe(role, &swarm, samples, &socket),
+            listeners_per_cell,
+        } => bus::probe(role, &swarm, samples, &socket, listeners_per_cell),
     }
 }

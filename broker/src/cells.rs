@@ -9,6 +9,7 @@ use std::time::{Duration, Instant};
 
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
+use iceoryx2::service::port_factory::PortFactory as _;
 use iceoryx2::service::port_factory::publish_subscribe::PortFactory;
 
 use crate::bus::{Bus, BusError};
@@ -181,6 +182,64 @@ impl CellExchange {
     }
 }
 
+/// How full one cell's service is. iceoryx2 gives every service a fixed
+/// number of publisher and subscriber slots when it is made, and a send
+/// visits every subscriber slot, used or not; `shoal status --cells` shows
+/// these so a swarm's `[bus]` limits can be sized to what its cells hold.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct CellOccupancy {
+    pub cell: CellKey,
+    /// Robots publishing into the cell now.
+    pub publishers: usize,
+    pub max_publishers: usize,
+    /// Robots and observers listening to the cell now.
+    pub listeners: usize,
+    pub max_listeners: usize,
+}
+
+/// Every cell service of `bus`'s swarm on this host, and how full it is.
+/// Lists every service on the host and opens each of the swarm's cells.
+pub fn occupancy(bus: &Bus) -> Result<Vec<CellOccupancy>, BusError> {
+    let prefix = names::cell_prefix(&bus.swarm);
+    let mut cells = Vec::new();
+    ipc::Service::list(&crate::bus::domain_config(), |service| {
+        let name = service.static_details.name().as_str();
+        if let Some(key) = name.strip_prefix(&prefix).and_then(parse_cell_key) {
+            cells.push((key, name.to_owned()));
+        }
+        CallbackProgression::Continue
+    })
+    .map_err(|e| BusError::iceoryx("list services", e))?;
+    let mut occupancy = Vec::new();
+    for (cell, name) in cells {
+        // A cell whose last robot left since the listing is gone: skipped.
+        let Ok(service) = bus
+            .node
+            .service_builder(&Bus::service_name(&name)?)
+            .publish_subscribe::<PoseSample>()
+            .open()
+        else {
+            continue;
+        };
+        let (now, limits) = (service.dynamic_config(), service.static_config());
+        occupancy.push(CellOccupancy {
+            cell,
+            publishers: now.number_of_publishers(),
+            max_publishers: limits.max_publishers(),
+            listeners: now.number_of_subscribers(),
+            max_listeners: limits.max_subscribers(),
+        });
+    }
+    occupancy.sort_by_key(|c| c.cell);
+    Ok(occupancy)
+}
+
+/// `cx_cy`, the end of a cell service's name ([`names::cell`]).
+fn parse_cell_key(text: &str) -> Option<CellKey> {
+    let (x, y) = text.split_once('_')?;
+    Some((x.parse().ok()?, y.parse().ok()?))
+}
+
 /// The cell of side `cell_size` that `(x, y)` stands in.
 pub fn cell_at(cell_size: f64, x: f64, y: f64) -> CellKey {
     (
@@ -247,5 +306,14 @@ mod tests {
         // of 3.06 m^2; the disc leaves out its corners.
         assert!(listened.len() < 25, "{}", listened.len());
         assert_eq!(cells.cells_within(x, y, 0.0), vec![cells.cell_of(x, y)]);
+    }
+
+    #[test]
+    fn a_cell_service_name_gives_back_its_cell() {
+        let name = names::cell("s", -3, 12);
+        let end = name.strip_prefix(&names::cell_prefix("s"));
+        assert_eq!(end.and_then(parse_cell_key), Some((-3, 12)));
+        assert_eq!(parse_cell_key("3"), None);
+        assert_eq!(parse_cell_key("a_1"), None);
     }
 }

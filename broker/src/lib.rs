@@ -15,7 +15,7 @@ pub mod roster;
 pub mod wire;
 
 pub use bus::{Bus, BusError, BusLimits};
-pub use cells::{CellExchange, CellKey, cell_at};
+pub use cells::{CellExchange, CellKey, CellOccupancy, cell_at};
 pub use check::{Rejected, Rejection, SampleCheck, Wire};
 pub use clock::{ClockListener, ClockSource};
 pub use liveness::{SwarmNode, SwarmNodeState};

@@ -17,7 +17,12 @@ pub fn prefix(swarm: &str) -> String {
 }
 
 pub fn cell(swarm: &str, cx: i32, cy: i32) -> String {
-    format!("shoal/{swarm}/cell/{cx}_{cy}")
+    format!("{}{cx}_{cy}", cell_prefix(swarm))
+}
+
+/// What every cell service's name of `swarm` starts with.
+pub fn cell_prefix(swarm: &str) -> String {
+    format!("shoal/{swarm}/cell/")
 }
 
 pub fn roster(swarm: &str) -> String {

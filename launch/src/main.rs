@@ -133,6 +133,10 @@ enum Commands {
         swarm: String,
         #[arg(long)]
         json: bool,
+        /// Also show how full each spatial cell's service is (publishers and
+        /// listeners against the `[bus]` limits), fullest first.
+        #[arg(long)]
+        cells: bool,
     },
     /// Kill robots (SIGKILL; --graceful for SIGTERM).
     Kill {
@@ -331,12 +335,15 @@ fn run(cli: Cli) -> Result<()> {
         Commands::Slam { args } => become_binary("shoal-slam", &args)?,
         Commands::Record { args } => become_binary("shoal-viewer-log", &args)?,
         Commands::Diagnose { args } => become_binary("shoal-diagnose", &args)?,
-        Commands::Status { swarm, json } => {
-            let report = status::gather(&swarm)?;
+        Commands::Status { swarm, json, cells } => {
+            let report = status::gather(&swarm, cells)?;
             if json {
                 println!("{}", serde_json::to_string(&report)?);
             } else {
                 status::print_table(&report);
+                if let Some(cells) = &report.cells {
+                    status::print_cells(cells);
+                }
             }
         }
         Commands::Experiment { which, json } => match which {

@@ -6,7 +6,7 @@ use std::time::{Duration, Instant};
 use anyhow::Result;
 use serde::Serialize;
 use shoal_broker::liveness::{SwarmNodeState, swarm_nodes};
-use shoal_broker::{Bus, BusLimits, PoseSample, names};
+use shoal_broker::{Bus, BusLimits, CellOccupancy, PoseSample, names};
 use shoal_runtime::{FollowedReport, SwarmRuntime};
 
 #[derive(Debug, Serialize)]
@@ -43,10 +43,37 @@ pub struct StatusReport {
     pub stale_nodes: usize,
     /// Every robot a live SLAM process follows, present or not.
     pub slam: Vec<FollowedReport>,
+    /// How full each cell's service is (`--cells`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cells: Option<Vec<CellStatus>>,
 }
 
-/// Listens to the roster for a few periods and lists every node of the swarm.
-pub fn gather(swarm: &str) -> Result<StatusReport> {
+/// One cell's service: how many robots publish into it and listen to it,
+/// against the slots its service was made with (`[bus]` limits).
+#[derive(Debug, Serialize)]
+pub struct CellStatus {
+    pub cell: (i32, i32),
+    pub publishers: usize,
+    pub max_publishers: usize,
+    pub listeners: usize,
+    pub max_listeners: usize,
+}
+
+impl From<CellOccupancy> for CellStatus {
+    fn from(c: CellOccupancy) -> Self {
+        Self {
+            cell: c.cell,
+            publishers: c.publishers,
+            max_publishers: c.max_publishers,
+            listeners: c.listeners,
+            max_listeners: c.max_listeners,
+        }
+    }
+}
+
+/// Listens to the roster for a few periods and lists every node of the
+/// swarm; with `cells`, also how full each cell's service is.
+pub fn gather(swarm: &str, cells: bool) -> Result<StatusReport> {
     names::validate_swarm(swarm)?;
     let period = SwarmRuntime::locate(swarm)
         .read_meta()
@@ -140,6 +167,12 @@ pub fn gather(swarm: &str) -> Result<StatusReport> {
         hosts.extend(link.hosts.into_iter().map(|h| h.name));
     }
     agents.sort_by_key(|a| (a.id, a.state));
+    let cells = if cells {
+        let occupancy = shoal_broker::cells::occupancy(&bus)?;
+        Some(occupancy.into_iter().map(CellStatus::from).collect())
+    } else {
+        None
+    };
     Ok(StatusReport {
         swarm: swarm.to_owned(),
         host,
@@ -147,6 +180,7 @@ pub fn gather(swarm: &str) -> Result<StatusReport> {
         agents,
         stale_nodes,
         slam: slam.map(|r| r.followed).unwrap_or_default(),
+        cells,
     })
 }
 
@@ -195,6 +229,32 @@ pub fn print_table(report: &StatusReport) {
             num(a.theta),
             slam,
             neighbours.join(",")
+        );
+    }
+}
+
+/// The cells of `report`, fullest first by listeners.
+pub fn print_cells(cells: &[CellStatus]) {
+    let mut by_listeners: Vec<&CellStatus> = cells.iter().collect();
+    by_listeners.sort_by_key(|c| std::cmp::Reverse((c.listeners, c.publishers)));
+    let busiest = by_listeners.first();
+    println!(
+        "{} cells; most listeners in one cell: {} of {}; most publishers: {} of {}",
+        cells.len(),
+        busiest.map_or(0, |c| c.listeners),
+        busiest.map_or(0, |c| c.max_listeners),
+        cells.iter().map(|c| c.publishers).max().unwrap_or(0),
+        cells.first().map_or(0, |c| c.max_publishers),
+    );
+    println!("{:>12} {:>11} {:>10}", "cell", "publishers", "listeners");
+    for c in by_listeners {
+        println!(
+            "{:>12} {:>5} / {:<3} {:>4} / {:<4}",
+            format!("{},{}", c.cell.0, c.cell.1),
+            c.publishers,
+            c.max_publishers,
+            c.listeners,
+            c.max_listeners
         );
     }
 }
