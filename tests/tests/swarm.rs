@@ -223,6 +223,39 @@ fn two_swarms_with_different_names_do_not_see_each_other() {
             );
         }
     }
+    // Each robot publishes into the one cell it stands in, so a swarm's
+    // cells (`status --cells`) hold its own robots' publishers and no
+    // other's. A robot crossing into a new cell drops its old publisher
+    // before it opens the next, so the count is asked for until it holds.
+    let cells = |swarm: &str| -> Value {
+        let output = shoal_ok(&["status", "--swarm", swarm, "--cells", "--json"]);
+        let report: Value = serde_json::from_slice(&output.stdout).expect("status prints JSON");
+        report["cells"].clone()
+    };
+    let publishers = |cells: &Value| -> u64 {
+        cells
+            .as_array()
+            .map(|c| c.iter().filter_map(|c| c["publishers"].as_u64()).sum())
+            .unwrap_or(0)
+    };
+    let counted = wait_until(Duration::from_secs(10), || {
+        publishers(&cells(&red.name)) == 6 && publishers(&cells(&blue.name)) == 9
+    });
+    assert!(
+        counted,
+        "red cells {} blue cells {}",
+        cells(&red.name),
+        cells(&blue.name)
+    );
+    let red_cells = cells(&red.name);
+    assert!(
+        red_cells
+            .as_array()
+            .expect("cells")
+            .iter()
+            .all(|c| c["listeners"].as_u64() <= c["max_listeners"].as_u64()),
+        "{red_cells}"
+    );
 }
 
 #[test]
