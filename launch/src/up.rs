@@ -60,7 +60,7 @@ pub struct UpSummary {
     /// When the formation last became (and stayed) formed, in simulated seconds.
     pub converge_s: Option<f64>,
     pub rejected_samples: u64,
-    /// Whether real time held once every robot had started (in lockstep,
+    /// Whether real time held once every robot had joined (in lockstep,
     /// ages are in simulated time).
     #[serde(flatten)]
     pub timeliness: Timeliness,
@@ -126,8 +126,12 @@ fn stop(
         if !summary.lockstep {
             let t = &summary.timeliness;
             let ms = |age: Option<u32>| age.map_or_else(|| "-".to_owned(), |a| format!("{a} ms"));
+            let counted = t.counted_from_s.map_or_else(
+                || "since the launch (not every robot was heard)".to_owned(),
+                |s| format!("once every robot had joined ({s:.1} s after the launch)"),
+            );
             eprintln!(
-                "shoal: real time, once every robot had started: {:.2} missed periods per robot \
+                "shoal: real time, {counted}: {:.2} missed periods per robot \
                  (at most {}); the oldest neighbour pose a robot acted on was {} old at p50, {} at p99",
                 t.missed_periods_mean,
                 t.missed_periods_max,
@@ -320,7 +324,8 @@ pub fn up(options: UpOptions) -> Result<UpSummary> {
     let follow = scenario.slam.follow.clone();
     let spread = scenario.formation.spread;
     let mut swarm = RunningSwarm::launch_with(&options.swarm, scenario, &options.launch)?;
-    swarm.observer.reset_timeliness();
+    let robots = swarm.scenario.agents.count;
+    swarm.observer.reset_timeliness_once_heard(robots);
     if options.record.wanted() {
         swarm.record(&options.record)?;
     }

@@ -28,7 +28,7 @@ pub struct Row {
     pub speedup: f64,
     /// Seconds the launcher took to start every robot.
     pub start_s: f64,
-    /// In real time, whether it held once every robot had started (in
+    /// In real time, whether it held once every robot had joined (in
     /// lockstep, ages are simulated time).
     #[serde(flatten)]
     pub timeliness: Timeliness,
@@ -51,7 +51,7 @@ pub fn run(sizes: &[usize], max_s: f64, real_time: bool) -> Result<Report> {
             !real_time,
         )?;
         let start_s = launched.elapsed().as_secs_f64();
-        swarm.observer.reset_timeliness();
+        swarm.observer.reset_timeliness_once_heard(agents);
         let pids = swarm.agent_pids();
         let before: ProcessUsage = pids.iter().filter_map(|p| usage(*p)).sum();
         let wall = Instant::now();
