@@ -186,7 +186,7 @@ impl CellExchange {
 /// number of publisher and subscriber slots when it is made, and a send
 /// visits every subscriber slot, used or not; `shoal status --cells` shows
 /// these so a swarm's `[bus]` limits can be sized to what its cells hold.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
 pub struct CellOccupancy {
     pub cell: CellKey,
     /// Robots publishing into the cell now.

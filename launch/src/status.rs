@@ -43,32 +43,10 @@ pub struct StatusReport {
     pub stale_nodes: usize,
     /// Every robot a live SLAM process follows, present or not.
     pub slam: Vec<FollowedReport>,
-    /// How full each cell's service is (`--cells`).
+    /// How full each cell's service is (`--cells`): publishers and
+    /// listeners against the slots its service was made with.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub cells: Option<Vec<CellStatus>>,
-}
-
-/// One cell's service: how many robots publish into it and listen to it,
-/// against the slots its service was made with (`[bus]` limits).
-#[derive(Debug, Serialize)]
-pub struct CellStatus {
-    pub cell: (i32, i32),
-    pub publishers: usize,
-    pub max_publishers: usize,
-    pub listeners: usize,
-    pub max_listeners: usize,
-}
-
-impl From<CellOccupancy> for CellStatus {
-    fn from(c: CellOccupancy) -> Self {
-        Self {
-            cell: c.cell,
-            publishers: c.publishers,
-            max_publishers: c.max_publishers,
-            listeners: c.listeners,
-            max_listeners: c.max_listeners,
-        }
-    }
+    pub cells: Option<Vec<CellOccupancy>>,
 }
 
 /// Listens to the roster for a few periods and lists every node of the
@@ -168,8 +146,7 @@ pub fn gather(swarm: &str, cells: bool) -> Result<StatusReport> {
     }
     agents.sort_by_key(|a| (a.id, a.state));
     let cells = if cells {
-        let occupancy = shoal_broker::cells::occupancy(&bus)?;
-        Some(occupancy.into_iter().map(CellStatus::from).collect())
+        Some(shoal_broker::cells::occupancy(&bus)?)
     } else {
         None
     };
@@ -233,9 +210,9 @@ pub fn print_table(report: &StatusReport) {
     }
 }
 
-/// The cells of `report`, fullest first by listeners.
-pub fn print_cells(cells: &[CellStatus]) {
-    let mut by_listeners: Vec<&CellStatus> = cells.iter().collect();
+/// Prints `cells` fullest first (by listeners), under a line on the fullest.
+pub fn print_cells(cells: &[CellOccupancy]) {
+    let mut by_listeners: Vec<&CellOccupancy> = cells.iter().collect();
     by_listeners.sort_by_key(|c| std::cmp::Reverse((c.listeners, c.publishers)));
     let busiest = by_listeners.first();
     println!(
