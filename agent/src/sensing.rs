@@ -17,6 +17,9 @@ pub struct SensingRange {
     pub sense_ring: u32,
     max_ring: u32,
     widen_at: Option<u64>,
+    /// The tick of the first period it was updated after: a robot that has
+    /// just subscribed to its cells may not have heard its neighbours yet.
+    first_tick: Option<u64>,
 }
 
 impl SensingRange {
@@ -26,6 +29,7 @@ impl SensingRange {
             sense_ring: 1,
             max_ring: max_ring.max(1),
             widen_at: None,
+            first_tick: None,
         }
     }
 
@@ -46,7 +50,15 @@ impl SensingRange {
 
     /// Updates the rings after a period in which the robot sensed `sensed`
     /// robots, `within_inner` of them within one ring less, and wants at least `wanted`.
+    ///
+    /// It never widens after its first period: its cells' robots publish
+    /// once a period, so a robot that subscribed during the period has not
+    /// heard all of them yet. Widening then made nearly every robot of a
+    /// starting swarm open and drop a ring of cells it did not need.
     pub fn update(&mut self, tick: u64, sensed: usize, within_inner: usize, wanted: usize) {
+        if *self.first_tick.get_or_insert(tick) == tick {
+            return;
+        }
         if let Some(at) = self.widen_at {
             if tick >= at {
                 self.sense_ring = self.listen_ring;
@@ -71,6 +83,12 @@ mod tests {
     #[test]
     fn sensing_widens_only_after_listening_did() {
         let mut range = SensingRange::new(3);
+        range.update(9, 0, 0, 2);
+        assert_eq!(
+            (range.sense_ring, range.listen_ring),
+            (1, 1),
+            "nothing heard in the first period says nothing"
+        );
         range.update(10, 1, 0, 2);
         assert_eq!((range.sense_ring, range.listen_ring), (1, 2));
         range.update(11, 1, 0, 2);
