@@ -15,6 +15,7 @@ use shoal_diagnose::input::{commands_csv, mrclam_groundtruth, mrclam_odometry, p
 use shoal_diagnose::replay::replay;
 use shoal_diagnose::{Diagnosis, Options, Recording, diagnose};
 use shoal_physics::UnicycleModel;
+use shoal_runtime::process_main::{StdoutClosed, print_out};
 
 #[derive(Parser)]
 #[command(
@@ -412,16 +413,18 @@ fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
         for (key, _, path) in files {
             value[key] = serde_json::json!(path.as_ref().map(|p| p.display().to_string()));
         }
-        println!("{value}");
+        print_out(|out| writeln!(out, "{value}"))
     } else {
-        print!("{report}");
-        for (_, what, path) in files {
-            if let Some(path) = path {
-                println!("{what} written to {}", path.display());
+        print_out(|out| {
+            write!(out, "{report}")?;
+            for (_, what, path) in files {
+                if let Some(path) = path {
+                    writeln!(out, "{what} written to {}", path.display())?;
+                }
             }
-        }
+            Ok(())
+        })
     }
-    Ok(())
 }
 
 /// The files a diagnosis wrote besides its report.
@@ -542,36 +545,37 @@ fn run_experiment(args: &ExperimentArgs) -> Result<()> {
         }
     }
     if args.json {
-        println!(
-            "{}",
-            serde_json::json!({ "duration_s": args.duration, "cases": rows })
-        );
-        return Ok(());
+        let value = serde_json::json!({ "duration_s": args.duration, "cases": rows });
+        return print_out(|out| writeln!(out, "{value}"));
     }
-    println!(
-        "| noise | case | concealed | runs | named | named or tied | runs naming an effect not there (95% CI) | param error | held-out pos RMSE before → after | s/run |"
-    );
-    println!("|---|---|---|---|---|---|---|---|---|---|");
-    for r in rows {
-        println!(
-            "| {} | {} | {} | {} | {:.0}% | {:.0}% | {:.0}% ({:.0}-{:.0}%) | {} | {:.1} → {:.1} mm | {:.1} |",
-            r.noise,
-            r.name,
-            r.concealment,
-            r.runs,
-            r.detection_rate * 100.0,
-            r.named_or_tied_rate * 100.0,
-            r.false_positive_rate * 100.0,
-            r.false_positive_interval[0] * 100.0,
-            r.false_positive_interval[1] * 100.0,
-            r.param_error
-                .map_or("-".into(), |e| format!("{:.0}%", e * 100.0)),
-            r.heldout_rmse_pos_m_before * 1e3,
-            r.heldout_rmse_pos_m_after * 1e3,
-            r.seconds_per_run
-        );
-    }
-    Ok(())
+    print_out(|out| {
+        writeln!(
+            out,
+            "| noise | case | concealed | runs | named | named or tied | runs naming an effect not there (95% CI) | param error | held-out pos RMSE before → after | s/run |"
+        )?;
+        writeln!(out, "|---|---|---|---|---|---|---|---|---|---|")?;
+        for r in rows {
+            writeln!(
+                out,
+                "| {} | {} | {} | {} | {:.0}% | {:.0}% | {:.0}% ({:.0}-{:.0}%) | {} | {:.1} → {:.1} mm | {:.1} |",
+                r.noise,
+                r.name,
+                r.concealment,
+                r.runs,
+                r.detection_rate * 100.0,
+                r.named_or_tied_rate * 100.0,
+                r.false_positive_rate * 100.0,
+                r.false_positive_interval[0] * 100.0,
+                r.false_positive_interval[1] * 100.0,
+                r.param_error
+                    .map_or("-".into(), |e| format!("{:.0}%", e * 100.0)),
+                r.heldout_rmse_pos_m_before * 1e3,
+                r.heldout_rmse_pos_m_after * 1e3,
+                r.seconds_per_run
+            )?;
+        }
+        Ok(())
+    })
 }
 
 fn main() -> ExitCode {
@@ -583,6 +587,7 @@ fn main() -> ExitCode {
     };
     match outcome {
         Ok(()) => ExitCode::SUCCESS,
+        Err(e) if e.is::<StdoutClosed>() => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("shoal diagnose: {e:#}");
             ExitCode::FAILURE

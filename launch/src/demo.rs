@@ -5,6 +5,7 @@
 //! own recording and names the floor the robots' model does not know.
 
 use std::collections::BTreeMap;
+use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -467,23 +468,26 @@ fn diagnose_robot(recording: &Path, robot: u32) -> Result<String> {
 }
 
 /// What a person reads at the end.
-pub fn print(summary: &DemoSummary, scenario: &Scenario) {
+pub fn print(out: &mut dyn Write, summary: &DemoSummary, scenario: &Scenario) -> io::Result<()> {
     let spread = scenario.formation.spread;
-    println!("\nShoal demo: what happened");
-    println!(
+    writeln!(out, "\nShoal demo: what happened")?;
+    writeln!(
+        out,
         "  formation: {} robots in {} group(s), mean spacing {:.2} x the spread ({spread} m)",
         summary.robots, summary.groups, summary.spacing_ratio
-    );
+    )?;
     let seconds =
         |s: Option<f64>| s.map_or("not within the run".to_owned(), |s| format!("{s:.1} s"));
-    println!(
+    writeln!(
+        out,
         "  healing: robots {:?} killed with SIGKILL; the hole closed in {}; restarted, all were back in one group in {}",
         summary.killed,
         seconds(summary.hole_closed_s),
         seconds(summary.whole_again_s)
-    );
+    )?;
     for s in &summary.slam {
-        println!(
+        writeln!(
+        out,
             "  SLAM robot {}: position error {:.0} mm in the first {SLAM_WINDOW_S:.0} s -> {:.0} mm in the last, learning from strides {:.0}% too short{}",
             s.robot,
             s.early_error_m * 1e3,
@@ -497,7 +501,7 @@ pub fn print(summary: &DemoSummary, scenario: &Scenario) {
                     learned_mm = learned * 1e3
                 ))
                 .unwrap_or_default()
-        );
+        )?;
     }
     let floors: Vec<String> = scenario
         .arena
@@ -517,20 +521,24 @@ pub fn print(summary: &DemoSummary, scenario: &Scenario) {
             )
         })
         .collect();
-    println!(
+    writeln!(
+        out,
         "  floors the robots' model lacks (the truth): {}",
         floors.join("; ")
-    );
+    )?;
     for d in &summary.diagnoses {
-        println!(
+        writeln!(
+            out,
             "  diagnose robot {} ({:.0} s on a floor its model lacks): {}",
             d.robot, d.seconds_on_unknown_floor, d.finding
-        );
+        )?;
     }
-    println!(
+    writeln!(
+        out,
         "  open the recording: rerun {}   (pip install rerun-sdk==0.36.3)",
         summary.recording.display()
-    );
+    )?;
+    Ok(())
 }
 
 #[cfg(test)]

@@ -7,6 +7,7 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
+use shoal_runtime::process_main::print_out;
 
 #[derive(Parser)]
 #[command(
@@ -326,25 +327,30 @@ fn run(cli: Cli) -> Result<()> {
                 out,
                 seconds,
             })?;
-            if json {
-                println!("{}", serde_json::to_string(&summary)?);
-            } else {
-                shoal::demo::print(&summary, &shoal::demo::demo_scenario(scenario.as_deref())?);
-            }
+            let scenario = shoal::demo::demo_scenario(scenario.as_deref())?;
+            print_out(|out| {
+                if json {
+                    writeln!(out, "{}", serde_json::to_string(&summary)?)
+                } else {
+                    shoal::demo::print(out, &summary, &scenario)
+                }
+            })?;
         }
         Commands::Slam { args } => become_binary("shoal-slam", &args)?,
         Commands::Record { args } => become_binary("shoal-viewer-log", &args)?,
         Commands::Diagnose { args } => become_binary("shoal-diagnose", &args)?,
         Commands::Status { swarm, json, cells } => {
             let report = status::gather(&swarm, cells)?;
-            if json {
-                println!("{}", serde_json::to_string(&report)?);
-            } else {
-                status::print_table(&report);
-                if let Some(cells) = &report.cells {
-                    status::print_cells(cells);
+            print_out(|out| {
+                if json {
+                    return writeln!(out, "{}", serde_json::to_string(&report)?);
                 }
-            }
+                status::print_table(out, &report)?;
+                match &report.cells {
+                    Some(cells) => status::print_cells(out, cells),
+                    None => Ok(()),
+                }
+            })?;
         }
         Commands::Experiment { which, json } => match which {
             ExperimentKind::Formation {
@@ -399,7 +405,7 @@ fn run(cli: Cli) -> Result<()> {
         Commands::Restart { ids, swarm, at } => control::restart(&swarm, &ids, at)?,
         Commands::Down { swarm } => {
             let stopped = control::down(&swarm)?;
-            println!("stopped swarm `{swarm}` ({stopped} processes)");
+            print_out(|out| writeln!(out, "stopped swarm `{swarm}` ({stopped} processes)"))?;
         }
         Commands::Spawn { count, swarm, at } => {
             control::spawn(&swarm, count, at)?;

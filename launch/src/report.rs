@@ -1,6 +1,7 @@
 //! Reports of experiments and benchmarks: JSON, or a Markdown table of their one list of records.
 
 use serde_json::Value;
+use shoal_runtime::process_main::print_out;
 
 /// A record's fields, nested objects flattened into dotted names
 /// (`learning.pos_rmse_m`), so every cell of the table is one value.
@@ -43,8 +44,7 @@ fn cell(value: Option<&Value>) -> String {
 pub fn print(report: &impl serde::Serialize, json: bool) -> anyhow::Result<()> {
     let value = serde_json::to_value(report)?;
     if json {
-        println!("{value}");
-        return Ok(());
+        return print_out(|out| writeln!(out, "{value}"));
     }
     let records: Vec<Vec<(String, Value)>> = value
         .as_object()
@@ -71,14 +71,16 @@ pub fn print(report: &impl serde::Serialize, json: bool) -> anyhow::Result<()> {
         let name = columns.remove(at);
         columns.insert(0, name);
     }
-    println!("| {} |", columns.join(" | "));
-    println!("|{}", "---|".repeat(columns.len()));
-    for record in &records {
-        let cells: Vec<String> = columns
-            .iter()
-            .map(|c| cell(record.iter().find(|(name, _)| name == c).map(|(_, v)| v)))
-            .collect();
-        println!("| {} |", cells.join(" | "));
-    }
-    Ok(())
+    print_out(|out| {
+        writeln!(out, "| {} |", columns.join(" | "))?;
+        writeln!(out, "|{}", "---|".repeat(columns.len()))?;
+        for record in &records {
+            let cells: Vec<String> = columns
+                .iter()
+                .map(|c| cell(record.iter().find(|(name, _)| name == c).map(|(_, v)| v)))
+                .collect();
+            writeln!(out, "| {} |", cells.join(" | "))?;
+        }
+        Ok(())
+    })
 }

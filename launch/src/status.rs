@@ -1,6 +1,7 @@
 //! `shoal status`: who is in a swarm, read from the bus.
 
 use std::collections::BTreeMap;
+use std::io::{self, Write};
 use std::time::{Duration, Instant};
 
 use anyhow::Result;
@@ -161,9 +162,11 @@ pub fn gather(swarm: &str, cells: bool) -> Result<StatusReport> {
     })
 }
 
-pub fn print_table(report: &StatusReport) {
+/// Prints `report` as a table, one robot a line.
+pub fn print_table(out: &mut dyn Write, report: &StatusReport) -> io::Result<()> {
     let alive = report.agents.iter().filter(|a| a.state == "alive").count();
-    println!(
+    writeln!(
+        out,
         "swarm `{}` seen from host `{}`: {alive} alive, {} stale nodes{}",
         report.swarm,
         report.host,
@@ -173,14 +176,19 @@ pub fn print_table(report: &StatusReport) {
         } else {
             String::new()
         }
-    );
+    )?;
     for f in report.slam.iter().filter(|f| f.paused) {
-        println!("SLAM follows robot {} (paused: no scans from it)", f.id);
+        writeln!(
+            out,
+            "SLAM follows robot {} (paused: no scans from it)",
+            f.id
+        )?;
     }
-    println!(
+    writeln!(
+        out,
         "{:>5} {:<10} {:>8} {:>6} {:>8} {:>8} {:>7}  {:<26} neighbours",
         "id", "host", "pid", "state", "x", "y", "theta", "slam"
-    );
+    )?;
     for a in &report.agents {
         let num = |v: Option<f64>| v.map_or_else(|| "-".to_owned(), |v| format!("{v:.2}"));
         let neighbours: Vec<String> = a.neighbours.iter().map(u32::to_string).collect();
@@ -195,7 +203,8 @@ pub fn print_table(report: &StatusReport) {
                 )
             },
         );
-        println!(
+        writeln!(
+            out,
             "{:>5} {:<10} {:>8} {:>6} {:>8} {:>8} {:>7}  {:<26} {}",
             a.id,
             a.host,
@@ -206,32 +215,40 @@ pub fn print_table(report: &StatusReport) {
             num(a.theta),
             slam,
             neighbours.join(",")
-        );
+        )?;
     }
+    Ok(())
 }
 
 /// Prints `cells` fullest first (by listeners), under a line on the fullest.
-pub fn print_cells(cells: &[CellOccupancy]) {
+pub fn print_cells(out: &mut dyn Write, cells: &[CellOccupancy]) -> io::Result<()> {
     let mut by_listeners: Vec<&CellOccupancy> = cells.iter().collect();
     by_listeners.sort_by_key(|c| std::cmp::Reverse((c.listeners, c.publishers)));
     let busiest = by_listeners.first();
-    println!(
+    writeln!(
+        out,
         "{} cells; most listeners in one cell: {} of {}; most publishers: {} of {}",
         cells.len(),
         busiest.map_or(0, |c| c.listeners),
         busiest.map_or(0, |c| c.max_listeners),
         cells.iter().map(|c| c.publishers).max().unwrap_or(0),
         cells.first().map_or(0, |c| c.max_publishers),
-    );
-    println!("{:>12} {:>11} {:>10}", "cell", "publishers", "listeners");
+    )?;
+    writeln!(
+        out,
+        "{:>12} {:>11} {:>10}",
+        "cell", "publishers", "listeners"
+    )?;
     for c in by_listeners {
-        println!(
+        writeln!(
+            out,
             "{:>12} {:>5} / {:<3} {:>4} / {:<4}",
             format!("{},{}", c.cell.0, c.cell.1),
             c.publishers,
             c.max_publishers,
             c.listeners,
             c.max_listeners
-        );
+        )?;
     }
+    Ok(())
 }

@@ -111,7 +111,8 @@ fn stop(
         );
     }
     if options.json {
-        println!("{}", serde_json::to_string(&summary)?);
+        let line = serde_json::to_string(&summary)?;
+        shoal_runtime::process_main::print_out(|out| writeln!(out, "{line}"))?;
     } else {
         eprintln!(
             "shoal: {} robots, {} group(s), spacing {:.2} x spread (cv {:.2}), formed since {}",

@@ -2,7 +2,28 @@
 //! default level), and an error ends the process with its context and a
 //! non-zero exit.
 
+use std::io::Write;
 use std::process::ExitCode;
+
+/// What a command printed could not be written because the reader of its
+/// standard output has gone (`shoal status | head`): the command did its
+/// work, so it ends quietly and successfully, as `ls | head` does.
+#[derive(Debug, thiserror::Error)]
+#[error("standard output closed by its reader")]
+pub struct StdoutClosed;
+
+/// Runs `print` on the locked, buffered standard output and flushes it; a
+/// reader that has gone becomes [`StdoutClosed`], any other failure an
+/// error. Rust's `println!` panics on both.
+pub fn print_out(print: impl FnOnce(&mut dyn Write) -> std::io::Result<()>) -> anyhow::Result<()> {
+    let mut out = std::io::BufWriter::new(std::io::stdout().lock());
+    print(&mut out)
+        .and_then(|()| out.flush())
+        .map_err(|e| match e.kind() {
+            std::io::ErrorKind::BrokenPipe => anyhow::Error::new(StdoutClosed),
+            _ => anyhow::Error::new(e).context("writing to standard output"),
+        })
+}
 
 pub fn run_main(
     name: &str,
@@ -29,6 +50,7 @@ pub fn run_main(
     }
     match body() {
         Ok(()) => ExitCode::SUCCESS,
+        Err(e) if e.is::<StdoutClosed>() => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("{name}: error: {e:#}");
             ExitCode::FAILURE

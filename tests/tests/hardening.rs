@@ -31,6 +31,29 @@ fn a_swarm_named_like_a_users_folder_leaves_that_folder_alone() {
 }
 
 #[test]
+fn a_reader_that_stops_reading_ends_a_command_quietly_not_in_a_panic() {
+    // `shoal status | head -1` on a large swarm: the reader has gone before
+    // status writes. The pipe's reading end is closed before status starts,
+    // so every write it makes fails.
+    let (reader, writer) = std::io::pipe().expect("pipe");
+    drop(reader);
+    for args in [
+        &["status", "--swarm", "nobody-reads", "--cells"][..],
+        &["status", "--swarm", "nobody-reads", "--json"][..],
+        &["down", "--swarm", "nobody-reads"][..],
+    ] {
+        let output = Command::new(bin("shoal"))
+            .args(args)
+            .stdout(writer.try_clone().expect("pipe"))
+            .output()
+            .expect("run shoal status");
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(output.status.success(), "{args:?}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+    }
+}
+
+#[test]
 fn a_scenario_with_a_nan_range_is_refused_naming_file_line_and_field() {
     let dir = scratch("nan");
     let path = dir.join("nan.toml");
