@@ -95,6 +95,14 @@ pub fn quiet_iceoryx() {
 /// Ctrl-C.
 static TERMINATION: OnceLock<Arc<AtomicBool>> = OnceLock::new();
 
+/// Whether SIGINT or SIGTERM arrived since this process first joined a
+/// swarm: for a thread that holds no bus of its own.
+pub fn termination_signalled() -> bool {
+    TERMINATION
+        .get()
+        .is_some_and(|flag| flag.load(Ordering::Relaxed))
+}
+
 /// The process's termination flag, registered once. iceoryx2 installs its
 /// signal handlers on first use without keeping earlier ones, so it is
 /// made to install them first (a wait on `node`); signal-hook's handlers

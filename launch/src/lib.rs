@@ -10,4 +10,5 @@ pub mod process;
 pub mod report;
 pub mod status;
 pub mod swarm;
+pub mod sweeper;
 pub mod up;

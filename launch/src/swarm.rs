@@ -7,17 +7,16 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::{Context, Result, bail};
-use shoal_broker::liveness::{
-    SwarmNodeState, remove_dead_nodes, remove_dead_nodes_while, swarm_nodes,
-};
+use shoal_broker::liveness::{SwarmNodeState, remove_dead_nodes, swarm_nodes};
 use shoal_broker::robot_streams::{self};
 use shoal_broker::{Bus, BusLimits, HelperProgress, RosterReader, SampleCheck, names};
 use shoal_physics::{Pose, Scenario};
-use shoal_runtime::{SwarmMeta, SwarmRuntime, Sweep};
+use shoal_runtime::{SwarmMeta, SwarmRuntime};
 
 use crate::clock::LockstepClock;
 use crate::observer::Observer;
 use crate::process::{Pinned, Tie, sibling_binary, start_agent, stop_processes};
+use crate::sweeper::Sweeper;
 use shoal_runtime::pid_alive;
 
 /// How long robots get to leave cleanly before they are killed: a robot
@@ -55,6 +54,8 @@ pub struct RunningSwarm {
     reported_deaths: usize,
     /// Keep the robots' logs when the swarm stops (a failed start).
     keep_logs: bool,
+    /// Removes the nodes of robots that died, off this loop.
+    sweeper: Sweeper,
     /// Held while this launcher runs the swarm.
     _launch_lock: std::fs::File,
 }
@@ -279,6 +280,8 @@ impl RunningSwarm {
         } else {
             None
         };
+        let sweeper = Sweeper::start(runtime.clone(), name.to_owned())
+            .context("starting the thread that sweeps dead nodes")?;
         let mut swarm = Self {
             name: name.to_owned(),
             observer: Observer::new(SampleCheck::for_scenario(&scenario)),
@@ -295,6 +298,7 @@ impl RunningSwarm {
             stopped: false,
             reported_deaths: 0,
             keep_logs: false,
+            sweeper,
             _launch_lock: launch_lock,
         };
         let count = swarm.scenario.agents.count;
@@ -528,7 +532,6 @@ impl RunningSwarm {
         self.reap_helpers();
         let children = &mut self.children;
         let runtime = &self.runtime;
-        let bus = &self.bus;
         let observer = &mut self.observer;
         match &mut self.clock {
             Some(clock) => {
@@ -559,7 +562,7 @@ impl RunningSwarm {
                     observer.forget(id);
                 }
                 if ended > 0 {
-                    sweep_after_deaths(runtime, bus, &self.name)?;
+                    self.sweeper.request();
                 }
             }
             None => {
@@ -570,7 +573,7 @@ impl RunningSwarm {
                 // A robot of ours that ended leaves its node behind; sweep it
                 // now rather than wait for a neighbour to suspect it.
                 if children.reap(runtime) > 0 {
-                    sweep_after_deaths(runtime, bus, &self.name)?;
+                    self.sweeper.request();
                 }
                 observer.expire(Duration::from_secs_f64(
                     self.scenario.timing.observer_stale_s(),
@@ -629,6 +632,8 @@ impl RunningSwarm {
             return Ok(());
         }
         self.stopped = true;
+        // The stop sweeps every dead node itself, once the robots are gone.
+        self.sweeper.stop();
         // What died before the stop is reported; what the stop ends is not.
         self.children.reap(&self.runtime);
         self.reap_helpers();
@@ -832,18 +837,6 @@ impl RunningSwarm {
 /// may have swept): waits for a sweep under way rather than list every
 /// node of the machine beside it. Stops early on Ctrl-C or SIGTERM; what
 /// is left then is removed when the swarm stops.
-fn sweep_after_deaths(runtime: &SwarmRuntime, bus: &Bus, swarm: &str) -> Result<()> {
-    let outcome = runtime
-        .sweep_unless_swept_since(SystemTime::now(), true, || {
-            remove_dead_nodes_while(swarm, || !bus.termination_requested())
-        })
-        .with_context(|| format!("sweeping the dead nodes of swarm `{swarm}`"))?;
-    if let Sweep::Done(removed) = outcome {
-        removed?;
-    }
-    Ok(())
-}
-
 /// The order to start robots at `poses` in: from the middle of the group
 /// outwards, so each robot starts beside robots already running. Started
 /// in id order, robots scattered over the whole start region, each found too

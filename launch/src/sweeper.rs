@@ -1,0 +1,90 @@
+//! Removing the bus nodes that dead robots leave behind, on a thread of its
+//! own. With 1000 robots iceoryx2 takes about 3.7 s per dead node (it lists
+//! all of `/dev/shm` once per port of the node; BENCHMARKS.md, session 13),
+//! and a launcher that swept in its own loop stopped reading the roster,
+//! reporting and, in lockstep, ticking the clock for that long.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc;
+use std::thread::JoinHandle;
+use std::time::SystemTime;
+
+use shoal_broker::liveness::remove_dead_nodes_while;
+use shoal_runtime::{SwarmRuntime, Sweep};
+
+pub struct Sweeper {
+    /// When a death was noticed, one message per noticing; none once stopped.
+    requests: Option<mpsc::Sender<SystemTime>>,
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl Sweeper {
+    /// A sweeper for the swarm `swarm`, whose folder is `runtime`.
+    pub fn start(runtime: SwarmRuntime, swarm: String) -> std::io::Result<Self> {
+        let (requests, noticed) = mpsc::channel::<SystemTime>();
+        let stop = Arc::new(AtomicBool::new(false));
+        let stopping = Arc::clone(&stop);
+        let thread = std::thread::Builder::new()
+            .name("sweeper".into())
+            .spawn(move || {
+                let go_on = || {
+                    !stopping.load(Ordering::Relaxed) && !shoal_broker::bus::termination_signalled()
+                };
+                while let Ok(at) = noticed.recv() {
+                    if !go_on() {
+                        break;
+                    }
+                    // Deaths noticed before a sweep that has since finished
+                    // started were swept by it, here or in a robot.
+                    match runtime.sweep_unless_swept_since(at, true, || {
+                        remove_dead_nodes_while(&swarm, go_on)
+                    }) {
+                        Ok(Sweep::Done(Err(e))) => tracing::warn!(
+                            "sweeping the dead nodes of swarm `{swarm}`: {:#}",
+                            anyhow::Error::from(e)
+                        ),
+                        Ok(_) => {}
+                        Err(e) => {
+                            tracing::warn!("cannot take the sweep lock of swarm `{swarm}`: {e}")
+                        }
+                    }
+                }
+            })?;
+        Ok(Self {
+            requests: Some(requests),
+            stop,
+            thread: Some(thread),
+        })
+    }
+
+    /// Asks for the nodes of every robot dead by now to be removed.
+    pub fn request(&self) {
+        let Some(requests) = &self.requests else {
+            return;
+        };
+        if requests.send(SystemTime::now()).is_err() {
+            tracing::error!("the sweeper thread has ended; dead nodes are swept at the stop");
+        }
+    }
+
+    /// Stops a sweep under way between two nodes. The thread is not waited
+    /// for: it may be waiting for a robot's sweep to let go of the sweep
+    /// lock, and a stopping swarm sweeps its nodes itself afterwards.
+    pub fn stop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        self.requests = None;
+        if let Some(thread) = self.thread.take_if(|t| t.is_finished())
+            && thread.join().is_err()
+        {
+            tracing::error!("the sweeper thread panicked");
+        }
+    }
+}
+
+impl Drop for Sweeper {
+    fn drop(&mut self) {
+        self.stop();
+    }
+}
