@@ -95,6 +95,45 @@ pub fn quiet_iceoryx() {
 /// Ctrl-C.
 static TERMINATION: OnceLock<Arc<AtomicBool>> = OnceLock::new();
 
+/// Holds SIGINT and SIGTERM back from this thread while it exists. A
+/// process has no handler for them until its first node is made (iceoryx2
+/// installs its own then, and Shoal's after it), so one that arrived while
+/// iceoryx2 was still making the node ended the process half way: 2 of 100
+/// robots sent SIGTERM as they started left a node folder holding only its
+/// details file, which iceoryx2 lists as neither alive nor dead and no
+/// sweep removes. Held back, the signal arrives once the handlers exist,
+/// and the process ends as on any other SIGTERM.
+struct TerminationDeferred {
+    previous: libc::sigset_t,
+}
+
+impl TerminationDeferred {
+    fn new() -> Self {
+        // SAFETY: the sets are plain data owned here; sigemptyset and
+        // sigaddset only fill them, and pthread_sigmask changes this
+        // thread's mask alone.
+        unsafe {
+            let mut termination: libc::sigset_t = core::mem::zeroed();
+            let mut previous: libc::sigset_t = core::mem::zeroed();
+            libc::sigemptyset(&mut termination);
+            libc::sigaddset(&mut termination, libc::SIGINT);
+            libc::sigaddset(&mut termination, libc::SIGTERM);
+            libc::pthread_sigmask(libc::SIG_BLOCK, &termination, &mut previous);
+            Self { previous }
+        }
+    }
+}
+
+impl Drop for TerminationDeferred {
+    fn drop(&mut self) {
+        // SAFETY: restores the mask this thread had; a signal held back
+        // meanwhile is delivered now.
+        unsafe {
+            libc::pthread_sigmask(libc::SIG_SETMASK, &self.previous, core::ptr::null_mut());
+        }
+    }
+}
+
 /// Whether SIGINT or SIGTERM arrived since this process first joined a
 /// swarm: for a thread that holds no bus of its own.
 pub fn termination_signalled() -> bool {
@@ -207,13 +246,16 @@ impl Bus {
         quiet_iceoryx();
         let name = NodeName::new(node_name)
             .map_err(|e| BusError::iceoryx(format!("node name {node_name}"), e))?;
+        let deferred = TerminationDeferred::new();
         let node = NodeBuilder::new()
             .name(&name)
             .config(&node_config())
             .create::<ipc::Service>()
             .map_err(|e| BusError::iceoryx(format!("create node {node_name}"), e))?;
+        let terminating = termination_flag(&node);
+        drop(deferred);
         Ok(Self {
-            terminating: termination_flag(&node),
+            terminating,
             node,
             swarm: swarm.to_owned(),
             limits,

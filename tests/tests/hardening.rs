@@ -54,6 +54,42 @@ fn a_reader_that_stops_reading_ends_a_command_quietly_not_in_a_panic() {
 }
 
 #[test]
+fn robots_sent_sigterm_while_they_start_leave_no_half_made_node() {
+    // A robot gets SIGTERM before it has a handler for it when `shoal up`
+    // is stopped in the middle of starting many. Ended half way through
+    // making its iceoryx2 node, it left files no sweep removes (10 of 400
+    // robots before the signal was held back; BENCHMARKS.md, session 14).
+    let _turn = serial();
+    let swarm = BackgroundSwarm::start("e2e-sigterm-start", &["--agents", "2"]);
+    let up = wait_until(Duration::from_secs(30), || {
+        alive_ids(&status(&swarm.name)).len() == 2
+    });
+    assert!(up, "{}", swarm.log());
+    let nodes = shoal_broker::bus::iceoryx_root().join("nodes");
+    let entries = || -> std::collections::BTreeSet<std::ffi::OsString> {
+        std::fs::read_dir(&nodes)
+            .map(|dir| dir.filter_map(|e| e.ok().map(|e| e.file_name())).collect())
+            .unwrap_or_default()
+    };
+    let before = entries();
+    for (i, delay_us) in (0..100u32).map(|i| (i, (i * 7919) % 30_000)) {
+        let mut robot = Command::new(bin("shoal-agent"))
+            .args(["--swarm", &swarm.name, "--id", &(100 + i).to_string()])
+            .args(["--at", "3,3,0"])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("start a robot");
+        std::thread::sleep(Duration::from_micros(u64::from(delay_us)));
+        // SAFETY: kill only sends a signal to the child started above.
+        unsafe { libc::kill(robot.id() as i32, libc::SIGTERM) };
+        robot.wait().expect("wait for the robot");
+    }
+    let left: Vec<_> = entries().difference(&before).cloned().collect();
+    assert!(left.is_empty(), "left in {}: {left:?}", nodes.display());
+}
+
+#[test]
 fn a_scenario_with_a_nan_range_is_refused_naming_file_line_and_field() {
     let dir = scratch("nan");
     let path = dir.join("nan.toml");
