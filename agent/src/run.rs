@@ -3,14 +3,14 @@
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::{Context, Result};
-use shoal_broker::liveness::remove_dead_nodes;
+use shoal_broker::liveness::sweep_dead_nodes;
 use shoal_broker::robot_streams;
 use shoal_broker::{
     Bus, BusLimits, CellExchange, ClockListener, EstimateSample, Health, ModelUpdate, PoseSample,
     Receiver, RosterPublisher, SampleCheck, ScanSample, Sender, names,
 };
 use shoal_physics::{Pose, Scenario};
-use shoal_runtime::{SwarmRuntime, Sweep};
+use shoal_runtime::SwarmRuntime;
 
 use crate::member::{Heard, Member};
 use crate::neighbours::NeighbourTable;
@@ -107,23 +107,13 @@ pub fn run(options: AgentOptions) -> Result<()> {
             if let Err(e) = pose_note.note_if_moved([last.x, last.y, last.theta]) {
                 tracing::warn!("cannot note last pose: {e}");
             }
-            if let Some(since) = dead_noticed {
-                // Its neighbours noticed the same death: one of them sweeps,
-                // and the others take its result. A sweep under way is
-                // waited for at the next housekeeping, not here.
-                let outcome = runtime
-                    .sweep_unless_swept_since(since, false, || remove_dead_nodes(&options.swarm));
-                if !matches!(outcome, Ok(Sweep::Busy)) {
-                    dead_noticed = None;
-                }
-                match outcome {
-                    Ok(Sweep::Done(Ok(n))) if n > 0 => {
-                        tracing::info!("removed the stale resources of {n} dead nodes");
-                    }
-                    Ok(Sweep::Done(Err(e))) => tracing::warn!("{:#}", anyhow::Error::from(e)),
-                    Err(e) => tracing::warn!("cannot take the swarm's sweep lock: {e}"),
-                    Ok(_) => {}
-                }
+            // Its neighbours noticed the same death: one of them sweeps, and
+            // the others take its result. A sweep under way is waited for at
+            // the next housekeeping, not here.
+            if let Some(noticed) = dead_noticed
+                && sweep_dead_nodes(&runtime, &options.swarm, noticed, false, || true)
+            {
+                dead_noticed = None;
             }
         }
     }

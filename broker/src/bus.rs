@@ -210,6 +210,25 @@ pub fn iceoryx_root() -> std::path::PathBuf {
     domain_config().global.root_path().to_string().into()
 }
 
+/// Whether `path`, or the nearest folder above it that exists, is on a
+/// file system in memory (tmpfs, ramfs); `None` if that cannot be told.
+pub fn in_memory(path: &std::path::Path) -> Option<bool> {
+    use std::os::unix::ffi::OsStrExt;
+    const RAMFS_MAGIC: i64 = 0x8584_58f6;
+    let existing = path.ancestors().find(|p| p.exists())?;
+    let name = std::ffi::CString::new(existing.as_os_str().as_bytes()).ok()?;
+    // SAFETY: statfs writes into the zeroed struct we own; `name` is a
+    // valid C string for the call's duration.
+    let mut fs: libc::statfs = unsafe { std::mem::zeroed() };
+    if unsafe { libc::statfs(name.as_ptr(), &mut fs) } != 0 {
+        return None;
+    }
+    // f_type and the constants are of different widths on other targets.
+    #[allow(clippy::unnecessary_cast)]
+    let (kind, tmpfs) = (fs.f_type as i64, libc::TMPFS_MAGIC as i64);
+    Some(kind == tmpfs || kind == RAMFS_MAGIC)
+}
+
 /// iceoryx2's configuration for this host's domain, with Shoal's changes.
 fn node_config() -> Config {
     let mut config = domain_config();
@@ -310,5 +329,20 @@ impl Bus {
             self.terminating.store(true, Ordering::Relaxed);
         }
         requested
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dev_shm_is_in_memory_and_a_missing_folder_is_judged_by_its_parent() {
+        assert_eq!(in_memory(std::path::Path::new("/dev/shm")), Some(true));
+        assert_eq!(
+            in_memory(std::path::Path::new("/dev/shm/no/such/folder")),
+            Some(true)
+        );
+        assert_eq!(in_memory(std::path::Path::new("/proc")), Some(false));
     }
 }

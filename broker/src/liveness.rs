@@ -5,6 +5,10 @@
 use iceoryx2::node::NodeView;
 use iceoryx2::prelude::*;
 
+use std::time::SystemTime;
+
+use shoal_runtime::{SwarmRuntime, Sweep};
+
 use crate::bus::BusError;
 use crate::names;
 
@@ -92,6 +96,36 @@ pub fn remove_dead_nodes_while(swarm: &str, go_on: impl Fn() -> bool) -> Result<
         }
     }
     Ok(cleaned)
+}
+
+/// Removes the dead nodes of `swarm`, whose runtime folder is `runtime`,
+/// unless a sweep that started at or after `noticed` (when the death was
+/// noticed) has finished meanwhile: one process of the swarm sweeps at a
+/// time ([`SwarmRuntime::sweep_unless_swept_since`]) and stops between two
+/// nodes once `go_on` says no. What it removed, or why it could not, goes
+/// to the log. False when another process is sweeping and `wait` is
+/// false: the caller asks again later.
+pub fn sweep_dead_nodes(
+    runtime: &SwarmRuntime,
+    swarm: &str,
+    noticed: SystemTime,
+    wait: bool,
+    go_on: impl Fn() -> bool,
+) -> bool {
+    match runtime.sweep_unless_swept_since(noticed, wait, || remove_dead_nodes_while(swarm, go_on))
+    {
+        Ok(Sweep::Busy) => return false,
+        Ok(Sweep::Done(Ok(removed))) if removed > 0 => {
+            tracing::info!("removed the stale resources of {removed} dead nodes");
+        }
+        Ok(Sweep::Done(Err(e))) => tracing::warn!(
+            "sweeping the dead nodes of swarm `{swarm}`: {:#}",
+            anyhow::Error::from(e)
+        ),
+        Ok(_) => {}
+        Err(e) => tracing::warn!("cannot take the sweep lock of swarm `{swarm}`: {e}"),
+    }
+    true
 }
 
 /// Names of every service of `swarm` that still exists on this machine.

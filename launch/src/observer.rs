@@ -158,7 +158,7 @@ impl Observer {
     /// launcher busy starting 1000 robots reads samples queued seconds
     /// before, and counting from those put all of start-up's missed periods
     /// after it (24.9 per robot, where none were missed after start-up).
-    pub fn reset_timeliness(&mut self, from_s: f64) {
+    fn reset_timeliness(&mut self, from_s: f64) {
         self.timeliness_from = Some(from_s);
         for missed in self.missed_periods.values_mut() {
             missed.since = None;

@@ -832,11 +832,6 @@ impl RunningSwarm {
     }
 }
 
-/// Removes what robots of ours that ended left on the bus, unless a sweep
-/// that started since has finished (a robot that noticed the same deaths
-/// may have swept): waits for a sweep under way rather than list every
-/// node of the machine beside it. Stops early on Ctrl-C or SIGTERM; what
-/// is left then is removed when the swarm stops.
 /// The order to start robots at `poses` in: from the middle of the group
 /// outwards, so each robot starts beside robots already running. Started
 /// in id order, robots scattered over the whole start region, each found too

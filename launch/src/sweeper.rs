@@ -10,8 +10,8 @@ use std::sync::mpsc;
 use std::thread::JoinHandle;
 use std::time::SystemTime;
 
-use shoal_broker::liveness::remove_dead_nodes_while;
-use shoal_runtime::{SwarmRuntime, Sweep};
+use shoal_broker::liveness::sweep_dead_nodes;
+use shoal_runtime::SwarmRuntime;
 
 pub struct Sweeper {
     /// When a death was noticed, one message per noticing; none once stopped.
@@ -38,18 +38,7 @@ impl Sweeper {
                     }
                     // Deaths noticed before a sweep that has since finished
                     // started were swept by it, here or in a robot.
-                    match runtime.sweep_unless_swept_since(at, true, || {
-                        remove_dead_nodes_while(&swarm, go_on)
-                    }) {
-                        Ok(Sweep::Done(Err(e))) => tracing::warn!(
-                            "sweeping the dead nodes of swarm `{swarm}`: {:#}",
-                            anyhow::Error::from(e)
-                        ),
-                        Ok(_) => {}
-                        Err(e) => {
-                            tracing::warn!("cannot take the sweep lock of swarm `{swarm}`: {e}")
-                        }
-                    }
+                    sweep_dead_nodes(&runtime, &swarm, at, true, go_on);
                 }
             })?;
         Ok(Self {

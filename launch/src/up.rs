@@ -185,7 +185,7 @@ fn warn_if_iceoryx_on_disk(robots: usize) {
         return;
     }
     let root = shoal_broker::bus::iceoryx_root();
-    if in_memory(&root) == Some(false) {
+    if shoal_broker::bus::in_memory(&root) == Some(false) {
         eprintln!(
             "shoal: iceoryx2 keeps its node and service files in {} on a disk file system; \
              {robots} robots start several times faster with iceoryx2's root in memory: \
@@ -195,25 +195,6 @@ fn warn_if_iceoryx_on_disk(robots: usize) {
             root.display()
         );
     }
-}
-
-/// Whether `path`, or the nearest folder above it that exists, is on a
-/// file system in memory (tmpfs, ramfs); `None` if that cannot be told.
-fn in_memory(path: &std::path::Path) -> Option<bool> {
-    use std::os::unix::ffi::OsStrExt;
-    const RAMFS_MAGIC: i64 = 0x8584_58f6;
-    let existing = path.ancestors().find(|p| p.exists())?;
-    let name = std::ffi::CString::new(existing.as_os_str().as_bytes()).ok()?;
-    // SAFETY: statfs writes into the zeroed struct we own; `name` is a
-    // valid C string for the call's duration.
-    let mut fs: libc::statfs = unsafe { std::mem::zeroed() };
-    if unsafe { libc::statfs(name.as_ptr(), &mut fs) } != 0 {
-        return None;
-    }
-    // f_type and the constants are of different widths on other targets.
-    #[allow(clippy::unnecessary_cast)]
-    let (kind, tmpfs) = (fs.f_type as i64, libc::TMPFS_MAGIC as i64);
-    Some(kind == tmpfs || kind == RAMFS_MAGIC)
 }
 
 /// The scenario `shoal up` runs: the file given (or the default arena),
@@ -381,19 +362,4 @@ pub fn up(options: UpOptions) -> Result<UpSummary> {
     }
     status.finish();
     stop(swarm, &options, converged_since)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn dev_shm_is_in_memory_and_a_missing_folder_is_judged_by_its_parent() {
-        assert_eq!(in_memory(std::path::Path::new("/dev/shm")), Some(true));
-        assert_eq!(
-            in_memory(std::path::Path::new("/dev/shm/no/such/folder")),
-            Some(true)
-        );
-        assert_eq!(in_memory(std::path::Path::new("/proc")), Some(false));
-    }
 }
