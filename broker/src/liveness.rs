@@ -5,6 +5,7 @@
 use iceoryx2::node::NodeView;
 use iceoryx2::prelude::*;
 
+use std::collections::BTreeMap;
 use std::time::SystemTime;
 
 use shoal_runtime::{SwarmRuntime, Sweep};
@@ -70,32 +71,95 @@ pub fn remove_dead_nodes(swarm: &str) -> Result<usize, BusError> {
 /// among 1000 robots (70,000 files), so a process that must stay
 /// responsive (the launcher, on Ctrl-C) checks between nodes.
 pub fn remove_dead_nodes_while(swarm: &str, go_on: impl Fn() -> bool) -> Result<usize, BusError> {
-    crate::bus::quiet_iceoryx();
     let prefix = names::prefix(swarm);
+    Ok(remove_dead_nodes_named(|name| name.starts_with(&prefix), go_on)?.len())
+}
+
+/// Removes the dead nodes of every Shoal swarm on this host's bus that has
+/// no live node left: a swarm killed whole (its lockstep launcher killed
+/// with SIGKILL) has nobody left to sweep its nodes, and they would wait
+/// for a `shoal down` with its exact name. A swarm with live nodes sweeps
+/// its own dead (its robots and launcher, one at a time, under its sweep
+/// lock): taking that over here would make `shoal status` wait seconds per
+/// node among many robots. iceoryx2 declares a node dead only once its
+/// process is gone. Returns the nodes removed, by swarm.
+pub fn remove_dead_nodes_of_abandoned_swarms() -> Result<BTreeMap<String, usize>, BusError> {
+    crate::bus::quiet_iceoryx();
+    let mut alive: BTreeMap<String, bool> = BTreeMap::new();
+    Node::<ipc::Service>::list(&crate::bus::domain_config(), |state| {
+        let (details, is_alive) = match &state {
+            NodeState::Alive(view) => (view.details().clone(), true),
+            NodeState::Dead(view) => (view.details().clone(), false),
+            _ => (None, false),
+        };
+        if let Some(swarm) = details
+            .as_ref()
+            .and_then(|d| names::swarm_of_node(d.name().as_str()))
+        {
+            *alive.entry(swarm.to_owned()).or_insert(false) |= is_alive;
+        }
+        CallbackProgression::Continue
+    })
+    .map_err(|e| BusError::iceoryx("list nodes", e))?;
+    let abandoned: Vec<String> = alive
+        .into_iter()
+        .filter(|(_, any_alive)| !any_alive)
+        .map(|(swarm, _)| swarm)
+        .collect();
+    let wanted = |name: &str| names::swarm_of_node(name).is_some_and(|s| abandoned.iter().any(|a| a == s));
+    let mut removed = BTreeMap::new();
+    for name in remove_dead_nodes_named(wanted, || true)? {
+        if let Some(swarm) = names::swarm_of_node(&name) {
+            *removed.entry(swarm.to_owned()).or_insert(0) += 1;
+        }
+    }
+    Ok(removed)
+}
+
+/// Says what [`remove_dead_nodes_of_abandoned_swarms`] removed, if anything.
+pub fn describe_swept(swept: &BTreeMap<String, usize>) -> Option<String> {
+    if swept.is_empty() {
+        return None;
+    }
+    let each: Vec<String> = swept
+        .iter()
+        .map(|(swarm, n)| format!("{n} of swarm `{swarm}`"))
+        .collect();
+    Some(format!(
+        "removed the bus resources of dead nodes whose processes had gone: {}",
+        each.join(", ")
+    ))
+}
+
+/// Removes the stale resources of every dead node whose name `wanted`
+/// accepts, stopping between two once `go_on` says no; returns the names
+/// of the nodes removed.
+fn remove_dead_nodes_named(
+    wanted: impl Fn(&str) -> bool,
+    go_on: impl Fn() -> bool,
+) -> Result<Vec<String>, BusError> {
+    crate::bus::quiet_iceoryx();
     let mut dead = Vec::new();
     Node::<ipc::Service>::list(&crate::bus::domain_config(), |state| {
         if let NodeState::Dead(view) = state {
-            let ours = view
-                .details()
-                .as_ref()
-                .is_some_and(|d| d.name().as_str().starts_with(&prefix));
-            if ours {
-                dead.push(view);
+            let name = view.details().as_ref().map(|d| d.name().as_str().to_owned());
+            if let Some(name) = name.filter(|n| wanted(n)) {
+                dead.push((name, view));
             }
         }
         CallbackProgression::Continue
     })
     .map_err(|e| BusError::iceoryx("list nodes", e))?;
-    let mut cleaned = 0;
-    for view in dead {
+    let mut removed = Vec::new();
+    for (name, view) in dead {
         if !go_on() {
             break;
         }
         if view.try_remove_stale_resources().is_ok() {
-            cleaned += 1;
+            removed.push(name);
         }
     }
-    Ok(cleaned)
+    Ok(removed)
 }
 
 /// Removes the dead nodes of `swarm`, whose runtime folder is `runtime`,

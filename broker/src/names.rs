@@ -16,6 +16,13 @@ pub fn prefix(swarm: &str) -> String {
     format!("shoal/{swarm}/")
 }
 
+/// The swarm a node or service named `name` belongs to, if it is Shoal's.
+pub fn swarm_of_node(name: &str) -> Option<&str> {
+    let rest = name.strip_prefix("shoal/")?;
+    let (swarm, _) = rest.split_once('/')?;
+    shoal_runtime::host::is_plain_name(swarm).then_some(swarm)
+}
+
 pub fn cell(swarm: &str, cx: i32, cy: i32) -> String {
     format!("{}{cx}_{cy}", cell_prefix(swarm))
 }

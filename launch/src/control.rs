@@ -95,7 +95,7 @@ fn open_swarm(swarm: &str) -> Result<(SwarmRuntime, Scenario)> {
 
 /// The highest robot id a command accepts: ids index start poses, which
 /// are drawn in order, so an id of a million would take minutes to place.
-pub(crate) const MAX_ROBOT_ID: u32 = 65_535;
+pub const MAX_ROBOT_ID: u32 = 65_535;
 
 /// Starts a new process for each id, at its last pose or at `at`.
 pub fn restart(swarm: &str, ids: &[u32], at: Option<[f64; 2]>) -> Result<()> {
@@ -137,6 +137,17 @@ pub fn restart(swarm: &str, ids: &[u32], at: Option<[f64; 2]>) -> Result<()> {
 }
 
 /// Adds `count` robots with fresh ids, around `at` or in the start region.
+/// Refuses `count` robots from id `first` when they would pass the highest
+/// id Shoal runs.
+pub(crate) fn check_id_range(first: u32, count: usize) -> Result<()> {
+    if u64::from(first) + count as u64 > u64::from(MAX_ROBOT_ID) + 1 {
+        bail!(
+            "{count} robots from id {first} would pass the highest id Shoal runs, {MAX_ROBOT_ID}"
+        );
+    }
+    Ok(())
+}
+
 pub fn spawn(swarm: &str, count: usize, at: Option<[f64; 2]>) -> Result<Vec<u32>> {
     let (runtime, scenario) = open_swarm(swarm)?;
     // Back-to-back spawns would otherwise pick the same ids: one at a time.
@@ -152,11 +163,7 @@ pub fn spawn(swarm: &str, count: usize, at: Option<[f64; 2]>) -> Result<Vec<u32>
         .max(highest_remote)
         .map_or(0, |h| h + 1)
         .max(scenario.agents.count as u32);
-    if u64::from(first) + count as u64 > u64::from(MAX_ROBOT_ID) + 1 {
-        bail!(
-            "{count} more robots from id {first} would pass the highest id Shoal runs, {MAX_ROBOT_ID}"
-        );
-    }
+    check_id_range(first, count)?;
     let mut ids = Vec::new();
     for k in 0..count {
         let id = first + k as u32;
@@ -217,6 +224,10 @@ pub fn down(swarm: &str) -> Result<usize> {
         stop_processes(&rest, DOWN_GRACE.max(shutdown_grace(rest.len())));
     }
     remove_dead_nodes(swarm)?;
+    let swept = shoal_broker::liveness::remove_dead_nodes_of_abandoned_swarms()?;
+    if let Some(swept) = shoal_broker::liveness::describe_swept(&swept) {
+        eprintln!("shoal: {swept}");
+    }
     let runtime = SwarmRuntime::locate(swarm);
     runtime
         .remove()

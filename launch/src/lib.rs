@@ -5,6 +5,7 @@ pub mod clock;
 pub mod control;
 pub mod demo;
 pub mod experiment;
+pub mod helper_log;
 pub mod observer;
 pub mod process;
 pub mod report;

@@ -36,7 +36,7 @@ enum Commands {
     /// Start a swarm and watch it until Ctrl-C or --duration.
     Up {
         /// How many robots (overrides the scenario).
-        #[arg(long)]
+        #[arg(long, value_parser = robot_count)]
         agents: Option<usize>,
         /// A scenario file (TOML); default: a walled arena with obstacles and two surfaces.
         #[arg(long)]
@@ -45,7 +45,7 @@ enum Commands {
         #[arg(long, default_value = "default")]
         swarm: String,
         /// Stop after this many seconds (simulated seconds in lockstep).
-        #[arg(long)]
+        #[arg(long, value_parser = positive_seconds)]
         duration: Option<f64>,
         /// Step all robots on one clock, faster than real time and deterministic for a seed.
         #[arg(long)]
@@ -99,7 +99,7 @@ enum Commands {
         #[arg(long, default_value = "demo.rrd")]
         out: PathBuf,
         /// How long the swarm runs, in seconds (real time).
-        #[arg(long, default_value_t = 90.0)]
+        #[arg(long, default_value_t = 90.0, value_parser = positive_seconds)]
         seconds: f64,
         #[arg(long, default_value = "demo")]
         swarm: String,
@@ -170,7 +170,7 @@ enum Commands {
     },
     /// Add new robots to a running swarm.
     Spawn {
-        #[arg(long, default_value_t = 1)]
+        #[arg(long, default_value_t = 1, value_parser = robot_count)]
         count: usize,
         #[arg(long, default_value = "default")]
         swarm: String,
@@ -310,6 +310,7 @@ fn run(cli: Cli) -> Result<()> {
                     tum,
                     viewer,
                     connect: viewer_at,
+                    expected_seconds: duration,
                 },
                 slam,
             })?;
@@ -412,6 +413,30 @@ fn run(cli: Cli) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// A count of robots: at least one (ids are checked against their range
+/// where the first id is known).
+fn robot_count(text: &str) -> Result<usize, String> {
+    match text.parse::<usize>() {
+        Ok(0) => Err("a swarm needs at least one robot".to_owned()),
+        Ok(n) if n > control::MAX_ROBOT_ID as usize + 1 => Err(format!(
+            "Shoal runs at most {} robots (ids 0 to {})",
+            control::MAX_ROBOT_ID as usize + 1,
+            control::MAX_ROBOT_ID
+        )),
+        Ok(n) => Ok(n),
+        Err(e) => Err(format!("not a count of robots: {e}")),
+    }
+}
+
+/// A span of time: a positive, finite number of seconds.
+fn positive_seconds(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(s) if s.is_finite() && s > 0.0 => Ok(s),
+        Ok(_) => Err("must be a positive number of seconds".to_owned()),
+        Err(e) => Err(format!("not a number of seconds: {e}")),
+    }
 }
 
 fn main() -> ExitCode {

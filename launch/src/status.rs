@@ -40,8 +40,12 @@ pub struct StatusReport {
     /// Every host of the swarm heard from, this one first.
     pub hosts: Vec<String>,
     pub agents: Vec<AgentStatus>,
-    /// Dead nodes of this swarm whose resources nobody has removed yet.
+    /// Dead nodes of this swarm whose resources could not be removed.
     pub stale_nodes: usize,
+    /// Dead nodes this command removed before it looked, by swarm: those of
+    /// swarms on this host with no live node left, which nobody else would
+    /// remove (a swarm with live nodes removes its own).
+    pub swept: std::collections::BTreeMap<String, usize>,
     /// Every robot a live SLAM process follows, present or not.
     pub slam: Vec<FollowedReport>,
     /// How full each cell's service is (`--cells`): publishers and
@@ -54,6 +58,7 @@ pub struct StatusReport {
 /// swarm; with `cells`, also how full each cell's service is.
 pub fn gather(swarm: &str, cells: bool) -> Result<StatusReport> {
     names::validate_swarm(swarm)?;
+    let swept = shoal_broker::liveness::remove_dead_nodes_of_abandoned_swarms()?;
     let period = SwarmRuntime::locate(swarm)
         .read_meta()
         .map_or(0.2, |m| m.period_s);
@@ -157,6 +162,7 @@ pub fn gather(swarm: &str, cells: bool) -> Result<StatusReport> {
         hosts,
         agents,
         stale_nodes,
+        swept,
         slam: slam.map(|r| r.followed).unwrap_or_default(),
         cells,
     })
@@ -177,6 +183,9 @@ pub fn print_table(out: &mut dyn Write, report: &StatusReport) -> io::Result<()>
             String::new()
         }
     )?;
+    if let Some(swept) = shoal_broker::liveness::describe_swept(&report.swept) {
+        writeln!(out, "{swept}")?;
+    }
     for f in report.slam.iter().filter(|f| f.paused) {
         writeln!(
             out,

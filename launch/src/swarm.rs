@@ -41,8 +41,12 @@ pub struct RunningSwarm {
     bus: Bus,
     roster: RosterReader,
     children: Children,
-    /// Processes that serve the swarm (recorder, SLAM), by binary name.
-    helpers: Vec<(String, Child)>,
+    /// Processes that serve the swarm (recorder, SLAM).
+    helpers: Vec<Helper>,
+    /// The recording the recorder writes, if any.
+    recording: Option<std::path::PathBuf>,
+    /// What stopping the swarm cost (helpers that had to be killed).
+    stop_notes: Vec<String>,
     /// In lockstep, the clock waits for helpers (recorder, SLAM) to keep up.
     paces: Vec<Pace>,
     /// Helper progress reports rejected, by helpers no longer paced or as
@@ -70,12 +74,28 @@ struct Pace {
     tick: Option<u64>,
 }
 
+/// A process that serves the swarm (recorder, SLAM, link).
+struct Helper {
+    binary: String,
+    child: Child,
+    log: crate::helper_log::HelperLog,
+}
+
+/// The name a helper's progress reports go by, which a lockstep clock paces to.
+fn pace_name(binary: &str) -> &str {
+    match binary {
+        RECORDER_BINARY => "recorder",
+        "shoal-slam" => "slam",
+        other => other,
+    }
+}
+
 /// Ticks a lockstep clock may run ahead of its recorder (within the
 /// roster's buffer); SLAM gets none, so its estimates reach the robot the
 /// next tick.
 const RECORDER_LAG_TICKS: u64 = 4;
 const SLAM_LAG_TICKS: u64 = 0;
-const RECORDER_BINARY: &str = "shoal-viewer-log";
+pub const RECORDER_BINARY: &str = "shoal-viewer-log";
 /// A helper silent this long is no longer waited for.
 const HELPER_PATIENCE: Duration = Duration::from_secs(10);
 
@@ -121,6 +141,9 @@ pub struct RecordOptions {
     pub viewer: bool,
     /// A Rerun viewer already running at this address.
     pub connect: Option<String>,
+    /// How long the run lasts, if known: the recorder warns at the start
+    /// when the disk will not hold it.
+    pub expected_seconds: Option<f64>,
 }
 
 impl RecordOptions {
@@ -151,6 +174,9 @@ impl RecordOptions {
         }
         if let Some(addr) = &self.connect {
             args.extend(["--connect".into(), addr.into()]);
+        }
+        if let Some(seconds) = self.expected_seconds {
+            args.extend(["--expected-seconds".into(), seconds.to_string().into()]);
         }
         args
     }
@@ -221,16 +247,7 @@ impl RunningSwarm {
                  its slowest round trip; run a linked swarm in real time"
             );
         }
-        if u64::from(launch.first_id) + scenario.agents.count as u64
-            > u64::from(crate::control::MAX_ROBOT_ID) + 1
-        {
-            bail!(
-                "{} robots from --first-id {} would pass the highest id Shoal runs, {}",
-                scenario.agents.count,
-                launch.first_id,
-                crate::control::MAX_ROBOT_ID
-            );
-        }
+        crate::control::check_id_range(launch.first_id, scenario.agents.count)?;
         // Two launchers of one swarm started together would both pass the
         // check below; the lock makes the second one fail.
         let launch_lock = SwarmRuntime::locate(name)
@@ -254,6 +271,10 @@ impl RunningSwarm {
             );
         }
         remove_dead_nodes(name)?;
+        let swept = shoal_broker::liveness::remove_dead_nodes_of_abandoned_swarms()?;
+        if let Some(swept) = shoal_broker::liveness::describe_swept(&swept) {
+            eprintln!("shoal: {swept}");
+        }
         let runtime = SwarmRuntime::locate(name);
         let epoch_unix_ms = SystemTime::now()
             .duration_since(UNIX_EPOCH)
@@ -292,6 +313,8 @@ impl RunningSwarm {
             roster,
             children: Children::default(),
             helpers: Vec::new(),
+            recording: None,
+            stop_notes: Vec::new(),
             paces: Vec::new(),
             rejected_progress: 0,
             started: Instant::now(),
@@ -410,6 +433,7 @@ impl RunningSwarm {
         let mut args = to.recorder_args();
         args.extend(["--swarm".into(), self.name.clone().into()]);
         self.pace_to("recorder", RECORDER_LAG_TICKS)?;
+        self.recording.clone_from(&to.out);
         self.start_helper(RECORDER_BINARY, &args)
     }
 
@@ -463,15 +487,35 @@ impl RunningSwarm {
         let child = command
             .spawn()
             .with_context(|| format!("starting {binary}"))?;
-        self.helpers.push((binary.to_owned(), child));
+        self.helpers.push(Helper {
+            binary: binary.to_owned(),
+            child,
+            log: crate::helper_log::HelperLog::new(
+                self.runtime.dir.join(helper_log_name(binary)),
+            ),
+        });
         Ok(())
     }
 
     pub fn recorder_pid(&self) -> Option<i32> {
         self.helpers
             .iter()
-            .find(|(name, _)| name == RECORDER_BINARY)
-            .map(|(_, c)| c.id() as i32)
+            .find(|h| h.binary == RECORDER_BINARY)
+            .map(|h| h.child.id() as i32)
+    }
+
+    /// Warnings the helpers wrote into their logs since the last call
+    /// (a disk filling up, a viewer that does not answer).
+    pub fn take_helper_warnings(&mut self) -> Vec<String> {
+        self.helpers
+            .iter_mut()
+            .flat_map(|h| h.log.new_warnings())
+            .collect()
+    }
+
+    /// What stopping the swarm cost: helpers that had to be killed.
+    pub fn stop_notes(&self) -> &[String] {
+        &self.stop_notes
     }
 
     /// Pids of the robots this process started and that still run.
@@ -602,8 +646,8 @@ impl RunningSwarm {
 
     /// Kills the recorder as a crash would (SIGKILL); not reported as a death.
     pub fn kill_recorder(&mut self) -> Result<()> {
-        if let Some(index) = self.helpers.iter().position(|(b, _)| b == RECORDER_BINARY) {
-            let (_, mut child) = self.helpers.remove(index);
+        if let Some(index) = self.helpers.iter().position(|h| h.binary == RECORDER_BINARY) {
+            let Helper { mut child, .. } = self.helpers.remove(index);
             if let Some(process) = Pinned::child(&child) {
                 process.signal(libc::SIGKILL)?;
             }
@@ -639,12 +683,16 @@ impl RunningSwarm {
         self.reap_helpers();
         // Helpers go first: the recorder then does not log every robot
         // leaving, and gets time to write the recording's footer.
-        for (_, mut helper) in self.helpers.drain(..) {
-            stop_processes(
-                &Pinned::child(&helper).into_iter().collect::<Vec<_>>(),
+        for mut helper in std::mem::take(&mut self.helpers) {
+            let killed = stop_processes(
+                &Pinned::child(&helper.child).into_iter().collect::<Vec<_>>(),
                 HELPER_GRACE,
-            );
-            let _ = helper.wait();
+            ) > 0;
+            let _ = helper.child.wait();
+            if killed {
+                let note = self.killed_helper_note(&helper.binary);
+                self.stop_notes.push(note);
+            }
         }
         let pids = self.agent_pids();
         let mut processes: Vec<Pinned> = self
@@ -815,20 +863,59 @@ impl Children {
 }
 
 impl RunningSwarm {
-    /// Notes helpers (recorder, SLAM) that ended on their own.
+    /// Notes helpers (recorder, SLAM) that ended on their own; a lockstep
+    /// clock no longer waits for them.
     fn reap_helpers(&mut self) {
         let runtime = &self.runtime;
         let deaths = &mut self.children.deaths;
-        self.helpers
-            .retain_mut(|(binary, child)| match child.try_wait() {
-                Ok(None) => true,
-                Ok(Some(status)) => {
-                    let log = helper_log_name(binary);
-                    deaths.extend(Death::unless_clean(binary.clone(), status, runtime, &log));
-                    false
-                }
-                Err(_) => false,
+        self.helpers.retain_mut(|h| match h.child.try_wait() {
+            Ok(None) => true,
+            Ok(Some(status)) => {
+                let log = helper_log_name(&h.binary);
+                deaths.extend(Death::unless_clean(h.binary.clone(), status, runtime, &log));
+                false
+            }
+            Err(_) => false,
+        });
+        let helpers = &self.helpers;
+        self.paces
+            .retain(|p| helpers.iter().any(|h| pace_name(&h.binary) == p.helper));
+    }
+
+    /// What killing helper `binary` after its grace cost, and for the
+    /// recorder, the repair of its file's end: a write cut short by the kill
+    /// would leave a partial message that readers refuse.
+    fn killed_helper_note(&self, binary: &str) -> String {
+        let mut note = format!(
+            "{binary} did not stop within {} s of SIGTERM and was killed",
+            HELPER_GRACE.as_secs()
+        );
+        if binary == RECORDER_BINARY
+            && let Some(recording) = &self.recording
+        {
+            note.push_str(&format!(
+                "; {} ends at its last flush (up to a second before the kill), without the \
+                 footer a viewer seeks with",
+                recording.display()
+            ));
+            let repair = sibling_binary(RECORDER_BINARY).and_then(|bin| {
+                Command::new(bin)
+                    .arg("--repair")
+                    .arg(recording)
+                    .stdin(Stdio::null())
+                    .output()
+                    .context("running the recorder's repair")
             });
+            match repair {
+                Ok(out) => {
+                    let said = String::from_utf8_lossy(&out.stderr);
+                    let said = said.trim().trim_start_matches("shoal-viewer-log: ");
+                    note.push_str(&format!("; {said}"));
+                }
+                Err(e) => note.push_str(&format!("; its end was not checked: {e:#}")),
+            }
+        }
+        note
     }
 }
 

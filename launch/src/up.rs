@@ -103,7 +103,12 @@ fn stop(
     for death in swarm.take_deaths() {
         eprintln!("shoal: {death}");
     }
-    if let Some(out) = &options.record.out {
+    for note in swarm.stop_notes() {
+        eprintln!("shoal: {note}");
+    }
+    if let Some(out) = &options.record.out
+        && !swarm.deaths().iter().any(|d| d.crashed && d.who == crate::swarm::RECORDER_BINARY)
+    {
         eprintln!(
             "shoal: recording in {}; to watch it: pip install rerun-sdk, then rerun {}",
             out.display(),
@@ -141,21 +146,18 @@ fn stop(
             );
         }
     }
-    let crashed: Vec<&str> = swarm
-        .deaths()
-        .iter()
-        .filter(|d| d.crashed)
-        .map(|d| d.who.as_str())
-        .collect();
+    let crashed: Vec<&crate::swarm::Death> = swarm.deaths().iter().filter(|d| d.crashed).collect();
     if !crashed.is_empty() {
+        // Said when it happened, and again here, where a user reads last.
+        let said: Vec<String> = crashed.iter().map(|d| d.to_string()).collect();
         bail!(
-            "{} died during the run ({}); their logs are kept in {}",
-            crashed.join(", "),
+            "{} during the run:\n  {}\ntheir logs are kept in {}",
             if crashed.len() == 1 {
-                "see above"
+                "a process died"
             } else {
-                "see each above"
+                "processes died"
             },
+            said.join("\n  "),
             swarm.runtime.dir.display()
         );
     }
@@ -274,6 +276,14 @@ impl Status {
         }
     }
 
+    /// A line a helper wrote for the user, as it wrote it.
+    fn relay(&self, line: &str) {
+        match &self.bar {
+            Some(bar) => bar.suspend(|| eprintln!("{line}")),
+            None => eprintln!("{line}"),
+        }
+    }
+
     /// The swarm's state now; shown 4 times a second, or every 5 s as a line.
     fn update(&mut self, message: impl FnOnce() -> String) {
         if self.last_update.elapsed() < Duration::from_millis(250) {
@@ -297,7 +307,20 @@ impl Status {
     }
 }
 
+/// Refuses counts and ranges that cannot make a run, before anything is
+/// said or started (the command line checks each value alone).
+fn check_command_line(options: &UpOptions) -> Result<()> {
+    if options.agents == Some(0) {
+        bail!("--agents 0: a swarm needs at least one robot");
+    }
+    if let Some(count) = options.agents {
+        crate::control::check_id_range(options.launch.first_id, count)?;
+    }
+    Ok(())
+}
+
 pub fn up(options: UpOptions) -> Result<UpSummary> {
+    check_command_line(&options)?;
     if options.record.viewer {
         check_viewer_installed()?;
     }
@@ -336,6 +359,9 @@ pub fn up(options: UpOptions) -> Result<UpSummary> {
         swarm.advance()?;
         for death in swarm.take_deaths() {
             status.say(&death.to_string());
+        }
+        for warning in swarm.take_helper_warnings() {
+            status.relay(&warning);
         }
         if swarm.running_children() == 0 && swarm.observer.is_empty() && !swarm.deaths().is_empty()
         {

@@ -4,6 +4,8 @@ pub mod arena;
 pub mod motion;
 pub mod presence;
 pub mod recorder;
+pub mod rrd_file;
 pub mod run_files;
 pub mod slam;
+pub mod space;
 pub mod tum;

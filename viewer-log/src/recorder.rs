@@ -30,6 +30,13 @@ pub struct RecorderStats {
     pub rejected: u64,
 }
 
+/// The newest frame logged: a tick and its simulated time.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Frame {
+    pub tick: u64,
+    pub sim_time: f64,
+}
+
 pub struct Recorder {
     rec: RecordingStream,
     spread: f64,
@@ -50,9 +57,9 @@ pub struct Recorder {
     logged_hosts: HashMap<u32, String>,
     /// Streaming to a viewer, which may be closed at any time.
     live: bool,
-    /// Whether the user was told the viewer is unreachable.
-    told_viewer_gone: bool,
     pub stats: RecorderStats,
+    /// The newest frame logged, if any.
+    pub last_frame: Option<Frame>,
 }
 
 impl Recorder {
@@ -79,8 +86,8 @@ impl Recorder {
             link_pid: None,
             logged_hosts: HashMap::new(),
             live,
-            told_viewer_gone: false,
             stats: RecorderStats::default(),
+            last_frame: None,
         })
     }
 
@@ -166,6 +173,10 @@ impl Recorder {
         }
         self.stats.dropped = self.presence.dropped;
         self.stats.frames += 1;
+        self.last_frame = Some(Frame {
+            tick,
+            sim_time: first.sim_time,
+        });
         let robots: Vec<&PoseSample> = samples.iter().collect();
         let true_positions: Vec<[f32; 2]> =
             robots.iter().map(|s| [s.x as f32, s.y as f32]).collect();
@@ -282,23 +293,21 @@ impl Recorder {
         Ok(())
     }
 
-    pub fn flush(&mut self) -> anyhow::Result<()> {
+    /// Writes what is logged out: the TUM files, then the stream's sinks
+    /// (the file, a live viewer), waiting a bounded time. Neither a viewer
+    /// the user closed nor a disk that does not answer may stop the
+    /// recorder: a flush that did not complete is returned as its reason,
+    /// for the caller to tell apart from a file that cannot be written.
+    pub fn flush(&mut self) -> anyhow::Result<Option<String>> {
         if let Some(files) = &mut self.files {
             files.flush()?;
         }
-        if !self.live {
-            self.rec.flush_blocking()?;
-            return Ok(());
-        }
-        // A viewer the user closed must not stop the recording: the file
-        // (flushed with it) is still written, and the user is told once.
-        if let Err(e) = self.rec.flush_with_timeout(LIVE_FLUSH_TIMEOUT)
-            && !self.told_viewer_gone
-        {
-            self.told_viewer_gone = true;
-            eprintln!("shoal-viewer-log: the live viewer does not answer ({e}); recording goes on");
-        }
-        Ok(())
+        let limit = if self.live {
+            LIVE_FLUSH_TIMEOUT
+        } else {
+            crate::rrd_file::FLUSH_LIMIT
+        };
+        Ok(self.rec.flush_with_timeout(limit).err().map(|e| e.to_string()))
     }
 }
 

@@ -80,7 +80,9 @@ impl RunFiles {
                 .with_context(|| format!("opening {}", path.display()))?;
             let mut writer = BufWriter::new(file);
             if !again {
-                writer.write_all(kind.header().as_bytes())?;
+                writer
+                    .write_all(kind.header().as_bytes())
+                    .with_context(|| format!("writing {}", path.display()))?;
             }
             self.open.insert((id, kind), writer);
         }
@@ -106,24 +108,29 @@ impl RunFiles {
                 s.believed_theta,
             ),
         ] {
-            let line = crate::tum::line(s.sim_time, x, y, theta);
-            self.file(s.agent_id, kind)?.write_all(line.as_bytes())?;
+            self.append(s.agent_id, kind, &crate::tum::line(s.sim_time, x, y, theta))?;
         }
         // The command a pose carries moved the robot there over the period before it.
         if let Some((v, omega)) = executed {
             let line = csv_lines::command(s.sim_time - period_s, v, omega);
-            self.file(s.agent_id, Kind::Commands)?
-                .write_all(line.as_bytes())?;
+            self.append(s.agent_id, Kind::Commands, &line)?;
         }
         let line = csv_lines::pose(s.sim_time, s.x, s.y, s.theta);
-        self.file(s.agent_id, Kind::Poses)?
-            .write_all(line.as_bytes())?;
-        Ok(())
+        self.append(s.agent_id, Kind::Poses, &line)
+    }
+
+    /// Appends `line` to robot `id`'s file of `kind`; an error names the file.
+    fn append(&mut self, id: u32, kind: Kind, line: &str) -> anyhow::Result<()> {
+        let path = kind.path(&self.dir, id);
+        self.file(id, kind)?
+            .write_all(line.as_bytes())
+            .with_context(|| format!("writing {}", path.display()))
     }
 
     pub fn flush(&mut self) -> anyhow::Result<()> {
-        for file in self.open.values_mut() {
-            file.flush()?;
+        for ((id, kind), file) in &mut self.open {
+            file.flush()
+                .with_context(|| format!("writing {}", kind.path(&self.dir, *id).display()))?;
         }
         Ok(())
     }
@@ -138,7 +145,8 @@ impl RunFiles {
             .collect();
         for key in keys {
             if let Some(mut file) = self.open.remove(&key) {
-                file.flush()?;
+                file.flush()
+                    .with_context(|| format!("writing {}", key.1.path(&self.dir, id).display()))?;
             }
         }
         Ok(())
