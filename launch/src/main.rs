@@ -45,7 +45,7 @@ enum Commands {
         #[arg(long, default_value = "default")]
         swarm: String,
         /// Stop after this many seconds (simulated seconds in lockstep).
-        #[arg(long, value_parser = positive_seconds)]
+        #[arg(long, value_parser = positive_seconds, allow_negative_numbers = true)]
         duration: Option<f64>,
         /// Step all robots on one clock, faster than real time and deterministic for a seed.
         #[arg(long)]
@@ -99,7 +99,7 @@ enum Commands {
         #[arg(long, default_value = "demo.rrd")]
         out: PathBuf,
         /// How long the swarm runs, in seconds (real time).
-        #[arg(long, default_value_t = 90.0, value_parser = positive_seconds)]
+        #[arg(long, default_value_t = 90.0, value_parser = positive_seconds, allow_negative_numbers = true)]
         seconds: f64,
         #[arg(long, default_value = "demo")]
         swarm: String,

@@ -15,10 +15,10 @@ use shoal_e2e::{
     wait_until,
 };
 
-/// A file system mounted for one test, unmounted when dropped.
+/// A file system mounted for one test, unmounted when dropped (an image
+/// file behind it stays, for the test's folder to remove).
 struct Mount {
     dir: PathBuf,
-    image: Option<PathBuf>,
 }
 
 impl Mount {
@@ -33,7 +33,6 @@ impl Mount {
             .is_ok_and(|s| s.success());
         mounted.then(|| Self {
             dir: dir.to_owned(),
-            image: None,
         })
     }
 
@@ -59,7 +58,6 @@ impl Mount {
                 .is_ok_and(|s| s.success());
         mounted.then(|| Self {
             dir: dir.to_owned(),
-            image: Some(image.to_owned()),
         })
     }
 
@@ -70,7 +68,7 @@ impl Mount {
     fn fail_disk(&self) {
         let script = "import fcntl, os, sys\n\
                       fd = os.open(sys.argv[1], os.O_RDONLY)\n\
-                      fcntl.ioctl(fd, 0x8004587D, (2).to_bytes(4, 'little'))\n";
+                      fcntl.ioctl(fd, 0x8004587D, (0).to_bytes(4, 'little'))\n";
         let done = Command::new("python3")
             .args(["-c", script])
             .arg(&self.dir)
@@ -82,9 +80,16 @@ impl Mount {
 
 impl Drop for Mount {
     fn drop(&mut self) {
-        let _ = Command::new("umount").arg("-l").arg(&self.dir).status();
-        if let Some(image) = &self.image {
-            let _ = std::fs::remove_file(image);
+        // Processes that wrote here may take a moment to let go of it.
+        let unmounted = wait_until(Duration::from_secs(10), || {
+            Command::new("umount")
+                .arg(&self.dir)
+                .stderr(std::process::Stdio::null())
+                .status()
+                .is_ok_and(|s| s.success())
+        });
+        if !unmounted {
+            let _ = Command::new("umount").arg("-l").arg(&self.dir).status();
         }
     }
 }
@@ -201,16 +206,20 @@ fn a_disk_that_fails_mid_run_is_reported_and_what_was_written_stays_readable() {
 impl Mount {
     /// Mounts an ext4 image made earlier.
     fn ext4_existing(dir: &Path, image: &Path) -> Self {
-        let mounted = Command::new("mount")
-            .args(["-o", "loop"])
-            .arg(image)
-            .arg(dir)
-            .status()
-            .is_ok_and(|s| s.success());
-        assert!(mounted, "mounting {} again", image.display());
+        let mut said = String::new();
+        let mounted = wait_until(Duration::from_secs(10), || {
+            let out = Command::new("mount")
+                .args(["-o", "loop"])
+                .arg(image)
+                .arg(dir)
+                .output()
+                .expect("mount");
+            said = String::from_utf8_lossy(&out.stderr).into_owned();
+            out.status.success()
+        });
+        assert!(mounted, "mounting {} again: {said}", image.display());
         Self {
             dir: dir.to_owned(),
-            image: None,
         }
     }
 }
