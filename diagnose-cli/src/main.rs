@@ -346,8 +346,14 @@ fn write_into_place(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Res
         Some(ext) => path.with_file_name(format!("{stem}.partial.{}", ext.to_string_lossy())),
         None => path.with_file_name(format!("{stem}.partial")),
     };
-    write(&partial)?;
-    std::fs::rename(&partial, path).with_context(|| format!("cannot write {}", path.display()))
+    // A write that fails leaves the earlier file as it was, and no partial one.
+    let written = write(&partial).and_then(|()| {
+        std::fs::rename(&partial, path).with_context(|| format!("cannot write {}", path.display()))
+    });
+    if written.is_err() {
+        let _ = std::fs::remove_file(&partial);
+    }
+    written
 }
 
 fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
@@ -453,11 +459,15 @@ fn run_generate(args: &GenerateArgs) -> Result<()> {
     );
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
     let (commands, poses) = recording.to_csv();
-    std::fs::write(out.join("commands.csv"), commands)?;
-    std::fs::write(out.join("poses.csv"), poses)?;
-    std::fs::write(
-        out.join("truth.toml"),
-        model.to_toml().context("writing the true model")?,
+    let write = |name: &str, text: &str| {
+        let path = out.join(name);
+        std::fs::write(&path, text).with_context(|| format!("cannot write {}", path.display()))
+    };
+    write("commands.csv", &commands)?;
+    write("poses.csv", &poses)?;
+    write(
+        "truth.toml",
+        &model.to_toml().context("writing the true model")?,
     )?;
     if args.bag {
         let bytes = bag::write_bag(&recording).map_err(anyhow::Error::msg)?;

@@ -50,14 +50,20 @@ pub fn write(
     segments: &[SegmentReplay],
     report: &str,
 ) -> Result<()> {
-    let rec = rerun::RecordingStreamBuilder::new("shoal-diagnose")
-        .save(path)
-        .with_context(|| format!("cannot create {}", path.display()))?;
+    // Encoded in memory and written with one checked write: Rerun's file
+    // sink writes on a thread of its own and reports a failed write (a full
+    // disk) only as a writer that "shut down prematurely".
+    let (rec, stored) = rerun::RecordingStreamBuilder::new("shoal-diagnose")
+        .memory()
+        .context("starting the diagnosis recording")?;
     log_all(&rec, recording, diagnosis, segments, report)
-        .with_context(|| format!("cannot write {}", path.display()))?;
+        .with_context(|| format!("cannot log the diagnosis for {}", path.display()))?;
     rec.flush_blocking()
         .with_context(|| format!("cannot finish {}", path.display()))?;
-    Ok(())
+    let bytes = stored
+        .drain_as_bytes()
+        .with_context(|| format!("cannot encode {}", path.display()))?;
+    std::fs::write(path, bytes).with_context(|| format!("cannot write {}", path.display()))
 }
 
 fn log_all(

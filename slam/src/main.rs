@@ -176,6 +176,7 @@ fn run(args: Args) -> Result<()> {
     tracing::info!(follow = ?args.follow, learning = ?args.learning, "SLAM following");
     let mut newest_roster: u64 = 0;
     let mut last_report = std::time::Instant::now();
+    let mut report_failing = false;
     // Where every robot stands, and at which tick, to drop beams that ended
     // on one: robots move, so they do not belong in the map. A robot silent
     // for longer than the swarm's staleness is gone, and so is its body.
@@ -243,8 +244,18 @@ fn run(args: Args) -> Result<()> {
                 break;
             }
             let report = report(&followed, &initial);
-            if let Err(e) = runtime.write_slam_report(&report) {
-                tracing::warn!("cannot write the SLAM report: {e}");
+            // Said once, and again if it fails after working again.
+            match runtime.write_slam_report(&report) {
+                Err(e) if !report_failing => {
+                    report_failing = true;
+                    eprintln!(
+                        "shoal-slam: warning: cannot write the SLAM report in {}: {e}; \
+                         `shoal status` shows what it last read; SLAM goes on",
+                        runtime.dir.display()
+                    );
+                }
+                Err(_) => {}
+                Ok(()) => report_failing = false,
             }
         }
         if idle {

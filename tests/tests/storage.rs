@@ -133,6 +133,7 @@ fn a_recording_onto_a_disk_that_fills_is_reported_at_once_kept_readable_and_fail
     });
     let robots_then = alive_ids(&status(&swarm.name)).len();
     let (exit, said) = swarm.wait_end();
+    eprintln!("full disk: shoal up {exit}:\n{said}");
     assert!(said_at_once, "no word of the full disk during the run:\n{said}");
     assert_eq!(robots_then, 20, "the robots stopped with the recorder:\n{said}");
     assert!(!exit.success(), "a lost recording must fail the run:\n{said}");
@@ -147,6 +148,7 @@ fn a_recording_onto_a_disk_that_fills_is_reported_at_once_kept_readable_and_fail
     // The run went on to its end with every robot.
     assert!(said.contains("shoal: 20 robots"), "{said}");
     let found = inspect_recording(&recording);
+    eprintln!("full disk: the reader read {} ticks", found["ticks"]);
     assert!(
         found["ticks"].as_u64().is_some_and(|t| t > 0),
         "nothing readable kept: {found}"
@@ -181,6 +183,7 @@ fn a_disk_that_fails_mid_run_is_reported_and_what_was_written_stays_readable() {
     std::thread::sleep(Duration::from_secs(4));
     mount.fail_disk();
     let (exit, said) = swarm.wait_end();
+    eprintln!("failing disk: shoal up {exit}:\n{said}");
     assert!(!exit.success(), "a failed disk must fail the run:\n{said}");
     assert!(
         said.contains("Input/output error") && said.contains("tick"),
@@ -196,6 +199,7 @@ fn a_disk_that_fails_mid_run_is_reported_and_what_was_written_stays_readable() {
     std::fs::copy(dir.join("disk").join("run.rrd"), &kept).expect("copy the recording");
     drop(again);
     let found = inspect_recording(&kept);
+    eprintln!("failing disk: the reader read {} ticks", found["ticks"]);
     assert!(
         found["ticks"].as_u64().is_some_and(|t| t > 0),
         "nothing readable kept: {found}"
@@ -244,6 +248,7 @@ fn a_recorder_over_its_file_size_limit_stops_with_a_clear_error_and_a_readable_f
         .output()
         .expect("run the recorder");
     let said = String::from_utf8_lossy(&recorder.stderr);
+    eprintln!("file-size limit: shoal-viewer-log {}:\n{said}", recorder.status);
     assert!(!recorder.status.success(), "{said}");
     assert!(
         said.contains("File too large") && said.contains("cannot write the recording"),
@@ -251,6 +256,7 @@ fn a_recorder_over_its_file_size_limit_stops_with_a_clear_error_and_a_readable_f
     );
     assert_eq!(alive_ids(&status(&swarm.name)).len(), 6, "robots ran on");
     let found = inspect_recording(&recording);
+    eprintln!("file-size limit: the reader read {} ticks", found["ticks"]);
     assert!(found["ticks"].as_u64().is_some_and(|t| t > 0), "{found}");
     let _ = std::fs::remove_dir_all(dir);
 }
@@ -277,6 +283,7 @@ fn a_recorder_frozen_at_shutdown_is_killed_named_and_its_file_stays_readable() {
     let started = std::time::Instant::now();
     let (exit, said) = swarm.interrupt();
     let took = started.elapsed();
+    eprintln!("frozen recorder: shoal up {exit} after {took:?}:\n{said}");
     assert!(
         said.contains("shoal-viewer-log did not stop within 10 s of SIGTERM and was killed"),
         "{said}"
@@ -285,6 +292,7 @@ fn a_recorder_frozen_at_shutdown_is_killed_named_and_its_file_stays_readable() {
     assert!(took < Duration::from_secs(30), "stopping took {took:?}");
     assert!(exit.success(), "{said}");
     let found = inspect_recording(&recording);
+    eprintln!("frozen recorder: the reader read {} ticks", found["ticks"]);
     assert!(found["ticks"].as_u64().is_some_and(|t| t >= 5), "{found}");
     let _ = std::fs::remove_dir_all(dir);
 }
@@ -308,6 +316,7 @@ fn a_lockstep_swarm_killed_whole_leaves_nothing_once_another_swarm_starts() {
     assert_ne!(residue(first), (0, vec![]), "the kill left nothing to sweep");
     let mut other = BackgroundSwarm::start("e2e-after-kill", &["--agents", "2", "--duration", "3"]);
     let (exit, said) = other.wait_end();
+    eprintln!("killed whole, then another swarm: shoal up {exit}:\n{said}");
     assert!(exit.success(), "{said}");
     assert!(
         said.contains(&format!("of swarm `{first}`")),

@@ -81,12 +81,13 @@ fn fault_error(fault: &WriteFault, kept: Option<Frame>) -> anyhow::Error {
         ),
         None => "the file holds no frame of the run yet".to_owned(),
     };
-    anyhow::anyhow!(
-        "{fault}; {holds}. The swarm goes on without its recording: free space on that \
-         file system (or make it writable), or record to another with --record PATH \
-         (`shoal record PATH` joins a running swarm)"
-    )
+    anyhow::anyhow!("{fault}; {holds}. {WHAT_TO_DO}")
 }
+
+/// What a user does about a recording that cannot be written.
+const WHAT_TO_DO: &str = "The swarm goes on without its recording: free space on that file \
+     system (or make it writable), or record to another with --record PATH (`shoal record \
+     PATH` joins a running swarm)";
 
 fn run(args: Args) -> Result<()> {
     if let Some(path) = &args.repair {
@@ -100,10 +101,10 @@ fn run(args: Args) -> Result<()> {
             .duration
             .is_none_or(|d| started.elapsed().as_secs_f64() < d)
     {
-        session.poll().with_context(|| session.at())?;
+        session.poll().map_err(|e| session.failed(e))?;
         if last_flush.elapsed() >= FLUSH_EVERY {
             last_flush = Instant::now();
-            if !session.each_second().with_context(|| session.at())? {
+            if !session.each_second().map_err(|e| session.failed(e))? {
                 break;
             }
         }
@@ -189,6 +190,22 @@ impl Session {
             ),
             None => format!("recording swarm `{}` before its first tick", self.swarm),
         }
+    }
+
+    /// An error of the loop, with where the recording was; one of storage
+    /// (a TUM file on a disk that failed) also says what the recording
+    /// holds and what to do, as a fault of the `.rrd` itself does.
+    fn failed(&self, error: anyhow::Error) -> anyhow::Error {
+        let storage = error.chain().any(|cause| cause.is::<std::io::Error>());
+        let error = error.context(self.at());
+        if !storage || error.chain().any(|c| c.to_string().contains(WHAT_TO_DO)) {
+            return error;
+        }
+        let holds = match self.kept {
+            Some(f) => format!("up to tick {} ({:.1} s simulated)", f.tick, f.sim_time),
+            None => "no frame yet".to_owned(),
+        };
+        anyhow::anyhow!("{error:#}; the recording holds the run {holds}. {WHAT_TO_DO}")
     }
 
     /// Reads the bus and logs every tick that is complete.
