@@ -1,6 +1,8 @@
 //! `shoal-diagnose`: why a simulator disagrees with a robot.
 
+mod load;
 mod plot;
+mod report;
 mod rrd;
 
 use std::path::{Path, PathBuf};
@@ -8,12 +10,10 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
-use shoal_diagnose::bag;
 use shoal_diagnose::experiment::{NoiseColour, case_named, cases, run_case, run_settings};
 use shoal_diagnose::generate::generate;
-use shoal_diagnose::input::{commands_csv, mrclam_groundtruth, mrclam_odometry, poses_csv};
 use shoal_diagnose::replay::replay;
-use shoal_diagnose::{Diagnosis, Options, Recording, diagnose};
+use shoal_diagnose::{Options, diagnose};
 use shoal_physics::UnicycleModel;
 use shoal_runtime::process_main::{StdoutClosed, print_out};
 
@@ -32,8 +32,9 @@ struct Cli {
 
 #[derive(Args)]
 struct DiagnoseArgs {
-    /// A Shoal recording (run.rrd, with --robot N), or a run directory
-    /// holding commands.csv and poses.csv.
+    /// A Shoal recording (run.rrd, with --robot N), a run directory
+    /// holding commands.csv and poses.csv, or a ROS 2 bag (.mcap, .db3, or a
+    /// bag folder with metadata.yaml; as --bag).
     run: Option<PathBuf>,
     /// Commands sent: CSV with header t,v,omega (held until the next row).
     #[arg(long, requires = "poses", conflicts_with_all = ["run", "mrclam"])]
@@ -47,18 +48,25 @@ struct DiagnoseArgs {
     /// Which robot: a Shoal robot id in a .rrd recording, or MRCLAM's 1-5.
     #[arg(long)]
     robot: Option<u32>,
-    /// A ROS 2 bag (MCAP): commands from --commands-topic, poses from
-    /// --poses-topic. Without the topics, lists the bag's topics.
-    #[arg(long, value_name = "FILE.mcap", conflicts_with_all = ["run", "mrclam", "commands"])]
+    /// A ROS 2 bag: an MCAP or sqlite3 (.db3) file, or a bag folder (split
+    /// bags, with metadata.yaml); compressed files, chunks and messages are
+    /// read. Commands from --commands-topic, poses from --poses-topic;
+    /// without the topics, lists the bag's topics.
+    #[arg(long, value_name = "BAG", conflicts_with_all = ["run", "mrclam", "commands"])]
     bag: Option<PathBuf>,
     /// The bag's velocity commands: geometry_msgs/msg/Twist or TwistStamped.
-    #[arg(long, requires = "bag", value_name = "TOPIC")]
+    #[arg(long, value_name = "TOPIC")]
     commands_topic: Option<String>,
     /// The bag's observed poses: geometry_msgs/msg/PoseStamped,
     /// PoseWithCovarianceStamped, nav_msgs/msg/Odometry, or
     /// tf2_msgs/msg/TFMessage with --frame.
-    #[arg(long, requires = "bag", value_name = "TOPIC")]
+    #[arg(long, value_name = "TOPIC")]
     poses_topic: Option<String>,
+    /// Which of a bag's clocks times commands and poses: `auto` chooses the
+    /// one both topics share and says why (header stamps on one clock; log
+    /// times; simulation time through /clock), `header` or `log` insist.
+    #[arg(long, value_enum, default_value_t = load::Stamps::Auto)]
+    stamps: load::Stamps,
     /// With a TF poses topic: the robot's frame (the transform's child).
     #[arg(long, requires = "poses_topic", value_name = "CHILD")]
     frame: Option<String>,
@@ -126,212 +134,7 @@ enum Commands {
 /// Fewer segments than this say nothing either way.
 const MIN_SEGMENTS: usize = 20;
 
-fn read(path: &Path) -> Result<String> {
-    std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))
-}
-
-fn load_csv_pair(commands: &Path, poses: &Path) -> Result<Recording> {
-    let c = commands_csv(&read(commands)?, &commands.display().to_string())?;
-    let p = poses_csv(&read(poses)?, &poses.display().to_string())?;
-    Ok(Recording::from_absolute(c, p))
-}
-
-fn load_bag(path: &Path, args: &DiagnoseArgs) -> Result<Recording> {
-    let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let file = path.display().to_string();
-    let (Some(commands_topic), Some(poses_topic)) = (&args.commands_topic, &args.poses_topic)
-    else {
-        let topics = bag::topics(&bytes, &file)?;
-        let mut listing = format!("{file} holds {} topics:\n", topics.len());
-        for t in &topics {
-            listing.push_str(&format!(
-                "  {}  {}  ({} messages)\n",
-                t.name, t.message_type, t.messages
-            ));
-        }
-        let of = |types: &[&str]| -> Vec<&str> {
-            topics
-                .iter()
-                .filter(|t| types.contains(&t.message_type.as_str()))
-                .map(|t| t.name.as_str())
-                .collect()
-        };
-        bail!(
-            "{listing}choose the commands with --commands-topic (Twist or TwistStamped: {}) and the poses with --poses-topic \
-             (PoseStamped, PoseWithCovarianceStamped, Odometry, or TFMessage with --frame CHILD: {})",
-            or_none(&of(&bag::COMMAND_TYPES)),
-            or_none(&of(&bag::POSE_TYPES)),
-        );
-    };
-    let run = bag::read_bag(
-        &bytes,
-        &file,
-        &bag::Selection {
-            commands_topic,
-            poses_topic,
-            frame: args.frame.as_deref(),
-            parent: args.parent.as_deref(),
-        },
-    )?;
-    eprintln!(
-        "shoal diagnose: times of {commands_topic} from {}, of {poses_topic} from {}",
-        run.command_times, run.pose_times
-    );
-    Ok(Recording {
-        commands: run.commands,
-        poses: run.poses,
-        t_origin: run.t_origin,
-    })
-}
-
-/// One robot of a Shoal recording: its true poses and the commands it
-/// executed, as the recorder logged them.
-fn load_rrd(path: &Path, robot: Option<u32>) -> Result<Recording> {
-    let file = path.display().to_string();
-    let rows = shoal_viewer_log::motion::read_motion(path)?;
-    if let Some(messages) = rows.truncated_after {
-        eprintln!(
-            "shoal diagnose: {file} ends mid-message after {messages} messages (was its recorder killed?); reading what came before"
-        );
-    }
-    let Some(robot) = robot else {
-        bail!(
-            "{file}: which robot? give --robot N; the recording holds robots {}",
-            shoal_viewer_log::motion::list_ids(&rows.robots())
-        );
-    };
-    let track = rows.track(robot, &file)?;
-    let mut commands = shoal_diagnose::recording::Commands::default();
-    for [t, v, omega] in track.commands {
-        commands.hold(t, v, omega);
-    }
-    let mut poses = shoal_diagnose::recording::Poses::default();
-    for [t, x, y, theta] in track.poses {
-        poses.observe(t, x, y, theta);
-    }
-    Ok(Recording::from_absolute(commands, poses))
-}
-
-fn or_none(names: &[&str]) -> String {
-    if names.is_empty() {
-        "none in this bag".to_owned()
-    } else {
-        names.join(", ")
-    }
-}
-
-fn load(args: &DiagnoseArgs) -> Result<Recording> {
-    if let (Some(c), Some(p)) = (&args.commands, &args.poses) {
-        return load_csv_pair(c, p);
-    }
-    if let Some(bag) = &args.bag {
-        return load_bag(bag, args);
-    }
-    if let Some(dir) = &args.mrclam {
-        let robot = args.robot.context("--mrclam needs --robot N")?;
-        let odometry = dir.join(format!("Robot{robot}_Odometry.dat"));
-        let truth = dir.join(format!("Robot{robot}_Groundtruth.dat"));
-        let c = mrclam_odometry(&read(&odometry)?, &odometry.display().to_string())?;
-        let p = mrclam_groundtruth(&read(&truth)?, &truth.display().to_string())?;
-        return Ok(Recording::from_absolute(c, p));
-    }
-    if let Some(run) = &args.run {
-        if run.extension().is_some_and(|e| e == "rrd") {
-            return load_rrd(run, args.robot);
-        }
-        return load_csv_pair(&run.join("commands.csv"), &run.join("poses.csv"));
-    }
-    bail!(
-        "nothing to diagnose: give a run directory, --commands and --poses, --bag FILE.mcap, or --mrclam DIR --robot N"
-    )
-}
-
-/// Below this corrected p-value a residual covariate is reported as one
-/// the residuals still follow.
-const SIGNIFICANT: f64 = 0.01;
-
-/// The report a person reads: printed, and the recording's document.
-fn report_text(d: &Diagnosis) -> String {
-    use std::fmt::Write as _;
-    let mut out = String::new();
-    // Writing into a String cannot fail.
-    let mut line = |text: String| {
-        let _ = writeln!(out, "{text}");
-    };
-    line(format!(
-        "{} segments of {:.1} s compared.",
-        d.segments, d.horizon_s
-    ));
-    if !d.mismatch {
-        line("No significant mismatch: the model explains the run within its noise.".into());
-    }
-    for l in d.located.iter().take(8) {
-        let place = l
-            .region
-            .map(|r| {
-                format!(
-                    " in [{:.1}, {:.1}]-[{:.1}, {:.1}] m",
-                    r[0], r[1], r[2], r[3]
-                )
-            })
-            .unwrap_or_default();
-        line(format!(
-            "  differs by {}: {:.0}-{:.0} s{place}, {} ({} residual, z {:.1}, p {:.1e})",
-            l.family, l.t_start, l.t_end, l.commands, l.component, l.z, l.significance
-        ));
-    }
-    if d.mismatch && d.effects.is_empty() {
-        line("The mismatch is significant but no effect of the library explains it.".into());
-    }
-    for u in &d.unexplained {
-        line(format!("  not explained: tried {}: {}", u.tried, u.reason));
-    }
-    for e in &d.effects {
-        line(format!(
-            "  {} (χ² {:.1} on {} parameters, {:.1} needed at {}; p {:.1e} after correcting for the library's kinds; ΔBIC {:.0})",
-            e.sentence,
-            e.test.chi2,
-            e.test.dof,
-            e.test.needed,
-            e.test.level,
-            e.test.p_adjusted,
-            e.delta_bic
-        ));
-        if !e.indistinguishable_from.is_empty() {
-            line(format!(
-                "    these data explain it equally well as: {}",
-                e.indistinguishable_from.join(", ")
-            ));
-        }
-    }
-    let following: Vec<String> = d
-        .residual_covariates
-        .iter()
-        .filter(|c| c.significance < SIGNIFICANT)
-        .map(|c| {
-            format!(
-                "{} residual with {} (r {:+.2}, p {:.1e})",
-                c.component, c.covariate, c.correlation, c.significance
-            )
-        })
-        .collect();
-    if !following.is_empty() {
-        line(format!(
-            "What is left still follows: {}.",
-            following.join("; ")
-        ));
-    }
-    line(format!(
-        "Held-out position error {:.1} mm -> {:.1} mm, heading {:.2} -> {:.2} deg, NLL {:.2} -> {:.2} per segment.",
-        d.baseline.heldout_rmse_pos_m * 1e3,
-        d.improved.heldout_rmse_pos_m * 1e3,
-        d.baseline.heldout_rmse_theta_rad.to_degrees(),
-        d.improved.heldout_rmse_theta_rad.to_degrees(),
-        d.baseline.heldout_nll,
-        d.improved.heldout_nll
-    ));
-    out
-}
+use load::read;
 
 /// Writes `path` by having `write` fill a file beside it and renaming that
 /// into place: an interrupted run leaves the earlier result whole, never
@@ -357,7 +160,7 @@ fn write_into_place(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Res
 }
 
 fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
-    let recording = load(args)?;
+    let load::Loaded { recording, notes } = load::load(args)?;
     let model = match &args.model {
         Some(path) => UnicycleModel::from_toml(&read(path)?, &path.display().to_string())?,
         None => UnicycleModel::plain(),
@@ -368,9 +171,15 @@ fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
     };
     let diagnosis = diagnose(&recording, &model, &options);
     if diagnosis.segments < MIN_SEGMENTS {
+        let clock = notes.clock.as_ref().map_or_else(String::new, |c| {
+            format!(
+                " (commands timed by {}, poses by {}: {})",
+                c.commands, c.poses, c.reason
+            )
+        });
         bail!(
             "too little to compare: {} segments of {} s with observed poses at both ends (at least {MIN_SEGMENTS} needed); \
-             do the commands and the poses cover the same stretch of time?",
+             do the commands and the poses cover the same stretch of time?{clock}",
             diagnosis.segments,
             options.horizon_s
         );
@@ -397,7 +206,7 @@ fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
         })?;
         written.plot = Some(png);
     }
-    let report = report_text(&diagnosis);
+    let report = report::report_text(&diagnosis, &notes);
     if let Some(path) = &args.rrd {
         if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
             std::fs::create_dir_all(parent)
@@ -416,6 +225,7 @@ fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
     ];
     if args.json {
         let mut value = serde_json::to_value(&diagnosis)?;
+        value["input"] = serde_json::to_value(&notes)?;
         for (key, _, path) in files {
             value[key] = serde_json::json!(path.as_ref().map(|p| p.display().to_string()));
         }
@@ -470,7 +280,12 @@ fn run_generate(args: &GenerateArgs) -> Result<()> {
         &model.to_toml().context("writing the true model")?,
     )?;
     if args.bag {
-        let bytes = bag::write_bag(&recording).map_err(anyhow::Error::msg)?;
+        let (c, p) = (&recording.commands, &recording.poses);
+        let commands: Vec<(f64, f64, f64)> =
+            (0..c.t.len()).map(|i| (c.t[i], c.v[i], c.omega[i])).collect();
+        let poses: Vec<(f64, f64, f64, f64)> =
+            (0..p.t.len()).map(|i| (p.t[i], p.x[i], p.y[i], p.theta[i])).collect();
+        let bytes = shoal_bags::write::write_bag(&commands, &poses).map_err(anyhow::Error::msg)?;
         let path = out.join("run.mcap");
         std::fs::write(&path, bytes).with_context(|| format!("cannot write {}", path.display()))?;
     }

@@ -2,7 +2,6 @@
 //! the simulation left out, and how much better the run is explained with it.
 //! Pure logic: inputs arrive as text or numbers, outputs leave as values.
 
-pub mod bag;
 pub mod covariates;
 pub mod diagnosis;
 pub mod fit;

@@ -151,14 +151,17 @@ impl Target {
             Target::SlamParticles => wire_outcome::<shoal_broker::SlamParticles>(rng),
             Target::SlamMap => wire_outcome::<shoal_broker::SlamMap>(rng),
             Target::RosBag => text_outcome(
-                shoal_diagnose::bag::read_bag(
-                    &mutate_bytes(rng, &seeds.ros_bag),
-                    Self::FILE,
-                    &shoal_diagnose::bag::Selection {
-                        commands_topic: shoal_diagnose::bag::WRITTEN_COMMANDS_TOPIC,
-                        poses_topic: shoal_diagnose::bag::WRITTEN_POSES_TOPIC,
+                shoal_bags::read_run(
+                    &shoal_bags::Bag::from_bytes(
+                        std::path::Path::new(Self::FILE),
+                        mutate_bytes(rng, &seeds.ros_bag),
+                    ),
+                    &shoal_bags::Selection {
+                        commands_topic: shoal_bags::write::WRITTEN_COMMANDS_TOPIC,
+                        poses_topic: shoal_bags::write::WRITTEN_POSES_TOPIC,
                         ..Default::default()
                     },
+                    shoal_bags::StampsPreference::Auto,
                 )
                 .map(|_| ()),
             ),
@@ -587,7 +590,14 @@ impl Seeds {
             .map(|(c, p)| shoal_diagnose::Recording::from_absolute(c, p))
             .unwrap_or_default();
         Self {
-            ros_bag: shoal_diagnose::bag::write_bag(&run).unwrap_or_default(),
+            ros_bag: {
+                let (c, p) = (&run.commands, &run.poses);
+                let commands: Vec<(f64, f64, f64)> =
+                    (0..c.t.len()).map(|i| (c.t[i], c.v[i], c.omega[i])).collect();
+                let poses: Vec<(f64, f64, f64, f64)> =
+                    (0..p.t.len()).map(|i| (p.t[i], p.x[i], p.y[i], p.theta[i])).collect();
+                shoal_bags::write::write_bag(&commands, &poses).unwrap_or_default()
+            },
             scenario: scenario.to_toml().unwrap_or_default(),
             motion_model: toml::to_string(&shoal_physics::MotionModel::legged_default())
                 .unwrap_or_default(),

@@ -1,0 +1,301 @@
+//! The standard ROS 2 messages of commands and poses, decoded by their
+//! known CDR layouts (`.db3` files of Humble and older carry no message
+//! definitions), with the `cdr-encoding` crate.
+
+use serde::Deserialize;
+
+use crate::run::Selection;
+
+pub const COMMAND_TYPES: [&str; 2] = ["geometry_msgs/msg/Twist", "geometry_msgs/msg/TwistStamped"];
+pub const POSE_TYPES: [&str; 4] = [
+    "geometry_msgs/msg/PoseStamped",
+    "geometry_msgs/msg/PoseWithCovarianceStamped",
+    "nav_msgs/msg/Odometry",
+    "tf2_msgs/msg/TFMessage",
+];
+
+/// The simulation clock a Gazebo bag records beside its topics.
+pub const CLOCK_TYPE: &str = "rosgraph_msgs/msg/Clock";
+
+/// A decoded value with its header stamp (if the type has one and it was
+/// set) and the bag's log time, both in nanoseconds.
+pub struct Stamped<T> {
+    pub stamp: Option<i64>,
+    pub log_time: i64,
+    pub value: T,
+}
+
+/// Decodes a serialized ROS 2 message: a 4-byte encapsulation header (its
+/// second byte says the byte order) and the CDR body, whose alignment
+/// counts from the body's start.
+fn decode<'de, T: Deserialize<'de>>(data: &'de [u8]) -> Result<T, String> {
+    let (Some(&[_, representation, _, _]), Some(body)) = (data.first_chunk::<4>(), data.get(4..))
+    else {
+        return Err(format!("{} bytes, too short for a CDR message", data.len()));
+    };
+    let decoded = match representation {
+        0 => cdr_encoding::from_bytes::<T, byteorder::BigEndian>(body),
+        1 => cdr_encoding::from_bytes::<T, byteorder::LittleEndian>(body),
+        other => {
+            return Err(format!(
+                "encapsulation {other} is not plain CDR (0 or 1); XCDR2 and parameter lists are not read"
+            ));
+        }
+    };
+    decoded
+        .map(|(message, _)| message)
+        .map_err(|e| format!("cannot decode the message: {e}"))
+}
+
+fn finite(values: &[(&str, f64)]) -> Result<(), String> {
+    match values.iter().find(|(_, v)| !v.is_finite()) {
+        Some((name, v)) => Err(format!("field {name} is not finite: {v}")),
+        None => Ok(()),
+    }
+}
+
+pub fn decode_command(kind: &str, data: &[u8], log_time: i64) -> Result<Stamped<(f64, f64)>, String> {
+    let (stamp, twist) = match kind {
+        "geometry_msgs/msg/Twist" => (None, decode::<msg::Twist>(data)?),
+        "geometry_msgs/msg/TwistStamped" => {
+            let m = decode::<msg::TwistStamped>(data)?;
+            (m.header.stamp.nanoseconds(), m.twist)
+        }
+        other => {
+            return Err(format!(
+                "commands must be {}, not {other}",
+                COMMAND_TYPES.join(" or ")
+            ));
+        }
+    };
+    finite(&[("linear.x", twist.linear.x), ("angular.z", twist.angular.z)])?;
+    Ok(Stamped {
+        stamp,
+        log_time,
+        value: (twist.linear.x, twist.angular.z),
+    })
+}
+
+pub fn decode_poses(
+    kind: &str,
+    data: &[u8],
+    log_time: i64,
+    selection: &Selection,
+) -> Result<Vec<Stamped<(f64, f64, f64)>>, String> {
+    let one = |header: msg::Header, pose: msg::Pose| -> Result<Vec<_>, String> {
+        Ok(vec![planar(
+            header.stamp.nanoseconds(),
+            log_time,
+            &pose.position,
+            &pose.orientation,
+        )?])
+    };
+    match kind {
+        "geometry_msgs/msg/PoseStamped" => {
+            let m = decode::<msg::PoseStamped>(data)?;
+            one(m.header, m.pose)
+        }
+        "geometry_msgs/msg/PoseWithCovarianceStamped" => {
+            let m = decode::<msg::PoseWithCovarianceStamped>(data)?;
+            one(m.header, m.pose.pose)
+        }
+        "nav_msgs/msg/Odometry" => {
+            let m = decode::<msg::Odometry>(data)?;
+            one(m.header, m.pose.pose)
+        }
+        "tf2_msgs/msg/TFMessage" => {
+            let frame = selection
+                .frame
+                .ok_or("a TF topic needs --frame CHILD: the robot's frame (e.g. base_link)")?;
+            let m = decode::<msg::TfMessage>(data)?;
+            let same = |a: &str, b: &str| a.trim_start_matches('/') == b.trim_start_matches('/');
+            m.transforms
+                .into_iter()
+                .filter(|t| same(&t.child_frame_id, frame))
+                .filter(|t| selection.parent.is_none_or(|p| same(&t.header.frame_id, p)))
+                .map(|t| {
+                    planar(
+                        t.header.stamp.nanoseconds(),
+                        log_time,
+                        &t.transform.translation,
+                        &t.transform.rotation,
+                    )
+                })
+                .collect()
+        }
+        other => Err(format!(
+            "poses must be {}, not {other}",
+            POSE_TYPES.join(", ")
+        )),
+    }
+}
+
+/// A pose on the floor: position and yaw (heading about z).
+fn planar(
+    stamp: Option<i64>,
+    log_time: i64,
+    p: &msg::Vector3,
+    q: &msg::Quaternion,
+) -> Result<Stamped<(f64, f64, f64)>, String> {
+    finite(&[
+        ("position.x", p.x),
+        ("position.y", p.y),
+        ("orientation.x", q.x),
+        ("orientation.y", q.y),
+        ("orientation.z", q.z),
+        ("orientation.w", q.w),
+    ])?;
+    let norm = (q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w).sqrt();
+    if !(0.5..=1.5).contains(&norm) {
+        return Err(format!(
+            "orientation is not a rotation: its quaternion has norm {norm:.3}"
+        ));
+    }
+    let yaw = (2.0 * (q.w * q.z + q.x * q.y)).atan2(1.0 - 2.0 * (q.y * q.y + q.z * q.z));
+    Ok(Stamped {
+        stamp,
+        log_time,
+        value: (p.x, p.y, yaw),
+    })
+}
+
+/// A `/clock` message: the simulation time when the recorder received it.
+pub fn decode_clock(data: &[u8]) -> Result<i64, String> {
+    let clock = decode::<msg::Clock>(data)?;
+    clock
+        .clock
+        .nanoseconds()
+        .ok_or_else(|| "the clock message holds time zero".to_owned())
+}
+
+/// A message as a ROS 2 bag holds it: the little-endian CDR encapsulation
+/// header, then the body.
+pub fn encode<T: serde::Serialize>(message: &T) -> Result<Vec<u8>, String> {
+    let body = cdr_encoding::to_vec::<T, byteorder::LittleEndian>(message)
+        .map_err(|e| format!("cannot encode a message: {e}"))?;
+    Ok([&[0, 1, 0, 0][..], &body].concat())
+}
+
+/// The ROS 2 message layouts read here, field for field as CDR lays them out.
+pub mod msg {
+    use serde::{Deserialize, Serialize};
+
+    #[derive(Deserialize, Serialize)]
+    pub struct Time {
+        pub sec: i32,
+        pub nanosec: u32,
+    }
+
+    impl Time {
+        /// Nanoseconds, or `None` for an unset (zero) stamp.
+        pub fn nanoseconds(&self) -> Option<i64> {
+            (self.sec != 0 || self.nanosec != 0)
+                .then(|| i64::from(self.sec) * 1_000_000_000 + i64::from(self.nanosec))
+        }
+    }
+
+    #[derive(Deserialize, Serialize)]
+    pub struct Header {
+        pub stamp: Time,
+        pub frame_id: String,
+    }
+
+    /// Also `geometry_msgs/msg/Point`: the same three doubles.
+    #[derive(Deserialize, Serialize)]
+    pub struct Vector3 {
+        pub x: f64,
+        pub y: f64,
+        pub z: f64,
+    }
+
+    #[derive(Deserialize, Serialize)]
+    pub struct Quaternion {
+        pub x: f64,
+        pub y: f64,
+        pub z: f64,
+        pub w: f64,
+    }
+
+    #[derive(Deserialize, Serialize)]
+    pub struct Twist {
+        pub linear: Vector3,
+        pub angular: Vector3,
+    }
+
+    #[derive(Deserialize, Serialize)]
+    pub struct TwistStamped {
+        pub header: Header,
+        pub twist: Twist,
+    }
+
+    #[derive(Deserialize, Serialize)]
+    pub struct Pose {
+        pub position: Vector3,
+        pub orientation: Quaternion,
+    }
+
+    #[derive(Deserialize, Serialize)]
+    pub struct PoseStamped {
+        pub header: Header,
+        pub pose: Pose,
+    }
+
+    /// A fixed `float64[36]`: CDR writes it without a length, as six rows
+    /// of six (serde derives arrays up to 32).
+    type Covariance = [[f64; 6]; 6];
+
+    #[derive(Deserialize, Serialize)]
+    pub struct PoseWithCovariance {
+        pub pose: Pose,
+        #[allow(dead_code)]
+        covariance: Covariance,
+    }
+
+    #[derive(Deserialize, Serialize)]
+    pub struct PoseWithCovarianceStamped {
+        pub header: Header,
+        pub pose: PoseWithCovariance,
+    }
+
+    #[derive(Deserialize, Serialize)]
+    pub struct TwistWithCovariance {
+        #[allow(dead_code)]
+        twist: Twist,
+        #[allow(dead_code)]
+        covariance: Covariance,
+    }
+
+    #[derive(Deserialize, Serialize)]
+    pub struct Odometry {
+        pub header: Header,
+        #[allow(dead_code)]
+        child_frame_id: String,
+        pub pose: PoseWithCovariance,
+        #[allow(dead_code)]
+        twist: TwistWithCovariance,
+    }
+
+    #[derive(Deserialize, Serialize)]
+    pub struct Transform {
+        pub translation: Vector3,
+        pub rotation: Quaternion,
+    }
+
+    #[derive(Deserialize, Serialize)]
+    pub struct TransformStamped {
+        pub header: Header,
+        pub child_frame_id: String,
+        pub transform: Transform,
+    }
+
+    #[derive(Deserialize, Serialize)]
+    pub struct TfMessage {
+        pub transforms: Vec<TransformStamped>,
+    }
+
+    #[derive(Deserialize, Serialize)]
+    pub struct Clock {
+        pub clock: Time,
+    }
+}
+

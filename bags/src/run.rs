@@ -1,0 +1,169 @@
+//! A bag read for diagnosis: velocity commands from one topic, observed
+//! poses from another, both on the one clock `clock::choose` picks.
+
+use crate::clock::{ClockChoice, LogToClock, StampsPreference, Timing};
+use crate::ros::{self, Stamped};
+use crate::storage::{Bag, RawMessage};
+use crate::BagError;
+
+/// Which topics to read, and for `tf2_msgs/msg/TFMessage` which transform.
+#[derive(Clone, Debug, Default)]
+pub struct Selection<'a> {
+    pub commands_topic: &'a str,
+    pub poses_topic: &'a str,
+    /// The child frame whose transform is the robot's pose (TF topics only).
+    pub frame: Option<&'a str>,
+    /// Only transforms from this parent frame (TF topics only).
+    pub parent: Option<&'a str>,
+}
+
+/// The topic Gazebo and every ROS 2 simulator publishes simulation time on.
+pub const CLOCK_TOPIC: &str = "/clock";
+
+/// What a bag holds for diagnosis. Times are seconds after the first
+/// command, taken in whole nanoseconds: as `f64` seconds since 1970 they
+/// would be off by up to a quarter of a microsecond.
+#[derive(Clone, Debug)]
+pub struct BagRun {
+    /// (t, v, omega), in time order.
+    pub commands: Vec<(f64, f64, f64)>,
+    /// (t, x, y, yaw), in time order.
+    pub poses: Vec<(f64, f64, f64, f64)>,
+    /// The chosen clock's time of the first command, in seconds.
+    pub t_origin: f64,
+    pub clock: ClockChoice,
+}
+
+/// Reads the selected topics of `bag` (and its `/clock`, if it has one).
+pub fn read_run(
+    bag: &Bag,
+    selection: &Selection,
+    preference: StampsPreference,
+) -> Result<BagRun, BagError> {
+    let wanted = [selection.commands_topic, selection.poses_topic, CLOCK_TOPIC];
+    let mut commands: Vec<Stamped<(f64, f64)>> = Vec::new();
+    let mut poses: Vec<Stamped<(f64, f64, f64)>> = Vec::new();
+    let mut clock: Vec<(i64, i64)> = Vec::new();
+    let mut seen = [0_u64; 2];
+    for message in bag.messages(Some(&wanted))? {
+        let RawMessage {
+            topic,
+            message_type,
+            encoding,
+            log_time_ns,
+            data,
+        } = message;
+        let index = if topic == selection.commands_topic {
+            0
+        } else if topic == selection.poses_topic {
+            1
+        } else {
+            // The bag's own /clock, when it is not one of the chosen topics.
+            if message_type == ros::CLOCK_TYPE
+                && let Ok(sim) = ros::decode_clock(&data)
+            {
+                clock.push((log_time_ns, sim));
+            }
+            continue;
+        };
+        seen[index] += 1;
+        let at = |what: String| {
+            BagError::new(
+                &bag.path,
+                format!("topic {topic}, message {} ({message_type}): {what}", seen[index]),
+            )
+        };
+        if encoding != "cdr" {
+            return Err(at(format!(
+                "messages are encoded as `{encoding}`; ROS 2 bags use `cdr`"
+            )));
+        }
+        if index == 0 {
+            commands.push(ros::decode_command(&message_type, &data, log_time_ns).map_err(at)?);
+        } else {
+            poses.extend(
+                ros::decode_poses(&message_type, &data, log_time_ns, selection).map_err(at)?,
+            );
+        }
+    }
+    check_found(bag, selection, seen, poses.is_empty())?;
+    let (choice, map) = crate::clock::choose(&times(&commands), &times(&poses), &clock, preference)
+        .map_err(|e| BagError::new(&bag.path, e))?;
+    let commands = on_clock(commands, choice.commands, map.as_ref());
+    let poses = on_clock(poses, choice.poses, map.as_ref());
+    let origin_ns = commands.first().map_or(0, |c| c.0);
+    let seconds = |ns: i64| (ns - origin_ns) as f64 * 1e-9;
+    Ok(BagRun {
+        commands: commands
+            .into_iter()
+            .map(|(ns, (v, omega))| (seconds(ns), v, omega))
+            .collect(),
+        poses: poses
+            .into_iter()
+            .map(|(ns, (x, y, yaw))| (seconds(ns), x, y, yaw))
+            .collect(),
+        t_origin: origin_ns as f64 * 1e-9,
+        clock: choice,
+    })
+}
+
+fn check_found(
+    bag: &Bag,
+    selection: &Selection,
+    seen: [u64; 2],
+    no_poses: bool,
+) -> Result<(), BagError> {
+    for (index, topic, types) in [
+        (0, selection.commands_topic, &ros::COMMAND_TYPES[..]),
+        (1, selection.poses_topic, &ros::POSE_TYPES[..]),
+    ] {
+        if seen[index] == 0 {
+            return Err(BagError::new(
+                &bag.path,
+                format!(
+                    "no messages on topic {topic}; `shoal diagnose {}` lists the topics \
+                     (expected one of type {})",
+                    bag.path.display(),
+                    types.join(", ")
+                ),
+            ));
+        }
+    }
+    if no_poses {
+        return Err(BagError::new(
+            &bag.path,
+            format!(
+                "topic {} has no transform to child frame {}{}",
+                selection.poses_topic,
+                selection.frame.unwrap_or("?"),
+                selection
+                    .parent
+                    .map(|p| format!(" from parent {p}"))
+                    .unwrap_or_default()
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Each message's header stamp (if any) and log time.
+fn times<T>(messages: &[Stamped<T>]) -> Vec<(Option<i64>, i64)> {
+    messages.iter().map(|s| (s.stamp, s.log_time)).collect()
+}
+
+/// Each message's time on the chosen clock, in time order.
+fn on_clock<T>(messages: Vec<Stamped<T>>, timing: Timing, map: Option<&LogToClock>) -> Vec<(i64, T)> {
+    let mut timed: Vec<(i64, T)> = messages
+        .into_iter()
+        .map(|m| {
+            let t = match (timing, map) {
+                (Timing::HeaderStamps, _) => m.stamp.unwrap_or(m.log_time),
+                (Timing::MappedLogTimes(_), Some(map)) => map.map(m.log_time),
+                _ => m.log_time,
+            };
+            (t, m.value)
+        })
+        .collect();
+    timed.sort_by_key(|m| m.0);
+    timed
+}

@@ -1,0 +1,229 @@
+//! The diagnosis's inputs: a CSV pair or run folder, a ROS 2 bag (file or
+//! folder), a Shoal recording (`.rrd`), MRCLAM's files. Each names the file
+//! and line of what it cannot read, and says how it timed what it read.
+
+use std::path::Path;
+
+use anyhow::{Context, Result, bail};
+use serde::Serialize;
+use shoal_bags::{Bag, StampsPreference};
+use shoal_diagnose::Recording;
+use shoal_diagnose::input::{commands_csv, mrclam_groundtruth, mrclam_odometry, poses_csv};
+
+use crate::DiagnoseArgs;
+
+pub fn read(path: &Path) -> Result<String> {
+    std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))
+}
+
+/// What the diagnosis read, and what the reading decided on the user's
+/// behalf: reported with the diagnosis (text and JSON).
+#[derive(Debug, Default, Serialize)]
+pub struct InputNotes {
+    /// For a bag: the clock commands and poses were compared on.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub clock: Option<ClockNote>,
+}
+
+#[derive(Debug, Serialize)]
+pub struct ClockNote {
+    pub commands_topic: String,
+    pub poses_topic: String,
+    /// How each topic was timed.
+    pub commands: String,
+    pub poses: String,
+    /// Why this clock.
+    pub reason: String,
+    /// What it means for a delay fitted between command and motion.
+    pub delay: String,
+}
+
+/// A run read for diagnosis, with what was decided reading it.
+pub struct Loaded {
+    pub recording: Recording,
+    pub notes: InputNotes,
+}
+
+impl From<Recording> for Loaded {
+    fn from(recording: Recording) -> Self {
+        Self {
+            recording,
+            notes: InputNotes::default(),
+        }
+    }
+}
+
+pub fn load_csv_pair(commands: &Path, poses: &Path) -> Result<Recording> {
+    let c = commands_csv(&read(commands)?, &commands.display().to_string())?;
+    let p = poses_csv(&read(poses)?, &poses.display().to_string())?;
+    Ok(Recording::from_absolute(c, p))
+}
+
+/// One robot of a Shoal recording: its true poses and the commands it
+/// executed, as the recorder logged them.
+fn load_rrd(path: &Path, robot: Option<u32>) -> Result<Recording> {
+    let file = path.display().to_string();
+    let rows = shoal_viewer_log::motion::read_motion(path)?;
+    if let Some(messages) = rows.truncated_after {
+        eprintln!(
+            "shoal diagnose: {file} ends mid-message after {messages} messages (was its recorder killed?); reading what came before"
+        );
+    }
+    let Some(robot) = robot else {
+        bail!(
+            "{file}: which robot? give --robot N; the recording holds robots {}",
+            shoal_viewer_log::motion::list_ids(&rows.robots())
+        );
+    };
+    let track = rows.track(robot, &file)?;
+    let mut commands = shoal_diagnose::recording::Commands::default();
+    for [t, v, omega] in track.commands {
+        commands.hold(t, v, omega);
+    }
+    let mut poses = shoal_diagnose::recording::Poses::default();
+    for [t, x, y, theta] in track.poses {
+        poses.observe(t, x, y, theta);
+    }
+    Ok(Recording::from_absolute(commands, poses))
+}
+
+/// A ROS 2 bag: its topics listed, or the chosen ones read on one clock.
+fn load_bag(path: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
+    let bag = Bag::open(path)?;
+    let topics = bag.topics()?;
+    let of = |types: &[&str]| -> Vec<String> {
+        topics
+            .iter()
+            .filter(|t| types.contains(&t.message_type.as_str()))
+            .map(|t| t.name.clone())
+            .collect()
+    };
+    let (command_topics, pose_topics) = (of(&shoal_bags::ros::COMMAND_TYPES), of(&shoal_bags::ros::POSE_TYPES));
+    let (commands_topic, poses_topic) = match (&args.commands_topic, &args.poses_topic) {
+        (Some(c), Some(p)) => (c.clone(), p.clone()),
+        _ => {
+            let mut listing = format!("{} holds {} topics:\n", path.display(), topics.len());
+            for t in &topics {
+                listing.push_str(&format!("  {}  {}  ({} messages)\n", t.name, t.message_type, t.messages));
+            }
+            bail!(
+                "{listing}choose the commands with --commands-topic (Twist or TwistStamped: {}) and the poses with --poses-topic \
+                 (PoseStamped, PoseWithCovarianceStamped, Odometry, or TFMessage with --frame CHILD: {})",
+                or_none(&command_topics),
+                or_none(&pose_topics),
+            );
+        }
+    };
+    let run = shoal_bags::read_run(
+        &bag,
+        &shoal_bags::Selection {
+            commands_topic: &commands_topic,
+            poses_topic: &poses_topic,
+            frame: args.frame.as_deref(),
+            parent: args.parent.as_deref(),
+        },
+        args.stamps.into(),
+    )?;
+    let mut commands = shoal_diagnose::recording::Commands::default();
+    for &(t, v, omega) in &run.commands {
+        commands.hold(t, v, omega);
+    }
+    let mut poses = shoal_diagnose::recording::Poses::default();
+    for &(t, x, y, yaw) in &run.poses {
+        poses.observe(t, x, y, yaw);
+    }
+    let clock = ClockNote {
+        commands: run.clock.commands.to_string(),
+        poses: run.clock.poses.to_string(),
+        reason: run.clock.reason.clone(),
+        delay: run.clock.delay_note.clone(),
+        commands_topic,
+        poses_topic,
+    };
+    Ok(Loaded {
+        recording: Recording {
+            commands,
+            poses,
+            t_origin: run.t_origin,
+        },
+        notes: InputNotes { clock: Some(clock) },
+    })
+}
+
+fn or_none(names: &[String]) -> String {
+    if names.is_empty() {
+        "none in this bag".to_owned()
+    } else {
+        names.join(", ")
+    }
+}
+
+/// Reads what the arguments name.
+pub fn load(args: &DiagnoseArgs) -> Result<Loaded> {
+    if let (Some(c), Some(p)) = (&args.commands, &args.poses) {
+        return load_csv_pair(c, p).map(Loaded::from);
+    }
+    if let Some(bag) = &args.bag {
+        return load_bag(bag, args);
+    }
+    if let Some(dir) = &args.mrclam {
+        let robot = args.robot.context("--mrclam needs --robot N")?;
+        let odometry = dir.join(format!("Robot{robot}_Odometry.dat"));
+        let truth = dir.join(format!("Robot{robot}_Groundtruth.dat"));
+        let c = mrclam_odometry(&read(&odometry)?, &odometry.display().to_string())?;
+        let p = mrclam_groundtruth(&read(&truth)?, &truth.display().to_string())?;
+        return Ok(Recording::from_absolute(c, p).into());
+    }
+    if let Some(run) = &args.run {
+        return load_positional(run, args);
+    }
+    bail!(
+        "nothing to diagnose: give a run folder, a ROS 2 bag (file or folder), a Shoal recording (.rrd), \
+         --commands and --poses, or --mrclam DIR --robot N"
+    )
+}
+
+/// The one path given: a Shoal recording, a run folder (commands.csv and
+/// poses.csv), or a ROS 2 bag (file or folder).
+fn load_positional(run: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
+    if run.extension().is_some_and(|e| e == "rrd") {
+        return load_rrd(run, args.robot).map(Loaded::from);
+    }
+    let (commands, poses) = (run.join("commands.csv"), run.join("poses.csv"));
+    if run.is_dir() && (commands.is_file() || poses.is_file()) {
+        return load_csv_pair(&commands, &poses).map(Loaded::from);
+    }
+    if shoal_bags::looks_like_bag(run) {
+        return load_bag(run, args);
+    }
+    if !run.exists() {
+        bail!("{}: no such file or folder", run.display());
+    }
+    bail!(
+        "{}: not a Shoal recording (.rrd), a run folder (commands.csv and poses.csv) or a ROS 2 bag \
+         (.mcap, .db3, or a bag folder with metadata.yaml)",
+        run.display()
+    )
+}
+
+/// The user's `--stamps`.
+#[derive(Clone, Copy, Debug, Default, clap::ValueEnum)]
+pub enum Stamps {
+    /// Choose from the data and say why.
+    #[default]
+    Auto,
+    /// The messages' header stamps.
+    Header,
+    /// The bag's log times.
+    Log,
+}
+
+impl From<Stamps> for StampsPreference {
+    fn from(s: Stamps) -> Self {
+        match s {
+            Stamps::Auto => StampsPreference::Auto,
+            Stamps::Header => StampsPreference::Header,
+            Stamps::Log => StampsPreference::Log,
+        }
+    }
+}

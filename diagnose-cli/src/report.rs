@@ -1,0 +1,107 @@
+//! The report a person reads: printed, and the diagnosis recording's document.
+
+use shoal_diagnose::Diagnosis;
+
+use crate::load::InputNotes;
+
+/// Below this corrected p-value a residual covariate is reported as one
+/// the residuals still follow.
+const SIGNIFICANT: f64 = 0.01;
+
+/// The report a person reads: printed, and the recording's document.
+pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
+    use std::fmt::Write as _;
+    let mut out = String::new();
+    // Writing into a String cannot fail.
+    let mut line = |text: String| {
+        let _ = writeln!(out, "{text}");
+    };
+    if let Some(clock) = &notes.clock {
+        line(format!(
+            "Clock: {} timed by {}, {} by {}: {}. {}.",
+            clock.commands_topic, clock.commands, clock.poses_topic, clock.poses, clock.reason, capitalised(&clock.delay)
+        ));
+    }
+    line(format!(
+        "{} segments of {:.1} s compared.",
+        d.segments, d.horizon_s
+    ));
+    if !d.mismatch {
+        line("No significant mismatch: the model explains the run within its noise.".into());
+    }
+    for l in d.located.iter().take(8) {
+        let place = l
+            .region
+            .map(|r| {
+                format!(
+                    " in [{:.1}, {:.1}]-[{:.1}, {:.1}] m",
+                    r[0], r[1], r[2], r[3]
+                )
+            })
+            .unwrap_or_default();
+        line(format!(
+            "  differs by {}: {:.0}-{:.0} s{place}, {} ({} residual, z {:.1}, p {:.1e})",
+            l.family, l.t_start, l.t_end, l.commands, l.component, l.z, l.significance
+        ));
+    }
+    if d.mismatch && d.effects.is_empty() {
+        line("The mismatch is significant but no effect of the library explains it.".into());
+    }
+    for u in &d.unexplained {
+        line(format!("  not explained: tried {}: {}", u.tried, u.reason));
+    }
+    for e in &d.effects {
+        line(format!(
+            "  {} (χ² {:.1} on {} parameters, {:.1} needed at {}; p {:.1e} after correcting for the library's kinds; ΔBIC {:.0})",
+            e.sentence,
+            e.test.chi2,
+            e.test.dof,
+            e.test.needed,
+            e.test.level,
+            e.test.p_adjusted,
+            e.delta_bic
+        ));
+        if !e.indistinguishable_from.is_empty() {
+            line(format!(
+                "    these data explain it equally well as: {}",
+                e.indistinguishable_from.join(", ")
+            ));
+        }
+    }
+    let following: Vec<String> = d
+        .residual_covariates
+        .iter()
+        .filter(|c| c.significance < SIGNIFICANT)
+        .map(|c| {
+            format!(
+                "{} residual with {} (r {:+.2}, p {:.1e})",
+                c.component, c.covariate, c.correlation, c.significance
+            )
+        })
+        .collect();
+    if !following.is_empty() {
+        line(format!(
+            "What is left still follows: {}.",
+            following.join("; ")
+        ));
+    }
+    line(format!(
+        "Held-out position error {:.1} mm -> {:.1} mm, heading {:.2} -> {:.2} deg, NLL {:.2} -> {:.2} per segment.",
+        d.baseline.heldout_rmse_pos_m * 1e3,
+        d.improved.heldout_rmse_pos_m * 1e3,
+        d.baseline.heldout_rmse_theta_rad.to_degrees(),
+        d.improved.heldout_rmse_theta_rad.to_degrees(),
+        d.baseline.heldout_nll,
+        d.improved.heldout_nll
+    ));
+    out
+}
+
+
+fn capitalised(text: &str) -> String {
+    let mut chars = text.chars();
+    chars
+        .next()
+        .map(|c| c.to_uppercase().chain(chars).collect())
+        .unwrap_or_default()
+}

@@ -1,0 +1,154 @@
+"""Writes a run (commands.csv, poses.csv) as a Gazebo user's ROS 2 bag would
+hold it, with the third-party `rosbags` writer (rosbag2's own file layouts).
+
+Usage: write_gazebo_bag.py RUN_DIR OUT_BAG_DIR OPTIONS...
+
+As `ros2 bag record` under `use_sim_time` records a TurtleBot3 in Gazebo:
+/cmd_vel is geometry_msgs/msg/Twist (no header: only the bag's log time);
+/odom is nav_msgs/msg/Odometry stamped in simulation time, which starts near
+zero; /clock is rosgraph_msgs/msg/Clock every 10 ms of simulation time; log
+times are the recorder's wall clock (Unix time), each message arriving a
+few milliseconds after it was made. OPTIONS, any of:
+
+  storage=sqlite3|mcap   the storage plugin (default sqlite3: .db3)
+  rtf=R                  simulation speed against real time (default 1.0)
+  clock=yes|no           record /clock (default yes)
+  split=N                cut the bag into N files, listed by metadata.yaml
+  compression=none|file|message   rosbag2's zstd compression
+  version=8|9            rosbag2 metadata version (default 8)
+"""
+
+import csv
+import math
+import shutil
+import sys
+from pathlib import Path
+
+from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
+from rosbags.typesys import Stores, get_typestore
+
+WALL_EPOCH_NS = 1_764_000_000 * 1_000_000_000
+# Simulation time at the run's 0 s: Gazebo had been running a little.
+SIM_START_NS = 3_250_000_000
+COMMAND_TRANSPORT_NS = 2_000_000
+POSE_TRANSPORT_NS = 4_000_000
+
+
+def rows(path):
+    with open(path, newline="") as f:
+        for row in csv.DictReader(f):
+            yield {k: float(v) for k, v in row.items()}
+
+
+def main(run_dir, out_dir, *options):
+    opts = dict(o.split("=", 1) for o in options)
+    storage = opts.get("storage", "sqlite3")
+    rtf = float(opts.get("rtf", "1.0"))
+    with_clock = opts.get("clock", "yes") == "yes"
+    split = int(opts.get("split", "1"))
+    compression = opts.get("compression", "none")
+    version = int(opts.get("version", "8"))
+
+    typestore = get_typestore(Stores.ROS2_HUMBLE)
+    Twist = typestore.types["geometry_msgs/msg/Twist"]
+    Vector3 = typestore.types["geometry_msgs/msg/Vector3"]
+    Odometry = typestore.types["nav_msgs/msg/Odometry"]
+    Header = typestore.types["std_msgs/msg/Header"]
+    Time = typestore.types["builtin_interfaces/msg/Time"]
+    PoseWithCovariance = typestore.types["geometry_msgs/msg/PoseWithCovariance"]
+    TwistWithCovariance = typestore.types["geometry_msgs/msg/TwistWithCovariance"]
+    Pose = typestore.types["geometry_msgs/msg/Pose"]
+    Point = typestore.types["geometry_msgs/msg/Point"]
+    Quaternion = typestore.types["geometry_msgs/msg/Quaternion"]
+    Clock = typestore.types["rosgraph_msgs/msg/Clock"]
+
+    def sim_ns(t):
+        return SIM_START_NS + round(t * 1e9)
+
+    def wall_ns(t):
+        # Wall time runs 1/rtf as fast as simulation time.
+        return WALL_EPOCH_NS + round(t * 1e9 / rtf)
+
+    def stamp(ns):
+        return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+    messages = []  # (log_ns, topic, message)
+    for r in rows(f"{run_dir}/commands.csv"):
+        msg = Twist(linear=Vector3(x=r["v"], y=0.0, z=0.0), angular=Vector3(x=0.0, y=0.0, z=r["omega"]))
+        messages.append((wall_ns(r["t"]) + COMMAND_TRANSPORT_NS, "/cmd_vel", msg))
+    zero36 = [0.0] * 36
+    import numpy as np
+
+    end = 0.0
+    for r in rows(f"{run_dir}/poses.csv"):
+        end = max(end, r["t"])
+        half = 0.5 * r["theta"]
+        pose = Pose(
+            position=Point(x=r["x"], y=r["y"], z=0.0),
+            orientation=Quaternion(x=0.0, y=0.0, z=math.sin(half), w=math.cos(half)),
+        )
+        msg = Odometry(
+            header=Header(stamp=stamp(sim_ns(r["t"])), frame_id="odom"),
+            child_frame_id="base_footprint",
+            pose=PoseWithCovariance(pose=pose, covariance=np.array(zero36)),
+            twist=TwistWithCovariance(
+                twist=Twist(linear=Vector3(x=0.0, y=0.0, z=0.0), angular=Vector3(x=0.0, y=0.0, z=0.0)),
+                covariance=np.array(zero36),
+            ),
+        )
+        messages.append((wall_ns(r["t"]) + POSE_TRANSPORT_NS, "/odom", msg))
+    if with_clock:
+        t = 0.0
+        while t <= end + 0.5:
+            messages.append((wall_ns(t) + 1_000_000, "/clock", Clock(clock=stamp(sim_ns(t)))))
+            t += 0.01
+    messages.sort(key=lambda m: m[0])
+
+    types = {"/cmd_vel": Twist.__msgtype__, "/odom": Odometry.__msgtype__, "/clock": Clock.__msgtype__}
+    out = Path(out_dir)
+    if out.exists():
+        shutil.rmtree(out)
+    parts = []
+    per_part = math.ceil(len(messages) / split)
+    for k in range(split):
+        part_dir = out if split == 1 else out.parent / f"{out.name}.part{k}"
+        plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
+        writer = Writer(part_dir, version=version, storage_plugin=plugin)
+        if compression != "none":
+            mode = CompressionMode.FILE if compression == "file" else CompressionMode.MESSAGE
+            writer.set_compression(mode, CompressionFormat.ZSTD)
+        with writer:
+            connections = {}
+            for topic, msgtype in types.items():
+                if topic == "/clock" and not with_clock:
+                    continue
+                connections[topic] = writer.add_connection(topic, msgtype, typestore=typestore)
+            for log_ns, topic, msg in messages[k * per_part:(k + 1) * per_part]:
+                writer.write(connections[topic], log_ns, typestore.serialize_cdr(msg, types[topic]))
+        parts.append(part_dir)
+    if split > 1:
+        # One bag folder holding every part, as rosbag2 splits one: the
+        # files side by side, listed in order by one metadata.yaml.
+        out.mkdir(parents=True)
+        names = []
+        for k, part in enumerate(parts):
+            for f in sorted(part.iterdir()):
+                if f.name == "metadata.yaml":
+                    continue
+                name = f.name.replace(part.name, f"{out.name}_{k}")
+                shutil.move(str(f), out / name)
+                names.append(name)
+            shutil.rmtree(part)
+        listed = "\n".join(f"    - {n}" for n in names)
+        (out / "metadata.yaml").write_text(
+            "rosbag2_bagfile_information:\n"
+            f"  version: {version}\n"
+            f"  storage_identifier: {storage}\n"
+            f"  relative_file_paths:\n{listed}\n"
+            f"  message_count: {len(messages)}\n"
+        )
+
+
+if __name__ == "__main__":
+    main(*sys.argv[1:])
