@@ -92,7 +92,9 @@ pub fn read_run(
     let commands = on_clock(commands, choice.commands, map.as_ref());
     let poses = on_clock(poses, choice.poses, map.as_ref());
     let origin_ns = commands.first().map_or(0, |c| c.0);
-    let seconds = |ns: i64| (ns - origin_ns) as f64 * 1e-9;
+    // Division by 1e9 rounds correctly; a product with 1e-9 (itself
+    // inexact) can put a time a hair past the one written.
+    let seconds = |ns: i64| (ns - origin_ns) as f64 / 1e9;
     Ok(BagRun {
         commands: commands
             .into_iter()
@@ -102,7 +104,7 @@ pub fn read_run(
             .into_iter()
             .map(|(ns, (x, y, yaw))| (seconds(ns), x, y, yaw))
             .collect(),
-        t_origin: origin_ns as f64 * 1e-9,
+        t_origin: origin_ns as f64 / 1e9,
         clock: choice,
     })
 }

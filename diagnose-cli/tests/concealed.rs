@@ -391,13 +391,11 @@ fn a_ros2_bag_is_diagnosed_from_pose_tf_and_odometry_topics() {
         let output = diagnose_bag(&bag, topics);
         let stderr = String::from_utf8_lossy(&output.stderr);
         assert!(output.status.success(), "{poses_as}: {stderr}");
-        // Twist has no header; the poses' header stamps are used.
-        assert!(
-            stderr.contains("/cmd_vel from the bag's log times")
-                && stderr.contains("from the messages' header stamps"),
-            "{stderr}"
-        );
         let d: Value = serde_json::from_slice(&output.stdout).expect("JSON");
+        // Twist has no header; the poses' stamps are on the log clock.
+        let clock = &d["input"]["clock"];
+        assert_eq!(clock["commands"], "the bag's log times", "{clock}");
+        assert_eq!(clock["poses"], "header stamps", "{clock}");
         assert_eq!(kinds(&d), ["latency"], "{poses_as}: {d}");
         let fitted = d["effects"][0]["params"]["seconds"]
             .as_f64()
@@ -407,8 +405,7 @@ fn a_ros2_bag_is_diagnosed_from_pose_tf_and_odometry_topics() {
             "{poses_as}: {fitted} s for {true_latency} s"
         );
         // The bag holds the CSV's run: the same comparison, up to times
-        // that went through nanoseconds (a command may fall on the other
-        // side of a grid step).
+        // that went through nanoseconds.
         let (a, b) = (
             from_csv["baseline"]["heldout_rmse_pos_m"]
                 .as_f64()
@@ -449,7 +446,11 @@ fn bad_bags_are_refused_naming_the_file_topic_and_message() {
         "base_link",
     ];
     let cases: [(&Path, &[&str], &str); 5] = [
-        (&csv, &topics, "commands.csv: not an MCAP file"),
+        (
+            &csv,
+            &topics,
+            "commands.csv: is neither an MCAP nor a sqlite3 (.db3) ROS 2 bag",
+        ),
         (&cut, &topics, "cut.mcap: the bag is damaged or cut short"),
         (
             &bag,
@@ -490,4 +491,79 @@ fn bad_bags_are_refused_naming_the_file_topic_and_message() {
             "expected `{expected}` in: {stderr}"
         );
     }
+}
+
+/// Writes the run in `dir` as a Gazebo user's bag with the third-party
+/// `rosbags` writer (`write_gazebo_bag.py`: simulation-time stamps, wall
+/// clock log times, /clock); returns the bag folder.
+fn write_gazebo_bag(dir: &Path, name: &str, options: &[&str]) -> PathBuf {
+    let bag = dir.join(name);
+    let mut args: Vec<&std::ffi::OsStr> = vec![dir.as_os_str(), bag.as_os_str()];
+    args.extend(options.iter().map(|o| std::ffi::OsStr::new(*o)));
+    python("write_gazebo_bag.py", &args);
+    bag
+}
+
+#[test]
+fn gazebo_bags_in_sqlite3_mcap_split_and_compressed_are_diagnosed_on_one_clock() {
+    let case = case_named("latency", DURATION_S).expect("latency case");
+    let (from_csv, dir) = diagnose_generated("gazebo", &truth_toml(&case), &[]);
+    let from_csv = from_csv["effects"][0]["params"]["seconds"]
+        .as_f64()
+        .expect("latency from the CSV files");
+    // Commands arrive 2 ms after they were sent, poses 4 ms after they were
+    // made, /clock 1 ms after its time: how far each clock moves the delay.
+    for (name, options, commands_timed, shift) in [
+        ("db3", &[][..], "log times mapped into simulation time through /clock", -0.001),
+        ("mcap", &["storage=mcap"][..], "log times mapped into simulation time through /clock", -0.001),
+        ("split", &["split=3"][..], "log times mapped into simulation time through /clock", -0.001),
+        ("zfile", &["compression=file"][..], "log times mapped into simulation time through /clock", -0.001),
+        ("zmsg", &["compression=message", "storage=mcap"][..], "log times mapped into simulation time through /clock", -0.001),
+        ("noclock", &["clock=no"][..], "the bag's log times", 0.002),
+        ("slow", &["clock=no", "rtf=0.5"][..], "log times mapped into the other topic's stamp clock", 0.001),
+        ("v9", &["version=9"][..], "log times mapped into simulation time through /clock", -0.001),
+    ] {
+        let bag = write_gazebo_bag(&dir, name, options);
+        // The bag as a positional argument, as a user types it.
+        let output = Command::new(binary())
+            .arg(&bag)
+            .args(["--commands-topic", "/cmd_vel", "--poses-topic", "/odom", "--json"])
+            .output()
+            .expect("run shoal-diagnose");
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(output.status.success(), "{name}: {stderr}");
+        let d: Value = serde_json::from_slice(&output.stdout).expect("JSON");
+        let clock = &d["input"]["clock"];
+        assert_eq!(clock["commands"], commands_timed, "{name}: {clock}");
+        assert!(clock["reason"].as_str().is_some_and(|r| !r.is_empty()), "{clock}");
+        assert!(clock["delay"].as_str().is_some_and(|r| r.contains("delay")), "{clock}");
+        assert_eq!(kinds(&d).first().map(String::as_str), Some("latency"), "{name}: {d}");
+        let fitted = d["effects"][0]["params"]["seconds"].as_f64().expect("seconds");
+        assert!(
+            (fitted - (from_csv + shift)).abs() < 0.003,
+            "{name}: {fitted} s, the CSV's {from_csv} s moved by {shift} s"
+        );
+    }
+    // Without topics the bag's topics are listed, /clock among them.
+    let output = Command::new(binary())
+        .arg(dir.join("split"))
+        .output()
+        .expect("run shoal-diagnose");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success());
+    for listed in [
+        "/clock  rosgraph_msgs/msg/Clock",
+        "/cmd_vel  geometry_msgs/msg/Twist",
+        "/odom  nav_msgs/msg/Odometry",
+    ] {
+        assert!(stderr.contains(listed), "{listed} not in: {stderr}");
+    }
+    // The user's word on the clock is taken.
+    let output = Command::new(binary())
+        .arg(dir.join("db3"))
+        .args(["--commands-topic", "/cmd_vel", "--poses-topic", "/odom", "--json", "--stamps", "log"])
+        .output()
+        .expect("run shoal-diagnose");
+    let d: Value = serde_json::from_slice(&output.stdout).expect("JSON");
+    assert_eq!(d["input"]["clock"]["poses"], "the bag's log times", "{d}");
 }

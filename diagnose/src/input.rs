@@ -28,13 +28,19 @@ fn read_rows(text: &str, file: &str, layout: Layout) -> Result<Vec<(usize, Vec<f
         line: Some(line),
         message,
     };
-    if !text.is_empty() && !text.ends_with('\n') {
-        let last = text.lines().count();
-        return Err(error(
-            last,
-            "the file ends in the middle of a line (was it cut short?)".into(),
-        ));
-    }
+    // Many tools end a file without a newline: a last line that reads
+    // whole is a row. One that does not is a file cut short, and is said so.
+    let unterminated = (!text.is_empty() && !text.ends_with('\n')).then(|| text.lines().count());
+    let error = |line: usize, message: String| {
+        if Some(line) == unterminated {
+            error(
+                line,
+                format!("the file ends in the middle of a line (was it cut short?): {message}"),
+            )
+        } else {
+            error(line, message)
+        }
+    };
     let (columns, rows_of_fields) = match layout {
         Layout::Csv { columns } => (columns, csv_fields(text, file, columns)?),
         Layout::Whitespace { columns } => {
@@ -288,6 +294,11 @@ mod tests {
                 4,
                 "ends in the middle of a line",
             ),
+            (
+                "t,v,omega\n0,1,0\n1,1,0\n2,1",
+                4,
+                "ends in the middle of a line",
+            ),
             ("t,v,omega\n0,1,0\n1,x,0\n", 3, "not a number"),
             ("t,v,omega\n0,1,0\n1e10,1,0\n", 3, "runs longer than 24 h"),
         ];
@@ -300,6 +311,17 @@ mod tests {
                 "{error}"
             );
         }
+    }
+
+    #[test]
+    fn a_whole_last_line_without_a_newline_is_a_row() {
+        let commands = commands_csv("t,v,omega\n0,1,0\n1,0.5,0.2", "c.csv").expect("whole");
+        assert_eq!(commands.t, vec![0.0, 1.0]);
+        assert_eq!(commands.omega, vec![0.0, 0.2]);
+        let commands = commands_csv("t,v,omega\r\n0,1,0\r\n1,0.5,0.2", "c.csv").expect("CRLF");
+        assert_eq!(commands.v, vec![1.0, 0.5]);
+        let odometry = mrclam_odometry("# a\n1.0 0.1 0.0\n2.0 0.1 0.1", "R.dat").expect("whole");
+        assert_eq!(odometry.t.len(), 2);
     }
 
     #[test]

@@ -35,7 +35,12 @@ pub struct Executed {
 }
 
 impl CommandGrid {
-    /// Samples commands given at sorted `times` (each held until the next) every `dt`.
+    /// Commands given at sorted `times` (each held until the next), as the
+    /// body receives them over each step of `dt`: the time-weighted mean of
+    /// what was held during the step. Sampled at the step's start instead, a
+    /// command given a microsecond after a grid point (a real robot's are
+    /// never on the grid) would act a whole step late, and a latency fitted
+    /// to it would be off by up to a step.
     pub fn from_held(times: &[f64], v: &[f64], omega: &[f64], dt: f64) -> Self {
         let (Some(&first), Some(&last)) = (times.first(), times.last()) else {
             return Self {
@@ -54,12 +59,24 @@ impl CommandGrid {
         };
         let mut row = 0;
         for i in 0..steps {
-            let t = first + i as f64 * dt;
-            while row + 1 < times.len() && times[row + 1] <= t {
+            let (start, end) = (first + i as f64 * dt, first + (i + 1) as f64 * dt);
+            while row + 1 < times.len() && times[row + 1] <= start {
                 row += 1;
             }
-            grid.v.push(v[row]);
-            grid.omega.push(omega[row]);
+            // Each command held within [start, end), weighted by how long.
+            let (mut sum_v, mut sum_omega, mut from, mut r) = (0.0, 0.0, start, row);
+            loop {
+                let until = times.get(r + 1).map_or(end, |&next| next.min(end)).max(from);
+                sum_v += (until - from) * v[r];
+                sum_omega += (until - from) * omega[r];
+                from = until;
+                if from >= end {
+                    break;
+                }
+                r += 1;
+            }
+            grid.v.push(sum_v / (end - start));
+            grid.omega.push(sum_omega / (end - start));
         }
         grid
     }
@@ -391,6 +408,20 @@ mod tests {
 
     fn straight(seconds: f64, v: f64, omega: f64) -> CommandGrid {
         CommandGrid::from_held(&[0.0, seconds], &[v, v], &[omega, omega], 0.01)
+    }
+
+    #[test]
+    fn a_command_counts_for_the_share_of_the_step_it_was_held() {
+        // A command given a quarter into the second step.
+        let grid = CommandGrid::from_held(&[0.0, 0.0125, 0.1], &[0.0, 0.4, 0.4], &[0.0, -0.8, -0.8], 0.01);
+        assert_eq!(grid.v[0], 0.0);
+        assert!((grid.v[1] - 0.3).abs() < 1e-12, "{}", grid.v[1]);
+        assert!((grid.omega[1] + 0.6).abs() < 1e-12);
+        assert!((grid.v[2] - 0.4).abs() < 1e-12);
+        // A command a hair after a grid point acts from that step, as one on it.
+        let on = CommandGrid::from_held(&[0.0, 0.02, 0.1], &[0.0, 0.4, 0.4], &[0.0; 3], 0.01);
+        let after = CommandGrid::from_held(&[0.0, 0.02 + 1e-12, 0.1], &[0.0, 0.4, 0.4], &[0.0; 3], 0.01);
+        assert!(on.v.iter().zip(&after.v).all(|(a, b)| (a - b).abs() < 1e-9));
     }
 
     fn drive(model: &UnicycleModel, grid: &CommandGrid) -> Pose {
