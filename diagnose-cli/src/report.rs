@@ -1,6 +1,7 @@
 //! The report a person reads: printed, and the diagnosis recording's document.
 
 use shoal_diagnose::Diagnosis;
+use shoal_diagnose::glitches::{Glitch, GlitchKind};
 
 use crate::load::InputNotes;
 
@@ -21,6 +22,9 @@ pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
             "Clock: {} timed by {}, {} by {}: {}. {}.",
             clock.commands_topic, clock.commands, clock.poses_topic, clock.poses, clock.reason, capitalised(&clock.delay)
         ));
+    }
+    if let Some(set_aside) = set_aside_text(&d.glitches) {
+        line(set_aside);
     }
     line(format!(
         "{} segments of {:.1} s compared.",
@@ -104,4 +108,45 @@ fn capitalised(text: &str) -> String {
         .next()
         .map(|c| c.to_uppercase().chain(chars).collect())
         .unwrap_or_default()
+}
+
+/// One sentence per kind of stretch set aside: how many, when, how large.
+fn set_aside_text(glitches: &[Glitch]) -> Option<String> {
+    if glitches.is_empty() {
+        return None;
+    }
+    let mut parts = Vec::new();
+    for kind in [
+        GlitchKind::JumpAndReturn,
+        GlitchKind::JumpWithoutReturn,
+        GlitchKind::PoseGap,
+        GlitchKind::CommandStall,
+    ] {
+        let of: Vec<&Glitch> = glitches.iter().filter(|g| g.kind == kind).collect();
+        let (Some(first), Some(last)) = (of.first(), of.last()) else {
+            continue;
+        };
+        let frames: usize = of.iter().map(|g| g.frames).sum();
+        let largest = of.iter().map(|g| g.size_m).fold(0.0_f64, f64::max);
+        let times: Vec<String> = of
+            .iter()
+            .take(5)
+            .map(|g| format!("{:.1} s", g.t_start))
+            .collect();
+        parts.push(format!(
+            "{} {} ({}{}, from {:.1} to {:.1} s: {}{})",
+            of.len(),
+            kind.describe(),
+            if frames > 0 { format!("{frames} poses") } else { "no poses".to_owned() },
+            if largest > 0.0 { format!(", up to {largest:.2} m") } else { String::new() },
+            first.t_start,
+            last.t_end,
+            times.join(", "),
+            if of.len() > 5 { ", ..." } else { "" }
+        ));
+    }
+    Some(format!(
+        "Set aside before fitting, as no body's motion: {}.",
+        parts.join("; ")
+    ))
 }

@@ -79,6 +79,7 @@ fn log_all(
     )?;
     log_regions(rec, diagnosis)?;
     log_series_styles(rec)?;
+    log_glitches(rec, recording, diagnosis)?;
 
     let poses = &recording.poses;
     let path: Vec<[f32; 2]> = poses
@@ -208,4 +209,41 @@ fn observed_over(recording: &Recording, segment: &SegmentReplay) -> Vec<[f32; 2]
     (first..last)
         .map(|i| [p.x[i] as f32, p.y[i] as f32])
         .collect()
+}
+
+/// What was set aside as no body's motion: an event on the time timeline
+/// where each stretch starts, and where the robot was then, in red.
+fn log_glitches(
+    rec: &RecordingStream,
+    recording: &Recording,
+    diagnosis: &Diagnosis,
+) -> rerun::RecordingStreamResult<()> {
+    for glitch in &diagnosis.glitches {
+        rec.set_duration_secs(TIMELINE, glitch.t_start);
+        rec.log(
+            "diagnosis/set_aside",
+            &rerun::TextLog::new(format!(
+                "{:?} {:.2}-{:.2} s: {} frames set aside{}",
+                glitch.kind,
+                glitch.t_start,
+                glitch.t_end,
+                glitch.frames,
+                if glitch.size_m > 0.0 {
+                    format!(", {:.2} m from the track", glitch.size_m)
+                } else {
+                    String::new()
+                }
+            ))
+            .with_level(rerun::TextLogLevel::WARN),
+        )?;
+        if let Some(at) = recording.poses.at(glitch.t_start) {
+            rec.log(
+                "world/set_aside",
+                &rerun::Points2D::new([[at.x as f32, at.y as f32]])
+                    .with_colors([rerun::Color::from_rgb(230, 40, 40)])
+                    .with_radii([0.05]),
+            )?;
+        }
+    }
+    Ok(())
 }

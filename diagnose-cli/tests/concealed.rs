@@ -567,3 +567,59 @@ fn gazebo_bags_in_sqlite3_mcap_split_and_compressed_are_diagnosed_on_one_clock()
     let d: Value = serde_json::from_slice(&output.stdout).expect("JSON");
     assert_eq!(d["input"]["clock"]["poses"], "the bag's log times", "{d}");
 }
+
+#[test]
+fn motion_capture_glitches_are_set_aside_reported_and_never_fitted() {
+    let case = case_named("latency", DURATION_S).expect("latency case");
+    let (clean, dir) = diagnose_generated("glitches", &truth_toml(&case), &[]);
+    // Marker swaps: the pose 0.2 m off for one to three frames, every 0.7 s
+    // for 90 s, as a motion-capture system that confuses markers does.
+    let poses = std::fs::read_to_string(dir.join("poses.csv")).expect("poses");
+    let mut lines: Vec<String> = poses.lines().map(str::to_owned).collect();
+    let times: Vec<f64> = lines[1..]
+        .iter()
+        .map(|l| l.split(',').next().and_then(|t| t.parse().ok()).expect("t"))
+        .collect();
+    let mut injected = 0;
+    let mut next = 200.0;
+    for (k, t) in times.iter().enumerate() {
+        if *t >= next && *t < 290.0 {
+            for row in k..k + 1 + injected % 3 {
+                let mut fields: Vec<String> = lines[row + 1].split(',').map(str::to_owned).collect();
+                let y: f64 = fields[2].parse().expect("y");
+                fields[2] = format!("{:.6}", y + 0.2);
+                lines[row + 1] = fields.join(",");
+            }
+            injected += 1;
+            next = t + 0.7;
+        }
+    }
+    let glitched = scratch("glitched");
+    std::fs::copy(dir.join("commands.csv"), glitched.join("commands.csv")).expect("copy");
+    std::fs::write(glitched.join("poses.csv"), lines.join("\n") + "\n").expect("write");
+    let rrd = glitched.join("diagnosis.rrd");
+    let stdout = succeed(
+        Command::new(binary())
+            .arg(&*glitched)
+            .arg("--json")
+            .arg("--rrd")
+            .arg(&rrd),
+    );
+    let d: Value = serde_json::from_slice(&stdout).expect("JSON");
+    let glitches = d["glitches"].as_array().expect("glitches");
+    assert_eq!(glitches.len(), injected, "{glitches:?}");
+    assert!(glitches.iter().all(|g| g["kind"] == "jump_and_return"));
+    assert!(glitches.iter().all(|g| (g["t_start"].as_f64().expect("t") - 245.0).abs() < 46.0));
+    // Fitted on what is left, the physics is the clean run's.
+    assert_eq!(kinds(&d), kinds(&clean), "{d}");
+    // The report says what was set aside, and so does the recording.
+    let text = succeed(Command::new(binary()).arg(&*glitched));
+    let text = String::from_utf8_lossy(&text);
+    assert!(
+        text.contains(&format!("{injected} pose jumps and returns")),
+        "{text}"
+    );
+    let read = python("read_diagnosis.py", &[rrd.as_os_str()]);
+    let read = String::from_utf8_lossy(&read);
+    assert!(read.contains("/diagnosis/set_aside"), "{read}");
+}

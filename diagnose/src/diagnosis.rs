@@ -163,6 +163,9 @@ pub struct Diagnosis {
     pub operating_point: OperatingPoint,
     /// Observed poses set aside as gross outliers (see `Poses::without_outliers`).
     pub pose_outliers: usize,
+    /// What was set aside as no body's motion before anything was fitted:
+    /// jumps and returns, jumps without a return, pose gaps, command stalls.
+    pub glitches: Vec<crate::glitches::Glitch>,
     /// Candidates that passed BIC but did not improve held-out prediction.
     pub rejected_heldout: Vec<&'static str>,
     pub baseline: Heldout,
@@ -185,12 +188,16 @@ pub struct Prepared {
     pub segments: Vec<Segment>,
     /// Observed poses set aside as gross outliers before segmenting.
     pub pose_outliers: usize,
+    /// Stretches set aside as no body's motion (`glitches::set_aside`).
+    pub glitches: Vec<crate::glitches::Glitch>,
 }
 
-/// The run as diagnosis compares it: gross pose outliers set aside (see
+/// The run as diagnosis compares it: what no body's motion explains set
+/// aside (`glitches::set_aside`), then gross pose outliers (see
 /// `Poses::without_outliers`), commands on a grid, segments started at the
 /// observed poses.
 pub fn prepare(recording: &Recording, options: &Options) -> Prepared {
+    let (recording, glitches) = crate::glitches::set_aside(recording);
     let (recording, pose_outliers) = recording.without_pose_outliers();
     let grid = command_grid(&recording, options.grid_dt);
     let segments = segments(&recording, &grid, options.horizon_s);
@@ -198,6 +205,7 @@ pub fn prepare(recording: &Recording, options: &Options) -> Prepared {
         grid,
         segments,
         pose_outliers,
+        glitches,
     }
 }
 
@@ -1234,6 +1242,7 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
         noise_correlation,
         operating_point,
         pose_outliers: prepared.pose_outliers,
+        glitches: prepared.glitches.clone(),
         rejected_heldout,
         baseline,
         improved,

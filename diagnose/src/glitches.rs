@@ -1,0 +1,407 @@
+//! The first stage: what in a recording is not the robot's motion, found by
+//! physics and set aside before anything is fitted. A body cannot move
+//! 0.2 m in 15 ms and back; a motion-capture system that swaps markers or
+//! catches a reflection can. Fitted, such frames turn into invented physics
+//! (a battery that fades 16% a minute), so they are found, set aside and
+//! reported with their count and times, never fitted.
+//!
+//! - Jumps and returns: a pose no body could reach from the last good one
+//!   (faster than the commands allow, with a generous margin, plus the
+//!   tracker's own noise), until the track comes back within reach. A
+//!   marker swap lasting several frames is one episode.
+//! - Jumps without a return: the track resumes elsewhere (the tracker
+//!   re-initialised, the robot was carried); no comparison spans it.
+//! - Pose gaps: stretches without observations longer than
+//!   `MAX_OBSERVATION_GAP_S`; no comparison spans them.
+//! - Command stalls: the command stream stops for many of its periods and
+//!   resumes with a burst of commands repeated in a few milliseconds: a
+//!   backlog, not commands given then, and what the robot did meanwhile is
+//!   unknown. No comparison spans the stall or the burst. (A stream that
+//!   only pauses is a robot holding its last command, and is compared.)
+
+use serde::Serialize;
+
+use crate::recording::{MAX_OBSERVATION_GAP_S, Poses, Recording};
+
+/// A stretch set aside, in the run's seconds.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Glitch {
+    pub kind: GlitchKind,
+    pub t_start: f64,
+    pub t_end: f64,
+    /// Observed poses set aside in it.
+    pub frames: usize,
+    /// How far the pose jumped from the track, metres (jumps only).
+    pub size_m: f64,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GlitchKind {
+    JumpAndReturn,
+    JumpWithoutReturn,
+    PoseGap,
+    CommandStall,
+}
+
+impl GlitchKind {
+    pub fn describe(self) -> &'static str {
+        match self {
+            GlitchKind::JumpAndReturn => "pose jumps and returns (faster than any body moves)",
+            GlitchKind::JumpWithoutReturn => "pose jumps that never came back (the track resumed elsewhere)",
+            GlitchKind::PoseGap => "gaps without observed poses",
+            GlitchKind::CommandStall => "command stalls (the stream stopped, then resumed in a burst)",
+        }
+    }
+}
+
+/// A jump that has not come back within this long is the track resuming
+/// elsewhere, not a glitch of a few frames.
+const MAX_EXCURSION_S: f64 = 2.0;
+/// The fastest a body may be taken to move: this many times the fastest
+/// command, plus a floor (a robot faster than commanded, or pushed).
+const SPEED_MARGIN: f64 = 2.0;
+const SPEED_FLOOR_M_S: f64 = 0.5;
+const TURN_FLOOR_RAD_S: f64 = 2.0;
+/// The tracker's noise allowance: this many of its frame-to-frame standard
+/// deviations, and at least the floors.
+const NOISE_SIGMAS: f64 = 6.0;
+const POSITION_TOLERANCE_FLOOR_M: f64 = 0.02;
+const HEADING_TOLERANCE_FLOOR_RAD: f64 = 0.1;
+/// A command stream silent for this many of its usual periods, and at least
+/// this long, has stalled.
+const STALL_PERIODS: f64 = 10.0;
+const STALL_FLOOR_S: f64 = 0.5;
+/// Commands after a stall closer together than this share of the usual
+/// period are its backlog.
+const BURST_SHARE: f64 = 0.2;
+/// A silence followed by fewer backlogged commands than this is a stream
+/// that paused: a robot holds its last command (MRCLAM's log pauses for up
+/// to a second while its robots drive on), and that is what is compared.
+const MIN_BURST: usize = 3;
+
+/// The recording with its glitches set aside, and the glitches.
+pub fn set_aside(recording: &Recording) -> (Recording, Vec<Glitch>) {
+    let bounds = Bounds::of(recording);
+    let mut glitches = Vec::new();
+    let (mut poses, jumps) = without_jumps(&recording.poses, &bounds);
+    glitches.extend(jumps);
+    for stall in command_stalls(recording) {
+        poses = without_span(&poses, stall.t_start, stall.t_end);
+        glitches.push(stall);
+    }
+    glitches.extend(pose_gaps(&recording.poses));
+    glitches.sort_by(|a, b| a.t_start.total_cmp(&b.t_start));
+    (
+        Recording {
+            poses,
+            ..recording.clone()
+        },
+        glitches,
+    )
+}
+
+/// How far a body can move between two observations.
+struct Bounds {
+    speed: f64,
+    turn_rate: f64,
+    position_tolerance: f64,
+    heading_tolerance: f64,
+}
+
+impl Bounds {
+    fn of(recording: &Recording) -> Self {
+        let c = &recording.commands;
+        let fastest = c.v.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+        let fastest_turn = c.omega.iter().fold(0.0_f64, |m, w| m.max(w.abs()));
+        let p = &recording.poses;
+        Self {
+            speed: SPEED_MARGIN * fastest + SPEED_FLOOR_M_S,
+            turn_rate: SPEED_MARGIN * fastest_turn + TURN_FLOOR_RAD_S,
+            position_tolerance: (NOISE_SIGMAS * frame_noise(&p.x).hypot(frame_noise(&p.y)))
+                .max(POSITION_TOLERANCE_FLOOR_M),
+            heading_tolerance: (NOISE_SIGMAS * frame_noise(&p.theta))
+                .max(HEADING_TOLERANCE_FLOOR_RAD),
+        }
+    }
+
+    fn reachable(&self, from: (f64, f64, f64, f64), to: (f64, f64, f64, f64)) -> bool {
+        let dt = (to.0 - from.0).abs();
+        let moved = (to.1 - from.1).hypot(to.2 - from.2);
+        let turned = (to.3 - from.3).abs();
+        moved <= self.speed * dt + self.position_tolerance
+            && turned <= self.turn_rate * dt + self.heading_tolerance
+    }
+}
+
+/// A tracker's frame-to-frame noise in one coordinate: from the second
+/// differences (white noise of deviation s gives second differences of
+/// deviation s * sqrt(6)), robustly (median absolute value), so that motion
+/// (smooth) and glitches (rare) do not count.
+fn frame_noise(values: &[f64]) -> f64 {
+    let mut second: Vec<f64> = values
+        .windows(3)
+        .map(|w| (w[2] - 2.0 * w[1] + w[0]).abs())
+        .collect();
+    if second.is_empty() {
+        return 0.0;
+    }
+    second.sort_by(f64::total_cmp);
+    1.4826 * second[second.len() / 2] / 6.0_f64.sqrt()
+}
+
+fn pose(p: &Poses, i: usize) -> (f64, f64, f64, f64) {
+    (p.t[i], p.x[i], p.y[i], p.theta[i])
+}
+
+/// Walks the track keeping the last pose within reach; poses out of reach
+/// are set aside until the track comes back. A track that does not come
+/// back within `MAX_EXCURSION_S` resumes from where it went, and no
+/// comparison spans the jump.
+fn without_jumps(poses: &Poses, bounds: &Bounds) -> (Poses, Vec<Glitch>) {
+    let n = poses.len();
+    let mut keep = vec![true; n];
+    let mut glitches = Vec::new();
+    let mut last_good = 0;
+    let mut i = 1;
+    while i < n {
+        if bounds.reachable(pose(poses, last_good), pose(poses, i)) {
+            last_good = i;
+            i += 1;
+            continue;
+        }
+        // Out of reach: look for the return, a jump back to within reach
+        // of the last good pose. (Reach alone is no return: given time,
+        // a track that moved for good comes within reach too.)
+        let from = pose(poses, last_good);
+        let mut j = i + 1;
+        while j < n
+            && poses.t[j] - poses.t[i] <= MAX_EXCURSION_S
+            && !(bounds.reachable(from, pose(poses, j))
+                && !bounds.reachable(pose(poses, j - 1), pose(poses, j)))
+        {
+            j += 1;
+        }
+        let size = (i..j.min(n))
+            .map(|k| (poses.x[k] - from.1).hypot(poses.y[k] - from.2))
+            .fold(0.0_f64, f64::max);
+        let returned = j < n && poses.t[j] - poses.t[i] <= MAX_EXCURSION_S;
+        if returned {
+            for flag in &mut keep[i..j] {
+                *flag = false;
+            }
+            glitches.push(Glitch {
+                kind: GlitchKind::JumpAndReturn,
+                t_start: poses.t[i],
+                t_end: poses.t[j - 1],
+                frames: j - i,
+                size_m: size,
+            });
+            last_good = j;
+            i = j + 1;
+        } else {
+            // The track resumed at i: cut it there, wide enough that no
+            // comparison interpolates across the jump.
+            let (cut_from, cut_to) = (
+                poses.t[last_good] - 0.5 * MAX_OBSERVATION_GAP_S,
+                poses.t[i] + 0.5 * MAX_OBSERVATION_GAP_S,
+            );
+            let mut frames = 0;
+            for (k, flag) in keep.iter_mut().enumerate() {
+                if (cut_from..=cut_to).contains(&poses.t[k]) && *flag {
+                    *flag = false;
+                    frames += 1;
+                }
+            }
+            glitches.push(Glitch {
+                kind: GlitchKind::JumpWithoutReturn,
+                t_start: poses.t[i],
+                t_end: poses.t[i],
+                frames,
+                size_m: (poses.x[i] - from.1).hypot(poses.y[i] - from.2),
+            });
+            last_good = i;
+            i += 1;
+        }
+    }
+    let mut kept = Poses::default();
+    for k in (0..n).filter(|&k| keep[k]) {
+        kept.push(poses.t[k], poses.x[k], poses.y[k], poses.theta[k]);
+    }
+    (kept, glitches)
+}
+
+/// The poses outside `[from, to]`, with the span widened so that no
+/// comparison interpolates across it.
+fn without_span(poses: &Poses, from: f64, to: f64) -> Poses {
+    let pad = 0.5 * MAX_OBSERVATION_GAP_S;
+    let mut kept = Poses::default();
+    for k in 0..poses.len() {
+        if !(from - pad..=to + pad).contains(&poses.t[k]) {
+            kept.push(poses.t[k], poses.x[k], poses.y[k], poses.theta[k]);
+        }
+    }
+    kept
+}
+
+/// Stretches without observed poses that no comparison spans.
+fn pose_gaps(poses: &Poses) -> Vec<Glitch> {
+    poses
+        .t
+        .windows(2)
+        .filter(|w| w[1] - w[0] > MAX_OBSERVATION_GAP_S)
+        .map(|w| Glitch {
+            kind: GlitchKind::PoseGap,
+            t_start: w[0],
+            t_end: w[1],
+            frames: 0,
+            size_m: 0.0,
+        })
+        .collect()
+}
+
+/// Silences of the command stream, each with the burst that ended it.
+fn command_stalls(recording: &Recording) -> Vec<Glitch> {
+    let t = &recording.commands.t;
+    let mut periods: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).filter(|d| *d > 0.0).collect();
+    if periods.len() < 10 {
+        return Vec::new();
+    }
+    periods.sort_by(f64::total_cmp);
+    let usual = periods[periods.len() / 2];
+    let stall = (STALL_PERIODS * usual).max(STALL_FLOOR_S);
+    let mut out = Vec::new();
+    for k in 1..t.len() {
+        if t[k] - t[k - 1] <= stall {
+            continue;
+        }
+        // The backlog: commands that follow much faster than usual.
+        let mut end = k;
+        while end + 1 < t.len() && t[end + 1] - t[end] < BURST_SHARE * usual {
+            end += 1;
+        }
+        if end - k + 1 < MIN_BURST {
+            continue;
+        }
+        out.push(Glitch {
+            kind: GlitchKind::CommandStall,
+            t_start: t[k - 1],
+            t_end: t[end],
+            frames: 0,
+            size_m: 0.0,
+        });
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::recording::Commands;
+
+    /// A robot driving at 0.3 m/s, observed at 67 Hz with 1 mm noise.
+    fn run(seconds: f64) -> Recording {
+        let mut commands = Commands::default();
+        let mut k = 0.0;
+        while k <= seconds {
+            commands.hold(k, 0.3, 0.0);
+            k += 0.05;
+        }
+        let mut poses = Poses::default();
+        let dt = 1.0 / 67.0;
+        for i in 0..(seconds / dt) as usize {
+            let t = i as f64 * dt;
+            let noise = ((i * 7919) % 13) as f64 / 13.0 - 0.5;
+            poses.push(t, 0.3 * t + 0.002 * noise, 0.001 * noise, 0.0);
+        }
+        Recording {
+            commands,
+            poses,
+            t_origin: 0.0,
+        }
+    }
+
+    #[test]
+    fn a_clean_run_has_no_glitches() {
+        let clean = run(60.0);
+        let (kept, glitches) = set_aside(&clean);
+        assert!(glitches.is_empty(), "{glitches:?}");
+        assert_eq!(kept.poses.len(), clean.poses.len());
+    }
+
+    #[test]
+    fn jumps_that_return_are_set_aside_one_episode_each() {
+        let mut r = run(120.0);
+        // Marker swaps: 0.2 m away for one, two and four frames, every 5 s
+        // from 30 s to 90 s.
+        let mut expected = 0;
+        for (n, start) in (0..12).map(|n| (n, 30.0 + 5.0 * n as f64)) {
+            let first = r.poses.t.iter().position(|t| *t >= start).expect("frame");
+            let frames = [1, 2, 4][n % 3];
+            for k in first..first + frames {
+                r.poses.y[k] += 0.2;
+            }
+            expected += frames;
+        }
+        let (kept, glitches) = set_aside(&r);
+        assert_eq!(glitches.len(), 12, "{glitches:?}");
+        assert!(glitches.iter().all(|g| g.kind == GlitchKind::JumpAndReturn));
+        assert!(glitches.iter().all(|g| (g.size_m - 0.2).abs() < 0.01), "{glitches:?}");
+        assert_eq!(kept.poses.len(), r.poses.len() - expected);
+        assert!(kept.poses.y.iter().all(|y| y.abs() < 0.01));
+    }
+
+    #[test]
+    fn a_track_that_resumes_elsewhere_is_cut_not_fitted() {
+        let mut r = run(60.0);
+        let at = r.poses.t.iter().position(|t| *t >= 20.0).expect("frame");
+        for y in &mut r.poses.y[at..] {
+            *y += 1.0;
+        }
+        let (kept, glitches) = set_aside(&r);
+        assert_eq!(glitches.len(), 1, "{glitches:?}");
+        assert_eq!(glitches[0].kind, GlitchKind::JumpWithoutReturn);
+        // No observed poses within the gap's reach on either side.
+        assert!(kept.poses.t.windows(2).any(|w| w[1] - w[0] > MAX_OBSERVATION_GAP_S));
+    }
+
+    #[test]
+    fn a_command_stream_that_only_pauses_is_compared() {
+        let mut r = run(60.0);
+        let mut commands = Commands::default();
+        for k in 0..r.commands.t.len() {
+            let t = r.commands.t[k];
+            if !(20.0..21.0).contains(&t) {
+                commands.hold(t, 0.3, 0.0);
+            }
+        }
+        r.commands = commands;
+        let (_, glitches) = set_aside(&r);
+        assert!(glitches.is_empty(), "{glitches:?}");
+    }
+
+    #[test]
+    fn a_stalled_command_stream_and_its_burst_are_set_aside() {
+        let mut r = run(60.0);
+        let mut commands = Commands::default();
+        for k in 0..r.commands.t.len() {
+            let t = r.commands.t[k];
+            // Silent from 20 to 23 s, then the backlog within 10 ms.
+            if (20.0..23.0).contains(&t) {
+                continue;
+            }
+            commands.hold(t, 0.3, 0.0);
+            if (t - 23.0).abs() < 1e-9 {
+                for b in 1..10 {
+                    commands.hold(23.0 + 0.001 * f64::from(b), 0.3, 0.0);
+                }
+            }
+        }
+        r.commands = commands;
+        let (kept, glitches) = set_aside(&r);
+        let stalls: Vec<&Glitch> = glitches.iter().filter(|g| g.kind == GlitchKind::CommandStall).collect();
+        assert_eq!(stalls.len(), 1, "{glitches:?}");
+        assert!((stalls[0].t_start - 19.95).abs() < 1e-6 && (stalls[0].t_end - 23.009).abs() < 1e-6, "{stalls:?}");
+        assert!(!kept.poses.t.iter().any(|t| (20.0..23.0).contains(t)));
+    }
+}
