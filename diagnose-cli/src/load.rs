@@ -20,9 +20,14 @@ pub fn read(path: &Path) -> Result<String> {
 /// behalf: reported with the diagnosis (text and JSON).
 #[derive(Debug, Default, Serialize)]
 pub struct InputNotes {
-    /// For a bag: the clock commands and poses were compared on.
+    /// For a bag: the clock commands and poses were compared on (the
+    /// first bag's, of several).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub clock: Option<ClockNote>,
+    /// The recordings fitted together, in the order given (each one
+    /// held-out block, in time order: see `blocks`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub recordings: Vec<String>,
 }
 
 #[derive(Debug, Serialize)]
@@ -145,8 +150,12 @@ fn load_bag(path: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
             commands,
             poses,
             t_origin: run.t_origin,
+            joins: Vec::new(),
         },
-        notes: InputNotes { clock: Some(clock) },
+        notes: InputNotes {
+            clock: Some(clock),
+            ..InputNotes::default()
+        },
     })
 }
 
@@ -168,14 +177,23 @@ pub fn load(args: &DiagnoseArgs) -> Result<Loaded> {
     }
     if let Some(dir) = &args.mrclam {
         let robot = args.robot.context("--mrclam needs --robot N")?;
-        let odometry = dir.join(format!("Robot{robot}_Odometry.dat"));
-        let truth = dir.join(format!("Robot{robot}_Groundtruth.dat"));
-        let c = mrclam_odometry(&read(&odometry)?, &odometry.display().to_string())?;
-        let p = mrclam_groundtruth(&read(&truth)?, &truth.display().to_string())?;
-        return Ok(Recording::from_absolute(c, p).into());
+        return load_mrclam(dir, robot).map(Loaded::from);
     }
-    if let Some(run) = &args.run {
-        return load_positional(run, args);
+    match args.run.as_slice() {
+        [] => {}
+        [run] => return load_positional(run, args),
+        runs => {
+            let mut loaded = Vec::with_capacity(runs.len());
+            for run in runs {
+                loaded.push(load_positional(run, args)?);
+            }
+            let notes = InputNotes {
+                clock: loaded.iter_mut().find_map(|l| l.notes.clock.take()),
+                recordings: runs.iter().map(|r| r.display().to_string()).collect(),
+            };
+            let recording = Recording::joined(loaded.into_iter().map(|l| l.recording).collect());
+            return Ok(Loaded { recording, notes });
+        }
     }
     bail!(
         "nothing to diagnose: give a run folder, a ROS 2 bag (file or folder), a Shoal recording (.rrd), \
@@ -183,11 +201,26 @@ pub fn load(args: &DiagnoseArgs) -> Result<Loaded> {
     )
 }
 
-/// The one path given: a Shoal recording, a run folder (commands.csv and
-/// poses.csv), or a ROS 2 bag (file or folder).
+/// Robot `robot` of an MRCLAM dataset folder: its commands and ground truth.
+fn load_mrclam(dir: &Path, robot: u32) -> Result<Recording> {
+    let odometry = dir.join(format!("Robot{robot}_Odometry.dat"));
+    let truth = dir.join(format!("Robot{robot}_Groundtruth.dat"));
+    let c = mrclam_odometry(&read(&odometry)?, &odometry.display().to_string())?;
+    let p = mrclam_groundtruth(&read(&truth)?, &truth.display().to_string())?;
+    Ok(Recording::from_absolute(c, p))
+}
+
+/// A path given as a positional argument: a Shoal recording, a run folder
+/// (commands.csv and poses.csv), an MRCLAM folder (with --robot), or a ROS 2
+/// bag (file or folder).
 fn load_positional(run: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
     if run.extension().is_some_and(|e| e == "rrd") {
         return load_rrd(run, args.robot).map(Loaded::from);
+    }
+    if let Some(robot) = args.robot
+        && run.join(format!("Robot{robot}_Odometry.dat")).is_file()
+    {
+        return load_mrclam(run, robot).map(Loaded::from);
     }
     let (commands, poses) = (run.join("commands.csv"), run.join("poses.csv"));
     if run.is_dir() && (commands.is_file() || poses.is_file()) {

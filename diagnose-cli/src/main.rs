@@ -34,8 +34,11 @@ struct Cli {
 struct DiagnoseArgs {
     /// A Shoal recording (run.rrd, with --robot N), a run directory
     /// holding commands.csv and poses.csv, or a ROS 2 bag (.mcap, .db3, or a
-    /// bag folder with metadata.yaml; as --bag).
-    run: Option<PathBuf>,
+    /// bag folder with metadata.yaml; as --bag). Several recordings of one
+    /// robot are fitted as one: each is a held-out block, and an effect is
+    /// kept only if it predicts the recordings it was not fitted on better.
+    #[arg(value_name = "RUN")]
+    run: Vec<PathBuf>,
     /// Commands sent: CSV with header t,v,omega (held until the next row).
     #[arg(long, requires = "poses", conflicts_with_all = ["run", "mrclam"])]
     commands: Option<PathBuf>,
@@ -90,6 +93,11 @@ struct DiagnoseArgs {
     /// Seconds each comparison predicts ahead.
     #[arg(long, default_value_t = 1.0)]
     horizon: f64,
+    /// Stretches one recording is cut into for the held-out checks: each
+    /// is held out in turn, and an effect must predict every one better
+    /// (several recordings given: each is one block).
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u16).range(2..=50))]
+    blocks: u16,
     #[command(flatten)]
     naming: Naming,
 }
@@ -167,6 +175,7 @@ fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
     };
     let options = Options {
         horizon_s: args.horizon,
+        folds: usize::from(args.blocks),
         ..args.naming.options()
     };
     let diagnosis = diagnose(&recording, &model, &options);

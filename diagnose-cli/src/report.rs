@@ -89,6 +89,31 @@ pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
             following.join("; ")
         ));
     }
+    for n in &d.not_transferring {
+        line(format!(
+            "  dropped, it does not transfer: {} (with it the held-out stretch {:.0}-{:.0} s was predicted worse than without)",
+            n.sentence, n.block_t_start, n.block_t_end
+        ));
+    }
+    if d.blocks.len() > 1 {
+        let each: Vec<String> = d
+            .blocks
+            .iter()
+            .map(|b| {
+                format!(
+                    "{:.0}-{:.0} s {:.1} -> {:.1} mm",
+                    b.t_start,
+                    b.t_end,
+                    b.input_rmse_pos_m * 1e3,
+                    b.fitted_rmse_pos_m * 1e3
+                )
+            })
+            .collect();
+        line(format!(
+            "Each stretch held out in turn (fitted on the others): {}.",
+            each.join("; ")
+        ));
+    }
     line(format!(
         "Held-out position error {:.1} mm -> {:.1} mm, heading {:.2} -> {:.2} deg, NLL {:.2} -> {:.2} per segment.",
         d.baseline.heldout_rmse_pos_m * 1e3,

@@ -12,9 +12,10 @@ use statrs::distribution::{ChiSquared, ContinuousCDF, FisherSnedecor};
 use crate::covariates::{self, Covariate};
 use crate::fit::{Fitted, fit, nll_of};
 use crate::likelihood::{
-    LongRun, Residual, component_nll, estimate_noise, long_run_factor, long_run_factors_of_noise,
-    long_run_of_components, residuals, rmse, segment_nll, standardised,
+    LongRun, component_nll, estimate_noise, long_run_factor, long_run_factors_of_noise,
+    long_run_of_components, residuals, segment_nll, standardised,
 };
+use crate::heldout::{BlockReport, CONTRADICTION_NATS, block_reports, heldout, heldout_gain, transferable};
 use crate::locate::{Located, locate};
 use crate::recording::Recording;
 use crate::segments::{Segment, command_grid, segments};
@@ -166,8 +167,16 @@ pub struct Diagnosis {
     /// What was set aside as no body's motion before anything was fitted:
     /// jumps and returns, jumps without a return, pose gaps, command stalls.
     pub glitches: Vec<crate::glitches::Glitch>,
-    /// Candidates that passed BIC but did not improve held-out prediction.
+    /// Candidates that passed BIC but did not improve held-out prediction,
+    /// or that a held-out block contradicted.
     pub rejected_heldout: Vec<&'static str>,
+    /// Effects selected on the whole run that made the final model predict
+    /// a held-out block worse than the model diagnosed: physics of one
+    /// stretch that does not transfer to another, dropped.
+    pub not_transferring: Vec<NotTransferring>,
+    /// Each held-out block (a recording, or a stretch of one) and how well
+    /// the model diagnosed and the fitted one predicted it.
+    pub blocks: Vec<BlockReport>,
     pub baseline: Heldout,
     pub improved: Heldout,
     pub segments: usize,
@@ -190,6 +199,9 @@ pub struct Prepared {
     pub pose_outliers: usize,
     /// Stretches set aside as no body's motion (`glitches::set_aside`).
     pub glitches: Vec<crate::glitches::Glitch>,
+    /// The held-out blocks, as ranges of `segments`: one per recording
+    /// joined, or `Options::folds` equal stretches of time.
+    pub blocks: Vec<std::ops::Range<usize>>,
 }
 
 /// The run as diagnosis compares it: what no body's motion explains set
@@ -201,11 +213,13 @@ pub fn prepare(recording: &Recording, options: &Options) -> Prepared {
     let (recording, pose_outliers) = recording.without_pose_outliers();
     let grid = command_grid(&recording, options.grid_dt);
     let segments = segments(&recording, &grid, options.horizon_s);
+    let blocks = crate::heldout::blocks(&segments, &recording.joins, options.folds);
     Prepared {
         grid,
         segments,
         pose_outliers,
         glitches,
+        blocks,
     }
 }
 
@@ -313,104 +327,59 @@ fn fit_all(
 /// A worker's result, or its panic carried on in this thread: a fit that
 /// panicked is a bug to see, and dropping its result would pair the other
 /// fits with the wrong candidates or folds.
-fn joined<T>(result: std::thread::Result<T>) -> T {
+pub(crate) fn joined<T>(result: std::thread::Result<T>) -> T {
     result.unwrap_or_else(|panic| std::panic::resume_unwind(panic))
 }
 
-/// Runs `per_fold(train, test)` on each of the time-blocked folds, in
-/// parallel; results in fold order.
-fn on_folds<T: Send>(
-    prepared: &Prepared,
-    options: &Options,
-    per_fold: impl Fn(&[Segment], &[Segment]) -> T + Sync,
-) -> Vec<T> {
-    let n = prepared.segments.len();
-    let folds = options.folds.clamp(2, n.max(2));
-    let per_fold = &per_fold;
-    std::thread::scope(|scope| {
-        let handles: Vec<_> = (0..folds)
-            .map(|f| {
-                scope.spawn(move || {
-                    let (lo, hi) = (f * n / folds, (f + 1) * n / folds);
-                    let train: Vec<Segment> = prepared.segments[..lo]
-                        .iter()
-                        .chain(&prepared.segments[hi..])
-                        .cloned()
-                        .collect();
-                    per_fold(&train, &prepared.segments[lo..hi])
-                })
-            })
-            .collect();
-        handles.into_iter().map(|h| joined(h.join())).collect()
-    })
+/// An effect dropped because it does not transfer between blocks.
+#[derive(Clone, Debug, Serialize)]
+pub struct NotTransferring {
+    pub kind: &'static str,
+    pub params: BTreeMap<&'static str, f64>,
+    pub sentence: String,
+    /// The held-out block it predicted worse than the model diagnosed.
+    pub block_t_start: f64,
+    pub block_t_end: f64,
 }
 
-/// `fixed` plus `free` refitted on part of `train` only: the full-data fit
-/// is a close start, and held-out data are never seen.
-fn refit_on(
+/// The found effects that transfer between the held-out blocks (see
+/// `heldout::transferable`), refitted together if any was dropped; their
+/// evidence; and the dropped ones.
+fn transferring(
     prepared: &Prepared,
-    train: &[Segment],
     fixed: &[ScopedEffect],
-    free: &[ScopedEffect],
+    found: Vec<ScopedEffect>,
+    evidence: Vec<Evidence>,
+    duration: f64,
     options: &Options,
-) -> Vec<ScopedEffect> {
-    if free.is_empty() {
-        return fixed.to_vec();
+) -> (Vec<ScopedEffect>, Vec<Evidence>, Vec<NotTransferring>) {
+    if found.is_empty() {
+        return (found, evidence, Vec::new());
     }
-    let train_screen = subsample(train, 2 * options.screen_segments);
-    let refit = fit(
-        &prepared.grid,
-        &train_screen,
-        fixed,
-        free,
-        options.max_iters / 2,
-    );
-    fixed.iter().cloned().chain(refit.effects).collect()
-}
-
-/// How `effects` predict `test`, with the noise estimated on `train`: the
-/// negative log-likelihood and the residuals.
-fn predict_heldout(
-    prepared: &Prepared,
-    train: &[Segment],
-    test: &[Segment],
-    effects: Vec<ScopedEffect>,
-) -> (f64, Vec<Residual>) {
-    let model = UnicycleModel::with_effects(effects);
-    let noise = estimate_noise(&model, train, &residuals(&model, &prepared.grid, train));
-    let r = residuals(&model, &prepared.grid, test);
-    (segment_nll(&model, &noise, test, &r).iter().sum(), r)
-}
-
-/// Held-out fit of `fixed` plus `found` (refitted per fold) on time-blocked folds.
-fn heldout(
-    prepared: &Prepared,
-    fixed: &[ScopedEffect],
-    found: &[ScopedEffect],
-    options: &Options,
-) -> (Heldout, Vec<(f64, f64)>) {
-    let n = prepared.segments.len();
-    let per_fold: Vec<(f64, Vec<Residual>)> = on_folds(prepared, options, |train, test| {
-        let effects = refit_on(prepared, train, fixed, found, options);
-        predict_heldout(prepared, train, test, effects)
-    });
-    let nll: f64 = per_fold.iter().map(|(nll, _)| nll).sum();
-    let all_residuals: Vec<Residual> = per_fold.into_iter().flat_map(|(_, r)| r).collect();
-    let errors: Vec<(f64, f64)> = prepared
-        .segments
+    let (kept, dropped) = transferable(prepared, fixed, &found, options);
+    if dropped.is_empty() {
+        return (found, evidence, Vec::new());
+    }
+    let at = OperatingPoint::of(&prepared.segments);
+    let not_transferring = dropped
         .iter()
-        .zip(&all_residuals)
-        .map(|(s, r)| (s.t_start, r[0].hypot(r[1])))
+        .map(|(k, block)| NotTransferring {
+            kind: found[*k].effect.kind(),
+            params: found[*k].effect.params().into_iter().collect(),
+            sentence: at.sentence(&found[*k].effect, duration),
+            block_t_start: prepared.segments[block.start].t_start,
+            block_t_end: prepared.segments[block.end - 1].t_end,
+        })
         .collect();
-    let (pos, theta) = rmse(&all_residuals);
-    (
-        Heldout {
-            heldout_rmse_pos_m: pos,
-            heldout_rmse_theta_rad: theta,
-            heldout_nll: nll / n.max(1) as f64,
-        },
-        errors,
-    )
+    let mut evidence: Vec<Option<Evidence>> = evidence.into_iter().map(Some).collect();
+    let kept_effects: Vec<ScopedEffect> = kept.iter().map(|&k| found[k].clone()).collect();
+    let kept_evidence: Vec<Evidence> = kept.iter().filter_map(|&k| evidence[k].take()).collect();
+    let refitted = if kept_effects.is_empty() {
+        kept_effects
+    } else {
+        fit(&prepared.grid, &prepared.segments, fixed, &kept_effects, options.max_iters).effects
+    };
+    (refitted, kept_evidence, not_transferring)
 }
 
 /// Where the robot usually drives: the median commanded speed and turn
@@ -766,31 +735,6 @@ fn components_of(grid: &CommandGrid, segs: &[Segment], effects: &[ScopedEffect])
     component_nll(&model, segs, &residuals(&model, grid, segs))
 }
 
-/// Held-out check of one more effect: on time-blocked folds, `candidate`
-/// is refitted on the training blocks and both models predict the held-out
-/// block. Returns the total gain in held-out log-likelihood (positive: the
-/// effect predicts unseen data better).
-fn heldout_gain(
-    prepared: &Prepared,
-    base: &[ScopedEffect],
-    candidate: &ScopedEffect,
-    options: &Options,
-) -> f64 {
-    on_folds(prepared, options, |train, test| {
-        let with = refit_on(
-            prepared,
-            train,
-            base,
-            std::slice::from_ref(candidate),
-            options,
-        );
-        predict_heldout(prepared, train, test, base.to_vec()).0
-            - predict_heldout(prepared, train, test, with).0
-    })
-    .into_iter()
-    .sum()
-}
-
 /// A fitted parameter this close to an edge of its physical range (as a
 /// share of the scale on which the parameter matters), where the edge is not
 /// the plain model, is the fitter pushing against physics, not a measurement.
@@ -871,7 +815,7 @@ fn refine_zone(
 }
 
 /// Every k-th segment, at most `count` of them.
-fn subsample(segments: &[Segment], count: usize) -> Vec<Segment> {
+pub(crate) fn subsample(segments: &[Segment], count: usize) -> Vec<Segment> {
     let every = segments.len().div_ceil(count.max(1)).max(1);
     segments.iter().step_by(every).cloned().collect()
 }
@@ -1139,8 +1083,16 @@ fn select(selection: &Selection, located: &[Located], at: OperatingPoint) -> Sel
                 });
                 continue;
             }
-            let gain_heldout = heldout_gain(selection.prepared, &base, &chosen, selection.options);
-            if !(gain_heldout > 0.0) {
+            // It must predict the held-out blocks better in all, and, if it
+            // moves the prediction, no block may contradict it (see
+            // `heldout::CONTRADICTION_NATS`). A noise effect moves no
+            // predicted pose but every segment's likelihood, so its blocks
+            // swing both ways; it is judged on their sum.
+            let gains = heldout_gain(selection.prepared, &base, &chosen, selection.options);
+            let gain_heldout: f64 = gains.iter().sum();
+            let worst = gains.iter().copied().fold(f64::INFINITY, f64::min);
+            let contradicted = !chosen.effect.only_noise() && worst < -CONTRADICTION_NATS;
+            if !(gain_heldout > 0.0) || contradicted {
                 out.rejected_heldout.push(chosen.effect.kind());
                 continue;
             }
@@ -1209,6 +1161,7 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
         rejected_heldout,
     } = select(&selection, &located, operating_point);
     let fixed = &selection.fixed;
+    let (found, evidence, not_transferring) = transferring(&prepared, fixed, found, evidence, duration, options);
 
     let stderr = if found.is_empty() {
         Vec::new()
@@ -1227,9 +1180,9 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
         })
         .collect();
     let final_model = UnicycleModel::with_effects(fixed.iter().chain(&found).cloned().collect());
-    let (baseline, plain_errors) = heldout(&prepared, fixed, &[], options);
-    let (improved, improved_errors) = if found.is_empty() {
-        (baseline, plain_errors.clone())
+    let (baseline, plain_errors, baseline_blocks) = heldout(&prepared, fixed, &[], options);
+    let (improved, improved_errors, improved_blocks) = if found.is_empty() {
+        (baseline, plain_errors.clone(), baseline_blocks.clone())
     } else {
         heldout(&prepared, fixed, &found, options)
     };
@@ -1244,6 +1197,8 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
         pose_outliers: prepared.pose_outliers,
         glitches: prepared.glitches.clone(),
         rejected_heldout,
+        not_transferring,
+        blocks: block_reports(&prepared, &baseline_blocks, &improved_blocks),
         baseline,
         improved,
         segments: segs.len(),

@@ -318,6 +318,7 @@ mod tests {
             commands,
             poses,
             t_origin: 0.0,
+            joins: Vec::new(),
         }
     }
 

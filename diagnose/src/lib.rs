@@ -6,6 +6,7 @@ pub mod covariates;
 pub mod diagnosis;
 pub mod fit;
 pub mod glitches;
+pub mod heldout;
 pub mod generate;
 pub mod input;
 pub mod likelihood;

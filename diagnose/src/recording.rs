@@ -25,6 +25,10 @@ pub struct Recording {
     pub poses: Poses,
     /// Seconds subtracted from every time, so the run starts at 0.
     pub t_origin: f64,
+    /// Where each later recording of the same robot starts, when several
+    /// were joined into one run (`Recording::joined`): each is a held-out
+    /// block of its own.
+    pub joins: Vec<f64>,
 }
 
 /// Observations further apart than this leave a gap that no segment spans.
@@ -170,7 +174,61 @@ impl Recording {
             commands,
             poses,
             t_origin,
+            joins: Vec::new(),
         }
+    }
+
+    /// Several recordings of one robot as one run on one clock: each
+    /// keeps its own times after the first's start (a clock that spans
+    /// them, for effects that change with time, such as a battery's fade),
+    /// or, where their clocks overlap or are unknown (CSV files from 0 s),
+    /// follows the one before it after a gap. No comparison spans a join.
+    pub fn joined(recordings: Vec<Recording>) -> Recording {
+        let mut runs: Vec<Recording> = recordings.into_iter().filter(|r| !r.commands.t.is_empty()).collect();
+        runs.sort_by(|a, b| a.t_origin.total_cmp(&b.t_origin));
+        let Some(first_origin) = runs.first().map(|r| r.t_origin) else {
+            return Recording::default();
+        };
+        let mut out = Recording {
+            t_origin: first_origin,
+            ..Recording::default()
+        };
+        // A gap wider than any comparison may span.
+        let gap = 2.0 * MAX_OBSERVATION_GAP_S;
+        for (k, run) in runs.into_iter().enumerate() {
+            let end_so_far = out
+                .commands
+                .t
+                .last()
+                .copied()
+                .into_iter()
+                .chain(out.poses.t.last().copied())
+                .fold(f64::NEG_INFINITY, f64::max);
+            let on_shared_clock = run.t_origin - first_origin;
+            let shift = if k == 0 {
+                0.0
+            } else if on_shared_clock > end_so_far + gap {
+                on_shared_clock
+            } else {
+                end_so_far + gap
+            };
+            if k > 0 {
+                out.joins.push(shift);
+            }
+            for i in 0..run.commands.t.len() {
+                out.commands
+                    .hold(run.commands.t[i] + shift, run.commands.v[i], run.commands.omega[i]);
+            }
+            for i in 0..run.poses.t.len() {
+                out.poses.observe(
+                    run.poses.t[i] + shift,
+                    run.poses.x[i],
+                    run.poses.y[i],
+                    run.poses.theta[i],
+                );
+            }
+        }
+        out
     }
 
     /// The run as the two CSV files diagnosis reads (see [`csv_lines`]).

@@ -1,0 +1,255 @@
+//! The held-out stage: every claim is checked on data it was not fitted on.
+//! The run is cut into contiguous blocks (time blocks of one recording, or
+//! the recordings given); each block in turn is held out, the effects are
+//! refitted on the others, and both models predict it. The same body has
+//! the same physics in every stretch of its recording, so an effect enters
+//! only if no held-out block contradicts it, and the final model must
+//! predict no block worse than the model it started from.
+
+use serde::Serialize;
+use shoal_physics::{ScopedEffect, UnicycleModel};
+
+use crate::diagnosis::{Heldout, Options, Prepared, joined, subsample};
+use crate::fit::fit;
+use crate::likelihood::{Residual, estimate_noise, residuals, rmse, segment_nll};
+use crate::segments::Segment;
+
+/// The held-out blocks of `segments`: one per recording where several were
+/// joined (a block starts at each of `joins`), else `folds` equal stretches.
+pub fn blocks(segments: &[Segment], joins: &[f64], folds: usize) -> Vec<std::ops::Range<usize>> {
+    let n = segments.len();
+    if !joins.is_empty() {
+        let mut starts: Vec<usize> = std::iter::once(0)
+            .chain(joins.iter().map(|&t| segments.partition_point(|s| s.t_start < t)))
+            .collect();
+        starts.dedup();
+        return starts
+            .iter()
+            .zip(starts.iter().skip(1).chain([&n]))
+            .map(|(&a, &b)| a..b)
+            .filter(|r| !r.is_empty())
+            .collect();
+    }
+    let folds = folds.clamp(2, n.max(2));
+    (0..folds)
+        .map(|f| f * n / folds..(f + 1) * n / folds)
+        .filter(|r| !r.is_empty())
+        .collect()
+}
+
+/// Runs `per_fold(train, test)` with each held-out block as `test` and the
+/// others as `train`, in parallel; results in block order.
+pub(crate) fn on_folds<T: Send>(
+    prepared: &Prepared,
+    _options: &Options,
+    per_fold: impl Fn(&[Segment], &[Segment]) -> T + Sync,
+) -> Vec<T> {
+    let per_fold = &per_fold;
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = prepared
+            .blocks
+            .iter()
+            .map(|block| {
+                scope.spawn(move || {
+                    let train: Vec<Segment> = prepared.segments[..block.start]
+                        .iter()
+                        .chain(&prepared.segments[block.end..])
+                        .cloned()
+                        .collect();
+                    per_fold(&train, &prepared.segments[block.clone()])
+                })
+            })
+            .collect();
+        handles.into_iter().map(|h| joined(h.join())).collect()
+    })
+}
+
+/// `fixed` plus `free` refitted on part of `train` only: the full-data fit
+/// is a close start, and held-out data are never seen.
+pub(crate) fn refit_on(
+    prepared: &Prepared,
+    train: &[Segment],
+    fixed: &[ScopedEffect],
+    free: &[ScopedEffect],
+    options: &Options,
+) -> Vec<ScopedEffect> {
+    if free.is_empty() {
+        return fixed.to_vec();
+    }
+    let train_screen = subsample(train, 2 * options.screen_segments);
+    let refit = fit(
+        &prepared.grid,
+        &train_screen,
+        fixed,
+        free,
+        options.max_iters / 2,
+    );
+    fixed.iter().cloned().chain(refit.effects).collect()
+}
+
+/// How `effects` predict `test`, with the noise estimated on `train`: the
+/// negative log-likelihood and the residuals.
+pub(crate) fn predict_heldout(
+    prepared: &Prepared,
+    train: &[Segment],
+    test: &[Segment],
+    effects: Vec<ScopedEffect>,
+) -> (f64, Vec<Residual>) {
+    let model = UnicycleModel::with_effects(effects);
+    let noise = estimate_noise(&model, train, &residuals(&model, &prepared.grid, train));
+    let r = residuals(&model, &prepared.grid, test);
+    (segment_nll(&model, &noise, test, &r).iter().sum(), r)
+}
+
+/// One held-out block: where it lies and how well each model predicted it.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct BlockReport {
+    pub t_start: f64,
+    pub t_end: f64,
+    pub segments: usize,
+    /// Held-out position error of the model diagnosed, and of it with the
+    /// effects found (refitted without this block).
+    pub input_rmse_pos_m: f64,
+    pub fitted_rmse_pos_m: f64,
+}
+
+/// Held-out fit of `fixed` plus `found` (refitted per block) over every
+/// block: the totals, each segment's position error, and each block's
+/// negative log-likelihood and position error.
+pub(crate) fn heldout(
+    prepared: &Prepared,
+    fixed: &[ScopedEffect],
+    found: &[ScopedEffect],
+    options: &Options,
+) -> (Heldout, Vec<(f64, f64)>, Vec<(f64, f64)>) {
+    let n = prepared.segments.len();
+    let per_fold: Vec<(f64, Vec<Residual>)> = on_folds(prepared, options, |train, test| {
+        let effects = refit_on(prepared, train, fixed, found, options);
+        predict_heldout(prepared, train, test, effects)
+    });
+    let per_block: Vec<(f64, f64)> = per_fold
+        .iter()
+        .map(|(nll, r)| (*nll, rmse(r).0))
+        .collect();
+    let nll: f64 = per_fold.iter().map(|(nll, _)| nll).sum();
+    let all_residuals: Vec<Residual> = per_fold.into_iter().flat_map(|(_, r)| r).collect();
+    let errors: Vec<(f64, f64)> = prepared
+        .segments
+        .iter()
+        .zip(&all_residuals)
+        .map(|(s, r)| (s.t_start, r[0].hypot(r[1])))
+        .collect();
+    let (pos, theta) = rmse(&all_residuals);
+    (
+        Heldout {
+            heldout_rmse_pos_m: pos,
+            heldout_rmse_theta_rad: theta,
+            heldout_nll: nll / n.max(1) as f64,
+        },
+        errors,
+        per_block,
+    )
+}
+
+/// Each block's report from the two models' per-block errors.
+pub(crate) fn block_reports(
+    prepared: &Prepared,
+    input: &[(f64, f64)],
+    fitted: &[(f64, f64)],
+) -> Vec<BlockReport> {
+    prepared
+        .blocks
+        .iter()
+        .zip(input.iter().zip(fitted))
+        .map(|(block, (i, f))| BlockReport {
+            t_start: prepared.segments[block.start].t_start,
+            t_end: prepared.segments[block.end - 1].t_end,
+            segments: block.len(),
+            input_rmse_pos_m: i.1,
+            fitted_rmse_pos_m: f.1,
+        })
+        .collect()
+}
+
+/// A held-out block whose log-likelihood an effect lowers by more than
+/// this contradicts it: a likelihood ratio of e^2 (about 7) against the
+/// effect in data it was not fitted on, "positive" evidence on Kass and
+/// Raftery's scale (2 log-ratio above 4), where a refitted effect that is
+/// merely useless in a block loses a fraction of a nat. The same body's
+/// physics does not change between stretches of its recording.
+pub const CONTRADICTION_NATS: f64 = 2.0;
+
+/// The effects of `found` that transfer: while the model with them
+/// predicts some held-out block worse than `fixed` alone by more than
+/// `CONTRADICTION_NATS`, the effect whose removal helps the worst block
+/// most is dropped. Noise effects (they move no predicted pose) are on
+/// both sides of the comparison and never dropped here. Returns the indices
+/// into `found` of the effects kept, and of those dropped with the block
+/// that contradicted each.
+pub(crate) fn transferable(
+    prepared: &Prepared,
+    fixed: &[ScopedEffect],
+    found: &[ScopedEffect],
+    options: &Options,
+) -> (Vec<usize>, Vec<(usize, std::ops::Range<usize>)>) {
+    let block_nll = |kept: &[usize]| -> Vec<f64> {
+        let effects: Vec<ScopedEffect> = kept.iter().map(|&k| found[k].clone()).collect();
+        heldout(prepared, fixed, &effects, options)
+            .2
+            .into_iter()
+            .map(|(nll, _)| nll)
+            .collect()
+    };
+    let noise: Vec<usize> = (0..found.len()).filter(|&k| found[k].effect.only_noise()).collect();
+    let plain = block_nll(&noise);
+    let mut kept: Vec<usize> = (0..found.len()).collect();
+    let mut dropped = Vec::new();
+    while kept.len() > noise.len() {
+        let now = block_nll(&kept);
+        let Some((block, excess)) = now
+            .iter()
+            .zip(&plain)
+            .map(|(n, p)| n - p)
+            .enumerate()
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+        else {
+            break;
+        };
+        if excess <= CONTRADICTION_NATS {
+            break;
+        }
+        let without = |k: usize| -> Vec<usize> { kept.iter().copied().filter(|&j| j != k).collect() };
+        let Some(worst_effect) = kept.iter().copied().filter(|k| !noise.contains(k)).min_by(|&a, &b| {
+            block_nll(&without(a))[block].total_cmp(&block_nll(&without(b))[block])
+        }) else {
+            break;
+        };
+        kept.retain(|&j| j != worst_effect);
+        dropped.push((worst_effect, prepared.blocks[block].clone()));
+    }
+    (kept, dropped)
+}
+
+/// Held-out check of one more effect: with each block held out in turn,
+/// `candidate` is refitted on the others and both models predict the held-
+/// out block. Returns each block's gain in held-out log-likelihood
+/// (positive: the effect predicts that unseen block better).
+pub(crate) fn heldout_gain(
+    prepared: &Prepared,
+    base: &[ScopedEffect],
+    candidate: &ScopedEffect,
+    options: &Options,
+) -> Vec<f64> {
+    on_folds(prepared, options, |train, test| {
+        let with = refit_on(
+            prepared,
+            train,
+            base,
+            std::slice::from_ref(candidate),
+            options,
+        );
+        predict_heldout(prepared, train, test, base.to_vec()).0
+            - predict_heldout(prepared, train, test, with).0
+    })
+}
+
