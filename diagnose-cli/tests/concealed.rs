@@ -623,3 +623,78 @@ fn motion_capture_glitches_are_set_aside_reported_and_never_fitted() {
     let read = String::from_utf8_lossy(&read);
     assert!(read.contains("/diagnosis/set_aside"), "{read}");
 }
+
+/// Robot 3's excerpt cut into `parts` MRCLAM folders by command time.
+fn mrclam_parts(dir: &Path, parts: usize) -> Vec<PathBuf> {
+    let read = |name: &str| -> Vec<(f64, String)> {
+        std::fs::read_to_string(mrclam_d6().join(name))
+            .expect("MRCLAM file")
+            .lines()
+            .filter(|l| !l.starts_with('#'))
+            .map(|l| (l.split_whitespace().next().and_then(|t| t.parse().ok()).expect("time"), l.to_owned()))
+            .collect()
+    };
+    let (odometry, truth) = (read("Robot3_Odometry.dat"), read("Robot3_Groundtruth.dat"));
+    let (start, end) = (odometry[0].0, odometry[odometry.len() - 1].0);
+    let span = (end - start) / parts as f64;
+    (0..parts)
+        .map(|k| {
+            let (lo, hi) = (start + k as f64 * span, start + (k + 1) as f64 * span);
+            let folder = dir.join(format!("part{k}"));
+            std::fs::create_dir_all(&folder).expect("folder");
+            for (name, rows, margin) in [("Robot3_Odometry.dat", &odometry, 0.0), ("Robot3_Groundtruth.dat", &truth, 1.0)] {
+                let kept: Vec<&str> = rows
+                    .iter()
+                    .filter(|(t, _)| (lo - margin..hi + margin).contains(t))
+                    .map(|(_, l)| l.as_str())
+                    .collect();
+                std::fs::write(folder.join(name), format!("#\n#\n#\n#\n{}\n", kept.join("\n"))).expect("write");
+            }
+            folder
+        })
+        .collect()
+}
+
+#[test]
+fn physics_fitted_on_one_stretch_of_a_real_robot_holds_on_the_other() {
+    let dir = scratch("halves");
+    let parts = mrclam_parts(&dir, 2);
+    let held_out = |part: &Path, model: Option<&Path>| -> f64 {
+        let mut command = Command::new(binary());
+        command.arg(part).args(["--robot", "3", "--json"]);
+        if let Some(model) = model {
+            command.arg("--model").arg(model);
+        }
+        let d: Value = serde_json::from_slice(&succeed(&mut command)).expect("JSON");
+        d["baseline"]["heldout_rmse_pos_m"].as_f64().expect("rmse")
+    };
+    // Each half's written model, loaded on the other half, predicts it no
+    // worse than the plain model.
+    for (from, to) in [(0, 1), (1, 0)] {
+        let out = dir.join(format!("model{from}"));
+        succeed(
+            Command::new(binary())
+                .arg(&parts[from])
+                .args(["--robot", "3", "--out"])
+                .arg(&out),
+        );
+        let plain = held_out(&parts[to], None);
+        let with = held_out(&parts[to], Some(&out.join("model.toml")));
+        assert!(with <= plain, "half {from}'s model on half {to}: {with} vs plain {plain}");
+    }
+    // Both halves as one: each is a held-out block, predicted better by
+    // the joint model fitted on the other.
+    let d: Value = serde_json::from_slice(&succeed(
+        Command::new(binary())
+            .args(&parts)
+            .args(["--robot", "3", "--json"]),
+    ))
+    .expect("JSON");
+    assert_eq!(d["input"]["recordings"].as_array().map(Vec::len), Some(2), "{d}");
+    let blocks = d["blocks"].as_array().expect("blocks");
+    assert_eq!(blocks.len(), 2, "{d}");
+    for block in blocks {
+        let (input, fitted) = (block["input_rmse_pos_m"].as_f64().expect("input"), block["fitted_rmse_pos_m"].as_f64().expect("fitted"));
+        assert!(fitted < 0.9 * input, "{block}");
+    }
+}
