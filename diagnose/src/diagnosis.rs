@@ -15,7 +15,7 @@ use crate::likelihood::{
     LongRun, component_nll, estimate_noise, long_run_factor, long_run_factors_of_noise,
     long_run_of_components, residuals, segment_nll, standardised,
 };
-use crate::heldout::{BlockReport, block_reports, contradiction_nats, heldout, heldout_gain, transferable};
+use crate::heldout::{BlockReport, CONTRADICTION_NATS, block_reports, heldout, heldout_gain, transferable};
 use crate::locate::{Located, locate};
 use crate::recording::Recording;
 use crate::segments::{Segment, command_grid, segments};
@@ -351,13 +351,12 @@ fn transferring(
     found: Vec<ScopedEffect>,
     evidence: Vec<Evidence>,
     duration: f64,
-    contradiction: f64,
     options: &Options,
 ) -> (Vec<ScopedEffect>, Vec<Evidence>, Vec<NotTransferring>) {
     if found.is_empty() {
         return (found, evidence, Vec::new());
     }
-    let (kept, dropped) = transferable(prepared, fixed, &found, contradiction, options);
+    let (kept, dropped) = transferable(prepared, fixed, &found, options);
     if dropped.is_empty() {
         return (found, evidence, Vec::new());
     }
@@ -846,9 +845,6 @@ struct Selection<'a> {
     fixed: Vec<ScopedEffect>,
     duration: f64,
     options: &'a Options,
-    /// How far a held-out block may lower the log-likelihood before it
-    /// contradicts an effect (`heldout::contradiction_nats`).
-    contradiction: f64,
 }
 
 impl Selection<'_> {
@@ -1095,7 +1091,7 @@ fn select(selection: &Selection, located: &[Located], at: OperatingPoint) -> Sel
             let gains = heldout_gain(selection.prepared, &base, &chosen, selection.options);
             let gain_heldout: f64 = gains.iter().sum();
             let worst = gains.iter().copied().fold(f64::INFINITY, f64::min);
-            let contradicted = !chosen.effect.only_noise() && worst < -selection.contradiction;
+            let contradicted = !chosen.effect.only_noise() && worst < -CONTRADICTION_NATS;
             if !(gain_heldout > 0.0) || contradicted {
                 out.rejected_heldout.push(chosen.effect.kind());
                 continue;
@@ -1157,7 +1153,6 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
         fixed: model.effects.clone(),
         duration,
         options,
-        contradiction: contradiction_nats(noise_correlation),
     };
     let Selected {
         found,
@@ -1166,8 +1161,7 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
         rejected_heldout,
     } = select(&selection, &located, operating_point);
     let fixed = &selection.fixed;
-    let (found, evidence, not_transferring) =
-        transferring(&prepared, fixed, found, evidence, duration, selection.contradiction, options);
+    let (found, evidence, not_transferring) = transferring(&prepared, fixed, found, evidence, duration, options);
 
     let stderr = if found.is_empty() {
         Vec::new()

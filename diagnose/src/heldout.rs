@@ -172,26 +172,16 @@ pub(crate) fn block_reports(
 }
 
 /// A held-out block whose log-likelihood an effect lowers by more than
-/// this many nats of independent evidence contradicts it: a likelihood
-/// ratio of e^2 (about 7) against the effect in data it was not fitted on,
-/// "positive" evidence on Kass and Raftery's scale (2 log-ratio above 4),
-/// where a refitted effect that is merely useless in a block loses a
-/// fraction of a nat. The same body's physics does not change between
-/// stretches of its recording.
+/// this contradicts it: a likelihood ratio of e^2 (about 7) against the
+/// effect in data it was not fitted on, "positive" evidence on Kass and
+/// Raftery's scale (2 log-ratio above 4), where a refitted effect that is
+/// merely useless in a block loses a fraction of a nat. The same body's
+/// physics does not change between stretches of its recording.
 pub const CONTRADICTION_NATS: f64 = 2.0;
-
-/// The contradiction threshold for residuals whose correlation in time
-/// inflates the variance of sums by `long_run_factors` (along, across,
-/// heading; 1 for white noise): a log-likelihood difference over correlated
-/// segments counts the same evidence several times, as the entry test
-/// corrects for too.
-pub fn contradiction_nats(long_run_factors: [f64; 3]) -> f64 {
-    CONTRADICTION_NATS * long_run_factors.into_iter().fold(1.0, f64::max)
-}
 
 /// The effects of `found` that transfer: while the model with them
 /// predicts some held-out block worse than `fixed` alone by more than
-/// `contradiction` nats, the effect whose removal helps the worst block
+/// `CONTRADICTION_NATS`, the effect whose removal helps the worst block
 /// most is dropped. Noise effects (they move no predicted pose) are on
 /// both sides of the comparison and never dropped here. Returns the indices
 /// into `found` of the effects kept, and of those dropped with the block
@@ -200,7 +190,6 @@ pub(crate) fn transferable(
     prepared: &Prepared,
     fixed: &[ScopedEffect],
     found: &[ScopedEffect],
-    contradiction: f64,
     options: &Options,
 ) -> (Vec<usize>, Vec<(usize, std::ops::Range<usize>)>) {
     let block_nll = |kept: &[usize]| -> Vec<f64> {
@@ -226,7 +215,7 @@ pub(crate) fn transferable(
         else {
             break;
         };
-        if excess <= contradiction {
+        if excess <= CONTRADICTION_NATS {
             break;
         }
         let without = |k: usize| -> Vec<usize> { kept.iter().copied().filter(|&j| j != k).collect() };
