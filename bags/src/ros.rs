@@ -14,6 +14,9 @@ pub const POSE_TYPES: [&str; 4] = [
     "tf2_msgs/msg/TFMessage",
 ];
 
+/// A pose on the floor: x, y and yaw.
+pub type PlanarPose = (f64, f64, f64);
+
 /// The simulation clock a Gazebo bag records beside its topics.
 pub const CLOCK_TYPE: &str = "rosgraph_msgs/msg/Clock";
 
@@ -81,7 +84,7 @@ pub fn decode_poses(
     data: &[u8],
     log_time: i64,
     selection: &Selection,
-) -> Result<Vec<Stamped<(f64, f64, f64)>>, String> {
+) -> Result<Vec<Stamped<PlanarPose>>, String> {
     let one = |header: msg::Header, pose: msg::Pose| -> Result<Vec<_>, String> {
         Ok(vec![planar(
             header.stamp.nanoseconds(),

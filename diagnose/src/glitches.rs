@@ -177,8 +177,8 @@ fn without_jumps(poses: &Poses, bounds: &Bounds) -> (Poses, Vec<Glitch>) {
         let mut j = i + 1;
         while j < n
             && poses.t[j] - poses.t[i] <= MAX_EXCURSION_S
-            && !(bounds.reachable(from, pose(poses, j))
-                && !bounds.reachable(pose(poses, j - 1), pose(poses, j)))
+            && (!bounds.reachable(from, pose(poses, j))
+                || bounds.reachable(pose(poses, j - 1), pose(poses, j)))
         {
             j += 1;
         }

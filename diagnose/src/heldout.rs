@@ -113,6 +113,9 @@ pub struct BlockReport {
     pub fitted_rmse_pos_m: f64,
 }
 
+/// A held-out block's negative log-likelihood and position error.
+pub(crate) type BlockScore = (f64, f64);
+
 /// Held-out fit of `fixed` plus `found` (refitted per block) over every
 /// block: the totals, each segment's position error, and each block's
 /// negative log-likelihood and position error.
@@ -121,13 +124,13 @@ pub(crate) fn heldout(
     fixed: &[ScopedEffect],
     found: &[ScopedEffect],
     options: &Options,
-) -> (Heldout, Vec<(f64, f64)>, Vec<(f64, f64)>) {
+) -> (Heldout, Vec<(f64, f64)>, Vec<BlockScore>) {
     let n = prepared.segments.len();
     let per_fold: Vec<(f64, Vec<Residual>)> = on_folds(prepared, options, |train, test| {
         let effects = refit_on(prepared, train, fixed, found, options);
         predict_heldout(prepared, train, test, effects)
     });
-    let per_block: Vec<(f64, f64)> = per_fold
+    let per_block: Vec<BlockScore> = per_fold
         .iter()
         .map(|(nll, r)| (*nll, rmse(r).0))
         .collect();
@@ -154,8 +157,8 @@ pub(crate) fn heldout(
 /// Each block's report from the two models' per-block errors.
 pub(crate) fn block_reports(
     prepared: &Prepared,
-    input: &[(f64, f64)],
-    fitted: &[(f64, f64)],
+    input: &[BlockScore],
+    fitted: &[BlockScore],
 ) -> Vec<BlockReport> {
     prepared
         .blocks
@@ -176,7 +179,11 @@ pub(crate) fn block_reports(
 /// effect in data it was not fitted on, "positive" evidence on Kass and
 /// Raftery's scale (2 log-ratio above 4), where a refitted effect that is
 /// merely useless in a block loses a fraction of a nat. The same body's
-/// physics does not change between stretches of its recording.
+/// physics does not change between stretches of its recording. Not scaled
+/// by the residuals' long-run variance factor (as the entry test is): so
+/// scaled, on MRCLAM's robots twice as many single-stretch models predicted
+/// another stretch worse than the plain model (EXPERIMENTS.md, "Physics
+/// that transfers").
 pub const CONTRADICTION_NATS: f64 = 2.0;
 
 /// The effects of `found` that transfer: while the model with them
