@@ -98,6 +98,22 @@ fn cannot_mount(test: &str) {
     eprintln!("{test}: not run: mounting a file system needs root");
 }
 
+/// `agents` robots of swarm `name` recording into `recording` (with
+/// `extra` arguments of `shoal up`), every robot alive.
+fn recording_swarm(name: &str, agents: usize, recording: &Path, extra: &[&str]) -> BackgroundSwarm {
+    let agents_text = agents.to_string();
+    let mut args = vec![
+        "--agents",
+        agents_text.as_str(),
+        "--record",
+        recording.to_str().expect("utf-8"),
+    ];
+    args.extend_from_slice(extra);
+    let mut swarm = BackgroundSwarm::start(name, &args);
+    swarm.wait_alive(agents, Duration::from_secs(30));
+    swarm
+}
+
 /// The recorder's process, found by its node on the swarm's bus.
 fn recorder_pid(swarm: &str) -> Option<i32> {
     shoal_broker::liveness::swarm_nodes(swarm)
@@ -115,18 +131,7 @@ fn a_recording_onto_a_disk_that_fills_is_reported_at_once_kept_readable_and_fail
         return cannot_mount("full disk");
     };
     let recording = mount.dir.join("run.rrd");
-    let mut swarm = BackgroundSwarm::start(
-        "e2e-full-disk",
-        &[
-            "--agents",
-            "20",
-            "--duration",
-            "25",
-            "--record",
-            recording.to_str().expect("utf-8"),
-        ],
-    );
-    swarm.wait_alive(20, Duration::from_secs(30));
+    let mut swarm = recording_swarm("e2e-full-disk", 20, &recording, &["--duration", "25"]);
     // Said while the swarm runs, not at its end.
     let said_at_once = wait_until(Duration::from_secs(20), || {
         swarm.log().contains("No space left on device")
@@ -166,20 +171,8 @@ fn a_disk_that_fails_mid_run_is_reported_and_what_was_written_stays_readable() {
     };
     let recording = mount.dir.join("run.rrd");
     let tum = mount.dir.join("tum");
-    let mut swarm = BackgroundSwarm::start(
-        "e2e-failing-disk",
-        &[
-            "--agents",
-            "6",
-            "--duration",
-            "14",
-            "--record",
-            recording.to_str().expect("utf-8"),
-            "--tum",
-            tum.to_str().expect("utf-8"),
-        ],
-    );
-    swarm.wait_alive(6, Duration::from_secs(30));
+    let tum = tum.to_str().expect("utf-8");
+    let mut swarm = recording_swarm("e2e-failing-disk", 6, &recording, &["--duration", "14", "--tum", tum]);
     std::thread::sleep(Duration::from_secs(4));
     mount.fail_disk();
     let (exit, said) = swarm.wait_end();
@@ -266,16 +259,7 @@ fn a_recorder_frozen_at_shutdown_is_killed_named_and_its_file_stays_readable() {
     let _turn = serial();
     let dir = scratch("frozen-recorder");
     let recording = dir.join("run.rrd");
-    let mut swarm = BackgroundSwarm::start(
-        "e2e-frozen-recorder",
-        &[
-            "--agents",
-            "4",
-            "--record",
-            recording.to_str().expect("utf-8"),
-        ],
-    );
-    swarm.wait_alive(4, Duration::from_secs(30));
+    let mut swarm = recording_swarm("e2e-frozen-recorder", 4, &recording, &[]);
     std::thread::sleep(Duration::from_secs(3));
     let pid = recorder_pid(&swarm.name).expect("the recorder is on the bus");
     // SAFETY: plain kill(2) on the recorder this test's swarm started.
