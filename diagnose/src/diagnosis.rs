@@ -15,7 +15,10 @@ use crate::likelihood::{
     LongRun, component_nll, estimate_noise, long_run_factor, long_run_factors_of_noise,
     long_run_of_components, residuals, segment_nll, standardised,
 };
-use crate::heldout::{BlockReport, CONTRADICTION_NATS, block_reports, heldout, heldout_gain, transferable};
+use crate::heldout::{
+    BlockReport, CONTRADICTION_NATS, block_reports, heldout, heldout_gain, must_transfer,
+    transferable,
+};
 use crate::locate::{Located, locate};
 use crate::recording::Recording;
 use crate::segments::{Segment, command_grid, segments};
@@ -1084,14 +1087,12 @@ fn select(selection: &Selection, located: &[Located], at: OperatingPoint) -> Sel
                 continue;
             }
             // It must predict the held-out blocks better in all, and, if it
-            // moves the prediction, no block may contradict it (see
-            // `heldout::CONTRADICTION_NATS`). A noise effect moves no
-            // predicted pose but every segment's likelihood, so its blocks
-            // swing both ways; it is judged on their sum.
+            // is physics of the body (`heldout::must_transfer`), no block
+            // may contradict it (`heldout::CONTRADICTION_NATS`).
             let gains = heldout_gain(selection.prepared, &base, &chosen, selection.options);
             let gain_heldout: f64 = gains.iter().sum();
             let worst = gains.iter().copied().fold(f64::INFINITY, f64::min);
-            let contradicted = !chosen.effect.only_noise() && worst < -CONTRADICTION_NATS;
+            let contradicted = must_transfer(&chosen) && worst < -CONTRADICTION_NATS;
             if !(gain_heldout > 0.0) || contradicted {
                 out.rejected_heldout.push(chosen.effect.kind());
                 continue;

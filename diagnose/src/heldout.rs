@@ -113,6 +113,19 @@ pub struct BlockReport {
     pub fitted_rmse_pos_m: f64,
 }
 
+/// Whether `scoped` is physics of the body that must hold in every stretch:
+/// it moves the prediction, everywhere, all the time. A noise effect moves
+/// no predicted pose (its per-block likelihoods swing both ways); a surface
+/// zone is physics of a place, and an effect scoped to part of the run is
+/// said to change in time: a robot that enters a zone once leaves blocks
+/// where its edges cannot be fitted, and those are judged on the sum of
+/// the blocks, as before.
+pub fn must_transfer(scoped: &ScopedEffect) -> bool {
+    !scoped.effect.only_noise()
+        && scoped.during.is_none()
+        && scoped.effect.kind() != "surface_zone"
+}
+
 /// A held-out block's negative log-likelihood and position error.
 pub(crate) type BlockScore = (f64, f64);
 
@@ -189,8 +202,8 @@ pub const CONTRADICTION_NATS: f64 = 2.0;
 /// The effects of `found` that transfer: while the model with them
 /// predicts some held-out block worse than `fixed` alone by more than
 /// `CONTRADICTION_NATS`, the effect whose removal helps the worst block
-/// most is dropped. Noise effects (they move no predicted pose) are on
-/// both sides of the comparison and never dropped here. Returns the indices
+/// most is dropped. Effects that need not transfer (`must_transfer`) are
+/// on both sides of the comparison and never dropped here. Returns the indices
 /// into `found` of the effects kept, and of those dropped with the block
 /// that contradicted each.
 pub(crate) fn transferable(
@@ -207,7 +220,7 @@ pub(crate) fn transferable(
             .map(|(nll, _)| nll)
             .collect()
     };
-    let noise: Vec<usize> = (0..found.len()).filter(|&k| found[k].effect.only_noise()).collect();
+    let noise: Vec<usize> = (0..found.len()).filter(|&k| !must_transfer(&found[k])).collect();
     let plain = block_nll(&noise);
     let mut kept: Vec<usize> = (0..found.len()).collect();
     let mut dropped = Vec::new();
