@@ -199,28 +199,7 @@ pub fn choose(
     let (c_stamped, p_stamped) = (stamped(commands), stamped(poses));
     let (c_off, p_off) = (offset(commands), offset(poses));
     let spread = transport_spread_ms(poses);
-    let log_both = |reason: String| {
-        let delay_note = match spread {
-            Some(ms) => format!(
-                "both are timed on arrival at the recorder: a fitted delay is the robot's \
-                 response plus the poses' transport less the commands'; the poses' transport \
-                 varied by {ms:.1} ms (p5-p95 of log time less stamp)"
-            ),
-            None => "both are timed on arrival at the recorder: a fitted delay is the robot's \
-                     response plus the poses' transport less the commands' (neither is known \
-                     here: the poses carry no stamps)"
-                .to_owned(),
-        };
-        (
-            ClockChoice {
-                commands: Timing::LogTimes,
-                poses: Timing::LogTimes,
-                reason,
-                delay_note,
-            },
-            None,
-        )
-    };
+    let log_both = |reason: String| log_times_for_both(reason, spread);
     if preference == StampsPreference::Log {
         return Ok(log_both("--stamps log".to_owned()));
     }
@@ -288,6 +267,46 @@ pub fn choose(
     }
 }
 
+/// Both topics timed by the bag's log times, and what that means for a
+/// delay, given how much the poses' transport varied (`spread`, ms).
+fn log_times_for_both(reason: String, spread: Option<f64>) -> (ClockChoice, Option<LogToClock>) {
+    let delay_note = match spread {
+        Some(ms) => format!(
+            "both are timed on arrival at the recorder: a fitted delay is the robot's \
+             response plus the poses' transport less the commands'; the poses' transport \
+             varied by {ms:.1} ms (p5-p95 of log time less stamp)"
+        ),
+        None => "both are timed on arrival at the recorder: a fitted delay is the robot's \
+                 response plus the poses' transport less the commands' (neither is known \
+                 here: the poses carry no stamps)"
+            .to_owned(),
+    };
+    (
+        ClockChoice {
+            commands: Timing::LogTimes,
+            poses: Timing::LogTimes,
+            reason,
+            delay_note,
+        },
+        None,
+    )
+}
+
+/// The map from log time to simulation time through the bag's `/clock`,
+/// if it has one that is steady and is the poses' clock.
+fn clock_topic_map(clock: &[(i64, i64)], poses: &Times) -> Option<LogToClock> {
+    if clock.len() < 4 {
+        return None;
+    }
+    LogToClock::through(clock)
+        .filter(|m| m.spread_ns <= MAPPING_SPREAD_LIMIT_NS)
+        // The simulation clock must be the poses' clock.
+        .filter(|m| {
+            let (s, l) = poses[poses.len() / 2];
+            s.is_some_and(|s| (m.map(l) - s).abs() <= SAME_CLOCK_NS)
+        })
+}
+
 /// Stamped poses, unstamped commands (a `Twist` has no header).
 fn unstamped_commands(
     poses: &Times,
@@ -319,16 +338,7 @@ fn unstamped_commands(
          simulation time, or a robot clock that is off) and the commands carry no header stamps",
         seconds(pose_offset.abs())
     );
-    let through_clock = (clock.len() >= 4)
-        .then(|| LogToClock::through(clock))
-        .flatten()
-        .filter(|m| m.spread_ns <= MAPPING_SPREAD_LIMIT_NS)
-        // The simulation clock must be the poses' clock.
-        .filter(|m| {
-            let (s, l) = poses[poses.len() / 2];
-            s.is_some_and(|s| (m.map(l) - s).abs() <= SAME_CLOCK_NS)
-        });
-    if let Some(map) = through_clock {
+    if let Some(map) = clock_topic_map(clock, poses) {
         let choice = ClockChoice {
             commands: Timing::MappedLogTimes(Reference::ClockTopic),
             poses: Timing::HeaderStamps,

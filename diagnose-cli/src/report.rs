@@ -17,14 +17,8 @@ pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
     let mut line = |text: String| {
         let _ = writeln!(out, "{text}");
     };
-    if let Some(clock) = &notes.clock {
-        line(format!(
-            "Clock: {} timed by {}, {} by {}: {}. {}.",
-            clock.commands_topic, clock.commands, clock.poses_topic, clock.poses, clock.reason, capitalised(&clock.delay)
-        ));
-    }
-    if let Some(set_aside) = set_aside_text(&d.glitches) {
-        line(set_aside);
+    for text in clock_text(notes).into_iter().chain(set_aside_text(&d.glitches)) {
+        line(text);
     }
     line(format!(
         "{} segments of {:.1} s compared.",
@@ -89,30 +83,8 @@ pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
             following.join("; ")
         ));
     }
-    for n in &d.not_transferring {
-        line(format!(
-            "  dropped, it does not transfer: {} (with it the held-out stretch {:.0}-{:.0} s was predicted worse than without)",
-            n.sentence, n.block_t_start, n.block_t_end
-        ));
-    }
-    if d.blocks.len() > 1 {
-        let each: Vec<String> = d
-            .blocks
-            .iter()
-            .map(|b| {
-                format!(
-                    "{:.0}-{:.0} s {:.1} -> {:.1} mm",
-                    b.t_start,
-                    b.t_end,
-                    b.input_rmse_pos_m * 1e3,
-                    b.fitted_rmse_pos_m * 1e3
-                )
-            })
-            .collect();
-        line(format!(
-            "Each stretch held out in turn (fitted on the others): {}.",
-            each.join("; ")
-        ));
+    for text in transfer_text(d) {
+        line(text);
     }
     line(format!(
         "Held-out position error {:.1} mm -> {:.1} mm, heading {:.2} -> {:.2} deg, NLL {:.2} -> {:.2} per segment.",
@@ -174,4 +146,53 @@ fn set_aside_text(glitches: &[Glitch]) -> Option<String> {
         "Set aside before fitting, as no body's motion: {}.",
         parts.join("; ")
     ))
+}
+
+/// Which clock a bag's topics were compared on, why, and what it means.
+fn clock_text(notes: &InputNotes) -> Option<String> {
+    let clock = notes.clock.as_ref()?;
+    Some(format!(
+        "Clock: {} timed by {}, {} by {}: {}. {}.",
+        clock.commands_topic,
+        clock.commands,
+        clock.poses_topic,
+        clock.poses,
+        clock.reason,
+        capitalised(&clock.delay)
+    ))
+}
+
+/// What did not transfer between the held-out stretches, and how each
+/// stretch was predicted.
+fn transfer_text(d: &Diagnosis) -> Vec<String> {
+    let mut out: Vec<String> = d
+        .not_transferring
+        .iter()
+        .map(|n| {
+            format!(
+                "  dropped, it does not transfer: {} (with it the held-out stretch {:.0}-{:.0} s was predicted worse than without)",
+                n.sentence, n.block_t_start, n.block_t_end
+            )
+        })
+        .collect();
+    if d.blocks.len() > 1 {
+        let each: Vec<String> = d
+            .blocks
+            .iter()
+            .map(|b| {
+                format!(
+                    "{:.0}-{:.0} s {:.1} -> {:.1} mm",
+                    b.t_start,
+                    b.t_end,
+                    b.input_rmse_pos_m * 1e3,
+                    b.fitted_rmse_pos_m * 1e3
+                )
+            })
+            .collect();
+        out.push(format!(
+            "Each stretch held out in turn (fitted on the others): {}.",
+            each.join("; ")
+        ));
+    }
+    out
 }

@@ -225,13 +225,19 @@ fn a_lockstep_swarm_ends_when_its_launcher_is_killed_and_shoal_down_stops_the_re
         ],
     );
     swarm.wait_alive(4, Duration::from_secs(60));
-    let pids: Vec<i32> = shoal_broker::liveness::swarm_nodes(name)
-        .expect("nodes")
-        .iter()
-        .map(|n| n.pid)
-        .filter(|p| *p != swarm.pid())
-        .collect();
-    assert!(pids.len() >= 6, "robots, recorder and SLAM: {pids:?}");
+    // The recorder and SLAM join the bus after the robots: wait for them.
+    let mut pids: Vec<i32> = Vec::new();
+    let launcher = swarm.pid();
+    let all_there = wait_until(Duration::from_secs(30), || {
+        pids = shoal_broker::liveness::swarm_nodes(name)
+            .expect("nodes")
+            .iter()
+            .map(|n| n.pid)
+            .filter(|p| *p != launcher)
+            .collect();
+        pids.len() >= 6
+    });
+    assert!(all_there, "robots, recorder and SLAM: {pids:?}");
     // SAFETY: plain kill(2) on our own child.
     unsafe { libc::kill(swarm.pid(), libc::SIGKILL) };
     let _ = swarm.wait_end();

@@ -143,10 +143,18 @@ impl Session {
     fn open(args: &Args) -> Result<Self> {
         let runtime = SwarmRuntime::locate(&args.swarm);
         let meta = runtime.read_meta()?;
-        let swept = shoal_broker::liveness::remove_dead_nodes_of_abandoned_swarms()?;
-        if let Some(swept) = shoal_broker::liveness::describe_swept(&swept) {
-            eprintln!("shoal-viewer-log: {swept}");
-        }
+        // Off the recording's path: a swarm killed whole may have left
+        // many nodes, and a lockstep clock waits for this recorder.
+        std::thread::spawn(|| {
+            match shoal_broker::liveness::remove_dead_nodes_of_abandoned_swarms() {
+                Ok(swept) => {
+                    if let Some(swept) = shoal_broker::liveness::describe_swept(&swept) {
+                        eprintln!("shoal-viewer-log: {swept}");
+                    }
+                }
+                Err(e) => tracing::warn!("sweeping the dead nodes of abandoned swarms: {e}"),
+            }
+        });
         let scenario = runtime.read_scenario()?;
         let bus = Bus::join(
             &args.swarm,
