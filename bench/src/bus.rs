@@ -168,10 +168,16 @@ pub fn probe(
         &names::tool_node(swarm, &format!("probe-{role:?}")),
         limits,
     )?;
-    let centre = std::env::var("SHOAL_PROBE_AT")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(10.0);
+    // Where the probe stands: 10 m by default; a value that is not a number
+    // is an error, not the default.
+    let centre: f64 = match std::env::var("SHOAL_PROBE_AT") {
+        Ok(text) => text
+            .parse()
+            .ok()
+            .filter(|x: &f64| x.is_finite())
+            .with_context(|| format!("SHOAL_PROBE_AT={text:?} is not a position in metres"))?,
+        Err(_) => 10.0,
+    };
     let event_name = format!("{}probe-event", names::prefix(swarm));
     let event = bus
         .node

@@ -115,18 +115,27 @@ fn measure_traffic(
     let [Some(a), Some(b)] = links else {
         bail!("a host's link is not running");
     };
-    let cpu_before = [a, b].map(|(pid, _)| usage(pid).unwrap_or_default().cpu_s);
+    // A link that died mid-measurement is an error, never 0 CPU.
+    let cpu_of = |pid: i32| -> Result<f64> {
+        usage(pid)
+            .map(|u| u.cpu_s)
+            .with_context(|| format!("the link (pid {pid}) ended during the measurement"))
+    };
+    let cpu_before = [cpu_of(a.0)?, cpu_of(b.0)?];
     let bytes_before = loopback_tx_bytes();
     let started = Instant::now();
     std::thread::sleep(Duration::from_secs_f64(seconds));
     let wall = started.elapsed().as_secs_f64();
     let bytes = loopback_tx_bytes().saturating_sub(bytes_before);
-    let after = hosts.map(|h| link_state(swarm, h).unwrap_or_default());
+    let [Some(a_after), Some(b_after)] = hosts.map(|h| link_state(swarm, h)) else {
+        bail!("a host's link stopped reporting during the measurement");
+    };
+    let after = [a_after, b_after];
+    let cpu_after = [cpu_of(a.0)?, cpu_of(b.0)?];
     Ok(Traffic {
         wire_bytes_per_robot_per_s: bytes as f64 / (robots as f64 * wall),
         poses_offered_per_s: [0, 1].map(|i| after[i].1.saturating_sub([a, b][i].1) as f64 / wall),
-        link_cpu_share: [0, 1]
-            .map(|i| (usage([a, b][i].0).unwrap_or_default().cpu_s - cpu_before[i]) / wall),
+        link_cpu_share: [0, 1].map(|i| (cpu_after[i] - cpu_before[i]) / wall),
     })
 }
 

@@ -532,7 +532,10 @@ pub struct Seeds {
 }
 
 impl Seeds {
-    pub fn new() -> Self {
+    /// The valid files mutations start from; one that cannot be built is an
+    /// error (fuzzing an empty seed would test nothing and say it passed).
+    pub fn new() -> anyhow::Result<Self> {
+        use anyhow::Context as _;
         use shoal_physics::{Effect, ScopedEffect, UnicycleModel};
         let mut scenario = shoal_physics::Scenario::default_arena();
         scenario.arena.surfaces.push(shoal_physics::Surface {
@@ -588,20 +591,22 @@ impl Seeds {
         let run = shoal_diagnose::input::commands_csv(&commands, "seed")
             .and_then(|c| Ok((c, shoal_diagnose::input::poses_csv(&poses, "seed")?)))
             .map(|(c, p)| shoal_diagnose::Recording::from_absolute(c, p))
-            .unwrap_or_default();
-        Self {
+            .context("the CSV seeds")?;
+        Ok(Self {
             ros_bag: {
                 let (c, p) = (&run.commands, &run.poses);
                 let commands: Vec<(f64, f64, f64)> =
                     (0..c.t.len()).map(|i| (c.t[i], c.v[i], c.omega[i])).collect();
                 let poses: Vec<(f64, f64, f64, f64)> =
                     (0..p.t.len()).map(|i| (p.t[i], p.x[i], p.y[i], p.theta[i])).collect();
-                shoal_bags::write::write_bag(&commands, &poses).unwrap_or_default()
+                shoal_bags::write::write_bag(&commands, &poses)
+                    .map_err(anyhow::Error::msg)
+                    .context("the ROS 2 bag seed")?
             },
-            scenario: scenario.to_toml().unwrap_or_default(),
+            scenario: scenario.to_toml().context("the scenario seed")?,
             motion_model: toml::to_string(&shoal_physics::MotionModel::legged_default())
-                .unwrap_or_default(),
-            effects_model: effects.to_toml().unwrap_or_default(),
+                .context("the motion model seed")?,
+            effects_model: effects.to_toml().context("the effects model seed")?,
             commands_csv: commands,
             poses_csv: poses,
             mrclam_odometry: odometry,
@@ -626,14 +631,8 @@ impl Seeds {
                     neighbour_age_ms: 210,
                 }],
             })
-            .unwrap_or_default(),
-        }
-    }
-}
-
-impl Default for Seeds {
-    fn default() -> Self {
-        Self::new()
+            .context("the host summary seed")?,
+        })
     }
 }
 
@@ -743,7 +742,7 @@ mod tests {
 
     #[test]
     fn every_seed_is_a_valid_file() {
-        let seeds = Seeds::new();
+        let seeds = Seeds::new().expect("seeds");
         let file = Target::FILE;
         shoal_physics::Scenario::from_toml(&seeds.scenario, file).expect("scenario");
         shoal_physics::MotionModel::from_toml(&seeds.motion_model, file).expect("motion model");

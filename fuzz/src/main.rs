@@ -27,7 +27,13 @@ fn main() -> std::process::ExitCode {
     let args = Args::parse();
     // Panics are caught and counted per input; printing each would bury the report.
     std::panic::set_hook(Box::new(|_| {}));
-    let seeds = Seeds::new();
+    let seeds = match Seeds::new() {
+        Ok(seeds) => seeds,
+        Err(e) => {
+            eprintln!("shoal-fuzz: a seed cannot be built: {e:#}");
+            return std::process::ExitCode::FAILURE;
+        }
+    };
     let targets = if args.target.is_empty() {
         Target::ALL.to_vec()
     } else {

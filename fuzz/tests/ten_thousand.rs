@@ -5,7 +5,7 @@ use shoal_fuzz::{Seeds, Target, fuzz};
 
 #[test]
 fn ten_thousand_inputs_per_target_neither_panic_nor_get_an_unclear_error() {
-    let seeds = Seeds::new();
+    let seeds = Seeds::new().expect("every seed builds");
     for target in Target::ALL {
         let report = fuzz(target, 10_000, 1, &seeds);
         assert!(report.passed(), "{report:#?}");
