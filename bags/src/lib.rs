@@ -34,23 +34,12 @@ impl BagError {
 /// Whether `path` names a bag: an `.mcap` or `.db3` file (zstd-compressed
 /// or not), or a folder holding `metadata.yaml` or such files.
 pub fn looks_like_bag(path: &std::path::Path) -> bool {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let bag_file = |n: &str| {
-        [".mcap", ".db3", ".mcap.zstd", ".db3.zstd"]
-            .iter()
-            .any(|ext| n.ends_with(ext))
-    };
     if path.is_dir() {
         path.join("metadata.yaml").is_file()
             || std::fs::read_dir(path).is_ok_and(|entries| {
-                entries
-                    .filter_map(Result::ok)
-                    .any(|e| bag_file(&e.file_name().to_string_lossy()))
+                entries.filter_map(Result::ok).any(|e| storage::is_bag_file(&e.path()))
             })
     } else {
-        bag_file(&name)
+        storage::is_bag_file(path)
     }
 }

@@ -223,15 +223,19 @@ fn folder_files(dir: &Path) -> Result<Vec<PathBuf>, BagError> {
         .map_err(|e| BagError::new(dir, format!("cannot list it: {e}")))?;
     let mut files: Vec<PathBuf> = entries
         .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| {
-            let name = p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-            [".mcap", ".db3", ".mcap.zstd", ".db3.zstd"]
-                .iter()
-                .any(|ext| name.ends_with(ext))
-        })
+        .filter(|p| is_bag_file(p))
         .collect();
     files.sort_by_key(|p| natural_key(p));
     Ok(files)
+}
+
+/// Whether `path` is named as a bag file: `.mcap` or `.db3`, zstd-compressed
+/// (`.zstd`, as rosbag2 names its compressed files) or not.
+pub fn is_bag_file(path: &Path) -> bool {
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    [".mcap", ".db3", ".mcap.zstd", ".db3.zstd"]
+        .iter()
+        .any(|ext| name.ends_with(ext))
 }
 
 /// Orders `bag_10.db3` after `bag_9.db3`, as rosbag2 numbers its splits.

@@ -289,12 +289,8 @@ fn run_generate(args: &GenerateArgs) -> Result<()> {
         &model.to_toml().context("writing the true model")?,
     )?;
     if args.bag {
-        let (c, p) = (&recording.commands, &recording.poses);
-        let commands: Vec<(f64, f64, f64)> =
-            (0..c.t.len()).map(|i| (c.t[i], c.v[i], c.omega[i])).collect();
-        let poses: Vec<(f64, f64, f64, f64)> =
-            (0..p.t.len()).map(|i| (p.t[i], p.x[i], p.y[i], p.theta[i])).collect();
-        let bytes = shoal_bags::write::write_bag(&commands, &poses).map_err(anyhow::Error::msg)?;
+        let bytes = shoal_bags::write::write_bag(&recording.commands.rows(), &recording.poses.rows())
+            .map_err(anyhow::Error::msg)?;
         let path = out.join("run.mcap");
         std::fs::write(&path, bytes).with_context(|| format!("cannot write {}", path.display()))?;
     }

@@ -41,7 +41,6 @@ pub fn blocks(segments: &[Segment], joins: &[f64], folds: usize) -> Vec<std::ops
 /// others as `train`, in parallel; results in block order.
 pub(crate) fn on_folds<T: Send>(
     prepared: &Prepared,
-    _options: &Options,
     per_fold: impl Fn(&[Segment], &[Segment]) -> T + Sync,
 ) -> Vec<T> {
     let per_fold = &per_fold;
@@ -123,7 +122,7 @@ pub struct BlockReport {
 pub fn must_transfer(scoped: &ScopedEffect) -> bool {
     !scoped.effect.only_noise()
         && scoped.during.is_none()
-        && scoped.effect.kind() != "surface_zone"
+        && !matches!(scoped.effect, shoal_physics::Effect::SurfaceZone { .. })
 }
 
 /// A held-out block's negative log-likelihood and position error.
@@ -139,7 +138,7 @@ pub(crate) fn heldout(
     options: &Options,
 ) -> (Heldout, Vec<(f64, f64)>, Vec<BlockScore>) {
     let n = prepared.segments.len();
-    let per_fold: Vec<(f64, Vec<Residual>)> = on_folds(prepared, options, |train, test| {
+    let per_fold: Vec<(f64, Vec<Residual>)> = on_folds(prepared, |train, test| {
         let effects = refit_on(prepared, train, fixed, found, options);
         predict_heldout(prepared, train, test, effects)
     });
@@ -239,9 +238,14 @@ pub(crate) fn transferable(
             break;
         }
         let without = |k: usize| -> Vec<usize> { kept.iter().copied().filter(|&j| j != k).collect() };
-        let Some(worst_effect) = kept.iter().copied().filter(|k| !noise.contains(k)).min_by(|&a, &b| {
-            block_nll(&without(a))[block].total_cmp(&block_nll(&without(b))[block])
-        }) else {
+        // Each candidate removal's held-out fit, once.
+        let Some((worst_effect, _)) = kept
+            .iter()
+            .copied()
+            .filter(|k| !noise.contains(k))
+            .map(|k| (k, block_nll(&without(k))[block]))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+        else {
             break;
         };
         kept.retain(|&j| j != worst_effect);
@@ -260,7 +264,7 @@ pub(crate) fn heldout_gain(
     candidate: &ScopedEffect,
     options: &Options,
 ) -> Vec<f64> {
-    on_folds(prepared, options, |train, test| {
+    on_folds(prepared, |train, test| {
         let with = refit_on(
             prepared,
             train,

@@ -35,6 +35,11 @@ pub struct Recording {
 pub const MAX_OBSERVATION_GAP_S: f64 = 0.5;
 
 impl Commands {
+    /// Each command as (t, v, omega).
+    pub fn rows(&self) -> Vec<(f64, f64, f64)> {
+        (0..self.t.len()).map(|i| (self.t[i], self.v[i], self.omega[i])).collect()
+    }
+
     /// Appends a command read from a file, in time order. Of two commands
     /// at one time, the later one is what the robot kept.
     pub fn hold(&mut self, t: f64, v: f64, omega: f64) {
@@ -50,6 +55,11 @@ impl Commands {
 }
 
 impl Poses {
+    /// Each pose as (t, x, y, theta).
+    pub fn rows(&self) -> Vec<(f64, f64, f64, f64)> {
+        (0..self.t.len()).map(|i| (self.t[i], self.x[i], self.y[i], self.theta[i])).collect()
+    }
+
     /// Appends a pose read from a file, in time order; a second observation
     /// at a time already seen is dropped.
     pub fn observe(&mut self, t: f64, x: f64, y: f64, theta: f64) {

@@ -593,16 +593,9 @@ impl Seeds {
             .map(|(c, p)| shoal_diagnose::Recording::from_absolute(c, p))
             .context("the CSV seeds")?;
         Ok(Self {
-            ros_bag: {
-                let (c, p) = (&run.commands, &run.poses);
-                let commands: Vec<(f64, f64, f64)> =
-                    (0..c.t.len()).map(|i| (c.t[i], c.v[i], c.omega[i])).collect();
-                let poses: Vec<(f64, f64, f64, f64)> =
-                    (0..p.t.len()).map(|i| (p.t[i], p.x[i], p.y[i], p.theta[i])).collect();
-                shoal_bags::write::write_bag(&commands, &poses)
-                    .map_err(anyhow::Error::msg)
-                    .context("the ROS 2 bag seed")?
-            },
+            ros_bag: shoal_bags::write::write_bag(&run.commands.rows(), &run.poses.rows())
+                .map_err(anyhow::Error::msg)
+                .context("the ROS 2 bag seed")?,
             scenario: scenario.to_toml().context("the scenario seed")?,
             motion_model: toml::to_string(&shoal_physics::MotionModel::legged_default())
                 .context("the motion model seed")?,

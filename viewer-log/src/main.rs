@@ -81,8 +81,21 @@ fn fault_error(fault: &WriteFault, kept: Option<Frame>) -> anyhow::Error {
         ),
         None => "the file holds no frame of the run yet".to_owned(),
     };
-    anyhow::anyhow!("{fault}; {holds}. {WHAT_TO_DO}")
+    anyhow::Error::new(RecordingLost(format!("{fault}; {holds}. {WHAT_TO_DO}")))
 }
+
+/// A recording that cannot be written, said with what it holds and what to
+/// do: an error that needs no more context.
+#[derive(Debug)]
+struct RecordingLost(String);
+
+impl std::fmt::Display for RecordingLost {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for RecordingLost {}
 
 /// What a user does about a recording that cannot be written.
 const WHAT_TO_DO: &str = "The swarm goes on without its recording: free space on that file \
@@ -206,14 +219,16 @@ impl Session {
     fn failed(&self, error: anyhow::Error) -> anyhow::Error {
         let storage = error.chain().any(|cause| cause.is::<std::io::Error>());
         let error = error.context(self.at());
-        if !storage || error.chain().any(|c| c.to_string().contains(WHAT_TO_DO)) {
+        if !storage || error.chain().any(|c| c.is::<RecordingLost>()) {
             return error;
         }
         let holds = match self.kept {
             Some(f) => format!("up to tick {} ({:.1} s simulated)", f.tick, f.sim_time),
             None => "no frame yet".to_owned(),
         };
-        anyhow::anyhow!("{error:#}; the recording holds the run {holds}. {WHAT_TO_DO}")
+        anyhow::Error::new(RecordingLost(format!(
+            "{error:#}; the recording holds the run {holds}. {WHAT_TO_DO}"
+        )))
     }
 
     /// Reads the bus and logs every tick that is complete.

@@ -71,6 +71,9 @@ pub struct RrdFileState {
 struct Shared {
     fault: Mutex<Option<WriteFault>>,
     written: AtomicU64,
+    /// A partly written message could not be cut off (the file system went
+    /// read-only, say): the file may end mid-message.
+    cut_failed: std::sync::atomic::AtomicBool,
 }
 
 impl RrdFileState {
@@ -109,7 +112,6 @@ impl RrdFileSink {
         let shared = Arc::new(Shared::default());
         let cutter = file.try_clone().context("duplicating the file handle")?;
         let out = WholeMessages {
-            truncate: file.try_clone().context("duplicating the file handle")?,
             file,
             committed: 0,
             shared: Arc::clone(&shared),
@@ -283,28 +285,22 @@ fn finish(
 }
 
 fn encoder_fault(state: &RrdFileState, error: &EncodeError) -> WriteFault {
-    let (error, cut_back) = match error {
-        EncodeError::Write(e) => (e.to_string(), !e.to_string().contains(CUT_FAILED)),
-        other => (other.to_string(), true),
-    };
     WriteFault {
         path: state.path.clone(),
-        error: error.replace(CUT_FAILED, "").trim().to_owned(),
+        error: match error {
+            EncodeError::Write(e) => e.to_string(),
+            other => other.to_string(),
+        },
         kept_bytes: state.written(),
-        cut_back,
+        cut_back: !state.shared.cut_failed.load(Ordering::Relaxed),
     }
 }
-
-/// Marks an I/O error after which the file could not be shortened.
-const CUT_FAILED: &str = "[the partial message could not be cut off]";
 
 /// The file under the encoder. The encoder writes each message (and each
 /// piece of the footer) with one `write_all`; one that fails is cut back, so
 /// the file always ends on a whole message.
 struct WholeMessages {
     file: File,
-    /// A second handle on the same file, to shorten it.
-    truncate: File,
     /// Bytes of whole messages.
     committed: u64,
     shared: Arc<Shared>,
@@ -313,7 +309,7 @@ struct WholeMessages {
 impl WholeMessages {
     fn cut_back_to(&mut self, length: u64) -> bool {
         use std::io::Seek as _;
-        let cut = self.truncate.set_len(length).is_ok()
+        let cut = self.file.set_len(length).is_ok()
             && self.file.seek(std::io::SeekFrom::Start(length)).is_ok();
         if cut {
             self.committed = length;
@@ -339,11 +335,10 @@ impl Write for WholeMessages {
             }
             Err(e) => {
                 let committed = self.committed;
-                if self.cut_back_to(committed) {
-                    Err(e)
-                } else {
-                    Err(std::io::Error::new(e.kind(), format!("{e} {CUT_FAILED}")))
+                if !self.cut_back_to(committed) {
+                    self.shared.cut_failed.store(true, Ordering::Relaxed);
                 }
+                Err(e)
             }
         }
     }
