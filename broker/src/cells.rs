@@ -38,7 +38,7 @@ const PUBLISH_SLACK_M: f64 = 0.4;
 /// (about 100 KB of connection storage, sized for the cell's publishers),
 /// so the margin is what a robot's jitter needs, not more: half a cell kept
 /// about 14 cells per robot where 8 to 10 are needed, a third of its memory
-/// (BENCHMARKS.md, session 13).
+/// (BENCHMARKS.md, "1000 robots: memory, start-up and the bus").
 const LISTEN_SLACK_M: f64 = 0.5;
 
 pub struct CellExchange {
@@ -265,7 +265,7 @@ mod tests {
     fn a_robot_keeps_about_ten_cells_half_a_metre_past_its_radius_not_fourteen() {
         // The mean number of cells within `r` of a robot, over a grid of
         // positions in one cell of the default 3.5 m (BENCHMARKS.md,
-        // session 13: `cargo test -p shoal-broker keeps_about_ten --
+        // build 0676a74: `cargo test -p shoal-broker keeps_about_ten --
         // --nocapture` prints them).
         let (cell, radius) = (3.5, 3.5);
         let cells = CellExchange::new(cell);

@@ -23,7 +23,7 @@ use shoal_runtime::pid_alive;
 /// leaves in milliseconds, but a thousand leaving at once queue on the
 /// kernel for seconds (their shared mappings unmapped together), and every
 /// one killed leaves resources the launcher must then clean up one node at
-/// a time, a third of a second each (BENCHMARKS.md, session 10).
+/// a time, a third of a second each (BENCHMARKS.md, "1000 robots in real time: the first run").
 pub(crate) fn shutdown_grace(robots: usize) -> Duration {
     Duration::from_secs(5) + Duration::from_millis(15) * robots as u32
 }
@@ -924,7 +924,7 @@ impl RunningSwarm {
 /// in id order, robots scattered over the whole start region, each found too
 /// few neighbours, listened as far as it could (the widest ring: about 40
 /// cells where it needs 9), and every robot started after it connected to
-/// all those listeners (BENCHMARKS.md, session 13).
+/// all those listeners (BENCHMARKS.md, "1000 robots: memory, start-up and the bus").
 fn inside_out(poses: &[Pose]) -> Vec<usize> {
     let positions: Vec<_> = poses.iter().map(Pose::position).collect();
     let middle = shoal_physics::metrics::centroid(&positions);

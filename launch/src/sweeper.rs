@@ -1,6 +1,6 @@
 //! Removing the bus nodes that dead robots leave behind, on a thread of its
 //! own. With 1000 robots iceoryx2 takes about 3.7 s per dead node (it lists
-//! all of `/dev/shm` once per port of the node; BENCHMARKS.md, session 13),
+//! all of `/dev/shm` once per port of the node; BENCHMARKS.md, build 0676a74),
 //! and a launcher that swept in its own loop stopped reading the roster,
 //! reporting and, in lockstep, ticking the clock for that long.
 

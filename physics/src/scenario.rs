@@ -119,7 +119,7 @@ pub struct BusSection {
     /// not swarm size. Smaller cells fit what it listens to closer to what it
     /// senses (fewer robots heard for nothing) but cost more services, and
     /// each service a robot listens to costs more than a robot it hears
-    /// (BENCHMARKS.md, session 10: 1.75 m cells took more CPU and twice the
+    /// (BENCHMARKS.md, build f467245: 1.75 m cells took more CPU and twice the
     /// memory of 3.5 m ones).
     pub cell_size: f64,
     /// How far one ring of listening reaches, metres: a robot listens to

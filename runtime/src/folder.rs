@@ -234,7 +234,7 @@ impl SwarmRuntime {
     /// sweep lists every node of the machine, reading each one's details:
     /// when 50 of 1000 robots were killed, each of their neighbours swept
     /// at once and the swarm spent three minutes on it (BENCHMARKS.md,
-    /// session 13). With `wait` false a sweep under way makes this return
+    /// build 0676a74). With `wait` false a sweep under way makes this return
     /// [`Sweep::Busy`] at once; the caller asks again later.
     pub fn sweep_unless_swept_since<R>(
         &self,
@@ -558,7 +558,7 @@ impl SwarmRuntime {
 /// line of fixed width is rewritten at its start. Writing a new file and
 /// renaming it over the old one takes the folder's lock, and a thousand
 /// robots queued on that lock for a fifth of the machine's time
-/// (BENCHMARKS.md, session 10). A write this small is never seen half done
+/// (BENCHMARKS.md, "1000 robots in real time: the first run"). A write this small is never seen half done
 /// by a robot that is killed, and the pose is read only once it is dead.
 pub struct PoseNote {
     file: std::fs::File,

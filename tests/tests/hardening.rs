@@ -58,7 +58,7 @@ fn robots_sent_sigterm_while_they_start_leave_no_half_made_node() {
     // A robot gets SIGTERM before it has a handler for it when `shoal up`
     // is stopped in the middle of starting many. Ended half way through
     // making its iceoryx2 node, it left files no sweep removes (10 of 400
-    // robots before the signal was held back; BENCHMARKS.md, session 14).
+    // robots before the signal was held back; BENCHMARKS.md, build 705c845).
     let _turn = serial();
     let swarm = BackgroundSwarm::start("e2e-sigterm-start", &["--agents", "2"]);
     let up = wait_until(Duration::from_secs(30), || {
