@@ -10,8 +10,8 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
-use shoal_diagnose::experiment::{NoiseColour, case_named, cases, run_case, run_settings};
-use shoal_diagnose::generate::generate;
+use shoal_diagnose_lab::experiment::{NoiseColour, case_named, cases, run_case, run_settings};
+use shoal_diagnose_lab::generate::generate;
 use shoal_diagnose::replay::replay;
 use shoal_diagnose::{Options, diagnose};
 use shoal_physics::UnicycleModel;

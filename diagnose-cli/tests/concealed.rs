@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use serde_json::Value;
-use shoal_diagnose::experiment::{case_named, cases};
+use shoal_diagnose_lab::experiment::{case_named, cases};
 
 const DURATION_S: f64 = 600.0;
 const SEED: &str = "1000";
@@ -103,7 +103,7 @@ fn kinds(diagnosis: &Value) -> Vec<String> {
         .collect()
 }
 
-fn truth_toml(case: &shoal_diagnose::experiment::Case) -> String {
+fn truth_toml(case: &shoal_diagnose_lab::experiment::Case) -> String {
     shoal_physics::UnicycleModel::with_effects(case.truth.clone())
         .to_toml()
         .expect("a case's model writes as TOML")

@@ -7,7 +7,6 @@ pub mod diagnosis;
 pub mod fit;
 pub mod glitches;
 pub mod heldout;
-pub mod generate;
 pub mod input;
 pub mod likelihood;
 pub mod locate;
@@ -17,4 +16,3 @@ pub mod segments;
 
 pub use diagnosis::{Diagnosis, Options, diagnose};
 pub use recording::Recording;
-pub mod experiment;

@@ -6,7 +6,7 @@ use serde::Serialize;
 use shoal_physics::{Effect, ScopedEffect, UnicycleModel};
 
 use crate::generate::{ColouredNoise, Settings, generate};
-use crate::{Options, diagnose};
+use shoal_diagnose::{Options, diagnose};
 
 pub struct Case {
     pub name: &'static str,

@@ -8,7 +8,7 @@ use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal};
 use shoal_physics::{Actuators, CommandGrid, Pose, UnicycleModel, wrap_angle};
 
-use crate::recording::{Commands, Poses, Recording};
+use shoal_diagnose::recording::{Commands, Poses, Recording};
 
 #[derive(Clone, Debug)]
 pub struct Settings {
