@@ -196,3 +196,73 @@ fn transfer_text(d: &Diagnosis) -> Vec<String> {
     }
     out
 }
+
+/// The experiment's rows as a Markdown table, then the totals per generator.
+pub fn experiment_table(
+    out: &mut dyn std::io::Write,
+    rows: &[shoal_diagnose_lab::experiment::Row],
+) -> std::io::Result<()> {
+    use shoal_diagnose_lab::experiment::wilson_interval;
+    let percent = |[lo, hi]: [f64; 2]| format!("{:.0}-{:.0}%", lo * 100.0, hi * 100.0);
+    writeln!(
+        out,
+        "| generator | noise | case | concealed | runs | named | named or tied | runs naming an effect not there (95% CI) | beyond the noise (95% CI) | param error | held-out pos RMSE before → after | s/run |"
+    )?;
+    writeln!(out, "|---|---|---|---|---|---|---|---|---|---|---|---|")?;
+    for r in rows {
+        writeln!(
+            out,
+            "| {} | {} | {} | {} | {} | {:.0}% | {:.0}% | {:.0}% ({}) | {:.0}% ({}) | {} | {:.1} → {:.1} mm | {:.1} |",
+            r.generator,
+            r.noise,
+            r.name,
+            r.concealment,
+            r.runs,
+            r.detection_rate * 100.0,
+            r.named_or_tied_rate * 100.0,
+            r.false_positive_rate * 100.0,
+            percent(r.false_positive_interval),
+            r.beyond_noise_rate * 100.0,
+            percent(r.beyond_noise_interval),
+            r.param_error.map_or("-".into(), |e| format!("{:.0}%", e * 100.0)),
+            r.heldout_rmse_pos_m_before * 1e3,
+            r.heldout_rmse_pos_m_after * 1e3,
+            r.seconds_per_run
+        )?;
+    }
+    // The totals the floors are stated in: effects named, runs
+    // naming one not there, null runs saying more than the noise.
+    writeln!(out)?;
+    writeln!(
+        out,
+        "| generator | concealed effects named | runs naming an effect not there (95% CI) | null runs beyond the noise (95% CI) |"
+    )?;
+    writeln!(out, "|---|---|---|---|")?;
+    let mut generators: Vec<&str> = rows.iter().map(|r| r.generator.as_str()).collect();
+    generators.dedup();
+    for generator in generators {
+        let of: Vec<_> = rows.iter().filter(|r| r.generator == generator).collect();
+        let count = |f: &dyn Fn(&shoal_diagnose_lab::experiment::Row) -> f64, nulls: bool| {
+            of.iter()
+                .filter(|r| (r.name == "null") == nulls)
+                .map(|r| (f(r) * r.runs as f64).round() as usize)
+                .sum::<usize>()
+        };
+        let runs = |nulls: bool| count(&|_| 1.0, nulls);
+        let (effect_runs, null_runs) = (runs(false), runs(true));
+        let named = count(&|r| r.detection_rate, false);
+        let false_positive = count(&|r| r.false_positive_rate, false) + count(&|r| r.false_positive_rate, true);
+        let beyond = count(&|r| r.beyond_noise_rate, true);
+        let all_runs = effect_runs + null_runs;
+        writeln!(
+            out,
+            "| {generator} | {named} of {effect_runs} ({:.0}%) | {false_positive} of {all_runs} ({:.0}%, {}) | {beyond} of {null_runs} ({:.0}%, {}) |",
+            100.0 * named as f64 / effect_runs.max(1) as f64,
+            100.0 * false_positive as f64 / all_runs.max(1) as f64,
+            percent(wilson_interval(false_positive, all_runs)),
+            100.0 * beyond as f64 / null_runs.max(1) as f64,
+            percent(wilson_interval(beyond, null_runs)),
+        )?;
+    }
+    Ok(())
+}

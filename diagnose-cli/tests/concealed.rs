@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use serde_json::Value;
-use shoal_diagnose_lab::experiment::{case_named, cases};
+use shoal_diagnose_lab::experiment::{Generator, case_named, cases};
 
 const DURATION_S: f64 = 600.0;
 const SEED: &str = "1000";
@@ -157,7 +157,7 @@ fn each_concealed_effect_is_named_on_one_seed() {
 
 #[test]
 fn two_effects_together_are_both_found_and_the_written_model_explains_the_run() {
-    let case = case_named("speed_scale+external_flow", DURATION_S).expect("pair case");
+    let case = case_named(&Generator::bench(), "speed_scale+external_flow", DURATION_S).expect("pair case");
     let (d, dir) = diagnose_generated("pair", &truth_toml(&case), &["--rrd", "diagnosis.rrd"]);
     let found = kinds(&d);
     assert!(
@@ -356,7 +356,7 @@ fn diagnose_bag(bag: &Path, topics: &[&str]) -> std::process::Output {
 
 #[test]
 fn a_ros2_bag_is_diagnosed_from_pose_tf_and_odometry_topics() {
-    let case = case_named("latency", DURATION_S).expect("latency case");
+    let case = case_named(&Generator::bench(), "latency", DURATION_S).expect("latency case");
     let (from_csv, dir) = diagnose_generated("bag", &truth_toml(&case), &[]);
     let true_latency = case.truth[0].effect.params()[0].1;
     for (poses_as, topics) in [
@@ -506,7 +506,7 @@ fn write_gazebo_bag(dir: &Path, name: &str, options: &[&str]) -> PathBuf {
 
 #[test]
 fn gazebo_bags_in_sqlite3_mcap_split_and_compressed_are_diagnosed_on_one_clock() {
-    let case = case_named("latency", DURATION_S).expect("latency case");
+    let case = case_named(&Generator::bench(), "latency", DURATION_S).expect("latency case");
     let (from_csv, dir) = diagnose_generated("gazebo", &truth_toml(&case), &[]);
     let from_csv = from_csv["effects"][0]["params"]["seconds"]
         .as_f64()
@@ -570,7 +570,7 @@ fn gazebo_bags_in_sqlite3_mcap_split_and_compressed_are_diagnosed_on_one_clock()
 
 #[test]
 fn motion_capture_glitches_are_set_aside_reported_and_never_fitted() {
-    let case = case_named("latency", DURATION_S).expect("latency case");
+    let case = case_named(&Generator::bench(), "latency", DURATION_S).expect("latency case");
     let (clean, dir) = diagnose_generated("glitches", &truth_toml(&case), &[]);
     // Marker swaps: the pose 0.2 m off for one to three frames, every 0.7 s
     // for 90 s, as a motion-capture system that confuses markers does.

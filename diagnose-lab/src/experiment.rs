@@ -5,7 +5,8 @@
 use serde::Serialize;
 use shoal_physics::{Effect, ScopedEffect, UnicycleModel};
 
-use crate::generate::{ColouredNoise, Settings, generate};
+use crate::generate::{ColouredNoise, NoiseLaw, Operator, Settings, generate};
+use shoal_diagnose::diagnosis::FoundEffect;
 use shoal_diagnose::{Options, diagnose};
 
 pub struct Case {
@@ -159,6 +160,199 @@ pub fn cases(duration_s: f64) -> Vec<Case> {
     ]
 }
 
+/// Who generates the runs. The bench's own generator is the one the
+/// diagnosis was developed against; the others share none of its choices
+/// (operator, rates, speeds, how noise depends on the motion, which way and
+/// how large the effects are, which act together), so a method tuned to the
+/// bench shows it on them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Generator {
+    pub name: &'static str,
+    pub operator: Operator,
+    pub noise_law: NoiseLaw,
+    pub command_hz: f64,
+    pub pose_hz: f64,
+    pub max_speed: f64,
+    pub max_turn: f64,
+}
+
+impl Generator {
+    /// The generator the diagnosis was developed against.
+    pub fn bench() -> Self {
+        let bench = Settings::default();
+        Self {
+            name: "bench",
+            operator: Operator::Held,
+            noise_law: NoiseLaw::Constant,
+            command_hz: bench.command_hz,
+            pose_hz: bench.pose_hz,
+            max_speed: bench.max_speed,
+            max_turn: bench.max_turn,
+        }
+    }
+
+    /// Every generator, the bench's first.
+    pub fn all() -> Vec<Self> {
+        vec![
+            Self::bench(),
+            // A navigation stack's robot: a waypoint follower at 20 Hz,
+            // motion capture at 120 Hz, wheel-slip noise only while moving.
+            Self {
+                name: "waypoints",
+                operator: Operator::Waypoints,
+                noise_law: NoiseLaw::WhileMoving,
+                command_hz: 20.0,
+                pose_hz: 120.0,
+                max_speed: 0.5,
+                max_turn: 1.2,
+            },
+            // A slow teleoperated robot: held commands at 10 Hz, poses at
+            // 30 Hz, noise that grows with speed but not with turn rate.
+            Self {
+                name: "speed-only",
+                operator: Operator::Held,
+                noise_law: NoiseLaw::SpeedOnly,
+                command_hz: 10.0,
+                pose_hz: 30.0,
+                max_speed: 0.22,
+                max_turn: 1.0,
+            },
+        ]
+    }
+
+    /// The generator called `name`, for the command line; the error lists
+    /// the known ones.
+    pub fn parse(name: &str) -> Result<Self, String> {
+        let all = Self::all();
+        let known: Vec<&str> = all.iter().map(|g| g.name).collect();
+        let known = known.join(", ");
+        all.into_iter()
+            .find(|g| g.name == name)
+            .ok_or_else(|| format!("unknown generator `{name}`; known: {known}"))
+    }
+
+    /// The cases this generator runs: the bench's own, or the independent
+    /// ones for every other generator.
+    pub fn cases(&self, duration_s: f64) -> Vec<Case> {
+        if self.name == "bench" {
+            cases(duration_s)
+        } else {
+            independent_cases(duration_s)
+        }
+    }
+
+    /// Whether this generator's motion noise grows with speed, so that
+    /// naming speed-dependent noise is a true statement about it.
+    pub fn noise_grows_with_speed(&self) -> bool {
+        self.noise_law != NoiseLaw::Constant
+    }
+
+    fn apply(&self, settings: Settings) -> Settings {
+        Settings {
+            operator: self.operator,
+            noise_law: self.noise_law,
+            command_hz: self.command_hz,
+            pose_hz: self.pose_hz,
+            max_speed: self.max_speed,
+            max_turn: self.max_turn,
+            ..settings
+        }
+    }
+}
+
+/// Cases unlike the bench's: gains above 1 where the bench's are below,
+/// other sizes and signs, a zone that speeds the robot up, and effects
+/// that act three and two at a time, in the combinations real robots show
+/// (a fading battery with a wrong turn gain; latency with turn losses).
+pub fn independent_cases(duration_s: f64) -> Vec<Case> {
+    let always = |effect| vec![ScopedEffect::always(effect)];
+    let case = |name, concealment, truth| Case {
+        name,
+        concealment,
+        truth,
+        turn_inside: None,
+    };
+    let above = "a gain above 1";
+    let other = "another size and sign than the bench's";
+    let together = "effects acting together";
+    vec![
+        case("null", "no effect", vec![]),
+        case("speed_scale", above, always(Effect::SpeedScale { factor: 1.05 })),
+        case("turn_scale", above, always(Effect::TurnScale { factor: 1.08 })),
+        case("latency", other, always(Effect::Latency { seconds: 0.08 })),
+        case("accel_limit", other, always(Effect::AccelLimit { m_per_s2: 0.5 })),
+        case("slip", other, always(Effect::Slip { per_m_per_s: 0.25 })),
+        case("heading_drift", other, always(Effect::HeadingDrift { rad_per_m: -0.03 })),
+        case("battery_fade", other, always(Effect::BatteryFade { per_minute: 0.012 })),
+        case(
+            "external_flow",
+            other,
+            always(Effect::ExternalFlow { vx: -0.005, vy: 0.006 }),
+        ),
+        case("hysteresis", other, always(Effect::Hysteresis { play_rad_per_s: 0.06 })),
+        case(
+            "turn_speed_loss",
+            other,
+            always(Effect::TurnSpeedLoss { per_rad_per_s: 0.12 }),
+        ),
+        case(
+            "turn_centre_offset",
+            other,
+            always(Effect::TurnCentreOffset { forward_m: -0.03, left_m: 0.015 }),
+        ),
+        case(
+            "turn_bias",
+            "only in the first third of the run",
+            vec![ScopedEffect {
+                effect: Effect::TurnBias { rad_per_s: -0.02 },
+                during: Some([0.0, duration_s / 3.0]),
+            }],
+        ),
+        case(
+            "surface_zone",
+            "a zone where the robot drives faster than commanded and turns less",
+            always(Effect::SurfaceZone {
+                region: [-2.0, -2.0, -0.5, -0.5],
+                speed_factor: 1.2,
+                turn_factor: 0.85,
+            }),
+        ),
+        case(
+            "latency+turn_scale+turn_speed_loss",
+            together,
+            vec![
+                ScopedEffect::always(Effect::Latency { seconds: 0.08 }),
+                ScopedEffect::always(Effect::TurnScale { factor: 1.06 }),
+                ScopedEffect::always(Effect::TurnSpeedLoss { per_rad_per_s: 0.12 }),
+            ],
+        ),
+        case(
+            "battery_fade+turn_scale",
+            together,
+            vec![
+                ScopedEffect::always(Effect::BatteryFade { per_minute: 0.012 }),
+                ScopedEffect::always(Effect::TurnScale { factor: 0.93 }),
+            ],
+        ),
+        case(
+            "speed_scale+accel_limit",
+            together,
+            vec![
+                ScopedEffect::always(Effect::SpeedScale { factor: 1.05 }),
+                ScopedEffect::always(Effect::AccelLimit { m_per_s2: 0.5 }),
+            ],
+        ),
+        case(
+            "slip+heading_drift",
+            together,
+            vec![
+                ScopedEffect::always(Effect::Slip { per_m_per_s: 0.25 }),
+                ScopedEffect::always(Effect::HeadingDrift { rad_per_m: -0.03 }),
+            ],
+        ),
+    ]
+}
+
 /// Motion and observation noise the runs are generated with. Only `white`
 /// is what diagnosis assumes (a random walk); the others are coloured, with
 /// the time constants real robots show, and observed through motion
@@ -240,7 +434,8 @@ pub fn wilson_interval(k: usize, n: usize) -> [f64; 2] {
 #[derive(Clone, Debug, Serialize)]
 pub struct Row {
     pub name: String,
-    /// The noise colour the runs were generated with.
+    /// The generator and the noise colour the runs were generated with.
+    pub generator: String,
     pub noise: String,
     pub concealment: String,
     pub runs: usize,
@@ -253,6 +448,12 @@ pub struct Row {
     pub false_positive_rate: f64,
     /// Wilson's 95% interval of that share.
     pub false_positive_interval: [f64; 2],
+    /// Share of runs that name an effect not there or locate a difference
+    /// in the motion (its mean: along, across or heading) that no true
+    /// effect explains; for null runs, any statement beyond the noise.
+    pub beyond_noise_rate: f64,
+    /// Wilson's 95% interval of that share.
+    pub beyond_noise_interval: [f64; 2],
     /// Mean relative error of the true effects' parameters, where found.
     pub param_error: Option<f64>,
     pub heldout_rmse_pos_m_before: f64,
@@ -269,6 +470,23 @@ pub struct RunFindings {
     pub seed: u64,
     /// Each effect named, as `kind name=value ...`.
     pub effects: Vec<String>,
+    /// Each difference located in the motion, as `family component`.
+    pub located_in_motion: Vec<String>,
+    #[serde(skip)]
+    outcome: Outcome,
+}
+
+/// How one run's diagnosis compares with the truth.
+#[derive(Clone, Debug, Default)]
+struct Outcome {
+    detected: bool,
+    named_or_tied: bool,
+    false_positive: bool,
+    beyond_noise: bool,
+    param_errors: Vec<f64>,
+    before: f64,
+    after: f64,
+    seconds: f64,
 }
 
 /// Relative error of `found`'s parameters against `truth`'s.
@@ -297,118 +515,159 @@ fn param_error(truth: &Effect, found: &Effect) -> f64 {
         / size
 }
 
-/// The case called `name`; the error lists the known ones.
-pub fn case_named(name: &str, duration_s: f64) -> Result<Case, String> {
-    let all = cases(duration_s);
+/// The case of `generator` called `name`; the error lists the known ones.
+pub fn case_named(generator: &Generator, name: &str, duration_s: f64) -> Result<Case, String> {
+    let all = generator.cases(duration_s);
     let known: Vec<&str> = all.iter().map(|c| c.name).collect();
     let known = known.join(", ");
-    all.into_iter()
-        .find(|c| c.name == name)
-        .ok_or_else(|| format!("unknown case `{name}`; known: {known}"))
+    all.into_iter().find(|c| c.name == name).ok_or_else(|| {
+        format!(
+            "generator `{}` has no case `{name}`; known: {known}",
+            generator.name
+        )
+    })
 }
 
 /// The generator's settings for one run: `case`'s operator (if any), under
 /// `noise`.
 pub fn run_settings(
+    generator: &Generator,
     case: Option<&Case>,
     noise: &NoiseColour,
     seed: u64,
     duration_s: f64,
 ) -> Settings {
-    noise.apply(Settings {
+    noise.apply(generator.apply(Settings {
         duration_s,
         seed,
         turn_inside: case.and_then(|c| c.turn_inside),
         ..Settings::default()
-    })
+    }))
 }
 
+/// `effect` as `kind name=value ... [during a-b s]`.
+fn effect_text(e: &FoundEffect) -> String {
+    let params: Vec<String> = e
+        .scoped
+        .effect
+        .params()
+        .iter()
+        .map(|(name, value)| format!("{name}={value:.4}"))
+        .collect();
+    let during = e
+        .scoped
+        .during
+        .map(|[a, b]| format!(" during {a:.0}-{b:.0} s"))
+        .unwrap_or_default();
+    format!("{} {}{during}", e.kind, params.join(" "))
+}
+
+/// Generates and diagnoses one run of `case`, and compares with the truth.
+fn run_one(
+    generator: &Generator,
+    case: &Case,
+    noise: &NoiseColour,
+    seed: u64,
+    duration_s: f64,
+    options: &Options,
+) -> RunFindings {
+    let truth = UnicycleModel::with_effects(case.truth.clone());
+    let recording = generate(&truth, &run_settings(generator, Some(case), noise, seed, duration_s));
+    let started = std::time::Instant::now();
+    let diagnosis = diagnose(&recording, &UnicycleModel::plain(), options);
+    let seconds = started.elapsed().as_secs_f64();
+    let true_kinds: Vec<&str> = case.truth.iter().map(|e| e.effect.kind()).collect();
+    // Noise that grows with speed is a true statement where the generator's does.
+    let is_true = |kind: &str| {
+        true_kinds.contains(&kind) || (kind == "speed_noise" && generator.noise_grows_with_speed())
+    };
+    let kinds: Vec<&str> = diagnosis.effects.iter().map(|e| e.kind).collect();
+    let tied: Vec<&str> = diagnosis
+        .effects
+        .iter()
+        .flat_map(|e| e.indistinguishable_from.iter().copied())
+        .collect();
+    let located_in_motion: Vec<String> = diagnosis
+        .located
+        .iter()
+        .filter(|l| l.component != "spread")
+        .map(|l| format!("{} {}", l.family, l.component))
+        .collect();
+    let false_positive = kinds.iter().any(|k| !is_true(k));
+    // A located difference is explained when a true effect was named.
+    let unexplained_motion = (!located_in_motion.is_empty() || !diagnosis.unexplained.is_empty())
+        && !kinds.iter().any(|k| true_kinds.contains(k));
+    let outcome = Outcome {
+        detected: !true_kinds.is_empty() && true_kinds.iter().all(|k| kinds.contains(k)),
+        named_or_tied: !true_kinds.is_empty()
+            && true_kinds.iter().all(|k| kinds.contains(k) || tied.contains(k)),
+        false_positive,
+        beyond_noise: false_positive || unexplained_motion,
+        param_errors: case
+            .truth
+            .iter()
+            .filter_map(|t| {
+                let found = diagnosis.effects.iter().find(|f| f.kind == t.effect.kind())?;
+                Some(param_error(&t.effect, &found.scoped.effect))
+            })
+            .collect(),
+        before: diagnosis.baseline.heldout_rmse_pos_m,
+        after: diagnosis.improved.heldout_rmse_pos_m,
+        seconds,
+    };
+    RunFindings {
+        seed,
+        effects: diagnosis.effects.iter().map(effect_text).collect(),
+        located_in_motion,
+        outcome,
+    }
+}
+
+/// Diagnoses `case` blind on every seed of `seeds` (in parallel) and
+/// counts what was named against the truth.
 pub fn run_case(
+    generator: &Generator,
     case: &Case,
     noise: &NoiseColour,
     seeds: std::ops::Range<u64>,
     duration_s: f64,
     options: &Options,
 ) -> Row {
-    let truth = UnicycleModel::with_effects(case.truth.clone());
-    let true_kinds: Vec<&str> = case.truth.iter().map(|e| e.effect.kind()).collect();
-    let (mut detected, mut false_positive, mut errors) = (0, 0, Vec::new());
-    let mut named_or_tied = 0;
-    let (mut before, mut after, mut seconds) = (0.0, 0.0, 0.0);
-    let mut named = std::collections::BTreeMap::new();
-    let mut per_run = Vec::new();
-    let runs = seeds.clone().count();
-    for seed in seeds {
-        let recording = generate(&truth, &run_settings(Some(case), noise, seed, duration_s));
-        let started = std::time::Instant::now();
-        let diagnosis = diagnose(&recording, &UnicycleModel::plain(), options);
-        seconds += started.elapsed().as_secs_f64();
-        before += diagnosis.baseline.heldout_rmse_pos_m;
-        after += diagnosis.improved.heldout_rmse_pos_m;
-        let kinds: Vec<&str> = diagnosis.effects.iter().map(|e| e.kind).collect();
-        per_run.push(RunFindings {
-            seed,
-            effects: diagnosis
-                .effects
-                .iter()
-                .map(|e| {
-                    let params: Vec<String> = e
-                        .scoped
-                        .effect
-                        .params()
-                        .iter()
-                        .map(|(name, value)| format!("{name}={value:.4}"))
-                        .collect();
-                    let during = e
-                        .scoped
-                        .during
-                        .map(|[a, b]| format!(" during {a:.0}-{b:.0} s"))
-                        .unwrap_or_default();
-                    format!("{} {}{during}", e.kind, params.join(" "))
-                })
-                .collect(),
-        });
-        for k in &kinds {
-            *named.entry((*k).to_owned()).or_insert(0) += 1;
-        }
-        if !true_kinds.is_empty() && true_kinds.iter().all(|k| kinds.contains(k)) {
-            detected += 1;
-        }
-        let tied: Vec<&str> = diagnosis
-            .effects
-            .iter()
-            .flat_map(|e| e.indistinguishable_from.iter().copied())
-            .collect();
-        if !true_kinds.is_empty()
-            && true_kinds
-                .iter()
-                .all(|k| kinds.contains(k) || tied.contains(k))
-        {
-            named_or_tied += 1;
-        }
-        if kinds.iter().any(|k| !true_kinds.contains(k)) {
-            false_positive += 1;
-        }
-        for t in &case.truth {
-            if let Some(f) = diagnosis.effects.iter().find(|f| f.kind == t.effect.kind()) {
-                errors.push(param_error(&t.effect, &f.scoped.effect));
-            }
-        }
-    }
+    use rayon::prelude::*;
+    let per_run: Vec<RunFindings> = seeds
+        .into_par_iter()
+        .map(|seed| run_one(generator, case, noise, seed, duration_s, options))
+        .collect();
+    let runs = per_run.len();
+    let count = |f: fn(&Outcome) -> bool| per_run.iter().filter(|r| f(&r.outcome)).count();
     let n = runs.max(1) as f64;
+    let mean = |f: fn(&Outcome) -> f64| per_run.iter().map(|r| f(&r.outcome)).sum::<f64>() / n;
+    let errors: Vec<f64> = per_run
+        .iter()
+        .flat_map(|r| r.outcome.param_errors.iter().copied())
+        .collect();
+    let mut named = std::collections::BTreeMap::new();
+    for effect in per_run.iter().flat_map(|r| &r.effects) {
+        let kind = effect.split(' ').next().unwrap_or_default();
+        *named.entry(kind.to_owned()).or_insert(0) += 1;
+    }
+    let (false_positive, beyond_noise) = (count(|o| o.false_positive), count(|o| o.beyond_noise));
     Row {
         name: case.name.to_owned(),
+        generator: generator.name.to_owned(),
         noise: noise.name.to_owned(),
         concealment: case.concealment.to_owned(),
         runs,
-        detection_rate: detected as f64 / n,
-        named_or_tied_rate: named_or_tied as f64 / n,
+        detection_rate: count(|o| o.detected) as f64 / n,
+        named_or_tied_rate: count(|o| o.named_or_tied) as f64 / n,
         false_positive_rate: false_positive as f64 / n,
         false_positive_interval: wilson_interval(false_positive, runs),
+        beyond_noise_rate: beyond_noise as f64 / n,
+        beyond_noise_interval: wilson_interval(beyond_noise, runs),
         param_error: (!errors.is_empty()).then(|| errors.iter().sum::<f64>() / errors.len() as f64),
-        heldout_rmse_pos_m_before: before / n,
-        heldout_rmse_pos_m_after: after / n,
-        seconds_per_run: seconds / n,
+        heldout_rmse_pos_m_before: mean(|o| o.before),
+        heldout_rmse_pos_m_after: mean(|o| o.after),
+        seconds_per_run: mean(|o| o.seconds),
         named,
         per_run,
     }

@@ -36,7 +36,53 @@ pub struct Settings {
     pub timestamp_jitter_s: f64,
     /// Share of frames that are gross outliers (a marker swap: 5-30 cm off).
     pub outliers: f64,
+    /// How the operator chooses commands.
+    pub operator: Operator,
+    /// How the motion noise depends on the motion.
+    pub noise_law: NoiseLaw,
     pub seed: u64,
+}
+
+/// How the operator chooses commands.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub enum Operator {
+    /// Random speeds and turn rates, each held for 0.5-3 s, with pauses: the
+    /// bench's own.
+    Held,
+    /// A waypoint follower, as a navigation stack drives: it steers to
+    /// random points of the arena with a proportional controller, slows down
+    /// to turn and to arrive, and sends a new command every message, so
+    /// speed and turn rate are never held and always move together.
+    Waypoints,
+}
+
+/// How motion noise depends on the motion. Diagnosis assumes `Constant`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub enum NoiseLaw {
+    /// A random walk in time, moving or not.
+    Constant,
+    /// Wheel slip: no noise standing still; along the heading it grows with
+    /// speed, in heading with speed and turn rate together.
+    WhileMoving,
+    /// Noise that grows with speed alone, in both components: a robot
+    /// turning on the spot turns exactly.
+    SpeedOnly,
+}
+
+impl NoiseLaw {
+    /// Factors on the along and turn noise's standard deviations at
+    /// executed speed `v` and turn rate `omega`; 1 at half the top speed
+    /// (and half the top turn rate), so every law is about as noisy where
+    /// the robot usually drives.
+    fn factors(self, v: f64, omega: f64, settings: &Settings) -> [f64; 2] {
+        let speed = 2.0 * v.abs() / settings.max_speed;
+        let turn = 2.0 * omega.abs() / settings.max_turn;
+        match self {
+            NoiseLaw::Constant => [1.0, 1.0],
+            NoiseLaw::WhileMoving => [speed, 0.5 * (speed + turn)],
+            NoiseLaw::SpeedOnly => [speed, speed],
+        }
+    }
 }
 
 /// One Ornstein-Uhlenbeck term of motion noise: correlated over
@@ -78,6 +124,8 @@ impl Default for Settings {
             dropout: 0.0,
             timestamp_jitter_s: 0.0,
             outliers: 0.0,
+            operator: Operator::Held,
+            noise_law: NoiseLaw::Constant,
             seed: 1,
         }
     }
@@ -88,6 +136,89 @@ const BODY_DT: f64 = 0.005;
 
 fn inside(region: &[f64; 4], pose: &Pose) -> bool {
     pose.x >= region[0] && pose.x <= region[2] && pose.y >= region[1] && pose.y <= region[3]
+}
+
+/// What the operator is doing between commands.
+#[derive(Default)]
+struct OperatorState {
+    /// The command held, and until when.
+    v: f64,
+    omega: f64,
+    hold_until: f64,
+    /// The waypoint follower's goal and the share of top speed it drives
+    /// there at.
+    goal: Option<(f64, f64, f64)>,
+}
+
+/// Within this of its goal the waypoint follower has arrived.
+const ARRIVED_M: f64 = 0.15;
+
+impl OperatorState {
+    /// The bench's operator: random commands held 0.5-3 s, pauses, and a
+    /// way home from outside the arena.
+    fn held(&mut self, pose: &Pose, t: f64, settings: &Settings, rng: &mut StdRng) -> (f64, f64) {
+        if t < self.hold_until {
+            return (self.v, self.omega);
+        }
+        let half = settings.arena_half_m;
+        let outside = pose.x.abs() > half || pose.y.abs() > half;
+        let turning_zone = settings.turn_inside.is_some_and(|r| inside(&r, pose));
+        if outside {
+            let home = (-pose.y).atan2(-pose.x);
+            self.v = 0.5 * settings.max_speed;
+            self.omega =
+                (2.0 * wrap_angle(home - pose.theta)).clamp(-settings.max_turn, settings.max_turn);
+            self.hold_until = t + 0.5;
+        } else if rng.random_bool(0.1) {
+            (self.v, self.omega) = (0.0, 0.0);
+            self.hold_until = t + rng.random_range(0.5..2.0);
+        } else {
+            self.v = rng.random_range(0.05..1.0) * settings.max_speed;
+            self.omega = rng.random_range(-1.0..1.0) * settings.max_turn;
+            if turning_zone {
+                self.omega = self.omega.signum() * settings.max_turn;
+            }
+            self.hold_until = t + rng.random_range(0.5..3.0);
+        }
+        (self.v, self.omega)
+    }
+
+    /// A waypoint follower: steer to the goal in proportion to the heading
+    /// error, slow down to turn and to arrive, pause now and then at a goal.
+    fn waypoints(
+        &mut self,
+        pose: &Pose,
+        t: f64,
+        settings: &Settings,
+        rng: &mut StdRng,
+    ) -> (f64, f64) {
+        if t < self.hold_until {
+            return (0.0, 0.0);
+        }
+        let arrived = self
+            .goal
+            .is_none_or(|(x, y, _)| (x - pose.x).hypot(y - pose.y) < ARRIVED_M);
+        if arrived {
+            let reach = 0.9 * settings.arena_half_m;
+            self.goal = Some((
+                rng.random_range(-reach..reach),
+                rng.random_range(-reach..reach),
+                rng.random_range(0.3..1.0),
+            ));
+            if rng.random_bool(0.2) {
+                self.hold_until = t + rng.random_range(0.5..2.0);
+                return (0.0, 0.0);
+            }
+        }
+        let Some((x, y, share)) = self.goal else {
+            return (0.0, 0.0);
+        };
+        let error = wrap_angle((y - pose.y).atan2(x - pose.x) - pose.theta);
+        let distance = (x - pose.x).hypot(y - pose.y);
+        let omega = (1.5 * error).clamp(-settings.max_turn, settings.max_turn);
+        let v = share * settings.max_speed * error.cos().max(0.0).powi(2) * (distance / 0.6).min(1.0);
+        (v, omega)
+    }
 }
 
 /// Drives `truth` for `settings.duration_s` and returns what was commanded and observed.
@@ -103,7 +234,7 @@ pub fn generate(truth: &UnicycleModel, settings: &Settings) -> Recording {
     let mut commanded = Commands::default();
     let mut observed = Poses::default();
     let mut pose = Pose::new(0.0, 0.0, rng.random_range(-3.14..3.14));
-    let mut hold_until = 0.0;
+    let mut operator = OperatorState::default();
     let (mut v, mut omega) = (0.0, 0.0);
     let mut actuators = Actuators::default();
     let mut next_observation = rng.random_range(0.0..pose_every);
@@ -118,28 +249,10 @@ pub fn generate(truth: &UnicycleModel, settings: &Settings) -> Recording {
     for i in 0..steps {
         let t = i as f64 * BODY_DT;
         if i % command_every == 0 {
-            if t >= hold_until {
-                let half = settings.arena_half_m;
-                let outside = pose.x.abs() > half || pose.y.abs() > half;
-                let turning_zone = settings.turn_inside.is_some_and(|r| inside(&r, &pose));
-                if outside {
-                    let home = (-pose.y).atan2(-pose.x);
-                    v = 0.5 * settings.max_speed;
-                    omega = (2.0 * wrap_angle(home - pose.theta))
-                        .clamp(-settings.max_turn, settings.max_turn);
-                    hold_until = t + 0.5;
-                } else if rng.random_bool(0.1) {
-                    (v, omega) = (0.0, 0.0);
-                    hold_until = t + rng.random_range(0.5..2.0);
-                } else {
-                    v = rng.random_range(0.05..1.0) * settings.max_speed;
-                    omega = rng.random_range(-1.0..1.0) * settings.max_turn;
-                    if turning_zone {
-                        omega = omega.signum() * settings.max_turn;
-                    }
-                    hold_until = t + rng.random_range(0.5..3.0);
-                }
-            }
+            (v, omega) = match settings.operator {
+                Operator::Held => operator.held(&pose, t, settings, &mut rng),
+                Operator::Waypoints => operator.waypoints(&pose, t, settings, &mut rng),
+            };
             commanded.t.push(t);
             commanded.v.push(v);
             commanded.omega.push(omega);
@@ -148,6 +261,7 @@ pub fn generate(truth: &UnicycleModel, settings: &Settings) -> Recording {
         grid.omega.push(omega);
         let (ev, eomega) = actuators.execute(truth, &grid, i);
         let m = truth.noise_multiplier(ev, t).sqrt();
+        let [along_law, turn_law] = settings.noise_law.factors(ev, eomega, settings);
         let (mut coloured_v, mut coloured_omega) = (0.0, 0.0);
         for (term, now) in settings.coloured.iter().zip(colour.iter_mut()) {
             *now = term.step(
@@ -158,10 +272,12 @@ pub fn generate(truth: &UnicycleModel, settings: &Settings) -> Recording {
             coloured_v += now[0];
             coloured_omega += now[1];
         }
-        let noisy_v =
-            ev + m * (settings.along_noise * unit.sample(&mut rng) / BODY_DT.sqrt() + coloured_v);
+        let noisy_v = ev
+            + m * along_law
+                * (settings.along_noise * unit.sample(&mut rng) / BODY_DT.sqrt() + coloured_v);
         let noisy_omega = eomega
-            + m * (settings.turn_noise * unit.sample(&mut rng) / BODY_DT.sqrt() + coloured_omega);
+            + m * turn_law
+                * (settings.turn_noise * unit.sample(&mut rng) / BODY_DT.sqrt() + coloured_omega);
         pose = truth.step(pose, noisy_v, noisy_omega, t, BODY_DT);
         while next_observation <= t + BODY_DT {
             let stamp = next_observation + settings.timestamp_jitter_s * unit.sample(&mut rng);
