@@ -2,6 +2,7 @@
 
 use shoal_diagnose::Diagnosis;
 use shoal_diagnose::glitches::{Glitch, GlitchKind};
+use shoal_diagnose::locate::Located;
 
 use crate::load::InputNotes;
 
@@ -24,25 +25,24 @@ pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
         "{} segments of {:.1} s compared.",
         d.segments, d.horizon_s
     ));
+    let in_motion = |l: &&Located| l.component != "spread";
+    let motion_differs = d.located.iter().any(|l| in_motion(&l));
     if !d.mismatch {
         line("No significant mismatch: the model explains the run within its noise.".into());
+    } else if !motion_differs && d.effects.is_empty() && d.unexplained.is_empty() {
+        line("The motion matches the model: no difference in where the robot went. Only the size of its noise differs:".into());
     }
-    for l in d.located.iter().take(8) {
-        let place = l
-            .region
-            .map(|r| {
-                format!(
-                    " in [{:.1}, {:.1}]-[{:.1}, {:.1}] m",
-                    r[0], r[1], r[2], r[3]
-                )
-            })
-            .unwrap_or_default();
-        line(format!(
-            "  differs by {}: {:.0}-{:.0} s{place}, {} ({} residual, z {:.1}, p {:.1e})",
-            l.family, l.t_start, l.t_end, l.commands, l.component, l.z, l.significance
-        ));
+    // A difference in the residuals' spread is about the noise, not the
+    // motion: said as such, apart from the differences in the motion.
+    let (motion, noise): (Vec<&Located>, Vec<&Located>) =
+        d.located.iter().take(8).partition(in_motion);
+    for l in motion {
+        line(format!("  differs by {}", located_text(l)));
     }
-    if d.mismatch && d.effects.is_empty() {
+    for l in noise {
+        line(format!("  the noise differs (not the motion) by {}", located_text(l)));
+    }
+    if motion_differs && d.effects.is_empty() {
         line("The mismatch is significant but no effect of the library explains it.".into());
     }
     for u in &d.unexplained {
@@ -59,10 +59,12 @@ pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
             e.test.p_adjusted,
             e.delta_bic
         ));
-        if !e.indistinguishable_from.is_empty() {
+        // An effect the data cannot tell from another is one finding with
+        // both fits, never a choice made silently.
+        for a in &e.alternatives {
             line(format!(
-                "    these data explain it equally well as: {}",
-                e.indistinguishable_from.join(", ")
+                "    these data explain it about as well (ΔBIC {:.0} against {:.0}) as: {}",
+                a.delta_bic, e.delta_bic, a.sentence
             ));
         }
     }
@@ -98,6 +100,17 @@ pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
     out
 }
 
+/// A located difference: where, when, under which commands, how strong.
+fn located_text(l: &Located) -> String {
+    let place = l
+        .region
+        .map(|r| format!(" in [{:.1}, {:.1}]-[{:.1}, {:.1}] m", r[0], r[1], r[2], r[3]))
+        .unwrap_or_default();
+    format!(
+        "{}: {:.0}-{:.0} s{place}, {} ({} residual, z {:.1}, p {:.1e})",
+        l.family, l.t_start, l.t_end, l.commands, l.component, l.z, l.significance
+    )
+}
 
 fn capitalised(text: &str) -> String {
     let mut chars = text.chars();

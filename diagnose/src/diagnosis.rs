@@ -538,6 +538,32 @@ fn zone_of_span(segments: &[Segment], scoped: &ScopedEffect) -> Option<[f64; 4]>
     region_driven(segments, during)
 }
 
+/// A surface zone that holds more of the robot's driving than this is the
+/// whole floor: a speed or turn gain everywhere, which the library names as
+/// such. Named as a zone, one global mismatch would read as a place (and,
+/// with a fading battery beside it, hide the fade behind the zone's mean).
+const MAX_ZONE_SHARE: f64 = 0.75;
+
+/// The share of the moving segments whose midpoint lies in `region`.
+fn zone_share(segments: &[Segment], region: &[f64; 4]) -> f64 {
+    let moving = segments.iter().filter(|s| s.speed > 0.01);
+    let (mut inside, mut all) = (0usize, 0usize);
+    for s in moving {
+        all += 1;
+        let [x, y] = s.mid;
+        if x >= region[0] && x <= region[2] && y >= region[1] && y <= region[3] {
+            inside += 1;
+        }
+    }
+    inside as f64 / all.max(1) as f64
+}
+
+/// Whether `effect` is a surface zone that covers the whole floor (see
+/// [`MAX_ZONE_SHARE`]).
+fn is_whole_floor(segments: &[Segment], effect: &Effect) -> bool {
+    matches!(effect, Effect::SurfaceZone { region, .. } if zone_share(segments, region) > MAX_ZONE_SHARE)
+}
+
 /// The narrowest side a surface zone may have. A patch of floor narrower
 /// than a robot's footprint is crossed in a fraction of a second and cannot
 /// be told from an event that happened there; a fit that shrinks a zone to a
@@ -705,7 +731,28 @@ fn robust_chi2(
     let with = per_segment(base.iter().cloned().chain([candidate.clone()]).collect());
     let gains: Vec<f64> = without.iter().zip(&with).map(|(a, b)| a - b).collect();
     let long_run = long_run_factor(segs, &gains);
-    (2.0 * gains.iter().sum::<f64>() / long_run.factor, long_run)
+    let total: f64 = gains.iter().sum();
+    (
+        2.0 * total / (long_run.factor * misspecification(&gains, total)),
+        long_run,
+    )
+}
+
+/// How much more the per-segment gains vary than the noise model says they
+/// should, at least 1. Where the model's noise is right, the gains' spread
+/// is twice their sum, for an effect of any number of parameters (each
+/// gain is, to first order, the score along the fitted change). Noise that
+/// the model gets wrong (growing with the square of the speed, or larger in
+/// some stretches) makes a few segments' gains dominate the sum; dividing
+/// by this ratio is the sandwich correction for it (Huber 1967, White
+/// 1982), the part the correlation in time does not already cover.
+fn misspecification(gains: &[f64], total: f64) -> f64 {
+    if total <= 0.0 || gains.is_empty() {
+        return 1.0;
+    }
+    let mean = total / gains.len() as f64;
+    let spread: f64 = gains.iter().map(|g| (g - mean).powi(2)).sum();
+    (spread / (2.0 * total)).max(1.0)
 }
 
 /// [`entry_threshold`] for a statistic whose long-run variance was
@@ -798,7 +845,10 @@ fn refine_zone(
                 };
                 let mut moved = region;
                 moved[edge] += shift * step;
-                if moved[2] - moved[0] < MIN_ZONE_SIDE_M || moved[3] - moved[1] < MIN_ZONE_SIDE_M {
+                if moved[2] - moved[0] < MIN_ZONE_SIDE_M
+                    || moved[3] - moved[1] < MIN_ZONE_SIDE_M
+                    || zone_share(segs, &moved) > MAX_ZONE_SHARE
+                {
                     continue;
                 }
                 let candidate = Effect::SurfaceZone {
@@ -898,6 +948,7 @@ impl Selection<'_> {
                 fitted.effects = vec![zone];
             }
         }
+        confirmed.retain(|f| !is_whole_floor(segs, &f.effects[0].effect));
         let Some(best_fit) = confirmed.iter().min_by(|a, b| a.nll.total_cmp(&b.nll)) else {
             return Round::Done;
         };
@@ -996,7 +1047,7 @@ impl Selection<'_> {
             let (zone_fit, _) = confirm(&ScopedEffect::always(zone_effect));
             let zone_fit = refine_zone(grid, segs, base, zone_fit, options.max_iters / 2);
             let zone_gain = judge(&zone_fit);
-            if zone_gain < scoped_gain + 2.0 {
+            if zone_gain < scoped_gain + 2.0 && !is_whole_floor(segs, &zone_fit.effect) {
                 tied.push((scoped_gain, scoped_fit));
                 return (zone_fit, zone_gain);
             }

@@ -132,6 +132,22 @@ fn groups(segments: &[Segment]) -> Vec<Group> {
     out
 }
 
+/// The variance of a group's standardised residuals about their own mean,
+/// at least 1. Noise that grows with what the group has in common (its
+/// speed, its turn rate, a rough stretch) makes the group's residuals
+/// spread more than the run's noise says; its mean is then judged against
+/// that spread (a t-test), not the run's. At least 1, so a quiet group is
+/// held to the run's noise.
+fn own_variance(values: &[f64]) -> f64 {
+    let n = values.len();
+    if n < 2 {
+        return 1.0;
+    }
+    let mean = values.iter().sum::<f64>() / n as f64;
+    let variance = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1) as f64;
+    variance.max(1.0)
+}
+
 /// Holm's step-down correction of `p`, in the same order.
 pub fn holm(p: &[f64]) -> Vec<f64> {
     let m = p.len();
@@ -165,12 +181,9 @@ pub fn locate(
     for (g, group) in groups.iter().enumerate() {
         let n = group.members.len() as f64;
         for c in 0..3 {
-            let z = group
-                .members
-                .iter()
-                .map(|&i| standardised[i][c])
-                .sum::<f64>()
-                / (n * long_run[c]).sqrt();
+            let values: Vec<f64> = group.members.iter().map(|&i| standardised[i][c]).collect();
+            let z = values.iter().sum::<f64>()
+                / (n * long_run[c] * own_variance(&values)).sqrt();
             tests.push((g, c, z, 2.0 * normal.sf(z.abs())));
         }
         // Spread: are the residuals larger (or smaller) than the noise says?
