@@ -3,6 +3,7 @@
 use shoal_diagnose::Diagnosis;
 use shoal_diagnose::glitches::{Glitch, GlitchKind};
 use shoal_diagnose::locate::Located;
+use shoal_diagnose_lab::experiment::Row;
 
 use crate::load::InputNotes;
 
@@ -211,26 +212,24 @@ fn transfer_text(d: &Diagnosis) -> Vec<String> {
 }
 
 /// The experiment's rows as a Markdown table, then the totals per generator.
-pub fn experiment_table(
-    out: &mut dyn std::io::Write,
-    rows: &[shoal_diagnose_lab::experiment::Row],
-) -> std::io::Result<()> {
+pub fn experiment_table(out: &mut dyn std::io::Write, rows: &[Row]) -> std::io::Result<()> {
     use shoal_diagnose_lab::experiment::wilson_interval;
     let percent = |[lo, hi]: [f64; 2]| format!("{:.0}-{:.0}%", lo * 100.0, hi * 100.0);
     writeln!(
         out,
-        "| generator | noise | case | concealed | runs | named | named or tied | runs naming an effect not there (95% CI) | beyond the noise (95% CI) | param error | held-out pos RMSE before → after | s/run |"
+        "| generator | noise | case | concealed | runs | shown by the run | named | named or tied | runs naming an effect not there (95% CI) | beyond the noise (95% CI) | param error | held-out pos RMSE before → after | s/run |"
     )?;
-    writeln!(out, "|---|---|---|---|---|---|---|---|---|---|---|---|")?;
+    writeln!(out, "|---|---|---|---|---|---|---|---|---|---|---|---|---|")?;
     for r in rows {
         writeln!(
             out,
-            "| {} | {} | {} | {} | {} | {:.0}% | {:.0}% | {:.0}% ({}) | {:.0}% ({}) | {} | {:.1} → {:.1} mm | {:.1} |",
+            "| {} | {} | {} | {} | {} | {:.0}% | {:.0}% | {:.0}% | {:.0}% ({}) | {:.0}% ({}) | {} | {:.1} → {:.1} mm | {:.1} |",
             r.generator,
             r.noise,
             r.name,
             r.concealment,
             r.runs,
+            r.shown_rate * 100.0,
             r.detection_rate * 100.0,
             r.named_or_tied_rate * 100.0,
             r.false_positive_rate * 100.0,
@@ -248,32 +247,37 @@ pub fn experiment_table(
     writeln!(out)?;
     writeln!(
         out,
-        "| generator | concealed effects named | runs naming an effect not there (95% CI) | null runs beyond the noise (95% CI) |"
+        "| generator | concealed effects named | named or tied | shown by the run (truth passes the entry test) | named where shown | runs naming an effect not there (95% CI) | null runs beyond the noise (95% CI) |"
     )?;
-    writeln!(out, "|---|---|---|---|")?;
+    writeln!(out, "|---|---|---|---|---|---|---|")?;
     let mut generators: Vec<&str> = rows.iter().map(|r| r.generator.as_str()).collect();
     generators.dedup();
     for generator in generators {
         let of: Vec<_> = rows.iter().filter(|r| r.generator == generator).collect();
-        let count = |f: &dyn Fn(&shoal_diagnose_lab::experiment::Row) -> f64, nulls: bool| {
+        let count = |f: &dyn Fn(&Row) -> f64, nulls: bool| {
             of.iter()
                 .filter(|r| (r.name == "null") == nulls)
                 .map(|r| (f(r) * r.runs as f64).round() as usize)
                 .sum::<usize>()
         };
-        let runs = |nulls: bool| count(&|_| 1.0, nulls);
-        let (effect_runs, null_runs) = (runs(false), runs(true));
-        let named = count(&|r| r.detection_rate, false);
-        let false_positive = count(&|r| r.false_positive_rate, false) + count(&|r| r.false_positive_rate, true);
-        let beyond = count(&|r| r.beyond_noise_rate, true);
+        let (effect_runs, null_runs) = (count(&|_| 1.0, false), count(&|_| 1.0, true));
         let all_runs = effect_runs + null_runs;
+        let shown = count(&|r| r.shown_rate, false);
+        let named_where_shown = count(&|r| r.shown_rate * r.named_when_shown_rate, false);
+        let false_positive =
+            count(&|r| r.false_positive_rate, false) + count(&|r| r.false_positive_rate, true);
+        let beyond = count(&|r| r.beyond_noise_rate, true);
+        let share = |k: usize, n: usize| format!("{k} of {n} ({:.0}%)", 100.0 * k as f64 / n.max(1) as f64);
         writeln!(
             out,
-            "| {generator} | {named} of {effect_runs} ({:.0}%) | {false_positive} of {all_runs} ({:.0}%, {}) | {beyond} of {null_runs} ({:.0}%, {}) |",
-            100.0 * named as f64 / effect_runs.max(1) as f64,
-            100.0 * false_positive as f64 / all_runs.max(1) as f64,
+            "| {generator} | {} | {} | {} | {} | {}, {} | {}, {} |",
+            share(count(&|r| r.detection_rate, false), effect_runs),
+            share(count(&|r| r.named_or_tied_rate, false), effect_runs),
+            share(shown, effect_runs),
+            share(named_where_shown, shown),
+            share(false_positive, all_runs),
             percent(wilson_interval(false_positive, all_runs)),
-            100.0 * beyond as f64 / null_runs.max(1) as f64,
+            share(beyond, null_runs),
             percent(wilson_interval(beyond, null_runs)),
         )?;
     }

@@ -698,3 +698,44 @@ fn physics_fitted_on_one_stretch_of_a_real_robot_holds_on_the_other() {
         assert!(fitted < 0.9 * input, "{block}");
     }
 }
+
+/// Files as other tools write them: pandas on a Windows desktop (BOM, CRLF,
+/// an index column, columns reordered and added, scientific notation) and
+/// a `.rrd` written by the Rerun Python SDK in the recorder's layout. Each
+/// is diagnosed as the run it holds.
+#[test]
+fn runs_written_by_pandas_and_by_the_rerun_python_sdk_are_diagnosed_as_shoal_writes_them() {
+    let case = case_named(&Generator::bench(), "speed_scale+external_flow", DURATION_S)
+        .expect("pair case");
+    let (from_shoal, dir) = diagnose_generated("other-tools", &truth_toml(&case), &[]);
+    let named = kinds(&from_shoal);
+    assert!(
+        named.iter().any(|k| k == "speed_scale") && named.iter().any(|k| k == "external_flow"),
+        "the run Shoal wrote: {named:?}"
+    );
+
+    let pandas = dir.join("pandas");
+    std::fs::create_dir_all(&pandas).expect("pandas folder");
+    python("write_pandas_csv.py", &[dir.as_os_str(), pandas.as_os_str()]);
+    let head = std::fs::read(pandas.join("poses.csv")).expect("pandas poses");
+    assert!(head.starts_with(b"\xEF\xBB\xBF,t,theta,x,y,quality\r\n"), "{:?}", &head[..40]);
+    let from_pandas = diagnose_dir(&pandas, &[]);
+    assert_eq!(kinds(&from_pandas), named, "pandas' files diagnose as Shoal's");
+    assert_eq!(from_pandas["segments"], from_shoal["segments"]);
+
+    let rrd = dir.join("python-sdk.rrd");
+    python("write_rrd.py", &[dir.as_os_str(), rrd.as_os_str(), "7".as_ref()]);
+    let stdout = succeed(
+        Command::new(binary())
+            .arg(&rrd)
+            .args(["--robot", "7", "--json"]),
+    );
+    let from_rrd: Value = serde_json::from_slice(&stdout).expect("JSON");
+    let named_rrd = kinds(&from_rrd);
+    // The SDK's file holds each pose with the command held before it, on
+    // the pose's clock, so the segments differ a little; the physics not.
+    assert!(
+        named_rrd.iter().any(|k| k == "speed_scale") && named_rrd.iter().any(|k| k == "external_flow"),
+        "the Rerun Python SDK's recording: {named_rrd:?}"
+    );
+}

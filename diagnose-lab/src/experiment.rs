@@ -6,7 +6,7 @@ use serde::Serialize;
 use shoal_physics::{Effect, ScopedEffect, UnicycleModel};
 
 use crate::generate::{ColouredNoise, NoiseLaw, Operator, Settings, generate};
-use shoal_diagnose::diagnosis::FoundEffect;
+use shoal_diagnose::diagnosis::{EntryTest, FoundEffect, strength_of_truth};
 use shoal_diagnose::{Options, diagnose};
 
 pub struct Case {
@@ -444,7 +444,14 @@ pub struct Row {
     /// Share of runs where each true effect was named or tied with the
     /// named one (an equally good explanation of these data).
     pub named_or_tied_rate: f64,
-    /// Share of runs naming an effect that is not there.
+    /// Share of runs whose data show every true effect: the entry test at
+    /// the true parameters passes (see `strength_of_truth`). What a
+    /// diagnosis could at best name.
+    pub shown_rate: f64,
+    /// Share of those runs in which every true effect was named.
+    pub named_when_shown_rate: f64,
+    /// Share of runs naming an effect that is not there (one named with the
+    /// true effect as its stated alternative is a tie, not this).
     pub false_positive_rate: f64,
     /// Wilson's 95% interval of that share.
     pub false_positive_interval: [f64; 2],
@@ -480,6 +487,7 @@ pub struct RunFindings {
 #[derive(Clone, Debug, Default)]
 struct Outcome {
     detected: bool,
+    shown: bool,
     named_or_tied: bool,
     false_positive: bool,
     beyond_noise: bool,
@@ -581,6 +589,10 @@ fn run_one(
     let is_true = |kind: &str| {
         true_kinds.contains(&kind) || (kind == "speed_noise" && generator.noise_grows_with_speed())
     };
+    let shown = !case.truth.is_empty()
+        && strength_of_truth(&recording, &UnicycleModel::plain(), &case.truth, options)
+            .iter()
+            .all(EntryTest::passed);
     let kinds: Vec<&str> = diagnosis.effects.iter().map(|e| e.kind).collect();
     let tied: Vec<&str> = diagnosis
         .effects
@@ -593,12 +605,15 @@ fn run_one(
         .filter(|l| l.component != "spread")
         .map(|l| format!("{} {}", l.family, l.component))
         .collect();
-    let false_positive = kinds.iter().any(|k| !is_true(k));
+    let false_positive = diagnosis.effects.iter().any(|e| {
+        !is_true(e.kind) && !e.alternatives.iter().any(|a| true_kinds.contains(&a.kind))
+    });
     // A located difference is explained when a true effect was named.
     let unexplained_motion = (!located_in_motion.is_empty() || !diagnosis.unexplained.is_empty())
         && !kinds.iter().any(|k| true_kinds.contains(k));
     let outcome = Outcome {
         detected: !true_kinds.is_empty() && true_kinds.iter().all(|k| kinds.contains(k)),
+        shown,
         named_or_tied: !true_kinds.is_empty()
             && true_kinds.iter().all(|k| kinds.contains(k) || tied.contains(k)),
         false_positive,
@@ -659,6 +674,9 @@ pub fn run_case(
         concealment: case.concealment.to_owned(),
         runs,
         detection_rate: count(|o| o.detected) as f64 / n,
+        shown_rate: count(|o| o.shown) as f64 / n,
+        named_when_shown_rate: count(|o| o.shown && o.detected) as f64
+            / count(|o| o.shown).max(1) as f64,
         named_or_tied_rate: count(|o| o.named_or_tied) as f64 / n,
         false_positive_rate: false_positive as f64 / n,
         false_positive_interval: wilson_interval(false_positive, runs),
