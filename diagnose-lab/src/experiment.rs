@@ -6,7 +6,8 @@ use serde::Serialize;
 use shoal_physics::{Effect, ScopedEffect, UnicycleModel};
 
 use crate::generate::{ColouredNoise, NoiseLaw, Operator, Settings, generate};
-use shoal_diagnose::diagnosis::{EntryTest, FoundEffect, strength_of_truth};
+use shoal_diagnose::diagnosis::FoundEffect;
+use shoal_diagnose::entry::{EntryTest, strength_of_truth};
 use shoal_diagnose::{Options, diagnose};
 
 pub struct Case {

@@ -48,9 +48,13 @@ impl GlitchKind {
     pub fn describe(self) -> &'static str {
         match self {
             GlitchKind::JumpAndReturn => "pose jumps and returns (faster than any body moves)",
-            GlitchKind::JumpWithoutReturn => "pose jumps that never came back (the track resumed elsewhere)",
+            GlitchKind::JumpWithoutReturn => {
+                "pose jumps that never came back (the track resumed elsewhere)"
+            }
             GlitchKind::PoseGap => "gaps without observed poses",
-            GlitchKind::CommandStall => "command stalls (the stream stopped, then resumed in a burst)",
+            GlitchKind::CommandStall => {
+                "command stalls (the stream stopped, then resumed in a burst)"
+            }
         }
     }
 }
@@ -263,7 +267,11 @@ fn pose_gaps(poses: &Poses) -> Vec<Glitch> {
 /// Silences of the command stream, each with the burst that ended it.
 fn command_stalls(recording: &Recording) -> Vec<Glitch> {
     let t = &recording.commands.t;
-    let mut periods: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).filter(|d| *d > 0.0).collect();
+    let mut periods: Vec<f64> = t
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .filter(|d| *d > 0.0)
+        .collect();
     if periods.len() < 10 {
         return Vec::new();
     }
@@ -347,7 +355,10 @@ mod tests {
         let (kept, glitches) = set_aside(&r);
         assert_eq!(glitches.len(), 12, "{glitches:?}");
         assert!(glitches.iter().all(|g| g.kind == GlitchKind::JumpAndReturn));
-        assert!(glitches.iter().all(|g| (g.size_m - 0.2).abs() < 0.01), "{glitches:?}");
+        assert!(
+            glitches.iter().all(|g| (g.size_m - 0.2).abs() < 0.01),
+            "{glitches:?}"
+        );
         assert_eq!(kept.poses.len(), r.poses.len() - expected);
         assert!(kept.poses.y.iter().all(|y| y.abs() < 0.01));
     }
@@ -363,7 +374,12 @@ mod tests {
         assert_eq!(glitches.len(), 1, "{glitches:?}");
         assert_eq!(glitches[0].kind, GlitchKind::JumpWithoutReturn);
         // No observed poses within the gap's reach on either side.
-        assert!(kept.poses.t.windows(2).any(|w| w[1] - w[0] > MAX_OBSERVATION_GAP_S));
+        assert!(
+            kept.poses
+                .t
+                .windows(2)
+                .any(|w| w[1] - w[0] > MAX_OBSERVATION_GAP_S)
+        );
     }
 
     #[test]
@@ -400,9 +416,15 @@ mod tests {
         }
         r.commands = commands;
         let (kept, glitches) = set_aside(&r);
-        let stalls: Vec<&Glitch> = glitches.iter().filter(|g| g.kind == GlitchKind::CommandStall).collect();
+        let stalls: Vec<&Glitch> = glitches
+            .iter()
+            .filter(|g| g.kind == GlitchKind::CommandStall)
+            .collect();
         assert_eq!(stalls.len(), 1, "{glitches:?}");
-        assert!((stalls[0].t_start - 19.95).abs() < 1e-6 && (stalls[0].t_end - 23.009).abs() < 1e-6, "{stalls:?}");
+        assert!(
+            (stalls[0].t_start - 19.95).abs() < 1e-6 && (stalls[0].t_end - 23.009).abs() < 1e-6,
+            "{stalls:?}"
+        );
         assert!(!kept.poses.t.iter().any(|t| (20.0..23.0).contains(t)));
     }
 }

@@ -9,10 +9,11 @@
 use serde::Serialize;
 use shoal_physics::{ScopedEffect, UnicycleModel};
 
-use crate::diagnosis::{Heldout, Options, Prepared, joined, subsample};
+use crate::diagnosis::{Heldout, Options, Prepared, joined};
 use crate::fit::fit;
 use crate::likelihood::{Residual, estimate_noise, residuals, rmse, segment_nll};
 use crate::segments::Segment;
+use crate::selection::subsample;
 
 /// The held-out blocks of `segments`: one per recording where several were
 /// joined (a block starts at each of `joins`), else `folds` equal stretches.
@@ -20,7 +21,11 @@ pub fn blocks(segments: &[Segment], joins: &[f64], folds: usize) -> Vec<std::ops
     let n = segments.len();
     if !joins.is_empty() {
         let mut starts: Vec<usize> = std::iter::once(0)
-            .chain(joins.iter().map(|&t| segments.partition_point(|s| s.t_start < t)))
+            .chain(
+                joins
+                    .iter()
+                    .map(|&t| segments.partition_point(|s| s.t_start < t)),
+            )
             .collect();
         starts.dedup();
         return starts
@@ -142,10 +147,7 @@ pub(crate) fn heldout(
         let effects = refit_on(prepared, train, fixed, found, options);
         predict_heldout(prepared, train, test, effects)
     });
-    let per_block: Vec<BlockScore> = per_fold
-        .iter()
-        .map(|(nll, r)| (*nll, rmse(r).0))
-        .collect();
+    let per_block: Vec<BlockScore> = per_fold.iter().map(|(nll, r)| (*nll, rmse(r).0)).collect();
     let nll: f64 = per_fold.iter().map(|(nll, _)| nll).sum();
     let all_residuals: Vec<Residual> = per_fold.into_iter().flat_map(|(_, r)| r).collect();
     let errors: Vec<(f64, f64)> = prepared
@@ -219,7 +221,9 @@ pub(crate) fn transferable(
             .map(|(nll, _)| nll)
             .collect()
     };
-    let noise: Vec<usize> = (0..found.len()).filter(|&k| !must_transfer(&found[k])).collect();
+    let noise: Vec<usize> = (0..found.len())
+        .filter(|&k| !must_transfer(&found[k]))
+        .collect();
     let plain = block_nll(&noise);
     let mut kept: Vec<usize> = (0..found.len()).collect();
     let mut dropped = Vec::new();
@@ -237,7 +241,8 @@ pub(crate) fn transferable(
         if excess <= CONTRADICTION_NATS {
             break;
         }
-        let without = |k: usize| -> Vec<usize> { kept.iter().copied().filter(|&j| j != k).collect() };
+        let without =
+            |k: usize| -> Vec<usize> { kept.iter().copied().filter(|&j| j != k).collect() };
         // Each candidate removal's held-out fit, once.
         let Some((worst_effect, _)) = kept
             .iter()
@@ -276,4 +281,3 @@ pub(crate) fn heldout_gain(
             - predict_heldout(prepared, train, test, with).0
     })
 }
-

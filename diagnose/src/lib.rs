@@ -2,8 +2,10 @@
 //! the simulation left out, and how much better the run is explained with it.
 //! Pure logic: inputs arrive as text or numbers, outputs leave as values.
 
+pub mod candidates;
 pub mod covariates;
 pub mod diagnosis;
+pub mod entry;
 pub mod fit;
 pub mod glitches;
 pub mod heldout;
@@ -13,6 +15,8 @@ pub mod locate;
 pub mod recording;
 pub mod replay;
 pub mod segments;
+pub mod selection;
+pub mod zones;
 
 pub use diagnosis::{Diagnosis, Options, diagnose};
 pub use recording::Recording;

@@ -182,8 +182,7 @@ pub fn locate(
         let n = group.members.len() as f64;
         for c in 0..3 {
             let values: Vec<f64> = group.members.iter().map(|&i| standardised[i][c]).collect();
-            let z = values.iter().sum::<f64>()
-                / (n * long_run[c] * own_variance(&values)).sqrt();
+            let z = values.iter().sum::<f64>() / (n * long_run[c] * own_variance(&values)).sqrt();
             tests.push((g, c, z, 2.0 * normal.sf(z.abs())));
         }
         // Spread: are the residuals larger (or smaller) than the noise says?

@@ -37,7 +37,9 @@ pub const MAX_OBSERVATION_GAP_S: f64 = 0.5;
 impl Commands {
     /// Each command as (t, v, omega).
     pub fn rows(&self) -> Vec<(f64, f64, f64)> {
-        (0..self.t.len()).map(|i| (self.t[i], self.v[i], self.omega[i])).collect()
+        (0..self.t.len())
+            .map(|i| (self.t[i], self.v[i], self.omega[i]))
+            .collect()
     }
 
     /// Appends a command read from a file, in time order. Of two commands
@@ -57,7 +59,9 @@ impl Commands {
 impl Poses {
     /// Each pose as (t, x, y, theta).
     pub fn rows(&self) -> Vec<(f64, f64, f64, f64)> {
-        (0..self.t.len()).map(|i| (self.t[i], self.x[i], self.y[i], self.theta[i])).collect()
+        (0..self.t.len())
+            .map(|i| (self.t[i], self.x[i], self.y[i], self.theta[i]))
+            .collect()
     }
 
     /// Appends a pose read from a file, in time order; a second observation
@@ -194,7 +198,10 @@ impl Recording {
     /// or, where their clocks overlap or are unknown (CSV files from 0 s),
     /// follows the one before it after a gap. No comparison spans a join.
     pub fn joined(recordings: Vec<Recording>) -> Recording {
-        let mut runs: Vec<Recording> = recordings.into_iter().filter(|r| !r.commands.t.is_empty()).collect();
+        let mut runs: Vec<Recording> = recordings
+            .into_iter()
+            .filter(|r| !r.commands.t.is_empty())
+            .collect();
         runs.sort_by(|a, b| a.t_origin.total_cmp(&b.t_origin));
         let Some(first_origin) = runs.first().map(|r| r.t_origin) else {
             return Recording::default();
@@ -226,8 +233,11 @@ impl Recording {
                 out.joins.push(shift);
             }
             for i in 0..run.commands.t.len() {
-                out.commands
-                    .hold(run.commands.t[i] + shift, run.commands.v[i], run.commands.omega[i]);
+                out.commands.hold(
+                    run.commands.t[i] + shift,
+                    run.commands.v[i],
+                    run.commands.omega[i],
+                );
             }
             for i in 0..run.poses.t.len() {
                 out.poses.observe(

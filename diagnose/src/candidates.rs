@@ -1,0 +1,166 @@
+//! The candidates of a round: every effect of the library, effects scoped
+//! to the stretches and places where the residuals differ, and the fitting
+//! of them all on two threads; then whether the chosen one acts in part of
+//! the run only.
+
+use shoal_physics::effects::EFFECT_KINDS;
+use shoal_physics::{CommandGrid, Effect, ScopedEffect};
+
+use crate::diagnosis::{OperatingPoint, Options, joined};
+use crate::fit::{Fitted, fit};
+use crate::locate::Located;
+use crate::segments::Segment;
+use crate::zones::{at_least_min_side, region_driven};
+
+/// Extra BIC parameters for where an effect acts: a located span or
+/// region was picked among a few, not fitted freely.
+pub(crate) const WHERE_PARAMS: usize = 2;
+
+pub(crate) fn candidates(
+    located: &[Located],
+    segments: &[Segment],
+    duration: f64,
+) -> Vec<ScopedEffect> {
+    // Speed noise is stated at the robot's usual speed.
+    let usual_speed = OperatingPoint::of(segments).speed_m_per_s;
+    let mut out: Vec<ScopedEffect> = EFFECT_KINDS
+        .iter()
+        .filter(|k| **k != "surface_zone")
+        .filter_map(|k| Effect::identity(k, [0.0; 4]))
+        .map(|e| ScopedEffect::always(e.at_reference_speed(usual_speed)))
+        .collect();
+    let spans = located
+        .iter()
+        .filter(|l| l.family == "time" && l.t_end - l.t_start < 0.8 * duration)
+        .take(2);
+    for span in spans {
+        // A mismatch in one stretch of time may be a place the robot was
+        // in then: where it drove during the span is a zone to try, its
+        // edges fitted later.
+        if let Some(region) = region_driven(segments, [span.t_start, span.t_end])
+            && let Some(effect) = Effect::identity("surface_zone", region)
+        {
+            out.push(ScopedEffect::always(effect));
+        }
+        for kind in [
+            "speed_scale",
+            "turn_scale",
+            "turn_bias",
+            "heading_drift",
+            "latency",
+            "external_flow",
+        ] {
+            if let Some(effect) = Effect::identity(kind, [0.0; 4]) {
+                out.push(ScopedEffect {
+                    effect,
+                    during: Some([span.t_start, span.t_end]),
+                });
+            }
+        }
+    }
+    for place in located.iter().filter(|l| l.family == "place").take(3) {
+        if let Some(region) = place.region
+            && let Some(effect) = Effect::identity("surface_zone", at_least_min_side(region))
+        {
+            out.push(ScopedEffect::always(effect));
+        }
+    }
+    out
+}
+
+pub(crate) fn extra_params(candidate: &ScopedEffect) -> usize {
+    let located =
+        candidate.during.is_some() || matches!(candidate.effect, Effect::SurfaceZone { .. });
+    candidate.effect.params().len() + if located { WHERE_PARAMS } else { 0 }
+}
+
+/// Fits every candidate on two threads; returns them in the same order.
+pub(crate) fn fit_all(
+    grid: &CommandGrid,
+    segments: &[Segment],
+    fixed: &[ScopedEffect],
+    candidates: &[ScopedEffect],
+    max_iters: u64,
+) -> Vec<Fitted> {
+    let workers = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .min(candidates.len().max(1));
+    let mut results: Vec<Option<Fitted>> = vec![None; candidates.len()];
+    std::thread::scope(|scope| {
+        let chunks: Vec<_> = results
+            .chunks_mut(candidates.len().div_ceil(workers).max(1))
+            .enumerate()
+            .map(|(w, slots)| {
+                let chunk = candidates.len().div_ceil(workers).max(1);
+                scope.spawn(move || {
+                    for (k, slot) in slots.iter_mut().enumerate() {
+                        let candidate = &candidates[w * chunk + k];
+                        *slot = Some(fit(
+                            grid,
+                            segments,
+                            fixed,
+                            std::slice::from_ref(candidate),
+                            max_iters,
+                        ));
+                    }
+                })
+            })
+            .collect();
+        for handle in chunks {
+            joined(handle.join());
+        }
+    });
+    // Every worker filled its slots, or its panic went on above.
+    results.into_iter().flatten().collect()
+}
+
+/// An effect found over the whole run may act only in part of it: tries
+/// it on the first or last part of the run, split at tenths and then
+/// refined, on `screen`; returns the best narrower scope to confirm.
+pub(crate) fn narrower_scope(
+    grid: &CommandGrid,
+    screen: &[Segment],
+    base: &[ScopedEffect],
+    global: &ScopedEffect,
+    duration: f64,
+    options: &Options,
+) -> Option<ScopedEffect> {
+    let scopable = !matches!(
+        global.effect,
+        Effect::SurfaceZone { .. }
+            | Effect::BatteryFade { .. }
+            | Effect::SpeedNoise { .. }
+            | Effect::TurnCentreOffset { .. }
+    );
+    if !scopable || global.during.is_some() {
+        return None;
+    }
+    let spans = |cuts: &[f64]| -> Vec<ScopedEffect> {
+        cuts.iter()
+            .filter(|&&c| c > 0.0 && c < duration)
+            .flat_map(|&c| [[0.0, c], [c, duration]])
+            .map(|during| ScopedEffect {
+                effect: global.effect.clone(),
+                during: Some(during),
+            })
+            .collect()
+    };
+    let mut best: Option<(ScopedEffect, f64)> = None;
+    let mut step = duration / 10.0;
+    let mut cuts: Vec<f64> = (1..10).map(|k| k as f64 * step).collect();
+    for _ in 0..2 {
+        let tries = spans(&cuts);
+        let fits = fit_all(grid, screen, base, &tries, options.max_iters / 2);
+        for f in &fits {
+            if best.as_ref().is_none_or(|(_, nll)| f.nll < *nll) {
+                best = Some((f.effects[0].clone(), f.nll));
+            }
+        }
+        let (scoped, _) = best.as_ref()?;
+        let [a, b] = scoped.during.unwrap_or([0.0, duration]);
+        let cut = if a > 0.0 { a } else { b };
+        step /= 4.0;
+        cuts = vec![cut - 2.0 * step, cut - step, cut + step, cut + 2.0 * step];
+    }
+    best.map(|(scoped, _)| scoped)
+}

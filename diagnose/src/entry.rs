@@ -1,0 +1,298 @@
+//! The entry test: whether an effect's gain is more than effects fitted to
+//! noise reach, corrected for the noise's correlation in time and for noise
+//! the model gets wrong, over all the library's kinds.
+
+use serde::Serialize;
+use shoal_physics::effects::EFFECT_KINDS;
+use shoal_physics::{CommandGrid, ScopedEffect, UnicycleModel};
+use statrs::distribution::{ChiSquared, ContinuousCDF, FisherSnedecor};
+
+use crate::candidates::extra_params;
+use crate::diagnosis::{Options, prepare};
+use crate::likelihood::{
+    LongRun, component_nll, estimate_noise, long_run_factor, long_run_of_components, residuals,
+    segment_nll, standardised,
+};
+use crate::recording::Recording;
+use crate::segments::Segment;
+
+/// The figures of the test an effect passed to be named (see [`entry_test`]).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct EntryTest {
+    /// The likelihood-ratio statistic corrected for correlation in time:
+    /// the smaller of the two corrections.
+    pub chi2: f64,
+    /// Its degrees of freedom: the effect's parameters, plus two where it
+    /// acts in part of the run or the map.
+    pub dof: usize,
+    /// What `chi2` had to exceed at `level`.
+    pub needed: f64,
+    /// The family-wise level (`--select-alpha`).
+    pub level: f64,
+    /// The p-value, Bonferroni-adjusted over the library's kinds.
+    pub p_adjusted: f64,
+    /// Whether the effect also lowers the calibrated BIC (reported as the
+    /// finding's `delta_bic`).
+    #[serde(skip)]
+    pub(crate) lowers_bic: bool,
+}
+
+impl EntryTest {
+    /// An effect enters when it passes the test and lowers BIC.
+    pub fn passed(&self) -> bool {
+        self.chi2 > self.needed && self.lowers_bic
+    }
+}
+
+/// The entry test each of `truth`'s effects would face at its true
+/// parameters, with the others in the model: how strongly the run shows
+/// it, which bounds what any diagnosis of this run could name. For the
+/// lab, where the truth is known: an effect a run cannot show is a limit
+/// of the run, not a miss of the method.
+pub fn strength_of_truth(
+    recording: &Recording,
+    model: &UnicycleModel,
+    truth: &[ScopedEffect],
+    options: &Options,
+) -> Vec<EntryTest> {
+    let prepared = prepare(recording, options);
+    let (grid, segs) = (&prepared.grid, &prepared.segments);
+    (0..truth.len())
+        .map(|k| {
+            let base: Vec<ScopedEffect> = model
+                .effects
+                .iter()
+                .chain(
+                    truth
+                        .iter()
+                        .enumerate()
+                        .filter(|(i, _)| *i != k)
+                        .map(|(_, e)| e),
+                )
+                .cloned()
+                .collect();
+            let candidate = &truth[k];
+            let long_runs = factors_with(grid, segs, &base, candidate);
+            let factors = long_runs.map(|l| l.factor);
+            let base_nll = components_of(grid, segs, &base);
+            let delta_bic = calibrated_gain(grid, segs, base_nll, &base, candidate, factors);
+            entry_test(
+                grid,
+                segs,
+                &base,
+                candidate,
+                (delta_bic, long_runs),
+                options,
+            )
+        })
+        .collect()
+}
+
+/// How much correlation in time inflates each residual component of the
+/// model `base` plus `candidate` (see [`long_run_of_components`]), with the
+/// estimates' degrees of freedom.
+pub(crate) fn factors_with(
+    grid: &CommandGrid,
+    segs: &[Segment],
+    base: &[ScopedEffect],
+    candidate: &ScopedEffect,
+) -> [LongRun; 3] {
+    let model =
+        UnicycleModel::with_effects(base.iter().cloned().chain([candidate.clone()]).collect());
+    let r = residuals(&model, grid, segs);
+    let noise = estimate_noise(&model, segs, &r);
+    long_run_of_components(segs, &standardised(&model, &noise, segs, &r))
+}
+
+/// BIC gain of adding `candidate` (already fitted) to `base`, with the
+/// likelihood gain of each component divided by how much that component's
+/// correlation in time inflates it (`factors`, see [`long_run_of_components`]),
+/// and the penalty counted on the effective number of observations.
+/// Negative is better. One round judges all its candidates with the same
+/// factors, estimated from the residuals of its best-fitting candidate: an
+/// effect that is there does not count as correlated noise against itself,
+/// and rival explanations of one mismatch are weighed on one scale.
+pub(crate) fn calibrated_gain(
+    grid: &CommandGrid,
+    segs: &[Segment],
+    base_nll: [f64; 3],
+    base: &[ScopedEffect],
+    candidate: &ScopedEffect,
+    factors: [f64; 3],
+) -> f64 {
+    let nll = components_of(
+        grid,
+        segs,
+        &base
+            .iter()
+            .cloned()
+            .chain([candidate.clone()])
+            .collect::<Vec<_>>(),
+    );
+    let gain: f64 = (0..3).map(|c| (nll[c] - base_nll[c]) / factors[c]).sum();
+    2.0 * gain + extra_params(candidate) as f64 * log_n_eff(segs, factors)
+}
+
+/// The log of the effective number of observations BIC's penalty counts:
+/// three components per segment, shrunk by their correlation in time.
+pub(crate) fn log_n_eff(segs: &[Segment], factors: [f64; 3]) -> f64 {
+    let n_eff = 3.0 * segs.len() as f64 / (factors.iter().sum::<f64>() / 3.0);
+    n_eff.max(2.0).ln()
+}
+
+/// The entry test of `candidate`, judged `delta_bic` (see
+/// [`calibrated_gain`]) with the residual components' `long_runs`: its
+/// calibrated likelihood-ratio statistic must exceed what `dof`
+/// parameters fitted to noise reach with probability `select_alpha` over
+/// all the library's kinds. The test's level, unlike BIC's penalty, does
+/// not tighten as the recording grows: a longer recording can name a
+/// smaller effect, while null runs stay at the same rate (shown in
+/// EXPERIMENTS.md 5b).
+pub(crate) fn entry_test(
+    grid: &CommandGrid,
+    segs: &[Segment],
+    base: &[ScopedEffect],
+    candidate: &ScopedEffect,
+    (delta_bic, long_runs): (f64, [LongRun; 3]),
+    options: &Options,
+) -> EntryTest {
+    let factors = long_runs.map(|l| l.factor);
+    let dof = extra_params(candidate);
+    // The statistic with each residual component's factor, as the round
+    // judged it, and with the factor of the effect's own gain: the smaller
+    // counts, as either kernel estimate can fall short of a persistent
+    // noise's long-run variance.
+    let by_components = dof as f64 * log_n_eff(segs, factors) - delta_bic;
+    let (robust, long_run) = robust_chi2(grid, segs, base, candidate);
+    // Each statistic is held to the fixed-b threshold of its estimate (see
+    // [`LongRun::dof`]; for the components', the roughest of the three):
+    // stated on the χ² scale, it is shrunk by how much that threshold
+    // exceeds χ²'s.
+    let needed = entry_threshold(dof, options.select_alpha);
+    let on_chi2_scale = |statistic: f64, estimate_dof: f64| {
+        statistic * needed / fixed_b_threshold(dof, options.select_alpha, estimate_dof)
+    };
+    let roughest = long_runs
+        .iter()
+        .map(|l| l.dof)
+        .fold(f64::INFINITY, f64::min);
+    let chi2 = on_chi2_scale(by_components, roughest).min(on_chi2_scale(robust, long_run.dof));
+    let p = ChiSquared::new(dof.max(1) as f64).map_or(1.0, |d| d.sf(chi2.max(0.0)));
+    EntryTest {
+        chi2,
+        dof,
+        needed,
+        level: options.select_alpha,
+        p_adjusted: (p * EFFECT_KINDS.len() as f64).min(1.0),
+        lowers_bic: delta_bic < 0.0,
+    }
+}
+
+/// The likelihood-ratio statistic of adding `candidate` to `base`, made
+/// robust to correlation in time: twice the log-likelihood gain divided by
+/// the long-run variance factor of the gain's own per-segment series. To
+/// first order that series is the candidate's score along the fitted
+/// change, so this is the sandwich (HAC) correction of the test for this
+/// effect: an effect whose signal changes sign with the turn rate is not
+/// charged for the slow drift of the noise, and one that follows the
+/// speed is charged for exactly the drift it can absorb.
+pub(crate) fn robust_chi2(
+    grid: &CommandGrid,
+    segs: &[Segment],
+    base: &[ScopedEffect],
+    candidate: &ScopedEffect,
+) -> (f64, LongRun) {
+    let per_segment = |effects: Vec<ScopedEffect>| {
+        let model = UnicycleModel::with_effects(effects);
+        let r = residuals(&model, grid, segs);
+        let noise = estimate_noise(&model, segs, &r);
+        segment_nll(&model, &noise, segs, &r)
+    };
+    let without = per_segment(base.to_vec());
+    let with = per_segment(base.iter().cloned().chain([candidate.clone()]).collect());
+    let gains: Vec<f64> = without.iter().zip(&with).map(|(a, b)| a - b).collect();
+    let long_run = long_run_factor(segs, &gains);
+    let total: f64 = gains.iter().sum();
+    (
+        2.0 * total / (long_run.factor * misspecification(&gains, total)),
+        long_run,
+    )
+}
+
+/// How much more the per-segment gains vary than the noise model says they
+/// should, at least 1. Where the model's noise is right, the gains' spread
+/// is twice their sum, for an effect of any number of parameters (each
+/// gain is, to first order, the score along the fitted change). Noise that
+/// the model gets wrong (growing with the square of the speed, or larger in
+/// some stretches) makes a few segments' gains dominate the sum; dividing
+/// by this ratio is the sandwich correction for it (Huber 1967, White
+/// 1982), the part the correlation in time does not already cover.
+pub(crate) fn misspecification(gains: &[f64], total: f64) -> f64 {
+    if total <= 0.0 || gains.is_empty() {
+        return 1.0;
+    }
+    let mean = total / gains.len() as f64;
+    let spread: f64 = gains.iter().map(|g| (g - mean).powi(2)).sum();
+    (spread / (2.0 * total)).max(1.0)
+}
+
+/// [`entry_threshold`] for a statistic whose long-run variance was
+/// estimated with `estimate_dof` degrees of freedom: dof x F(dof,
+/// m - dof + 1) x m / (m - dof + 1) at the same level (Sun 2014). It
+/// approaches the χ² threshold as the estimate's degrees of freedom grow.
+pub(crate) fn fixed_b_threshold(dof: usize, alpha: f64, estimate_dof: f64) -> f64 {
+    let k = dof.max(1) as f64;
+    let m = estimate_dof.max(k + 1.0);
+    FisherSnedecor::new(k, m - k + 1.0)
+        .map(|f| k * f.inverse_cdf(1.0 - per_kind(alpha)) * m / (m - k + 1.0))
+        .unwrap_or(f64::INFINITY)
+}
+
+/// Each kind's share of the family-wise level `alpha` (Bonferroni).
+pub(crate) fn per_kind(alpha: f64) -> f64 {
+    alpha / EFFECT_KINDS.len() as f64
+}
+
+/// The χ² an entering effect with `dof` parameters must exceed:
+/// Bonferroni over the library's kinds at family-wise level `alpha`.
+pub(crate) fn entry_threshold(dof: usize, alpha: f64) -> f64 {
+    ChiSquared::new(dof.max(1) as f64)
+        .map(|d| d.inverse_cdf(1.0 - per_kind(alpha)))
+        .unwrap_or(f64::INFINITY)
+}
+
+pub(crate) fn components_of(
+    grid: &CommandGrid,
+    segs: &[Segment],
+    effects: &[ScopedEffect],
+) -> [f64; 3] {
+    let model = UnicycleModel::with_effects(effects.to_vec());
+    component_nll(&model, segs, &residuals(&model, grid, segs))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_entry_test_is_bonferroni_over_the_library_at_its_level() {
+        // One parameter at 1% over the library's kinds: the two-sided
+        // normal quantile squared, z(1 - 0.01 / (2 K))^2.
+        let per_kind = 0.01 / EFFECT_KINDS.len() as f64;
+        let z = statrs::distribution::Normal::standard().inverse_cdf(1.0 - per_kind / 2.0);
+        assert!((entry_threshold(1, 0.01) - z * z).abs() < 1e-6);
+        // More parameters and a stricter level ask for more.
+        assert!(entry_threshold(2, 0.01) > entry_threshold(1, 0.01));
+        assert!(entry_threshold(1, 0.001) > entry_threshold(1, 0.01));
+    }
+
+    #[test]
+    fn the_fixed_b_threshold_is_chi2_for_a_precise_estimate_and_higher_for_a_rough_one() {
+        let chi2 = entry_threshold(1, 0.01);
+        assert!((fixed_b_threshold(1, 0.01, 1e7) - chi2).abs() < 0.01);
+        // A 5 s noise on a 10-minute run: bandwidth about 28 of 600.
+        let rough = fixed_b_threshold(1, 0.01, 600.0 / (29.0 * 2.0 / 3.0));
+        assert!(rough > chi2 + 2.0, "{rough} against {chi2}");
+        assert!(fixed_b_threshold(2, 0.01, 31.0) > fixed_b_threshold(1, 0.01, 31.0));
+    }
+}
