@@ -1,5 +1,6 @@
 //! SLAM's cost: steps and particle-beam evaluations per second for a robot
-//! walking the SLAM tests' room, by particle count, against 100 particles as the baseline.
+//! walking the SLAM tests' room, by particle count and by threads (one, and
+//! every core), against 100 particles on one thread as the baseline.
 
 use std::time::Instant;
 
@@ -14,14 +15,19 @@ use shoal_slam::filter::{FilterConfig, ParticleFilter};
 #[derive(Debug, Serialize)]
 struct Row {
     particles: usize,
+    threads: usize,
     beams: usize,
     scored_beams_per_step: usize,
     steps_per_s: f64,
     particle_beam_evals_per_s: f64,
+    particle_beam_evals_per_s_per_thread: f64,
     /// Steps per second over the 10 steps per second of a robot at 10 Hz.
     realtime_factor_10hz: f64,
-    /// Time per step against 100 particles' (the baseline).
-    step_time_vs_100: f64,
+    /// Steps per second over what following the demo's 20 robots at 5 Hz
+    /// takes (100 steps per second), with this many particles each.
+    realtime_factor_20_robots_5hz: f64,
+    /// Time per step against 100 particles' on one thread (the baseline).
+    step_time_vs_100_one_thread: f64,
 }
 
 #[derive(Debug, Serialize)]
@@ -67,20 +73,38 @@ fn seconds_per_step(particles: usize, steps: usize) -> (f64, usize) {
     (elapsed / steps as f64, scored)
 }
 
+/// [`seconds_per_step`] with the filter's particles shared over `threads`.
+fn seconds_per_step_on(threads: usize, particles: usize, steps: usize) -> Result<(f64, usize)> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()?;
+    Ok(pool.install(|| seconds_per_step(particles, steps)))
+}
+
 pub fn run(particles: &[usize], steps: usize, json: bool) -> Result<()> {
-    let (baseline, _) = seconds_per_step(100, steps);
+    let (baseline, _) = seconds_per_step_on(1, 100, steps)?;
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let mut rows = Vec::new();
     for &n in particles {
-        let (per_step, scored) = seconds_per_step(n, steps);
-        rows.push(Row {
-            particles: n,
-            beams: 180,
-            scored_beams_per_step: scored,
-            steps_per_s: 1.0 / per_step,
-            particle_beam_evals_per_s: (n * scored) as f64 / per_step,
-            realtime_factor_10hz: 1.0 / per_step / 10.0,
-            step_time_vs_100: per_step / baseline,
-        });
+        for threads in [1, cores] {
+            let (per_step, scored) = seconds_per_step_on(threads, n, steps)?;
+            let evals = (n * scored) as f64 / per_step;
+            rows.push(Row {
+                particles: n,
+                threads,
+                beams: 180,
+                scored_beams_per_step: scored,
+                steps_per_s: 1.0 / per_step,
+                particle_beam_evals_per_s: evals,
+                particle_beam_evals_per_s_per_thread: evals / threads as f64,
+                realtime_factor_10hz: 1.0 / per_step / 10.0,
+                realtime_factor_20_robots_5hz: 1.0 / per_step / 100.0,
+                step_time_vs_100_one_thread: per_step / baseline,
+            });
+            if cores == 1 {
+                break;
+            }
+        }
     }
     shoal::report::print(&Report { rows }, json)
 }
