@@ -269,7 +269,7 @@ fn launch(options: &DemoOptions, scenario: &Scenario) -> Result<RunningSwarm> {
         std::fs::write(&model_path, toml::to_string(&wrong)?)
             .with_context(|| format!("writing {}", model_path.display()))?;
         swarm.follow_with_slam(
-            follow,
+            &shoal_slam::follow::Follow::Robots(follow.clone()),
             &["--initial-model".into(), model_path.display().to_string()],
         )?;
     }

@@ -84,9 +84,10 @@ enum Commands {
         /// With --link zenoh: a Zenoh endpoint to listen on, e.g. tcp/0.0.0.0:7447 (repeatable).
         #[arg(long, requires = "link")]
         listen: Vec<String>,
-        /// Start a SLAM process following these robots, e.g. 0,3.
-        #[arg(long, value_delimiter = ',')]
-        slam: Vec<u32>,
+        /// Start a SLAM process following these robots, e.g. 0,3, or `all`
+        /// (every robot, those that join later included).
+        #[arg(long)]
+        slam: Option<shoal_slam::follow::Follow>,
     },
     /// All of Shoal in one run: robots form, SLAM learns, four robots are
     /// killed and restarted, and the recording is diagnosed.

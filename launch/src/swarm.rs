@@ -450,15 +450,18 @@ impl RunningSwarm {
         Ok(())
     }
 
-    /// Starts a SLAM process following robots `ids`, with more `options`
+    /// Starts a SLAM process following `follow`, with more `options`
     /// of `shoal-slam` (particles, learning, initial model).
-    pub fn follow_with_slam(&mut self, ids: &[u32], options: &[String]) -> Result<()> {
-        let ids: Vec<String> = ids.iter().map(u32::to_string).collect();
+    pub fn follow_with_slam(
+        &mut self,
+        follow: &shoal_slam::follow::Follow,
+        options: &[String],
+    ) -> Result<()> {
         let mut args: Vec<std::ffi::OsString> = vec![
             "--swarm".into(),
             self.name.clone().into(),
             "--follow".into(),
-            ids.join(",").into(),
+            follow.to_string().into(),
         ];
         args.extend(options.iter().map(Into::into));
         self.pace_to("slam", SLAM_LAG_TICKS)?;

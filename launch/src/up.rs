@@ -8,6 +8,7 @@ use anyhow::{Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 use shoal_physics::Scenario;
+use shoal_slam::follow::Follow;
 
 use crate::observer::Timeliness;
 use crate::swarm::{Launch, RecordOptions, RunningSwarm};
@@ -22,8 +23,9 @@ pub struct UpOptions {
     pub duration_s: Option<f64>,
     pub json: bool,
     pub record: RecordOptions,
-    /// Robots a SLAM process follows (added to the scenario's `[slam] follow`).
-    pub slam: Vec<u32>,
+    /// Robots a SLAM process follows (added to the scenario's `[slam]
+    /// follow`), or all of them.
+    pub slam: Option<Follow>,
 }
 
 /// Fails before anything starts when `--viewer` cannot work: the Rerun
@@ -234,9 +236,11 @@ fn scenario_for(options: &UpOptions) -> Result<Scenario> {
     if let Some(seed) = options.seed {
         scenario.agents.seed = seed;
     }
-    for id in &options.slam {
-        if !scenario.slam.follow.contains(id) {
-            scenario.slam.follow.push(*id);
+    if let Some(Follow::Robots(ids)) = &options.slam {
+        for id in ids {
+            if !scenario.slam.follow.contains(id) {
+                scenario.slam.follow.push(*id);
+            }
         }
     }
     Ok(scenario)
@@ -326,7 +330,10 @@ pub fn up(options: UpOptions) -> Result<UpSummary> {
     }
     let scenario = scenario_for(&options)?;
     warn_if_iceoryx_on_disk(scenario.agents.count);
-    let follow = scenario.slam.follow.clone();
+    let follow = match &options.slam {
+        Some(Follow::All) => Follow::All,
+        _ => Follow::Robots(scenario.slam.follow.clone()),
+    };
     let spread = scenario.formation.spread;
     let mut swarm = RunningSwarm::launch_with(&options.swarm, scenario, &options.launch)?;
     let robots = swarm.scenario.agents.count;

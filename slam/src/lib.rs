@@ -2,6 +2,7 @@
 //! Pure logic: the SLAM process feeds it from the bus.
 
 pub mod filter;
+pub mod follow;
 pub mod follower;
 pub mod grid;
 pub mod learning;

@@ -19,6 +19,7 @@ use shoal_physics::legged::Param;
 use shoal_physics::{Command, MotionModel, Pose};
 use shoal_runtime::{FollowedReport, SlamReport, SwarmRuntime};
 use shoal_slam::filter::{Bodies, FilterConfig};
+use shoal_slam::follow::Follow;
 use shoal_slam::follower::{Follower, Scan, Stepped};
 
 #[derive(Parser)]
@@ -29,9 +30,10 @@ use shoal_slam::follower::{Follower, Scan, Stepped};
 struct Args {
     #[arg(long, default_value = "default")]
     swarm: String,
-    /// Ids of the robots to follow, e.g. 0,3.
-    #[arg(long, value_delimiter = ',', required = true)]
-    follow: Vec<u32>,
+    /// The robots to follow: ids, e.g. 0,3, or `all` (every robot of the
+    /// swarm, those that join later included).
+    #[arg(long, required = true)]
+    follow: Follow,
     #[arg(long, default_value_t = 500)]
     particles: usize,
     /// The learning window k (5..=10).
@@ -114,36 +116,46 @@ fn scan_of(sample: &ScanSample) -> Scan {
     }
 }
 
-/// A follower and its streams for each robot `--follow` names.
-fn follow(
-    bus: &Bus,
-    args: &Args,
-    scenario: &shoal_physics::Scenario,
-    initial: &MotionModel,
-) -> Result<BTreeMap<u32, Followed>> {
-    let config = FilterConfig {
-        particles: args.particles.max(1),
-        cell_size: args.grid,
-        learning: args.learning == Learning::On,
-        window: args.window as usize,
-        sensor: scenario.sensor.clone(),
-        ..FilterConfig::default()
-    };
-    let arena = [scenario.arena.width, scenario.arena.height];
-    args.follow
-        .iter()
-        .map(|&id| {
-            let robot = Followed {
-                // Seeded by the id, so runs repeat.
-                follower: Follower::new(id, u64::from(id), initial.clone(), config.clone(), arena),
-                scans: robot_streams::scan_subscriber(bus, id)?,
-                estimates: robot_streams::estimate_publisher(bus, id)?,
-                models: robot_streams::model_publisher(bus, id)?,
-                last_scan: None,
-            };
-            Ok((id, robot))
+/// How each followed robot's filter is set up.
+struct Setup {
+    config: FilterConfig,
+    arena: [f64; 2],
+    initial: MotionModel,
+}
+
+impl Setup {
+    fn new(args: &Args, scenario: &shoal_physics::Scenario, initial: &MotionModel) -> Self {
+        Self {
+            config: FilterConfig {
+                particles: args.particles.max(1),
+                cell_size: args.grid,
+                learning: args.learning == Learning::On,
+                window: args.window as usize,
+                sensor: scenario.sensor.clone(),
+                ..FilterConfig::default()
+            },
+            arena: [scenario.arena.width, scenario.arena.height],
+            initial: initial.clone(),
+        }
+    }
+
+    /// A follower of robot `id` and its streams.
+    fn follow(&self, bus: &Bus, id: u32) -> Result<Followed> {
+        Ok(Followed {
+            // Seeded by the id, so runs repeat.
+            follower: Follower::new(
+                id,
+                u64::from(id),
+                self.initial.clone(),
+                self.config.clone(),
+                self.arena,
+            ),
+            scans: robot_streams::scan_subscriber(bus, id)?,
+            estimates: robot_streams::estimate_publisher(bus, id)?,
+            models: robot_streams::model_publisher(bus, id)?,
+            last_scan: None,
         })
-        .collect()
+    }
 }
 
 fn run(args: Args) -> Result<()> {
@@ -172,8 +184,12 @@ fn run(args: Args) -> Result<()> {
         maps: robot_streams::slam_map_publisher(&bus)?,
     };
     let progress = robot_streams::progress_publisher(&bus, "slam")?;
-    let mut followed = follow(&bus, &args, &scenario, &initial)?;
-    tracing::info!(follow = ?args.follow, learning = ?args.learning, "SLAM following");
+    let setup = Setup::new(&args, &scenario, &initial);
+    let mut followed = BTreeMap::new();
+    for &id in args.follow.named() {
+        followed.insert(id, setup.follow(&bus, id)?);
+    }
+    tracing::info!(follow = %args.follow, learning = ?args.learning, "SLAM following");
     let mut newest_roster: u64 = 0;
     let mut last_report = std::time::Instant::now();
     let mut report_failing = false;
@@ -183,15 +199,28 @@ fn run(args: Args) -> Result<()> {
     let mut bodies = Bodies::new((scenario.timing.stale_periods.ceil() as u64).max(1) + 1);
     while !bus.termination_requested() {
         // The roster passes only samples that pass their wire check.
+        let mut joined = Vec::new();
         roster.receive(|s| {
             newest_roster = newest_roster.max(s.tick);
             if let Some(robot) = followed.get_mut(&s.agent_id) {
                 robot
                     .follower
                     .announced(s.tick, Pose::new(s.x, s.y, s.theta));
+            } else if args.follow.includes(s.agent_id) {
+                joined.push((s.agent_id, s.tick, Pose::new(s.x, s.y, s.theta)));
             }
             bodies.saw(s.agent_id, glam::DVec2::new(s.x, s.y), s.tick);
         })?;
+        // With `--follow all`, a robot is followed from the first pose the
+        // roster shows of it, whenever it joined.
+        for (id, tick, pose) in joined {
+            if !followed.contains_key(&id) {
+                let mut robot = setup.follow(&bus, id)?;
+                robot.follower.announced(tick, pose);
+                tracing::info!(robot = id, "SLAM follows a robot that joined");
+                followed.insert(id, robot);
+            }
+        }
         bodies.forget_gone();
         let mut idle = true;
         for (&id, robot) in &mut followed {

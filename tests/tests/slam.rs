@@ -143,6 +143,42 @@ fn slam_pauses_with_its_robot_and_the_swarm_outlives_slam() {
     assert!(exit.success(), "{said}");
 }
 
+/// `--slam all` follows every robot of the swarm, and a robot spawned later
+/// from the moment the roster shows it; `shoal status` reports each one's
+/// steps.
+#[test]
+fn slam_all_follows_every_robot_and_one_that_joins_later() {
+    let _turn = serial();
+    let mut swarm = BackgroundSwarm::start(
+        "e2e-slam-all",
+        &["--agents", "3", "--slam", "all", "--lockstep"],
+    );
+    swarm.wait_alive(3, std::time::Duration::from_secs(30));
+    let name = swarm.name.clone();
+    let all_stepping = |ids: &[u64]| {
+        let s = status(&name);
+        ids.iter().all(|&id| steps(&s, id) > 5)
+    };
+    assert!(
+        wait_until(std::time::Duration::from_secs(30), || all_stepping(&[0, 1, 2])),
+        "SLAM did not follow every robot: {}",
+        status(&name)
+    );
+    let spawned = shoal(&["spawn", "--swarm", &name]);
+    assert!(
+        spawned.status.success(),
+        "{}",
+        String::from_utf8_lossy(&spawned.stderr)
+    );
+    assert!(
+        wait_until(std::time::Duration::from_secs(30), || all_stepping(&[0, 1, 2, 3])),
+        "SLAM did not follow the robot that joined: {}",
+        status(&name)
+    );
+    let (exit, said) = swarm.interrupt();
+    assert!(exit.success(), "{said}");
+}
+
 /// Position errors of robot 0's believed pose against its true pose, from the
 /// TUM files the recorder writes.
 fn belief_errors(tum: &std::path::Path) -> Vec<f64> {

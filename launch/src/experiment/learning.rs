@@ -112,7 +112,7 @@ fn run_once(
     let models = robot_streams::model_subscriber(&bus, 0)?;
     let maps = robot_streams::slam_map_subscriber(&bus)?;
     swarm.follow_with_slam(
-        &[0],
+        &shoal_slam::follow::Follow::Robots(vec![0]),
         &[
             "--particles".into(),
             particles.to_string(),
