@@ -6,8 +6,8 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
-use shoal_diagnose_lab::generate::{Settings, generate};
 use shoal_diagnose::input::{commands_csv, poses_csv};
+use shoal_diagnose_lab::generate::{Settings, generate};
 use shoal_physics::{Effect, ScopedEffect, UnicycleModel};
 
 #[derive(Debug, Serialize)]

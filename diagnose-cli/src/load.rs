@@ -103,13 +103,19 @@ fn load_bag(path: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
             .map(|t| t.name.clone())
             .collect()
     };
-    let (command_topics, pose_topics) = (of(&shoal_bags::ros::COMMAND_TYPES), of(&shoal_bags::ros::POSE_TYPES));
+    let (command_topics, pose_topics) = (
+        of(&shoal_bags::ros::COMMAND_TYPES),
+        of(&shoal_bags::ros::POSE_TYPES),
+    );
     let (commands_topic, poses_topic) = match (&args.commands_topic, &args.poses_topic) {
         (Some(c), Some(p)) => (c.clone(), p.clone()),
         _ => {
             let mut listing = format!("{} holds {} topics:\n", path.display(), topics.len());
             for t in &topics {
-                listing.push_str(&format!("  {}  {}  ({} messages)\n", t.name, t.message_type, t.messages));
+                listing.push_str(&format!(
+                    "  {}  {}  ({} messages)\n",
+                    t.name, t.message_type, t.messages
+                ));
             }
             bail!(
                 "{listing}choose the commands with --commands-topic (Twist or TwistStamped: {}) and the poses with --poses-topic \

@@ -10,10 +10,10 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
-use shoal_diagnose_lab::experiment::{Generator, NoiseColour, case_named, run_case, run_settings};
-use shoal_diagnose_lab::generate::generate;
 use shoal_diagnose::replay::replay;
 use shoal_diagnose::{Options, diagnose};
+use shoal_diagnose_lab::experiment::{Generator, NoiseColour, case_named, run_case, run_settings};
+use shoal_diagnose_lab::generate::generate;
 use shoal_physics::UnicycleModel;
 use shoal_runtime::process_main::{StdoutClosed, print_out};
 
@@ -274,7 +274,13 @@ fn run_generate(args: &GenerateArgs) -> Result<()> {
     };
     let recording = generate(
         &model,
-        &run_settings(&args.generator, case.as_ref(), &args.noise, args.seed, duration),
+        &run_settings(
+            &args.generator,
+            case.as_ref(),
+            &args.noise,
+            args.seed,
+            duration,
+        ),
     );
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
     let (commands, poses) = recording.to_csv();
@@ -289,8 +295,9 @@ fn run_generate(args: &GenerateArgs) -> Result<()> {
         &model.to_toml().context("writing the true model")?,
     )?;
     if args.bag {
-        let bytes = shoal_bags::write::write_bag(&recording.commands.rows(), &recording.poses.rows())
-            .map_err(anyhow::Error::msg)?;
+        let bytes =
+            shoal_bags::write::write_bag(&recording.commands.rows(), &recording.poses.rows())
+                .map_err(anyhow::Error::msg)?;
         let path = out.join("run.mcap");
         std::fs::write(&path, bytes).with_context(|| format!("cannot write {}", path.display()))?;
     }
@@ -380,7 +387,14 @@ fn run_experiment(args: &ExperimentArgs) -> Result<()> {
                 } else {
                     args.seeds
                 };
-                let row = run_case(generator, &case, noise, 1000..1000 + n, args.duration, &options);
+                let row = run_case(
+                    generator,
+                    &case,
+                    noise,
+                    1000..1000 + n,
+                    args.duration,
+                    &options,
+                );
                 eprintln!(
                     "{} / {} / {}: detected {:.0}%, runs naming an effect not there {:.0}%, beyond the noise {:.0}%",
                     row.generator,

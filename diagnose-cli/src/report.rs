@@ -19,7 +19,10 @@ pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
     let mut line = |text: String| {
         let _ = writeln!(out, "{text}");
     };
-    for text in clock_text(notes).into_iter().chain(set_aside_text(&d.glitches)) {
+    for text in clock_text(notes)
+        .into_iter()
+        .chain(set_aside_text(&d.glitches))
+    {
         line(text);
     }
     line(format!(
@@ -41,7 +44,10 @@ pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
         line(format!("  differs by {}", located_text(l)));
     }
     for l in noise {
-        line(format!("  the noise differs (not the motion) by {}", located_text(l)));
+        line(format!(
+            "  the noise differs (not the motion) by {}",
+            located_text(l)
+        ));
     }
     if motion_differs && d.effects.is_empty() {
         line("The mismatch is significant but no effect of the library explains it.".into());
@@ -105,7 +111,12 @@ pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
 fn located_text(l: &Located) -> String {
     let place = l
         .region
-        .map(|r| format!(" in [{:.1}, {:.1}]-[{:.1}, {:.1}] m", r[0], r[1], r[2], r[3]))
+        .map(|r| {
+            format!(
+                " in [{:.1}, {:.1}]-[{:.1}, {:.1}] m",
+                r[0], r[1], r[2], r[3]
+            )
+        })
         .unwrap_or_default();
     format!(
         "{}: {:.0}-{:.0} s{place}, {} ({} residual, z {:.1}, p {:.1e})",
@@ -148,8 +159,16 @@ fn set_aside_text(glitches: &[Glitch]) -> Option<String> {
             "{} {} ({}{}, from {:.1} to {:.1} s: {}{})",
             of.len(),
             kind.describe(),
-            if frames > 0 { format!("{frames} poses") } else { "no poses".to_owned() },
-            if largest > 0.0 { format!(", up to {largest:.2} m") } else { String::new() },
+            if frames > 0 {
+                format!("{frames} poses")
+            } else {
+                "no poses".to_owned()
+            },
+            if largest > 0.0 {
+                format!(", up to {largest:.2} m")
+            } else {
+                String::new()
+            },
             first.t_start,
             last.t_end,
             times.join(", "),
@@ -236,7 +255,8 @@ pub fn experiment_table(out: &mut dyn std::io::Write, rows: &[Row]) -> std::io::
             percent(r.false_positive_interval),
             r.beyond_noise_rate * 100.0,
             percent(r.beyond_noise_interval),
-            r.param_error.map_or("-".into(), |e| format!("{:.0}%", e * 100.0)),
+            r.param_error
+                .map_or("-".into(), |e| format!("{:.0}%", e * 100.0)),
             r.heldout_rmse_pos_m_before * 1e3,
             r.heldout_rmse_pos_m_after * 1e3,
             r.seconds_per_run
@@ -267,7 +287,8 @@ pub fn experiment_table(out: &mut dyn std::io::Write, rows: &[Row]) -> std::io::
         let false_positive =
             count(&|r| r.false_positive_rate, false) + count(&|r| r.false_positive_rate, true);
         let beyond = count(&|r| r.beyond_noise_rate, true);
-        let share = |k: usize, n: usize| format!("{k} of {n} ({:.0}%)", 100.0 * k as f64 / n.max(1) as f64);
+        let share =
+            |k: usize, n: usize| format!("{k} of {n} ({:.0}%)", 100.0 * k as f64 / n.max(1) as f64);
         writeln!(
             out,
             "| {generator} | {} | {} | {} | {} | {}, {} | {}, {} |",

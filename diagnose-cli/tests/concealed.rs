@@ -157,7 +157,8 @@ fn each_concealed_effect_is_named_on_one_seed() {
 
 #[test]
 fn two_effects_together_are_both_found_and_the_written_model_explains_the_run() {
-    let case = case_named(&Generator::bench(), "speed_scale+external_flow", DURATION_S).expect("pair case");
+    let case = case_named(&Generator::bench(), "speed_scale+external_flow", DURATION_S)
+        .expect("pair case");
     let (d, dir) = diagnose_generated("pair", &truth_toml(&case), &["--rrd", "diagnosis.rrd"]);
     let found = kinds(&d);
     assert!(
@@ -514,20 +515,61 @@ fn gazebo_bags_in_sqlite3_mcap_split_and_compressed_are_diagnosed_on_one_clock()
     // Commands arrive 2 ms after they were sent, poses 4 ms after they were
     // made, /clock 1 ms after its time: how far each clock moves the delay.
     for (name, options, commands_timed, shift) in [
-        ("db3", &[][..], "log times mapped into simulation time through /clock", -0.001),
-        ("mcap", &["storage=mcap"][..], "log times mapped into simulation time through /clock", -0.001),
-        ("split", &["split=3"][..], "log times mapped into simulation time through /clock", -0.001),
-        ("zfile", &["compression=file"][..], "log times mapped into simulation time through /clock", -0.001),
-        ("zmsg", &["compression=message", "storage=mcap"][..], "log times mapped into simulation time through /clock", -0.001),
+        (
+            "db3",
+            &[][..],
+            "log times mapped into simulation time through /clock",
+            -0.001,
+        ),
+        (
+            "mcap",
+            &["storage=mcap"][..],
+            "log times mapped into simulation time through /clock",
+            -0.001,
+        ),
+        (
+            "split",
+            &["split=3"][..],
+            "log times mapped into simulation time through /clock",
+            -0.001,
+        ),
+        (
+            "zfile",
+            &["compression=file"][..],
+            "log times mapped into simulation time through /clock",
+            -0.001,
+        ),
+        (
+            "zmsg",
+            &["compression=message", "storage=mcap"][..],
+            "log times mapped into simulation time through /clock",
+            -0.001,
+        ),
         ("noclock", &["clock=no"][..], "the bag's log times", 0.002),
-        ("slow", &["clock=no", "rtf=0.5"][..], "log times mapped into the other topic's stamp clock", 0.001),
-        ("v9", &["version=9"][..], "log times mapped into simulation time through /clock", -0.001),
+        (
+            "slow",
+            &["clock=no", "rtf=0.5"][..],
+            "log times mapped into the other topic's stamp clock",
+            0.001,
+        ),
+        (
+            "v9",
+            &["version=9"][..],
+            "log times mapped into simulation time through /clock",
+            -0.001,
+        ),
     ] {
         let bag = write_gazebo_bag(&dir, name, options);
         // The bag as a positional argument, as a user types it.
         let output = Command::new(binary())
             .arg(&bag)
-            .args(["--commands-topic", "/cmd_vel", "--poses-topic", "/odom", "--json"])
+            .args([
+                "--commands-topic",
+                "/cmd_vel",
+                "--poses-topic",
+                "/odom",
+                "--json",
+            ])
             .output()
             .expect("run shoal-diagnose");
         let stderr = String::from_utf8_lossy(&output.stderr);
@@ -535,10 +577,22 @@ fn gazebo_bags_in_sqlite3_mcap_split_and_compressed_are_diagnosed_on_one_clock()
         let d: Value = serde_json::from_slice(&output.stdout).expect("JSON");
         let clock = &d["input"]["clock"];
         assert_eq!(clock["commands"], commands_timed, "{name}: {clock}");
-        assert!(clock["reason"].as_str().is_some_and(|r| !r.is_empty()), "{clock}");
-        assert!(clock["delay"].as_str().is_some_and(|r| r.contains("delay")), "{clock}");
-        assert_eq!(kinds(&d).first().map(String::as_str), Some("latency"), "{name}: {d}");
-        let fitted = d["effects"][0]["params"]["seconds"].as_f64().expect("seconds");
+        assert!(
+            clock["reason"].as_str().is_some_and(|r| !r.is_empty()),
+            "{clock}"
+        );
+        assert!(
+            clock["delay"].as_str().is_some_and(|r| r.contains("delay")),
+            "{clock}"
+        );
+        assert_eq!(
+            kinds(&d).first().map(String::as_str),
+            Some("latency"),
+            "{name}: {d}"
+        );
+        let fitted = d["effects"][0]["params"]["seconds"]
+            .as_f64()
+            .expect("seconds");
         assert!(
             (fitted - (from_csv + shift)).abs() < 0.003,
             "{name}: {fitted} s, the CSV's {from_csv} s moved by {shift} s"
@@ -561,7 +615,15 @@ fn gazebo_bags_in_sqlite3_mcap_split_and_compressed_are_diagnosed_on_one_clock()
     // The user's word on the clock is taken.
     let output = Command::new(binary())
         .arg(dir.join("db3"))
-        .args(["--commands-topic", "/cmd_vel", "--poses-topic", "/odom", "--json", "--stamps", "log"])
+        .args([
+            "--commands-topic",
+            "/cmd_vel",
+            "--poses-topic",
+            "/odom",
+            "--json",
+            "--stamps",
+            "log",
+        ])
         .output()
         .expect("run shoal-diagnose");
     let d: Value = serde_json::from_slice(&output.stdout).expect("JSON");
@@ -585,7 +647,8 @@ fn motion_capture_glitches_are_set_aside_reported_and_never_fitted() {
     for (k, t) in times.iter().enumerate() {
         if *t >= next && *t < 290.0 {
             for row in k..k + 1 + injected % 3 {
-                let mut fields: Vec<String> = lines[row + 1].split(',').map(str::to_owned).collect();
+                let mut fields: Vec<String> =
+                    lines[row + 1].split(',').map(str::to_owned).collect();
                 let y: f64 = fields[2].parse().expect("y");
                 fields[2] = format!("{:.6}", y + 0.2);
                 lines[row + 1] = fields.join(",");
@@ -609,7 +672,11 @@ fn motion_capture_glitches_are_set_aside_reported_and_never_fitted() {
     let glitches = d["glitches"].as_array().expect("glitches");
     assert_eq!(glitches.len(), injected, "{glitches:?}");
     assert!(glitches.iter().all(|g| g["kind"] == "jump_and_return"));
-    assert!(glitches.iter().all(|g| (g["t_start"].as_f64().expect("t") - 245.0).abs() < 46.0));
+    assert!(
+        glitches
+            .iter()
+            .all(|g| (g["t_start"].as_f64().expect("t") - 245.0).abs() < 46.0)
+    );
     // Fitted on what is left, the physics is the clean run's.
     assert_eq!(kinds(&d), kinds(&clean), "{d}");
     // The report says what was set aside, and so does the recording.
@@ -631,7 +698,15 @@ fn mrclam_parts(dir: &Path, parts: usize) -> Vec<PathBuf> {
             .expect("MRCLAM file")
             .lines()
             .filter(|l| !l.starts_with('#'))
-            .map(|l| (l.split_whitespace().next().and_then(|t| t.parse().ok()).expect("time"), l.to_owned()))
+            .map(|l| {
+                (
+                    l.split_whitespace()
+                        .next()
+                        .and_then(|t| t.parse().ok())
+                        .expect("time"),
+                    l.to_owned(),
+                )
+            })
             .collect()
     };
     let (odometry, truth) = (read("Robot3_Odometry.dat"), read("Robot3_Groundtruth.dat"));
@@ -642,13 +717,20 @@ fn mrclam_parts(dir: &Path, parts: usize) -> Vec<PathBuf> {
             let (lo, hi) = (start + k as f64 * span, start + (k + 1) as f64 * span);
             let folder = dir.join(format!("part{k}"));
             std::fs::create_dir_all(&folder).expect("folder");
-            for (name, rows, margin) in [("Robot3_Odometry.dat", &odometry, 0.0), ("Robot3_Groundtruth.dat", &truth, 1.0)] {
+            for (name, rows, margin) in [
+                ("Robot3_Odometry.dat", &odometry, 0.0),
+                ("Robot3_Groundtruth.dat", &truth, 1.0),
+            ] {
                 let kept: Vec<&str> = rows
                     .iter()
                     .filter(|(t, _)| (lo - margin..hi + margin).contains(t))
                     .map(|(_, l)| l.as_str())
                     .collect();
-                std::fs::write(folder.join(name), format!("#\n#\n#\n#\n{}\n", kept.join("\n"))).expect("write");
+                std::fs::write(
+                    folder.join(name),
+                    format!("#\n#\n#\n#\n{}\n", kept.join("\n")),
+                )
+                .expect("write");
             }
             folder
         })
@@ -680,7 +762,10 @@ fn physics_fitted_on_one_stretch_of_a_real_robot_holds_on_the_other() {
         );
         let plain = held_out(&parts[to], None);
         let with = held_out(&parts[to], Some(&out.join("model.toml")));
-        assert!(with <= plain, "half {from}'s model on half {to}: {with} vs plain {plain}");
+        assert!(
+            with <= plain,
+            "half {from}'s model on half {to}: {with} vs plain {plain}"
+        );
     }
     // Both halves as one: each is a held-out block, predicted better by
     // the joint model fitted on the other.
@@ -690,11 +775,18 @@ fn physics_fitted_on_one_stretch_of_a_real_robot_holds_on_the_other() {
             .args(["--robot", "3", "--json"]),
     ))
     .expect("JSON");
-    assert_eq!(d["input"]["recordings"].as_array().map(Vec::len), Some(2), "{d}");
+    assert_eq!(
+        d["input"]["recordings"].as_array().map(Vec::len),
+        Some(2),
+        "{d}"
+    );
     let blocks = d["blocks"].as_array().expect("blocks");
     assert_eq!(blocks.len(), 2, "{d}");
     for block in blocks {
-        let (input, fitted) = (block["input_rmse_pos_m"].as_f64().expect("input"), block["fitted_rmse_pos_m"].as_f64().expect("fitted"));
+        let (input, fitted) = (
+            block["input_rmse_pos_m"].as_f64().expect("input"),
+            block["fitted_rmse_pos_m"].as_f64().expect("fitted"),
+        );
         assert!(fitted < 0.9 * input, "{block}");
     }
 }
@@ -716,15 +808,29 @@ fn runs_written_by_pandas_and_by_the_rerun_python_sdk_are_diagnosed_as_shoal_wri
 
     let pandas = dir.join("pandas");
     std::fs::create_dir_all(&pandas).expect("pandas folder");
-    python("write_pandas_csv.py", &[dir.as_os_str(), pandas.as_os_str()]);
+    python(
+        "write_pandas_csv.py",
+        &[dir.as_os_str(), pandas.as_os_str()],
+    );
     let head = std::fs::read(pandas.join("poses.csv")).expect("pandas poses");
-    assert!(head.starts_with(b"\xEF\xBB\xBF,t,theta,x,y,quality\r\n"), "{:?}", &head[..40]);
+    assert!(
+        head.starts_with(b"\xEF\xBB\xBF,t,theta,x,y,quality\r\n"),
+        "{:?}",
+        &head[..40]
+    );
     let from_pandas = diagnose_dir(&pandas, &[]);
-    assert_eq!(kinds(&from_pandas), named, "pandas' files diagnose as Shoal's");
+    assert_eq!(
+        kinds(&from_pandas),
+        named,
+        "pandas' files diagnose as Shoal's"
+    );
     assert_eq!(from_pandas["segments"], from_shoal["segments"]);
 
     let rrd = dir.join("python-sdk.rrd");
-    python("write_rrd.py", &[dir.as_os_str(), rrd.as_os_str(), "7".as_ref()]);
+    python(
+        "write_rrd.py",
+        &[dir.as_os_str(), rrd.as_os_str(), "7".as_ref()],
+    );
     let stdout = succeed(
         Command::new(binary())
             .arg(&rrd)
@@ -735,7 +841,8 @@ fn runs_written_by_pandas_and_by_the_rerun_python_sdk_are_diagnosed_as_shoal_wri
     // The SDK's file holds each pose with the command held before it, on
     // the pose's clock, so the segments differ a little; the physics not.
     assert!(
-        named_rrd.iter().any(|k| k == "speed_scale") && named_rrd.iter().any(|k| k == "external_flow"),
+        named_rrd.iter().any(|k| k == "speed_scale")
+            && named_rrd.iter().any(|k| k == "external_flow"),
         "the Rerun Python SDK's recording: {named_rrd:?}"
     );
 }

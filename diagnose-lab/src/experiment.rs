@@ -278,28 +278,62 @@ pub fn independent_cases(duration_s: f64) -> Vec<Case> {
     let together = "effects acting together";
     vec![
         case("null", "no effect", vec![]),
-        case("speed_scale", above, always(Effect::SpeedScale { factor: 1.05 })),
-        case("turn_scale", above, always(Effect::TurnScale { factor: 1.08 })),
+        case(
+            "speed_scale",
+            above,
+            always(Effect::SpeedScale { factor: 1.05 }),
+        ),
+        case(
+            "turn_scale",
+            above,
+            always(Effect::TurnScale { factor: 1.08 }),
+        ),
         case("latency", other, always(Effect::Latency { seconds: 0.08 })),
-        case("accel_limit", other, always(Effect::AccelLimit { m_per_s2: 0.5 })),
+        case(
+            "accel_limit",
+            other,
+            always(Effect::AccelLimit { m_per_s2: 0.5 }),
+        ),
         case("slip", other, always(Effect::Slip { per_m_per_s: 0.25 })),
-        case("heading_drift", other, always(Effect::HeadingDrift { rad_per_m: -0.03 })),
-        case("battery_fade", other, always(Effect::BatteryFade { per_minute: 0.012 })),
+        case(
+            "heading_drift",
+            other,
+            always(Effect::HeadingDrift { rad_per_m: -0.03 }),
+        ),
+        case(
+            "battery_fade",
+            other,
+            always(Effect::BatteryFade { per_minute: 0.012 }),
+        ),
         case(
             "external_flow",
             other,
-            always(Effect::ExternalFlow { vx: -0.005, vy: 0.006 }),
+            always(Effect::ExternalFlow {
+                vx: -0.005,
+                vy: 0.006,
+            }),
         ),
-        case("hysteresis", other, always(Effect::Hysteresis { play_rad_per_s: 0.06 })),
+        case(
+            "hysteresis",
+            other,
+            always(Effect::Hysteresis {
+                play_rad_per_s: 0.06,
+            }),
+        ),
         case(
             "turn_speed_loss",
             other,
-            always(Effect::TurnSpeedLoss { per_rad_per_s: 0.12 }),
+            always(Effect::TurnSpeedLoss {
+                per_rad_per_s: 0.12,
+            }),
         ),
         case(
             "turn_centre_offset",
             other,
-            always(Effect::TurnCentreOffset { forward_m: -0.03, left_m: 0.015 }),
+            always(Effect::TurnCentreOffset {
+                forward_m: -0.03,
+                left_m: 0.015,
+            }),
         ),
         case(
             "turn_bias",
@@ -324,7 +358,9 @@ pub fn independent_cases(duration_s: f64) -> Vec<Case> {
             vec![
                 ScopedEffect::always(Effect::Latency { seconds: 0.08 }),
                 ScopedEffect::always(Effect::TurnScale { factor: 1.06 }),
-                ScopedEffect::always(Effect::TurnSpeedLoss { per_rad_per_s: 0.12 }),
+                ScopedEffect::always(Effect::TurnSpeedLoss {
+                    per_rad_per_s: 0.12,
+                }),
             ],
         ),
         case(
@@ -581,7 +617,10 @@ fn run_one(
     options: &Options,
 ) -> RunFindings {
     let truth = UnicycleModel::with_effects(case.truth.clone());
-    let recording = generate(&truth, &run_settings(generator, Some(case), noise, seed, duration_s));
+    let recording = generate(
+        &truth,
+        &run_settings(generator, Some(case), noise, seed, duration_s),
+    );
     let started = std::time::Instant::now();
     let diagnosis = diagnose(&recording, &UnicycleModel::plain(), options);
     let seconds = started.elapsed().as_secs_f64();
@@ -606,9 +645,10 @@ fn run_one(
         .filter(|l| l.component != "spread")
         .map(|l| format!("{} {}", l.family, l.component))
         .collect();
-    let false_positive = diagnosis.effects.iter().any(|e| {
-        !is_true(e.kind) && !e.alternatives.iter().any(|a| true_kinds.contains(&a.kind))
-    });
+    let false_positive = diagnosis
+        .effects
+        .iter()
+        .any(|e| !is_true(e.kind) && !e.alternatives.iter().any(|a| true_kinds.contains(&a.kind)));
     // A located difference is explained when a true effect was named.
     let unexplained_motion = (!located_in_motion.is_empty() || !diagnosis.unexplained.is_empty())
         && !kinds.iter().any(|k| true_kinds.contains(k));
@@ -616,14 +656,19 @@ fn run_one(
         detected: !true_kinds.is_empty() && true_kinds.iter().all(|k| kinds.contains(k)),
         shown,
         named_or_tied: !true_kinds.is_empty()
-            && true_kinds.iter().all(|k| kinds.contains(k) || tied.contains(k)),
+            && true_kinds
+                .iter()
+                .all(|k| kinds.contains(k) || tied.contains(k)),
         false_positive,
         beyond_noise: false_positive || unexplained_motion,
         param_errors: case
             .truth
             .iter()
             .filter_map(|t| {
-                let found = diagnosis.effects.iter().find(|f| f.kind == t.effect.kind())?;
+                let found = diagnosis
+                    .effects
+                    .iter()
+                    .find(|f| f.kind == t.effect.kind())?;
                 Some(param_error(&t.effect, &found.scoped.effect))
             })
             .collect(),

@@ -216,7 +216,8 @@ impl OperatorState {
         let error = wrap_angle((y - pose.y).atan2(x - pose.x) - pose.theta);
         let distance = (x - pose.x).hypot(y - pose.y);
         let omega = (1.5 * error).clamp(-settings.max_turn, settings.max_turn);
-        let v = share * settings.max_speed * error.cos().max(0.0).powi(2) * (distance / 0.6).min(1.0);
+        let v =
+            share * settings.max_speed * error.cos().max(0.0).powi(2) * (distance / 0.6).min(1.0);
         (v, omega)
     }
 }

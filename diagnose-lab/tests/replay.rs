@@ -35,9 +35,8 @@ fn the_replay_predicts_what_diagnosis_scored() {
     assert_eq!(s.input.t.len(), s.input.path.len());
     // The plain model overshoots a body that drives at 80%: its along
     // residual is negative and far larger than the true model's.
-    let mean_along = |f: fn(&SegmentReplay) -> f64| {
-        segments.iter().map(f).sum::<f64>() / segments.len() as f64
-    };
+    let mean_along =
+        |f: fn(&SegmentReplay) -> f64| segments.iter().map(f).sum::<f64>() / segments.len() as f64;
     let input = mean_along(|s| s.input.residual[0]);
     let fitted = mean_along(|s| s.fitted.residual[0]);
     assert!(input < -0.005, "plain along residual {input}");

@@ -373,15 +373,14 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
     let noise_correlation = long_run_factors_of_noise(segs, &plain_standardised);
     let operating_point = OperatingPoint::of(segs);
     let located = locate(segs, &plain_standardised, noise_correlation, options.alpha);
-    let mut selection = Selection {
+    let selection = Selection {
         prepared: &prepared,
         screen: subsample(segs, options.screen_segments),
         fixed: model.effects.clone(),
-        lens: None,
+        usual_speed: operating_point.speed_m_per_s,
         duration,
         options,
     };
-    selection.fit_lens();
     let Selected {
         found,
         evidence,

@@ -4,7 +4,7 @@
 
 use serde::Serialize;
 use shoal_physics::effects::EFFECT_KINDS;
-use shoal_physics::{CommandGrid, ScopedEffect, UnicycleModel};
+use shoal_physics::{CommandGrid, Effect, ScopedEffect, UnicycleModel};
 use statrs::distribution::{ChiSquared, ContinuousCDF, FisherSnedecor};
 
 use crate::candidates::extra_params;
@@ -120,16 +120,23 @@ pub(crate) fn calibrated_gain(
     candidate: &ScopedEffect,
     factors: [f64; 3],
 ) -> f64 {
-    let nll = components_of(
-        grid,
-        segs,
-        &base
-            .iter()
-            .cloned()
-            .chain([candidate.clone()])
-            .collect::<Vec<_>>(),
-    );
-    let gain: f64 = (0..3).map(|c| (nll[c] - base_nll[c]) / factors[c]).sum();
+    let with: Vec<ScopedEffect> = base.iter().cloned().chain([candidate.clone()]).collect();
+    calibrated_gain_of_move(grid, segs, base_nll, &with, candidate, factors)
+}
+
+/// [`calibrated_gain`] of a move from the model whose components' NLL is
+/// `without_nll` to the model `with`, which adds `candidate` and may have
+/// refitted the rest.
+pub(crate) fn calibrated_gain_of_move(
+    grid: &CommandGrid,
+    segs: &[Segment],
+    without_nll: [f64; 3],
+    with: &[ScopedEffect],
+    candidate: &ScopedEffect,
+    factors: [f64; 3],
+) -> f64 {
+    let nll = components_of(grid, segs, with);
+    let gain: f64 = (0..3).map(|c| (nll[c] - without_nll[c]) / factors[c]).sum();
     2.0 * gain + extra_params(candidate) as f64 * log_n_eff(segs, factors)
 }
 
@@ -153,6 +160,20 @@ pub(crate) fn entry_test(
     segs: &[Segment],
     base: &[ScopedEffect],
     candidate: &ScopedEffect,
+    judged: (f64, [LongRun; 3]),
+    options: &Options,
+) -> EntryTest {
+    let with: Vec<ScopedEffect> = base.iter().cloned().chain([candidate.clone()]).collect();
+    entry_test_of_move(grid, segs, (base, &with), candidate, judged, options)
+}
+
+/// [`entry_test`] of a move from `without` to `with`, which adds
+/// `candidate` and may have refitted the rest beside it.
+pub(crate) fn entry_test_of_move(
+    grid: &CommandGrid,
+    segs: &[Segment],
+    (without, with): (&[ScopedEffect], &[ScopedEffect]),
+    candidate: &ScopedEffect,
     (delta_bic, long_runs): (f64, [LongRun; 3]),
     options: &Options,
 ) -> EntryTest {
@@ -163,7 +184,7 @@ pub(crate) fn entry_test(
     // counts, as either kernel estimate can fall short of a persistent
     // noise's long-run variance.
     let by_components = dof as f64 * log_n_eff(segs, factors) - delta_bic;
-    let (robust, long_run) = robust_chi2(grid, segs, base, candidate);
+    let robust = robust_chi2(grid, segs, (without, with), candidate);
     // Each statistic is held to the fixed-b threshold of its estimate (see
     // [`LongRun::dof`]; for the components', the roughest of the three):
     // stated on the χ² scale, it is shrunk by how much that threshold
@@ -176,7 +197,10 @@ pub(crate) fn entry_test(
         .iter()
         .map(|l| l.dof)
         .fold(f64::INFINITY, f64::min);
-    let chi2 = on_chi2_scale(by_components, roughest).min(on_chi2_scale(robust, long_run.dof));
+    let chi2 = robust
+        .iter()
+        .map(|(statistic, long_run)| on_chi2_scale(*statistic, long_run.dof))
+        .fold(on_chi2_scale(by_components, roughest), f64::min);
     let p = ChiSquared::new(dof.max(1) as f64).map_or(1.0, |d| d.sf(chi2.max(0.0)));
     EntryTest {
         chi2,
@@ -188,52 +212,138 @@ pub(crate) fn entry_test(
     }
 }
 
-/// The likelihood-ratio statistic of adding `candidate` to `base`, made
-/// robust to correlation in time: twice the log-likelihood gain divided by
-/// the long-run variance factor of the gain's own per-segment series. To
-/// first order that series is the candidate's score along the fitted
-/// change, so this is the sandwich (HAC) correction of the test for this
-/// effect: an effect whose signal changes sign with the turn rate is not
-/// charged for the slow drift of the noise, and one that follows the
-/// speed is charged for exactly the drift it can absorb.
+/// Two statistics of the move from `without` to `with` (which adds
+/// `candidate`), each with how its variance was estimated; the entry test
+/// takes the smaller. The first is robust to correlation in time: twice
+/// the log-likelihood gain divided by the long-run variance factor of the
+/// gain's own per-segment series. To first order that series is the
+/// candidate's score along the fitted change, so this is the HAC
+/// correction of the test for this effect: an effect whose signal changes
+/// sign with the turn rate is not charged for the slow drift of the noise,
+/// and one that follows the speed is charged for exactly the drift it can
+/// absorb. The second is robust to noise the model gets wrong (see
+/// [`sandwich_wald`]).
 pub(crate) fn robust_chi2(
     grid: &CommandGrid,
     segs: &[Segment],
-    base: &[ScopedEffect],
+    (without, with): (&[ScopedEffect], &[ScopedEffect]),
     candidate: &ScopedEffect,
-) -> (f64, LongRun) {
+) -> [(f64, LongRun); 2] {
     let per_segment = |effects: Vec<ScopedEffect>| {
         let model = UnicycleModel::with_effects(effects);
         let r = residuals(&model, grid, segs);
         let noise = estimate_noise(&model, segs, &r);
         segment_nll(&model, &noise, segs, &r)
     };
-    let without = per_segment(base.to_vec());
-    let with = per_segment(base.iter().cloned().chain([candidate.clone()]).collect());
-    let gains: Vec<f64> = without.iter().zip(&with).map(|(a, b)| a - b).collect();
+    let gains: Vec<f64> = per_segment(without.to_vec())
+        .iter()
+        .zip(per_segment(with.to_vec()))
+        .map(|(a, b)| a - b)
+        .collect();
     let long_run = long_run_factor(segs, &gains);
-    let total: f64 = gains.iter().sum();
-    (
-        2.0 * total / (long_run.factor * misspecification(&gains, total)),
-        long_run,
-    )
+    let likelihood_ratio = 2.0 * gains.iter().sum::<f64>();
+    [
+        (likelihood_ratio / long_run.factor, long_run),
+        sandwich_wald(grid, segs, with, candidate),
+    ]
 }
 
-/// How much more the per-segment gains vary than the noise model says they
-/// should, at least 1. Where the model's noise is right, the gains' spread
-/// is twice their sum, for an effect of any number of parameters (each
-/// gain is, to first order, the score along the fitted change). Noise that
-/// the model gets wrong (growing with the square of the speed, or larger in
-/// some stretches) makes a few segments' gains dominate the sum; dividing
-/// by this ratio is the sandwich correction for it (Huber 1967, White
-/// 1982), the part the correlation in time does not already cover.
-pub(crate) fn misspecification(gains: &[f64], total: f64) -> f64 {
-    if total <= 0.0 || gains.is_empty() {
-        return 1.0;
+/// The step, as a share of the candidate's fitted change from the plain
+/// model, over which [`misspecification`] takes its derivatives.
+const SANDWICH_STEP: f64 = 0.1;
+
+/// The robust Wald statistic of the candidate along its fitted change, and
+/// how the score's long-run variance was estimated: the squared distance
+/// from the plain model to the fit over its sandwich variance J / I^2, with
+/// I the likelihood's curvature and J the score's long-run variance (HAC,
+/// so correlation in time counts too), both at the fit (Huber 1967, White
+/// 1982). Where the model's noise is right
+/// and white, the scores' spread equals the likelihood's curvature; noise
+/// that the model gets wrong (growing with the square of the speed, larger
+/// in some stretches) makes a few segments carry the evidence, and the
+/// statistic shrinks by as much. Taken at the fit, not at the plain model,
+/// whose unexplained mismatch would count as noise (mud that slows a robot
+/// would count against the mud); from the score, whose mean there is zero,
+/// not from the likelihood gains, whose long-run variance a patch the
+/// robot stays in for a while inflates by itself; and as a Wald statistic,
+/// not a likelihood ratio divided by J / I, which for a large effect stops
+/// growing once the noise estimate of the model without it absorbs it.
+pub(crate) fn sandwich_wald(
+    grid: &CommandGrid,
+    segs: &[Segment],
+    with: &[ScopedEffect],
+    candidate: &ScopedEffect,
+) -> (f64, LongRun) {
+    // Without a direction to test along, the statistic says nothing.
+    let plain = LongRun {
+        factor: 1.0,
+        dof: segs.len() as f64,
+    };
+    let Some(at) = with.iter().position(|e| e == candidate) else {
+        return (f64::INFINITY, plain);
+    };
+    let region = match candidate.effect {
+        Effect::SurfaceZone { region, .. } => region,
+        _ => [0.0; 4],
+    };
+    let Some(identity) = Effect::identity(candidate.effect.kind(), region) else {
+        return (f64::INFINITY, plain);
+    };
+    let fitted: Vec<f64> = candidate.effect.params().iter().map(|(_, v)| *v).collect();
+    let identity: Vec<f64> = identity.params().iter().map(|(_, v)| *v).collect();
+    if fitted
+        .iter()
+        .zip(&identity)
+        .all(|(a, b)| (a - b).abs() < 1e-12)
+    {
+        return (0.0, plain);
     }
-    let mean = total / gains.len() as f64;
-    let spread: f64 = gains.iter().map(|g| (g - mean).powi(2)).sum();
-    (spread / (2.0 * total)).max(1.0)
+    let model = UnicycleModel::with_effects(with.to_vec());
+    let noise = estimate_noise(&model, segs, &residuals(&model, grid, segs));
+    // Per-segment NLL with the candidate moved `share` of its change along
+    // its direction, the noise held at the fit's.
+    let moved = |share: f64| {
+        let values: Vec<f64> = fitted
+            .iter()
+            .zip(&identity)
+            .map(|(f, p)| f + share * (f - p))
+            .collect();
+        let mut effects = with.to_vec();
+        effects[at] = ScopedEffect {
+            effect: candidate.effect.with_params(&values),
+            during: candidate.during,
+        };
+        let model = UnicycleModel::with_effects(effects);
+        segment_nll(&model, &noise, segs, &residuals(&model, grid, segs))
+    };
+    let (ahead, here, behind) = (moved(SANDWICH_STEP), moved(0.0), moved(-SANDWICH_STEP));
+    let scores: Vec<f64> = ahead
+        .iter()
+        .zip(&behind)
+        .map(|(a, b)| (a - b) / (2.0 * SANDWICH_STEP))
+        .collect();
+    let curvature: f64 = ahead
+        .iter()
+        .zip(&here)
+        .zip(&behind)
+        .map(|((a, h), b)| (a + b - 2.0 * h) / (SANDWICH_STEP * SANDWICH_STEP))
+        .sum();
+    // Correlation in time is the other statistic's to correct (the gains'
+    // long-run factor); counted here too, a robot that stays in a patch
+    // for a while would pay for it twice.
+    let long_run = LongRun {
+        factor: 1.0,
+        dof: segs.len() as f64,
+    };
+    let spread: f64 = scores.iter().map(|s| s * s).sum::<f64>();
+    if !(curvature > 0.0) {
+        return (0.0, long_run);
+    }
+    // The Wald statistic of the step from the plain model (share 0) to the
+    // fit (share 1), with the sandwich variance J / I^2 of the share; never
+    // more than the curvature alone, so noise the model overstates does not
+    // count for the effect.
+    (curvature / (spread / curvature).max(1.0), long_run)
 }
 
 /// [`entry_threshold`] for a statistic whose long-run variance was

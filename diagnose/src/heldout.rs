@@ -265,7 +265,7 @@ pub(crate) fn transferable(
 /// (positive: the effect predicts that unseen block better).
 pub(crate) fn heldout_gain(
     prepared: &Prepared,
-    base: &[ScopedEffect],
+    (without, with_fixed): (&[ScopedEffect], &[ScopedEffect]),
     candidate: &ScopedEffect,
     options: &Options,
 ) -> Vec<f64> {
@@ -273,11 +273,30 @@ pub(crate) fn heldout_gain(
         let with = refit_on(
             prepared,
             train,
-            base,
+            with_fixed,
             std::slice::from_ref(candidate),
             options,
         );
-        predict_heldout(prepared, train, test, base.to_vec()).0
+        predict_heldout(prepared, train, test, without.to_vec()).0
+            - predict_heldout(prepared, train, test, with).0
+    })
+}
+
+/// [`heldout_gain`] of a move that adds `candidate` to `found` and refits
+/// them together: on each fold, the model with it and the model without it
+/// are both refitted on the training blocks alone.
+pub(crate) fn heldout_gain_of_joint(
+    prepared: &Prepared,
+    (without_fixed, with_fixed): (&[ScopedEffect], &[ScopedEffect]),
+    found: &[ScopedEffect],
+    candidate: &ScopedEffect,
+    options: &Options,
+) -> Vec<f64> {
+    let together: Vec<ScopedEffect> = found.iter().cloned().chain([candidate.clone()]).collect();
+    on_folds(prepared, |train, test| {
+        let without = refit_on(prepared, train, without_fixed, found, options);
+        let with = refit_on(prepared, train, with_fixed, &together, options);
+        predict_heldout(prepared, train, test, without).0
             - predict_heldout(prepared, train, test, with).0
     })
 }

@@ -2,13 +2,18 @@
 //! passes the entry test, is physical, and predicts held-out blocks better;
 //! effects that others do as well without are pruned.
 
+use shoal_physics::effects::EFFECT_KINDS;
 use shoal_physics::{CommandGrid, Effect, ScopedEffect};
 
 use crate::candidates::{candidates, extra_params, fit_all, narrower_scope};
 use crate::diagnosis::{Alternative, OperatingPoint, Options, Prepared, Unexplained};
-use crate::entry::{EntryTest, calibrated_gain, components_of, entry_test, factors_with};
+use crate::entry::{
+    EntryTest, calibrated_gain, calibrated_gain_of_move, components_of, entry_test_of_move,
+    factors_with,
+};
 use crate::fit::{fit, nll_of};
-use crate::heldout::{CONTRADICTION_NATS, heldout_gain, must_transfer};
+use crate::heldout::{CONTRADICTION_NATS, heldout_gain, heldout_gain_of_joint, must_transfer};
+use crate::likelihood::LongRun;
 use crate::locate::Located;
 use crate::segments::Segment;
 use crate::zones::{is_whole_floor, refine_zone, zone_of_span};
@@ -75,9 +80,8 @@ pub(crate) struct Selection<'a> {
     pub(crate) screen: Vec<Segment>,
     /// The effects of the model under diagnosis.
     pub(crate) fixed: Vec<ScopedEffect>,
-    /// Noise that grows with speed, fitted to the model under diagnosis but
-    /// never named by itself (see [`Selection::judged_with`]).
-    pub(crate) lens: Option<ScopedEffect>,
+    /// Where speed-dependent noise starts its fit (see [`Selection::lensed`]).
+    pub(crate) usual_speed: f64,
     pub(crate) duration: f64,
     pub(crate) options: &'a Options,
 }
@@ -87,42 +91,88 @@ pub(crate) struct Selection<'a> {
 pub(crate) const LENS_MIN_SHARE: f64 = 0.05;
 
 impl Selection<'_> {
-    /// `base` as tests judge a candidate against it: with noise that grows
-    /// with speed, unless `base` already has a noise effect. Mean effects
-    /// are named before noise ones (see [`select`]), so without the lens a
-    /// robot whose noise grows with its speed would have every candidate
-    /// judged by a noise model that weighs its fast, noisy seconds like its
-    /// slow ones: its per-segment gains then swing, and one held-out block
-    /// can seem to contradict a true effect (feasible generalised least
-    /// squares: estimate the variance first, then weigh by it).
-    fn judged_with(&self, base: &[ScopedEffect], candidate: &ScopedEffect) -> Vec<ScopedEffect> {
-        let mut out = base.to_vec();
-        if let Some(lens) = &self.lens
-            && !candidate.effect.only_noise()
-            && !base.iter().any(|e| e.effect.only_noise())
-        {
-            out.push(lens.clone());
+    /// `effects` as tests judge them when `candidate` is tried: with noise
+    /// that grows with speed, fitted to these effects, unless they already
+    /// have a noise effect or the candidate is one. Mean effects are named
+    /// before noise ones (see [`select`]), so without the lens a robot whose
+    /// noise grows with its speed would have every candidate judged by a
+    /// noise model that weighs its fast, noisy seconds like its slow ones:
+    /// its per-segment gains then swing, and one held-out block can seem to
+    /// contradict a true effect (feasible generalised least squares:
+    /// estimate the variance, then weigh by it). Both models of a test are
+    /// weighed through the lens fitted with the candidate: fitted without
+    /// it, speed noise takes a mud patch's lost speed for noise, and the
+    /// model without the patch would explain the mud as noise.
+    fn lensed(&self, effects: &[ScopedEffect], candidate: &ScopedEffect) -> Vec<ScopedEffect> {
+        let mut out = effects.to_vec();
+        if candidate.effect.only_noise() || effects.iter().any(|e| e.effect.only_noise()) {
+            return out;
         }
-        out
-    }
-
-    /// Fits the lens: speed-dependent noise on the model under diagnosis.
-    pub(crate) fn fit_lens(&mut self) {
-        let usual_speed = OperatingPoint::of(self.segs()).speed_m_per_s;
         let Some(identity) = Effect::identity("speed_noise", [0.0; 4]) else {
-            return;
+            return out;
         };
-        let start = ScopedEffect::always(identity.at_reference_speed(usual_speed));
+        let start = ScopedEffect::always(identity.at_reference_speed(self.usual_speed));
         let fitted = fit(
             self.grid(),
             &self.screen,
-            &self.fixed,
+            effects,
             std::slice::from_ref(&start),
             self.options.max_iters,
         );
-        self.lens = fitted.effects.into_iter().next().filter(|lens| {
+        out.extend(fitted.effects.into_iter().filter(|lens| {
             matches!(lens.effect, Effect::SpeedNoise { driving_share, .. } if driving_share > LENS_MIN_SHARE)
-        });
+        }));
+        out
+    }
+
+    /// The entry test of the move from `without` to `with` (which adds
+    /// `candidate`), each through its own lens.
+    fn entry_through_lens(
+        &self,
+        (without, with): (&[ScopedEffect], &[ScopedEffect]),
+        candidate: &ScopedEffect,
+        judged: (f64, [LongRun; 3]),
+    ) -> EntryTest {
+        let lens = self.lens_of(with, candidate);
+        let through = |effects: &[ScopedEffect]| -> Vec<ScopedEffect> {
+            effects.iter().chain(&lens).cloned().collect()
+        };
+        entry_test_of_move(
+            self.grid(),
+            self.segs(),
+            (&through(without), &through(with)),
+            candidate,
+            judged,
+            self.options,
+        )
+    }
+
+    /// The held-out gain of adding `candidate` to `base` (see
+    /// [`heldout_gain`]), each model through its own lens.
+    fn heldout_through_lens(&self, base: &[ScopedEffect], candidate: &ScopedEffect) -> Vec<f64> {
+        let with: Vec<ScopedEffect> = base.iter().cloned().chain([candidate.clone()]).collect();
+        let through: Vec<ScopedEffect> = base
+            .iter()
+            .cloned()
+            .chain(self.lens_of(&with, candidate))
+            .collect();
+        heldout_gain(self.prepared, (&through, &through), candidate, self.options)
+    }
+
+    /// The lens alone that `lensed` would add to `effects`, if any.
+    fn lens_of(&self, effects: &[ScopedEffect], candidate: &ScopedEffect) -> Vec<ScopedEffect> {
+        self.lensed(effects, candidate).split_off(effects.len())
+    }
+
+    /// [`Selection::entry_through_lens`] of adding `candidate` to `base`.
+    fn entry_of(
+        &self,
+        base: &[ScopedEffect],
+        candidate: &ScopedEffect,
+        judged: (f64, [LongRun; 3]),
+    ) -> EntryTest {
+        let with: Vec<ScopedEffect> = base.iter().cloned().chain([candidate.clone()]).collect();
+        self.entry_through_lens((base, &with), candidate, judged)
     }
 
     fn grid(&self) -> &CommandGrid {
@@ -194,14 +244,7 @@ impl Selection<'_> {
             .filter(|(g, c)| *g < delta_bic + 2.0 && c.effect.kind() != chosen.effect.kind())
             .cloned()
             .collect();
-        let test = entry_test(
-            grid,
-            segs,
-            &self.judged_with(base, &chosen),
-            &chosen,
-            (delta_bic, long_runs),
-            options,
-        );
+        let test = self.entry_of(base, &chosen, (delta_bic, long_runs));
         if !test.passed() {
             return Round::Done;
         }
@@ -209,15 +252,7 @@ impl Selection<'_> {
         let test = if scoped == chosen {
             test
         } else {
-            let judged_base = self.judged_with(base, &scoped);
-            entry_test(
-                grid,
-                segs,
-                &judged_base,
-                &scoped,
-                (delta_bic, long_runs),
-                options,
-            )
+            self.entry_of(base, &scoped, (delta_bic, long_runs))
         };
         let chosen = scoped;
         let tied_kinds: Vec<&'static str> = tied.iter().map(|(_, c)| c.effect.kind()).collect();
@@ -315,15 +350,9 @@ impl Selection<'_> {
             let rest_nll = components_of(grid, segs, &rest);
             let factors = long_runs.map(|l| l.factor);
             let needed = calibrated_gain(grid, segs, rest_nll, &rest, &found[k], factors);
-            if !entry_test(
-                grid,
-                segs,
-                &self.judged_with(&rest, &found[k]),
-                &found[k],
-                (needed, long_runs),
-                options,
-            )
-            .passed()
+            if !self
+                .entry_of(&rest, &found[k], (needed, long_runs))
+                .passed()
             {
                 *found = refit.effects;
                 evidence.remove(k);
@@ -388,12 +417,7 @@ pub(crate) fn select(selection: &Selection, located: &[Located], at: OperatingPo
             // It must predict the held-out blocks better in all, and, if it
             // is physics of the body (`heldout::must_transfer`), no block
             // may contradict it (`heldout::CONTRADICTION_NATS`).
-            let gains = heldout_gain(
-                selection.prepared,
-                &selection.judged_with(&base, &chosen),
-                &chosen,
-                selection.options,
-            );
+            let gains = selection.heldout_through_lens(&base, &chosen);
             let gain_heldout: f64 = gains.iter().sum();
             let worst = gains.iter().copied().fold(f64::INFINITY, f64::min);
             let contradicted = must_transfer(&chosen) && worst < -CONTRADICTION_NATS;
@@ -421,5 +445,112 @@ pub(crate) fn select(selection: &Selection, located: &[Located], at: OperatingPo
             selection.refit_and_prune(&mut out.found, &mut out.evidence);
         }
     }
+    // Each kind is tried once: one that pruning then drops is not tried again.
+    let mut tried = Vec::new();
+    while out.found.len() < selection.options.max_effects
+        && selection.complete(&mut out, at, &mut tried)
+    {}
     out
+}
+
+impl Selection<'_> {
+    /// Effects that act together. A round fits its candidate with the
+    /// effects already named held where they fitted alone, and two effects
+    /// that act together can hide each other there: a turn gain fitted
+    /// alone takes the mean of a turn gain and a fading battery, and the
+    /// fade then no longer fits beside it (a speed gain over part of the
+    /// run stands in for it). So after the rounds, each kind of the library
+    /// not yet named is fitted once more with the named effects free beside
+    /// it; the best enters on the same entry test and held-out check as in a
+    /// round, judged against the named effects as they were, and pruning
+    /// then drops what it makes redundant. Returns whether one entered.
+    fn complete(
+        &self,
+        out: &mut Selected,
+        at: OperatingPoint,
+        tried: &mut Vec<&'static str>,
+    ) -> bool {
+        let (grid, segs, options, fixed) = (self.grid(), self.segs(), self.options, &self.fixed);
+        if out.found.is_empty() || segs.len() < 20 {
+            return false;
+        }
+        let named: Vec<&str> = out.found.iter().map(|e| e.effect.kind()).collect();
+        let kinds: Vec<ScopedEffect> = EFFECT_KINDS
+            .iter()
+            .filter(|k| **k != "surface_zone" && !named.contains(k) && !tried.contains(k))
+            .filter_map(|k| Effect::identity(k, [0.0; 4]))
+            .filter(|e| !e.only_noise())
+            .map(|e| ScopedEffect::always(e.at_reference_speed(at.speed_m_per_s)))
+            .collect();
+        let together = |c: &ScopedEffect| -> Vec<ScopedEffect> {
+            out.found.iter().cloned().chain([c.clone()]).collect()
+        };
+        // Ranked on the screen, as a round's candidates are.
+        let without: Vec<ScopedEffect> = fixed.iter().chain(&out.found).cloned().collect();
+        let screen_without = nll_of(grid, &self.screen, &without);
+        let Some((screen_nll, best)) = kinds
+            .iter()
+            .map(|c| {
+                (
+                    fit(grid, &self.screen, fixed, &together(c), options.max_iters).nll,
+                    c,
+                )
+            })
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+        else {
+            return false;
+        };
+        if screen_nll > screen_without - 1.0 {
+            return false;
+        }
+        tried.push(best.effect.kind());
+        let mut joint = fit(grid, segs, fixed, &together(best), options.max_iters).effects;
+        let Some(candidate) = joint.pop() else {
+            return false;
+        };
+        let with: Vec<ScopedEffect> = fixed
+            .iter()
+            .chain(&joint)
+            .chain([&candidate])
+            .cloned()
+            .collect();
+        let refitted: Vec<ScopedEffect> = fixed.iter().chain(&joint).cloned().collect();
+        let long_runs = factors_with(grid, segs, &refitted, &candidate);
+        let factors = long_runs.map(|l| l.factor);
+        let without_nll = components_of(grid, segs, &without);
+        let delta_bic =
+            calibrated_gain_of_move(grid, segs, without_nll, &with, &candidate, factors);
+        let test = self.entry_through_lens((&without, &with), &candidate, (delta_bic, long_runs));
+        if !test.passed() || on_bound(&candidate).is_some() {
+            return false;
+        }
+        let through: Vec<ScopedEffect> = fixed
+            .iter()
+            .cloned()
+            .chain(self.lens_of(&with, &candidate))
+            .collect();
+        let gains = heldout_gain_of_joint(
+            self.prepared,
+            (&through, &through),
+            &out.found,
+            &candidate,
+            options,
+        );
+        let worst = gains.iter().copied().fold(f64::INFINITY, f64::min);
+        let heldout_gain: f64 = gains.iter().sum();
+        if !(heldout_gain > 0.0) || (must_transfer(&candidate) && worst < -CONTRADICTION_NATS) {
+            out.rejected_heldout.push(candidate.effect.kind());
+            return false;
+        }
+        out.found = joint;
+        out.found.push(candidate);
+        out.evidence.push(Evidence {
+            delta_bic,
+            test,
+            heldout_gain,
+            alternatives: Vec::new(),
+        });
+        self.refit_and_prune(&mut out.found, &mut out.evidence);
+        true
+    }
 }

@@ -72,7 +72,10 @@ mod tests {
         let mut log = HelperLog::new(path);
         assert!(log.new_warnings().is_empty());
         write!(file, "2026 INFO started\nshoal-viewer-log: warning: disk").expect("write");
-        assert!(log.new_warnings().is_empty(), "the line is not complete yet");
+        assert!(
+            log.new_warnings().is_empty(),
+            "the line is not complete yet"
+        );
         writeln!(file, " nearly full").expect("write");
         assert_eq!(
             log.new_warnings(),

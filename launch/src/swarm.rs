@@ -493,9 +493,7 @@ impl RunningSwarm {
         self.helpers.push(Helper {
             binary: binary.to_owned(),
             child,
-            log: crate::helper_log::HelperLog::new(
-                self.runtime.dir.join(helper_log_name(binary)),
-            ),
+            log: crate::helper_log::HelperLog::new(self.runtime.dir.join(helper_log_name(binary))),
         });
         Ok(())
     }
@@ -649,7 +647,11 @@ impl RunningSwarm {
 
     /// Kills the recorder as a crash would (SIGKILL); not reported as a death.
     pub fn kill_recorder(&mut self) -> Result<()> {
-        if let Some(index) = self.helpers.iter().position(|h| h.binary == RECORDER_BINARY) {
+        if let Some(index) = self
+            .helpers
+            .iter()
+            .position(|h| h.binary == RECORDER_BINARY)
+        {
             let Helper { mut child, .. } = self.helpers.remove(index);
             if let Some(process) = Pinned::child(&child) {
                 process.signal(libc::SIGKILL)?;

@@ -109,7 +109,10 @@ fn stop(
         eprintln!("shoal: {note}");
     }
     if let Some(out) = &options.record.out
-        && !swarm.deaths().iter().any(|d| d.crashed && d.who == crate::swarm::RECORDER_BINARY)
+        && !swarm
+            .deaths()
+            .iter()
+            .any(|d| d.crashed && d.who == crate::swarm::RECORDER_BINARY)
     {
         eprintln!(
             "shoal: recording in {}; to watch it: pip install rerun-sdk, then rerun {}",

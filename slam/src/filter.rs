@@ -424,7 +424,10 @@ fn mapped_beams(ranges: &[f64], config: &FilterConfig) -> Vec<(DVec2, bool)> {
 
 /// Marks `beams` (from [`mapped_beams`]) into the particle's map from its pose.
 fn integrate(particle: &mut Particle, beams: &[(DVec2, bool)]) {
-    let (origin, heading) = (particle.pose.position(), DVec2::from_angle(particle.pose.theta));
+    let (origin, heading) = (
+        particle.pose.position(),
+        DVec2::from_angle(particle.pose.theta),
+    );
     for (local, hit) in beams {
         particle
             .map

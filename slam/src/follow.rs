@@ -61,7 +61,9 @@ impl FromStr for Follow {
         text.split(',')
             .map(|id| {
                 id.trim().parse::<u32>().map_err(|_| {
-                    format!("`{id}` is not a robot id: give `all` or ids separated by commas, e.g. 0,3")
+                    format!(
+                        "`{id}` is not a robot id: give `all` or ids separated by commas, e.g. 0,3"
+                    )
                 })
             })
             .collect::<Result<Vec<u32>, String>>()
@@ -93,6 +95,9 @@ mod tests {
         assert!("0,x".parse::<Follow>().is_err());
         assert!(Follow::All.includes(77));
         assert!(!Follow::Robots(vec![1]).includes(2));
-        assert_eq!(Follow::Robots(vec![1]).with(&[1, 2]), Follow::Robots(vec![1, 2]));
+        assert_eq!(
+            Follow::Robots(vec![1]).with(&[1, 2]),
+            Follow::Robots(vec![1, 2])
+        );
     }
 }
