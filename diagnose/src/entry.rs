@@ -298,15 +298,18 @@ pub(crate) fn sandwich_wald(
     {
         return (0.0, plain);
     }
+    let ranges = candidate.effect.ranges();
     let model = UnicycleModel::with_effects(with.to_vec());
     let noise = estimate_noise(&model, segs, &residuals(&model, grid, segs));
     // Per-segment NLL with the candidate moved `share` of its change along
     // its direction, the noise held at the fit's.
     let moved = |share: f64| {
+        // Held within the physical ranges: a step past an edge is no model.
         let values: Vec<f64> = fitted
             .iter()
             .zip(&identity)
-            .map(|(f, p)| f + share * (f - p))
+            .zip(&ranges)
+            .map(|((f, p), (lo, hi))| (f + share * (f - p)).clamp(*lo, *hi))
             .collect();
         let mut effects = with.to_vec();
         effects[at] = ScopedEffect {
