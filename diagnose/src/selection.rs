@@ -454,6 +454,38 @@ pub(crate) fn select(selection: &Selection, located: &[Located], at: OperatingPo
 }
 
 impl Selection<'_> {
+    /// The kind of the library, not named in `found` and not yet `tried`,
+    /// that fits best with `found` free beside it, ranked on the screen as
+    /// a round's candidates are; none if none lowers the screen's NLL.
+    fn best_beside(
+        &self,
+        found: &[ScopedEffect],
+        at: OperatingPoint,
+        tried: &[&'static str],
+    ) -> Option<ScopedEffect> {
+        let (grid, options, fixed) = (self.grid(), self.options, &self.fixed);
+        let named: Vec<&str> = found.iter().map(|e| e.effect.kind()).collect();
+        let without: Vec<ScopedEffect> = fixed.iter().chain(found).cloned().collect();
+        let screen_without = nll_of(grid, &self.screen, &without);
+        EFFECT_KINDS
+            .iter()
+            .filter(|k| **k != "surface_zone" && !named.contains(k) && !tried.contains(k))
+            .filter_map(|k| Effect::identity(k, [0.0; 4]))
+            .filter(|e| !e.only_noise())
+            .map(|e| ScopedEffect::always(e.at_reference_speed(at.speed_m_per_s)))
+            .map(|c| {
+                let together: Vec<ScopedEffect> =
+                    found.iter().cloned().chain([c.clone()]).collect();
+                (
+                    fit(grid, &self.screen, fixed, &together, options.max_iters).nll,
+                    c,
+                )
+            })
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .filter(|(nll, _)| *nll < screen_without - 1.0)
+            .map(|(_, c)| c)
+    }
+
     /// Effects that act together. A round fits its candidate with the
     /// effects already named held where they fitted alone, and two effects
     /// that act together can hide each other there: a turn gain fitted
@@ -474,37 +506,15 @@ impl Selection<'_> {
         if out.found.is_empty() || segs.len() < 20 {
             return false;
         }
-        let named: Vec<&str> = out.found.iter().map(|e| e.effect.kind()).collect();
-        let kinds: Vec<ScopedEffect> = EFFECT_KINDS
-            .iter()
-            .filter(|k| **k != "surface_zone" && !named.contains(k) && !tried.contains(k))
-            .filter_map(|k| Effect::identity(k, [0.0; 4]))
-            .filter(|e| !e.only_noise())
-            .map(|e| ScopedEffect::always(e.at_reference_speed(at.speed_m_per_s)))
-            .collect();
+        let Some(best) = self.best_beside(&out.found, at, tried) else {
+            return false;
+        };
+        tried.push(best.effect.kind());
         let together = |c: &ScopedEffect| -> Vec<ScopedEffect> {
             out.found.iter().cloned().chain([c.clone()]).collect()
         };
-        // Ranked on the screen, as a round's candidates are.
         let without: Vec<ScopedEffect> = fixed.iter().chain(&out.found).cloned().collect();
-        let screen_without = nll_of(grid, &self.screen, &without);
-        let Some((screen_nll, best)) = kinds
-            .iter()
-            .map(|c| {
-                (
-                    fit(grid, &self.screen, fixed, &together(c), options.max_iters).nll,
-                    c,
-                )
-            })
-            .min_by(|a, b| a.0.total_cmp(&b.0))
-        else {
-            return false;
-        };
-        if screen_nll > screen_without - 1.0 {
-            return false;
-        }
-        tried.push(best.effect.kind());
-        let mut joint = fit(grid, segs, fixed, &together(best), options.max_iters).effects;
+        let mut joint = fit(grid, segs, fixed, &together(&best), options.max_iters).effects;
         let Some(candidate) = joint.pop() else {
             return false;
         };
