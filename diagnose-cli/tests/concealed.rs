@@ -505,6 +505,23 @@ fn write_gazebo_bag(dir: &Path, name: &str, options: &[&str]) -> PathBuf {
     bag
 }
 
+/// Diagnoses a Gazebo bag given as a positional argument, as a user types
+/// it, with its /cmd_vel and /odom topics and `extra` arguments.
+fn diagnose_gazebo(bag: &Path, extra: &[&str]) -> std::process::Output {
+    Command::new(binary())
+        .arg(bag)
+        .args([
+            "--commands-topic",
+            "/cmd_vel",
+            "--poses-topic",
+            "/odom",
+            "--json",
+        ])
+        .args(extra)
+        .output()
+        .expect("run shoal-diagnose")
+}
+
 #[test]
 fn gazebo_bags_in_sqlite3_mcap_split_and_compressed_are_diagnosed_on_one_clock() {
     let case = case_named(&Generator::bench(), "latency", DURATION_S).expect("latency case");
@@ -561,17 +578,7 @@ fn gazebo_bags_in_sqlite3_mcap_split_and_compressed_are_diagnosed_on_one_clock()
     ] {
         let bag = write_gazebo_bag(&dir, name, options);
         // The bag as a positional argument, as a user types it.
-        let output = Command::new(binary())
-            .arg(&bag)
-            .args([
-                "--commands-topic",
-                "/cmd_vel",
-                "--poses-topic",
-                "/odom",
-                "--json",
-            ])
-            .output()
-            .expect("run shoal-diagnose");
+        let output = diagnose_gazebo(&bag, &[]);
         let stderr = String::from_utf8_lossy(&output.stderr);
         assert!(output.status.success(), "{name}: {stderr}");
         let d: Value = serde_json::from_slice(&output.stdout).expect("JSON");
@@ -613,19 +620,7 @@ fn gazebo_bags_in_sqlite3_mcap_split_and_compressed_are_diagnosed_on_one_clock()
         assert!(stderr.contains(listed), "{listed} not in: {stderr}");
     }
     // The user's word on the clock is taken.
-    let output = Command::new(binary())
-        .arg(dir.join("db3"))
-        .args([
-            "--commands-topic",
-            "/cmd_vel",
-            "--poses-topic",
-            "/odom",
-            "--json",
-            "--stamps",
-            "log",
-        ])
-        .output()
-        .expect("run shoal-diagnose");
+    let output = diagnose_gazebo(&dir.join("db3"), &["--stamps", "log"]);
     let d: Value = serde_json::from_slice(&output.stdout).expect("JSON");
     assert_eq!(d["input"]["clock"]["poses"], "the bag's log times", "{d}");
 }

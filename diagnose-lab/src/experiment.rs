@@ -166,9 +166,11 @@ pub fn cases(duration_s: f64) -> Vec<Case> {
 /// (operator, rates, speeds, how noise depends on the motion, which way and
 /// how large the effects are, which act together), so a method tuned to the
 /// bench shows it on them.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub struct Generator {
     pub name: &'static str,
+    /// The cases it runs, for a run of this many seconds.
+    pub cases_of: fn(f64) -> Vec<Case>,
     pub operator: Operator,
     pub noise_law: NoiseLaw,
     pub command_hz: f64,
@@ -183,6 +185,7 @@ impl Generator {
         let bench = Settings::default();
         Self {
             name: "bench",
+            cases_of: cases,
             operator: Operator::Held,
             noise_law: NoiseLaw::Constant,
             command_hz: bench.command_hz,
@@ -200,6 +203,7 @@ impl Generator {
             // motion capture at 120 Hz, wheel-slip noise only while moving.
             Self {
                 name: "waypoints",
+                cases_of: independent_cases,
                 operator: Operator::Waypoints,
                 noise_law: NoiseLaw::WhileMoving,
                 command_hz: 20.0,
@@ -211,6 +215,7 @@ impl Generator {
             // 30 Hz, noise that grows with speed but not with turn rate.
             Self {
                 name: "speed-only",
+                cases_of: independent_cases,
                 operator: Operator::Held,
                 noise_law: NoiseLaw::SpeedOnly,
                 command_hz: 10.0,
@@ -232,14 +237,9 @@ impl Generator {
             .ok_or_else(|| format!("unknown generator `{name}`; known: {known}"))
     }
 
-    /// The cases this generator runs: the bench's own, or the independent
-    /// ones for every other generator.
+    /// The cases this generator runs, for a run of `duration_s`.
     pub fn cases(&self, duration_s: f64) -> Vec<Case> {
-        if self.name == "bench" {
-            cases(duration_s)
-        } else {
-            independent_cases(duration_s)
-        }
+        (self.cases_of)(duration_s)
     }
 
     /// Whether this generator's motion noise grows with speed, so that

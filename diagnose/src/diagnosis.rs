@@ -12,7 +12,7 @@ use serde::Serialize;
 use shoal_physics::{CommandGrid, Effect, ScopedEffect, UnicycleModel};
 
 use crate::covariates::{self, Covariate};
-pub use crate::entry::{EntryTest, strength_of_truth};
+pub use crate::entry::EntryTest;
 use crate::fit::fit;
 use crate::heldout::{BlockReport, block_reports, heldout, transferable};
 use crate::likelihood::{estimate_noise, long_run_factors_of_noise, residuals, standardised};

@@ -265,7 +265,7 @@ pub(crate) fn transferable(
 /// (positive: the effect predicts that unseen block better).
 pub(crate) fn heldout_gain(
     prepared: &Prepared,
-    (without, with_fixed): (&[ScopedEffect], &[ScopedEffect]),
+    base: &[ScopedEffect],
     candidate: &ScopedEffect,
     options: &Options,
 ) -> Vec<f64> {
@@ -273,11 +273,11 @@ pub(crate) fn heldout_gain(
         let with = refit_on(
             prepared,
             train,
-            with_fixed,
+            base,
             std::slice::from_ref(candidate),
             options,
         );
-        predict_heldout(prepared, train, test, without.to_vec()).0
+        predict_heldout(prepared, train, test, base.to_vec()).0
             - predict_heldout(prepared, train, test, with).0
     })
 }
@@ -287,15 +287,15 @@ pub(crate) fn heldout_gain(
 /// are both refitted on the training blocks alone.
 pub(crate) fn heldout_gain_of_joint(
     prepared: &Prepared,
-    (without_fixed, with_fixed): (&[ScopedEffect], &[ScopedEffect]),
+    fixed: &[ScopedEffect],
     found: &[ScopedEffect],
     candidate: &ScopedEffect,
     options: &Options,
 ) -> Vec<f64> {
     let together: Vec<ScopedEffect> = found.iter().cloned().chain([candidate.clone()]).collect();
     on_folds(prepared, |train, test| {
-        let without = refit_on(prepared, train, without_fixed, found, options);
-        let with = refit_on(prepared, train, with_fixed, &together, options);
+        let without = refit_on(prepared, train, fixed, found, options);
+        let with = refit_on(prepared, train, fixed, &together, options);
         predict_heldout(prepared, train, test, without).0
             - predict_heldout(prepared, train, test, with).0
     })

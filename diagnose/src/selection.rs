@@ -156,7 +156,7 @@ impl Selection<'_> {
             .cloned()
             .chain(self.lens_of(&with, candidate))
             .collect();
-        heldout_gain(self.prepared, (&through, &through), candidate, self.options)
+        heldout_gain(self.prepared, &through, candidate, self.options)
     }
 
     /// The lens alone that `lensed` would add to `effects`, if any.
@@ -539,13 +539,7 @@ impl Selection<'_> {
             .cloned()
             .chain(self.lens_of(&with, &candidate))
             .collect();
-        let gains = heldout_gain_of_joint(
-            self.prepared,
-            (&through, &through),
-            &out.found,
-            &candidate,
-            options,
-        );
+        let gains = heldout_gain_of_joint(self.prepared, &through, &out.found, &candidate, options);
         let worst = gains.iter().copied().fold(f64::INFINITY, f64::min);
         let heldout_gain: f64 = gains.iter().sum();
         if !(heldout_gain > 0.0) || (must_transfer(&candidate) && worst < -CONTRADICTION_NATS) {

@@ -30,21 +30,6 @@ impl Follow {
         }
     }
 
-    /// Adds `more` to the robots named (`All` already has them).
-    pub fn with(self, more: &[u32]) -> Self {
-        match self {
-            Follow::All => Follow::All,
-            Follow::Robots(mut ids) => {
-                for id in more {
-                    if !ids.contains(id) {
-                        ids.push(*id);
-                    }
-                }
-                Follow::Robots(ids)
-            }
-        }
-    }
-
     pub fn is_empty(&self) -> bool {
         matches!(self, Follow::Robots(ids) if ids.is_empty())
     }
@@ -95,9 +80,5 @@ mod tests {
         assert!("0,x".parse::<Follow>().is_err());
         assert!(Follow::All.includes(77));
         assert!(!Follow::Robots(vec![1]).includes(2));
-        assert_eq!(
-            Follow::Robots(vec![1]).with(&[1, 2]),
-            Follow::Robots(vec![1, 2])
-        );
     }
 }
