@@ -165,10 +165,7 @@ impl LogToClock {
             spread_ns: 0,
             rate,
         };
-        let mut errors: Vec<i64> = pairs
-            .iter()
-            .map(|&(l, o)| (o - map.map(l)).abs())
-            .collect();
+        let mut errors: Vec<i64> = pairs.iter().map(|&(l, o)| (o - map.map(l)).abs()).collect();
         errors.sort_unstable();
         map.spread_ns = errors[((errors.len() - 1) as f64 * 0.95).round() as usize];
         Some(map)
@@ -229,7 +226,9 @@ pub fn choose(
             Ok(log_both(reason))
         }
         (false, true, _, Some(p)) => unstamped_commands(poses, p, clock, preference, log_both),
-        (true, false, Some(c), _) if preference == StampsPreference::Header || c.abs() <= SAME_CLOCK_NS => {
+        (true, false, Some(c), _)
+            if preference == StampsPreference::Header || c.abs() <= SAME_CLOCK_NS =>
+        {
             if c.abs() > SAME_CLOCK_NS {
                 return Err(
                     "--stamps header: the poses carry no header stamps and the commands' are \
@@ -328,7 +327,9 @@ fn unstamped_commands(
                      log clock (within {})",
                     seconds(pose_offset.abs())
                 ),
-                delay_note: format!("commands are timed on arrival at the recorder: {unknown_transport}"),
+                delay_note: format!(
+                    "commands are timed on arrival at the recorder: {unknown_transport}"
+                ),
             },
             None,
         ));
@@ -354,8 +355,12 @@ fn unstamped_commands(
         };
         return Ok((choice, Some(map)));
     }
-    let pairs: Vec<(i64, i64)> = poses.iter().filter_map(|(s, l)| s.map(|s| (*l, s))).collect();
-    let through_poses = LogToClock::through(&pairs).filter(|m| m.spread_ns <= MAPPING_SPREAD_LIMIT_NS);
+    let pairs: Vec<(i64, i64)> = poses
+        .iter()
+        .filter_map(|(s, l)| s.map(|s| (*l, s)))
+        .collect();
+    let through_poses =
+        LogToClock::through(&pairs).filter(|m| m.spread_ns <= MAPPING_SPREAD_LIMIT_NS);
     match through_poses {
         Some(map)
             if preference == StampsPreference::Header
@@ -397,7 +402,12 @@ mod tests {
 
     /// Messages every `period` ns from `start` on the log clock, stamped on
     /// a clock at `stamp_offset` running at `rate`, arriving `transport` late.
-    fn topic(n: usize, period: i64, stamp: Option<(i64, f64)>, transport: i64) -> Vec<(Option<i64>, i64)> {
+    fn topic(
+        n: usize,
+        period: i64,
+        stamp: Option<(i64, f64)>,
+        transport: i64,
+    ) -> Vec<(Option<i64>, i64)> {
         (0..n as i64)
             .map(|k| {
                 let made = WALL + k * period;
@@ -415,7 +425,10 @@ mod tests {
         let c = topic(200, S / 20, Some((WALL, 1.0)), 3_000_000);
         let p = topic(600, S / 60, Some((WALL, 1.0)), 2_000_000);
         let (choice, map) = choose(&c, &p, &[], StampsPreference::Auto).expect("choice");
-        assert_eq!((choice.commands, choice.poses), (Timing::HeaderStamps, Timing::HeaderStamps));
+        assert_eq!(
+            (choice.commands, choice.poses),
+            (Timing::HeaderStamps, Timing::HeaderStamps)
+        );
         assert!(map.is_none());
     }
 
@@ -425,12 +438,24 @@ mod tests {
         let c = topic(200, S / 10, None, 1_000_000);
         let p = topic(600, S / 30, Some((12 * S, 0.8)), 4_000_000);
         let clock: Vec<(i64, i64)> = (0..2000_i64)
-            .map(|k| (WALL + k * S / 100 + 1_000_000, 12 * S + (k * S / 100) * 4 / 5))
+            .map(|k| {
+                (
+                    WALL + k * S / 100 + 1_000_000,
+                    12 * S + (k * S / 100) * 4 / 5,
+                )
+            })
             .collect();
         let (choice, map) = choose(&c, &p, &clock, StampsPreference::Auto).expect("choice");
-        assert_eq!(choice.commands, Timing::MappedLogTimes(Reference::ClockTopic));
+        assert_eq!(
+            choice.commands,
+            Timing::MappedLogTimes(Reference::ClockTopic)
+        );
         assert_eq!(choice.poses, Timing::HeaderStamps);
-        assert!(choice.reason.contains("0.80x real time"), "{}", choice.reason);
+        assert!(
+            choice.reason.contains("0.80x real time"),
+            "{}",
+            choice.reason
+        );
         let map = map.expect("a map");
         // A command logged 5 s in is at 12 + 4 s of simulation time.
         let at = map.map(WALL + 5 * S + 1_000_000);
@@ -442,12 +467,22 @@ mod tests {
         let c = topic(200, S / 10, None, 1_000_000);
         let real_time = topic(600, S / 30, Some((3 * S, 1.0)), 4_000_000);
         let (choice, map) = choose(&c, &real_time, &[], StampsPreference::Auto).expect("choice");
-        assert_eq!((choice.commands, choice.poses), (Timing::LogTimes, Timing::LogTimes));
+        assert_eq!(
+            (choice.commands, choice.poses),
+            (Timing::LogTimes, Timing::LogTimes)
+        );
         assert!(map.is_none());
-        assert!(choice.delay_note.contains("varied by"), "{}", choice.delay_note);
+        assert!(
+            choice.delay_note.contains("varied by"),
+            "{}",
+            choice.delay_note
+        );
         let slow = topic(600, S / 30, Some((3 * S, 0.5)), 4_000_000);
         let (choice, map) = choose(&c, &slow, &[], StampsPreference::Auto).expect("choice");
-        assert_eq!(choice.commands, Timing::MappedLogTimes(Reference::OtherTopicsStamps));
+        assert_eq!(
+            choice.commands,
+            Timing::MappedLogTimes(Reference::OtherTopicsStamps)
+        );
         assert!((map.expect("a map").rate - 0.5).abs() < 0.01);
     }
 
@@ -460,7 +495,10 @@ mod tests {
         assert!(choose(&c, &unset, &[], StampsPreference::Header).is_err());
         let p = topic(300, S / 30, Some((WALL, 1.0)), 0);
         let (choice, _) = choose(&c, &p, &[], StampsPreference::Log).expect("choice");
-        assert_eq!((choice.commands, choice.poses), (Timing::LogTimes, Timing::LogTimes));
+        assert_eq!(
+            (choice.commands, choice.poses),
+            (Timing::LogTimes, Timing::LogTimes)
+        );
         assert_eq!(choice.reason, "--stamps log");
     }
 
@@ -470,7 +508,11 @@ mod tests {
         let p = topic(300, S / 30, Some((WALL, 1.0)), 0);
         let (choice, _) = choose(&c, &p, &[], StampsPreference::Auto).expect("choice");
         assert_eq!(choice.commands, Timing::LogTimes);
-        assert!(choice.reason.contains("different clocks"), "{}", choice.reason);
+        assert!(
+            choice.reason.contains("different clocks"),
+            "{}",
+            choice.reason
+        );
         assert!(choose(&c, &p, &[], StampsPreference::Header).is_err());
     }
 }

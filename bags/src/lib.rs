@@ -37,7 +37,9 @@ pub fn looks_like_bag(path: &std::path::Path) -> bool {
     if path.is_dir() {
         path.join("metadata.yaml").is_file()
             || std::fs::read_dir(path).is_ok_and(|entries| {
-                entries.filter_map(Result::ok).any(|e| storage::is_bag_file(&e.path()))
+                entries
+                    .filter_map(Result::ok)
+                    .any(|e| storage::is_bag_file(&e.path()))
             })
     } else {
         storage::is_bag_file(path)

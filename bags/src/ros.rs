@@ -57,7 +57,11 @@ fn finite(values: &[(&str, f64)]) -> Result<(), String> {
     }
 }
 
-pub fn decode_command(kind: &str, data: &[u8], log_time: i64) -> Result<Stamped<(f64, f64)>, String> {
+pub fn decode_command(
+    kind: &str,
+    data: &[u8],
+    log_time: i64,
+) -> Result<Stamped<(f64, f64)>, String> {
     let (stamp, twist) = match kind {
         "geometry_msgs/msg/Twist" => (None, decode::<msg::Twist>(data)?),
         "geometry_msgs/msg/TwistStamped" => {
@@ -301,4 +305,3 @@ pub mod msg {
         pub clock: Time,
     }
 }
-

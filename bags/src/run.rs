@@ -1,10 +1,10 @@
 //! A bag read for diagnosis: velocity commands from one topic, observed
 //! poses from another, both on the one clock `clock::choose` picks.
 
+use crate::BagError;
 use crate::clock::{ClockChoice, LogToClock, StampsPreference, Timing};
 use crate::ros::{self, Stamped};
 use crate::storage::{Bag, RawMessage};
-use crate::BagError;
 
 /// Which topics to read, and for `tf2_msgs/msg/TFMessage` which transform.
 #[derive(Clone, Debug, Default)]
@@ -70,7 +70,10 @@ pub fn read_run(
         let at = |what: String| {
             BagError::new(
                 &bag.path,
-                format!("topic {topic}, message {} ({message_type}): {what}", seen[index]),
+                format!(
+                    "topic {topic}, message {} ({message_type}): {what}",
+                    seen[index]
+                ),
             )
         };
         if encoding != "cdr" {
@@ -154,7 +157,11 @@ fn times<T>(messages: &[Stamped<T>]) -> Vec<(Option<i64>, i64)> {
 }
 
 /// Each message's time on the chosen clock, in time order.
-fn on_clock<T>(messages: Vec<Stamped<T>>, timing: Timing, map: Option<&LogToClock>) -> Vec<(i64, T)> {
+fn on_clock<T>(
+    messages: Vec<Stamped<T>>,
+    timing: Timing,
+    map: Option<&LogToClock>,
+) -> Vec<(i64, T)> {
     let mut timed: Vec<(i64, T)> = messages
         .into_iter()
         .map(|m| {

@@ -71,8 +71,7 @@ impl Bag {
     /// (with `metadata.yaml`, or failing that its bag files in name order).
     pub fn open(path: &Path) -> Result<Self, BagError> {
         let error = |message: String| BagError::new(path, message);
-        let meta = std::fs::metadata(path)
-            .map_err(|e| error(format!("cannot read it: {e}")))?;
+        let meta = std::fs::metadata(path).map_err(|e| error(format!("cannot read it: {e}")))?;
         let files = if meta.is_dir() {
             folder_files(path)?
         } else {
@@ -133,7 +132,10 @@ impl Bag {
         for source in &self.files {
             let (file, bytes) = match source {
                 Source::File(path) => (path.as_path(), read_file(path)?),
-                Source::Memory(bytes) => (self.path.as_path(), decompressed(bytes.clone(), &self.path)?),
+                Source::Memory(bytes) => (
+                    self.path.as_path(),
+                    decompressed(bytes.clone(), &self.path)?,
+                ),
             };
             let mut take_one = |mut m: RawMessage| {
                 if topics.is_none_or(|t| t.contains(&m.topic.as_str())) {
@@ -141,7 +143,10 @@ impl Bag {
                         m.data = zstd::decode_all(m.data.as_slice()).map_err(|e| {
                             BagError::new(
                                 file,
-                                format!("topic {}: a compressed message does not decompress: {e}", m.topic),
+                                format!(
+                                    "topic {}: a compressed message does not decompress: {e}",
+                                    m.topic
+                                ),
                             )
                         })?;
                     }
@@ -187,10 +192,14 @@ fn folder_files(dir: &Path) -> Result<Vec<PathBuf>, BagError> {
         let text = std::fs::read_to_string(&metadata)
             .map_err(|e| BagError::new(&metadata, format!("cannot read it: {e}")))?;
         let parsed: Metadata = serde_yaml_ng::from_str(&text).map_err(|e| {
-            let line = e.location().map_or(String::new(), |l| format!(":{}", l.line()));
+            let line = e
+                .location()
+                .map_or(String::new(), |l| format!(":{}", l.line()));
             BagError::new(
                 &metadata,
-                format!("{line} is not rosbag2 metadata: {e}").trim_start_matches(':').to_owned(),
+                format!("{line} is not rosbag2 metadata: {e}")
+                    .trim_start_matches(':')
+                    .to_owned(),
             )
         })?;
         let info = parsed.rosbag2_bagfile_information;
@@ -219,8 +228,8 @@ fn folder_files(dir: &Path) -> Result<Vec<PathBuf>, BagError> {
             })
             .collect();
     }
-    let entries = std::fs::read_dir(dir)
-        .map_err(|e| BagError::new(dir, format!("cannot list it: {e}")))?;
+    let entries =
+        std::fs::read_dir(dir).map_err(|e| BagError::new(dir, format!("cannot list it: {e}")))?;
     let mut files: Vec<PathBuf> = entries
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| is_bag_file(p))
@@ -232,7 +241,10 @@ fn folder_files(dir: &Path) -> Result<Vec<PathBuf>, BagError> {
 /// Whether `path` is named as a bag file: `.mcap` or `.db3`, zstd-compressed
 /// (`.zstd`, as rosbag2 names its compressed files) or not.
 pub fn is_bag_file(path: &Path) -> bool {
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
     [".mcap", ".db3", ".mcap.zstd", ".db3.zstd"]
         .iter()
         .any(|ext| name.ends_with(ext))
@@ -240,9 +252,16 @@ pub fn is_bag_file(path: &Path) -> bool {
 
 /// Orders `bag_10.db3` after `bag_9.db3`, as rosbag2 numbers its splits.
 fn natural_key(path: &Path) -> (String, u64) {
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
     let stem = name.split('.').next().unwrap_or("");
-    let digits: String = stem.chars().rev().take_while(char::is_ascii_digit).collect();
+    let digits: String = stem
+        .chars()
+        .rev()
+        .take_while(char::is_ascii_digit)
+        .collect();
     let number: String = digits.chars().rev().collect();
     (
         stem[..stem.len() - number.len()].to_owned(),
@@ -293,7 +312,8 @@ fn sqlite_messages(
     file: &Path,
     take: &mut dyn FnMut(RawMessage) -> Result<(), BagError>,
 ) -> Result<(), BagError> {
-    let sql_error = |e: rusqlite::Error| BagError::new(file, format!("cannot read the sqlite3 bag: {e}"));
+    let sql_error =
+        |e: rusqlite::Error| BagError::new(file, format!("cannot read the sqlite3 bag: {e}"));
     // Read from the bytes already in memory: the file is opened by no one
     // else and may sit on a read-only disk, or have been decompressed.
     let mut db = rusqlite::Connection::open_in_memory().map_err(sql_error)?;

@@ -93,11 +93,7 @@ pub fn write_bag(
                 frame_id: "map".to_owned(),
             },
             pose: msg::Pose {
-                position: msg::Vector3 {
-                    x,
-                    y,
-                    z: 0.0,
-                },
+                position: msg::Vector3 { x, y, z: 0.0 },
                 orientation: msg::Quaternion {
                     x: 0.0,
                     y: 0.0,
@@ -126,4 +122,3 @@ pub fn write_bag(
     writer.finish().map_err(error)?;
     Ok(writer.into_inner().into_inner())
 }
-

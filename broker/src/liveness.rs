@@ -106,7 +106,8 @@ pub fn remove_dead_nodes_of_abandoned_swarms() -> Result<BTreeMap<String, usize>
         .filter(|(_, any_alive)| !any_alive)
         .map(|(swarm, _)| swarm)
         .collect();
-    let wanted = |name: &str| names::swarm_of_node(name).is_some_and(|s| abandoned.iter().any(|a| a == s));
+    let wanted =
+        |name: &str| names::swarm_of_node(name).is_some_and(|s| abandoned.iter().any(|a| a == s));
     let mut removed = BTreeMap::new();
     for name in remove_dead_nodes_named(wanted, || true)? {
         if let Some(swarm) = names::swarm_of_node(&name) {
@@ -142,7 +143,10 @@ fn remove_dead_nodes_named(
     let mut dead = Vec::new();
     Node::<ipc::Service>::list(&crate::bus::domain_config(), |state| {
         if let NodeState::Dead(view) = state {
-            let name = view.details().as_ref().map(|d| d.name().as_str().to_owned());
+            let name = view
+                .details()
+                .as_ref()
+                .map(|d| d.name().as_str().to_owned());
             if let Some(name) = name.filter(|n| wanted(n)) {
                 dead.push((name, view));
             }

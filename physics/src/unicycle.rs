@@ -66,7 +66,10 @@ impl CommandGrid {
             // Each command held within [start, end), weighted by how long.
             let (mut sum_v, mut sum_omega, mut from, mut r) = (0.0, 0.0, start, row);
             loop {
-                let until = times.get(r + 1).map_or(end, |&next| next.min(end)).max(from);
+                let until = times
+                    .get(r + 1)
+                    .map_or(end, |&next| next.min(end))
+                    .max(from);
                 sum_v += (until - from) * v[r];
                 sum_omega += (until - from) * omega[r];
                 from = until;
@@ -413,14 +416,20 @@ mod tests {
     #[test]
     fn a_command_counts_for_the_share_of_the_step_it_was_held() {
         // A command given a quarter into the second step.
-        let grid = CommandGrid::from_held(&[0.0, 0.0125, 0.1], &[0.0, 0.4, 0.4], &[0.0, -0.8, -0.8], 0.01);
+        let grid = CommandGrid::from_held(
+            &[0.0, 0.0125, 0.1],
+            &[0.0, 0.4, 0.4],
+            &[0.0, -0.8, -0.8],
+            0.01,
+        );
         assert_eq!(grid.v[0], 0.0);
         assert!((grid.v[1] - 0.3).abs() < 1e-12, "{}", grid.v[1]);
         assert!((grid.omega[1] + 0.6).abs() < 1e-12);
         assert!((grid.v[2] - 0.4).abs() < 1e-12);
         // A command a hair after a grid point acts from that step, as one on it.
         let on = CommandGrid::from_held(&[0.0, 0.02, 0.1], &[0.0, 0.4, 0.4], &[0.0; 3], 0.01);
-        let after = CommandGrid::from_held(&[0.0, 0.02 + 1e-12, 0.1], &[0.0, 0.4, 0.4], &[0.0; 3], 0.01);
+        let after =
+            CommandGrid::from_held(&[0.0, 0.02 + 1e-12, 0.1], &[0.0, 0.4, 0.4], &[0.0; 3], 0.01);
         assert!(on.v.iter().zip(&after.v).all(|(a, b)| (a - b).abs() < 1e-9));
     }
 

@@ -160,7 +160,9 @@ fn slam_all_follows_every_robot_and_one_that_joins_later() {
         ids.iter().all(|&id| steps(&s, id) > 5)
     };
     assert!(
-        wait_until(std::time::Duration::from_secs(30), || all_stepping(&[0, 1, 2])),
+        wait_until(std::time::Duration::from_secs(30), || all_stepping(&[
+            0, 1, 2
+        ])),
         "SLAM did not follow every robot: {}",
         status(&name)
     );
@@ -171,7 +173,9 @@ fn slam_all_follows_every_robot_and_one_that_joins_later() {
         String::from_utf8_lossy(&spawned.stderr)
     );
     assert!(
-        wait_until(std::time::Duration::from_secs(30), || all_stepping(&[0, 1, 2, 3])),
+        wait_until(std::time::Duration::from_secs(30), || all_stepping(&[
+            0, 1, 2, 3
+        ])),
         "SLAM did not follow the robot that joined: {}",
         status(&name)
     );

@@ -139,9 +139,18 @@ fn a_recording_onto_a_disk_that_fills_is_reported_at_once_kept_readable_and_fail
     let robots_then = alive_ids(&status(&swarm.name)).len();
     let (exit, said) = swarm.wait_end();
     eprintln!("full disk: shoal up {exit}:\n{said}");
-    assert!(said_at_once, "no word of the full disk during the run:\n{said}");
-    assert_eq!(robots_then, 20, "the robots stopped with the recorder:\n{said}");
-    assert!(!exit.success(), "a lost recording must fail the run:\n{said}");
+    assert!(
+        said_at_once,
+        "no word of the full disk during the run:\n{said}"
+    );
+    assert_eq!(
+        robots_then, 20,
+        "the robots stopped with the recorder:\n{said}"
+    );
+    assert!(
+        !exit.success(),
+        "a lost recording must fail the run:\n{said}"
+    );
     for words in [
         "cannot write the recording",
         recording.to_str().expect("utf-8"),
@@ -172,7 +181,12 @@ fn a_disk_that_fails_mid_run_is_reported_and_what_was_written_stays_readable() {
     let recording = mount.dir.join("run.rrd");
     let tum = mount.dir.join("tum");
     let tum = tum.to_str().expect("utf-8");
-    let mut swarm = recording_swarm("e2e-failing-disk", 6, &recording, &["--duration", "14", "--tum", tum]);
+    let mut swarm = recording_swarm(
+        "e2e-failing-disk",
+        6,
+        &recording,
+        &["--duration", "14", "--tum", tum],
+    );
     std::thread::sleep(Duration::from_secs(4));
     mount.fail_disk();
     let (exit, said) = swarm.wait_end();
@@ -241,7 +255,10 @@ fn a_recorder_over_its_file_size_limit_stops_with_a_clear_error_and_a_readable_f
         .output()
         .expect("run the recorder");
     let said = String::from_utf8_lossy(&recorder.stderr);
-    eprintln!("file-size limit: shoal-viewer-log {}:\n{said}", recorder.status);
+    eprintln!(
+        "file-size limit: shoal-viewer-log {}:\n{said}",
+        recorder.status
+    );
     assert!(!recorder.status.success(), "{said}");
     assert!(
         said.contains("File too large") && said.contains("cannot write the recording"),
@@ -297,7 +314,11 @@ fn a_lockstep_swarm_killed_whole_leaves_nothing_once_another_swarm_starts() {
         }),
         "the robots outlived their lockstep launcher"
     );
-    assert_ne!(residue(first), (0, vec![]), "the kill left nothing to sweep");
+    assert_ne!(
+        residue(first),
+        (0, vec![]),
+        "the kill left nothing to sweep"
+    );
     let mut other = BackgroundSwarm::start("e2e-after-kill", &["--agents", "2", "--duration", "3"]);
     let (exit, said) = other.wait_end();
     eprintln!("killed whole, then another swarm: shoal up {exit}:\n{said}");
@@ -306,7 +327,11 @@ fn a_lockstep_swarm_killed_whole_leaves_nothing_once_another_swarm_starts() {
         said.contains(&format!("of swarm `{first}`")),
         "the sweep was not said:\n{said}"
     );
-    assert_eq!(residue(first), (0, vec![]), "nodes or services of `{first}` left");
+    assert_eq!(
+        residue(first),
+        (0, vec![]),
+        "nodes or services of `{first}` left"
+    );
     let _ = shoal(&["down", "--swarm", first]);
 }
 
@@ -327,7 +352,10 @@ fn counts_and_ranges_that_cannot_make_a_run_are_refused_before_anything_starts()
         let out = shoal(&args);
         let said = String::from_utf8_lossy(&out.stderr);
         assert!(!out.status.success(), "{args:?} ran:\n{said}");
-        assert!(said.contains(words), "{args:?}: `{words}` not said:\n{said}");
+        assert!(
+            said.contains(words),
+            "{args:?}: `{words}` not said:\n{said}"
+        );
         for premature in ["swarm `", "iceoryx2 keeps", "open "] {
             assert!(
                 !said.contains(premature),

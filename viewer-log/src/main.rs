@@ -60,7 +60,10 @@ struct Args {
 fn repair(path: &std::path::Path) -> Result<()> {
     let cut = shoal_viewer_log::rrd_file::cut_partial_tail(path)?;
     if cut == 0 {
-        eprintln!("shoal-viewer-log: {} ends on a whole message; nothing to cut", path.display());
+        eprintln!(
+            "shoal-viewer-log: {} ends on a whole message; nothing to cut",
+            path.display()
+        );
     } else {
         eprintln!(
             "shoal-viewer-log: cut a partly written last message ({cut} bytes) off {}; \
@@ -158,16 +161,16 @@ impl Session {
         let meta = runtime.read_meta()?;
         // Off the recording's path: a swarm killed whole may have left
         // many nodes, and a lockstep clock waits for this recorder.
-        std::thread::spawn(|| {
-            match shoal_broker::liveness::remove_dead_nodes_of_abandoned_swarms() {
+        std::thread::spawn(
+            || match shoal_broker::liveness::remove_dead_nodes_of_abandoned_swarms() {
                 Ok(swept) => {
                     if let Some(swept) = shoal_broker::liveness::describe_swept(&swept) {
                         eprintln!("shoal-viewer-log: {swept}");
                     }
                 }
                 Err(e) => tracing::warn!("sweeping the dead nodes of abandoned swarms: {e}"),
-            }
-        });
+            },
+        );
         let scenario = runtime.read_scenario()?;
         let bus = Bus::join(
             &args.swarm,
@@ -179,7 +182,11 @@ impl Session {
         recorder.event(&format!(
             "recording swarm `{}` ({})",
             args.swarm,
-            if meta.lockstep { "lockstep" } else { "real time" }
+            if meta.lockstep {
+                "lockstep"
+            } else {
+                "real time"
+            }
         ))?;
         Ok(Self {
             swarm: args.swarm.clone(),
@@ -272,7 +279,10 @@ impl Session {
                 .as_mut()
                 .and_then(|w| w.check(Instant::now(), file.written()));
             if let Some(warning) = warning.or_else(|| self.estimate_once()) {
-                eprintln!("shoal-viewer-log: warning: {}: {warning}", file.path().display());
+                eprintln!(
+                    "shoal-viewer-log: warning: {}: {warning}",
+                    file.path().display()
+                );
             }
         }
         if !self.runtime.is_up() {
@@ -297,7 +307,11 @@ impl Session {
                 eprintln!(
                     "shoal-viewer-log: warning: {} did not take the recording in time ({reason}); \
                      recording goes on",
-                    if self.file.is_some() { "the disk or the live viewer" } else { "the live viewer" }
+                    if self.file.is_some() {
+                        "the disk or the live viewer"
+                    } else {
+                        "the live viewer"
+                    }
                 );
             }
             Some(_) => {}

@@ -307,7 +307,11 @@ impl Recorder {
         } else {
             crate::rrd_file::FLUSH_LIMIT
         };
-        Ok(self.rec.flush_with_timeout(limit).err().map(|e| e.to_string()))
+        Ok(self
+            .rec
+            .flush_with_timeout(limit)
+            .err()
+            .map(|e| e.to_string()))
     }
 }
 

@@ -328,9 +328,7 @@ impl Write for WholeMessages {
         match self.file.write_all(buf) {
             Ok(()) => {
                 self.committed += buf.len() as u64;
-                self.shared
-                    .written
-                    .store(self.committed, Ordering::Relaxed);
+                self.shared.written.store(self.committed, Ordering::Relaxed);
                 Ok(())
             }
             Err(e) => {
@@ -431,7 +429,8 @@ mod tests {
     }
 
     fn scratch(name: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("shoal-rrd-file-{name}-{}", std::process::id()));
+        let dir =
+            std::env::temp_dir().join(format!("shoal-rrd-file-{name}-{}", std::process::id()));
         std::fs::create_dir_all(&dir).expect("folder");
         dir
     }
@@ -444,7 +443,11 @@ mod tests {
         assert!(state.fault().is_none());
         let bytes = std::fs::read(&path).expect("read");
         assert_eq!(state.written(), bytes.len() as u64);
-        assert_eq!(whole_prefix(&bytes), Some(bytes.len()), "a finished file is whole");
+        assert_eq!(
+            whole_prefix(&bytes),
+            Some(bytes.len()),
+            "a finished file is whole"
+        );
         // Cut anywhere past the header, the file is whole up to a message
         // boundary at or before the cut, and a boundary is itself whole.
         let mut boundaries = std::collections::BTreeSet::new();
