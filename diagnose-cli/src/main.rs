@@ -416,6 +416,14 @@ fn run_experiment(args: &ExperimentArgs) -> Result<()> {
 }
 
 fn main() -> ExitCode {
+    // Why selection named or passed over each effect, on request
+    // (`RUST_LOG=shoal_diagnose=debug`); warnings otherwise.
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()),
+        )
+        .with_writer(std::io::stderr)
+        .init();
     let cli = Cli::parse();
     let outcome = match &cli.command {
         Some(Commands::Generate(args)) => run_generate(args),

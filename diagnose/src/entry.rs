@@ -97,8 +97,24 @@ pub(crate) fn factors_with(
     base: &[ScopedEffect],
     candidate: &ScopedEffect,
 ) -> [LongRun; 3] {
-    let model =
-        UnicycleModel::with_effects(base.iter().cloned().chain([candidate.clone()]).collect());
+    factors_of(
+        grid,
+        segs,
+        &base
+            .iter()
+            .cloned()
+            .chain([candidate.clone()])
+            .collect::<Vec<_>>(),
+    )
+}
+
+/// The residual components' long-run variance under `effects`.
+pub(crate) fn factors_of(
+    grid: &CommandGrid,
+    segs: &[Segment],
+    effects: &[ScopedEffect],
+) -> [LongRun; 3] {
+    let model = UnicycleModel::with_effects(effects.to_vec());
     let r = residuals(&model, grid, segs);
     let noise = estimate_noise(&model, segs, &r);
     long_run_of_components(segs, &standardised(&model, &noise, segs, &r))

@@ -9,7 +9,7 @@ use crate::candidates::{candidates, extra_params, fit_all, narrower_scope};
 use crate::diagnosis::{Alternative, OperatingPoint, Options, Prepared, Unexplained};
 use crate::entry::{
     EntryTest, calibrated_gain, calibrated_gain_of_move, components_of, entry_test_of_move,
-    factors_with,
+    factors_of, factors_with,
 };
 use crate::fit::{fit, nll_of};
 use crate::heldout::{CONTRADICTION_NATS, heldout_gain, heldout_gain_of_joint, must_transfer};
@@ -245,6 +245,13 @@ impl Selection<'_> {
             .cloned()
             .collect();
         let test = self.entry_of(base, &chosen, (delta_bic, long_runs));
+        tracing::debug!(
+            kind = chosen.effect.kind(),
+            delta_bic,
+            passed = test.passed(),
+            tied = ?tied.iter().map(|(_, c)| c.effect.kind()).collect::<Vec<_>>(),
+            "round: best candidate"
+        );
         if !test.passed() {
             return Round::Done;
         }
@@ -331,7 +338,12 @@ impl Selection<'_> {
 
     /// Refits `found` together, then drops any effect the others, refitted,
     /// do as well without (a turn scale standing in for steering play, once
-    /// the play joined); `evidence` follows index for index.
+    /// the play joined); `evidence` follows index for index. Each effect is
+    /// judged by the move from the others refitted without it to the joint
+    /// fit, the test an effect entering beside them faces: the joint value
+    /// of one effect added to the others' refit without it is no model the
+    /// data were fitted to, and judged that way a turn loss the others
+    /// only half absorb was dropped although it entered again at once.
     fn refit_and_prune(&self, found: &mut Vec<ScopedEffect>, evidence: &mut Vec<Evidence>) {
         let (grid, segs, options, fixed) = (self.grid(), self.segs(), self.options, &self.fixed);
         *found = fit(grid, segs, fixed, found, options.max_iters * 2).effects;
@@ -346,14 +358,17 @@ impl Selection<'_> {
             let refit = fit(grid, segs, fixed, &others, options.max_iters);
             let rest: Vec<ScopedEffect> =
                 fixed.iter().cloned().chain(refit.effects.clone()).collect();
-            let long_runs = factors_with(grid, segs, &rest, &found[k]);
+            let joint: Vec<ScopedEffect> = fixed.iter().chain(found.iter()).cloned().collect();
+            let long_runs = factors_of(grid, segs, &joint);
             let rest_nll = components_of(grid, segs, &rest);
             let factors = long_runs.map(|l| l.factor);
-            let needed = calibrated_gain(grid, segs, rest_nll, &rest, &found[k], factors);
-            if !self
-                .entry_of(&rest, &found[k], (needed, long_runs))
-                .passed()
-            {
+            let needed = calibrated_gain_of_move(grid, segs, rest_nll, &joint, &found[k], factors);
+            let test = self.entry_through_lens((&rest, &joint), &found[k], (needed, long_runs));
+            if !test.passed() {
+                tracing::debug!(
+                    kind = found[k].effect.kind(),
+                    "pruned: the others do as well"
+                );
                 *found = refit.effects;
                 evidence.remove(k);
             } else {
@@ -421,6 +436,12 @@ pub(crate) fn select(selection: &Selection, located: &[Located], at: OperatingPo
             let gain_heldout: f64 = gains.iter().sum();
             let worst = gains.iter().copied().fold(f64::INFINITY, f64::min);
             let contradicted = must_transfer(&chosen) && worst < -CONTRADICTION_NATS;
+            tracing::debug!(
+                kind = chosen.effect.kind(),
+                ?gains,
+                contradicted,
+                "round: held out"
+            );
             if !(gain_heldout > 0.0) || contradicted {
                 out.rejected_heldout.push(chosen.effect.kind());
                 continue;
@@ -531,6 +552,13 @@ impl Selection<'_> {
         let delta_bic =
             calibrated_gain_of_move(grid, segs, without_nll, &with, &candidate, factors);
         let test = self.entry_through_lens((&without, &with), &candidate, (delta_bic, long_runs));
+        tracing::debug!(
+            kind = candidate.effect.kind(),
+            delta_bic,
+            passed = test.passed(),
+            on_bound = on_bound(&candidate).is_some(),
+            "completion: best beside the named"
+        );
         if !test.passed() || on_bound(&candidate).is_some() {
             return false;
         }
@@ -542,6 +570,11 @@ impl Selection<'_> {
         let gains = heldout_gain_of_joint(self.prepared, &through, &out.found, &candidate, options);
         let worst = gains.iter().copied().fold(f64::INFINITY, f64::min);
         let heldout_gain: f64 = gains.iter().sum();
+        tracing::debug!(
+            kind = candidate.effect.kind(),
+            ?gains,
+            "completion: held out"
+        );
         if !(heldout_gain > 0.0) || (must_transfer(&candidate) && worst < -CONTRADICTION_NATS) {
             out.rejected_heldout.push(candidate.effect.kind());
             return false;
