@@ -1,6 +1,8 @@
 //! SLAM's cost: steps and particle-beam evaluations per second for a robot
-//! walking the SLAM tests' room, by particle count and by threads (one, and
-//! every core), against 100 particles on one thread as the baseline.
+//! walking the SLAM tests' room, by proposal (the motion model's, and the
+//! scan-matched one), particle count and threads (one, and every core),
+//! against the motion model's proposal with 100 particles on one thread as
+//! the baseline.
 
 use std::time::Instant;
 
@@ -10,14 +12,18 @@ use serde::Serialize;
 use shoal_physics::range::RangeSensor;
 use shoal_physics::wander::{range_ahead, wander_command};
 use shoal_physics::{Body, Command, MotionModel, Pose, Scenario};
-use shoal_slam::filter::{FilterConfig, ParticleFilter};
+use shoal_slam::filter::{FilterConfig, ParticleFilter, Proposal};
 
 #[derive(Debug, Serialize)]
 struct Row {
+    proposal: String,
     particles: usize,
     threads: usize,
     beams: usize,
-    scored_beams_per_step: usize,
+    /// Poses each particle scored per step, on average: one for the
+    /// motion model's proposal, the matcher's search and the proposal's
+    /// probes for the scan-matched one.
+    poses_scored_per_particle: f64,
     steps_per_s: f64,
     particle_beam_evals_per_s: f64,
     particle_beam_evals_per_s_per_thread: f64,
@@ -35,8 +41,17 @@ struct Report {
     rows: Vec<Row>,
 }
 
-/// Seconds per step of a filter with `particles` following a wandering robot.
-fn seconds_per_step(particles: usize, steps: usize) -> (f64, usize) {
+/// What following a wandering robot cost per step.
+struct Cost {
+    seconds: f64,
+    /// Particle-beam evaluations (poses scored times beams each).
+    evaluations: f64,
+    poses_per_particle: f64,
+}
+
+/// [`Cost`] of a filter with `particles` and `proposal` following a
+/// wandering robot for `steps` steps.
+fn cost_per_step(proposal: Proposal, particles: usize, steps: usize) -> Cost {
     let arena = Scenario::room().arena;
     let sensor = RangeSensor {
         beams: 180,
@@ -52,57 +67,67 @@ fn seconds_per_step(particles: usize, steps: usize) -> (f64, usize) {
     };
     let config = FilterConfig {
         particles,
+        proposal,
         sensor: sensor.clone(),
         ..FilterConfig::default()
     };
-    let scored = sensor.beams.div_ceil(config.score_stride.max(1));
     let mut filter = ParticleFilter::new(start, model, config, arena.width, arena.height, 3);
     let mut rng = rand::rngs::StdRng::seed_from_u64(9);
     let mut ranges = sensor.read(&arena, &body.pose, &[], 0.15, &mut rng);
     filter.observe_start(&ranges);
     let mut command = Command::Stand;
-    let mut elapsed = 0.0;
+    let (mut elapsed, mut evaluations, mut poses) = (0.0, 0.0, 0.0);
     for step in 0..steps {
         command = wander_command(step as u64 + 1, range_ahead(&ranges, &sensor), command);
         let outcome = body.step(command, &arena, &[], &mut rng);
         ranges = sensor.read(&arena, &body.pose, &[], 0.15, &mut rng);
         let started = Instant::now();
-        filter.step(command, outcome.bumped, &ranges);
+        let report = filter.step(command, outcome.bumped, &ranges);
         elapsed += started.elapsed().as_secs_f64();
+        evaluations += (report.poses_scored * report.scored_beams) as f64;
+        poses += report.poses_scored as f64 / particles as f64;
     }
-    (elapsed / steps as f64, scored)
+    let steps = steps.max(1) as f64;
+    Cost {
+        seconds: elapsed / steps,
+        evaluations: evaluations / steps,
+        poses_per_particle: poses / steps,
+    }
 }
 
-/// [`seconds_per_step`] with the filter's particles shared over `threads`.
-fn seconds_per_step_on(threads: usize, particles: usize, steps: usize) -> Result<(f64, usize)> {
+/// [`cost_per_step`] with the filter's particles shared over `threads`.
+fn cost_on(threads: usize, proposal: Proposal, particles: usize, steps: usize) -> Result<Cost> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()?;
-    Ok(pool.install(|| seconds_per_step(particles, steps)))
+    Ok(pool.install(|| cost_per_step(proposal, particles, steps)))
 }
 
 pub fn run(particles: &[usize], steps: usize, json: bool) -> Result<()> {
-    let (baseline, _) = seconds_per_step_on(1, 100, steps)?;
+    let baseline = cost_on(1, Proposal::Motion, 100, steps)?.seconds;
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let mut rows = Vec::new();
-    for &n in particles {
-        for threads in [1, cores] {
-            let (per_step, scored) = seconds_per_step_on(threads, n, steps)?;
-            let evals = (n * scored) as f64 / per_step;
-            rows.push(Row {
-                particles: n,
-                threads,
-                beams: 180,
-                scored_beams_per_step: scored,
-                steps_per_s: 1.0 / per_step,
-                particle_beam_evals_per_s: evals,
-                particle_beam_evals_per_s_per_thread: evals / threads as f64,
-                realtime_factor_10hz: 1.0 / per_step / 10.0,
-                realtime_factor_20_robots_5hz: 1.0 / per_step / 100.0,
-                step_time_vs_100_one_thread: per_step / baseline,
-            });
-            if cores == 1 {
-                break;
+    for proposal in [Proposal::Motion, Proposal::ScanMatched] {
+        for &n in particles {
+            for threads in [1, cores] {
+                let cost = cost_on(threads, proposal, n, steps)?;
+                let evals = cost.evaluations / cost.seconds;
+                rows.push(Row {
+                    proposal: format!("{proposal:?}"),
+                    particles: n,
+                    threads,
+                    beams: 180,
+                    poses_scored_per_particle: cost.poses_per_particle,
+                    steps_per_s: 1.0 / cost.seconds,
+                    particle_beam_evals_per_s: evals,
+                    particle_beam_evals_per_s_per_thread: evals / threads as f64,
+                    realtime_factor_10hz: 1.0 / cost.seconds / 10.0,
+                    realtime_factor_20_robots_5hz: 1.0 / cost.seconds / 100.0,
+                    step_time_vs_100_one_thread: cost.seconds / baseline,
+                });
+                if cores == 1 {
+                    break;
+                }
             }
         }
     }

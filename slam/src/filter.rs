@@ -11,6 +11,9 @@ use shoal_physics::{Command, MotionModel, Pose};
 
 use crate::grid::{TiledGrid, Tolerance};
 use crate::learning::{Draw, MixtureLearner};
+use crate::proposal::{
+    MotionPrior, PROPOSAL_POSES_SCORED, ScoredBeams, improved_proposal, match_scan,
+};
 
 /// The range of scales exploring particles apply to a drawn motion.
 const EXPLORE_SCALE: (f64, f64) = (0.3, 1.7);
@@ -51,6 +54,28 @@ pub struct FilterConfig {
     /// learning).
     pub explore: f64,
     pub sensor: RangeSensor,
+    pub proposal: Proposal,
+}
+
+/// Where a particle's next pose comes from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Proposal {
+    /// A step drawn from the motion model, weighted by the scan.
+    Motion,
+    /// GMapping's improved proposal (see [`crate::proposal`]), where the
+    /// scan returned enough beams to match; the motion model's otherwise.
+    ScanMatched,
+}
+
+/// Fewer returned beams than this are too few to match a scan on: the
+/// step falls back to the motion model's proposal.
+const MIN_MATCHED_BEAMS: usize = 8;
+
+/// One particle's drawn step, before the proposal places it.
+struct Drawn {
+    motion: [f64; 3],
+    pose: Pose,
+    explorer: bool,
 }
 
 impl Default for FilterConfig {
@@ -64,6 +89,7 @@ impl Default for FilterConfig {
             window: 8,
             explore: 0.2,
             sensor: RangeSensor::default(),
+            proposal: Proposal::Motion,
         }
     }
 }
@@ -84,6 +110,13 @@ pub struct StepReport {
     /// Share of scored beams that returned a range: how much this step knew.
     pub information: f64,
     pub resampled: bool,
+    /// Whether the scan placed the particles (the improved proposal).
+    pub matched: bool,
+    /// Poses scored against a map this step, over all particles: the
+    /// filter's work, each pose costing one evaluation per scored beam.
+    pub poses_scored: usize,
+    /// Beams each scored pose was scored with.
+    pub scored_beams: usize,
 }
 
 pub struct ParticleFilter {
@@ -168,140 +201,57 @@ impl ParticleFilter {
     /// translation if `bumped`), then its sensor read `ranges`.
     pub fn step(&mut self, command: Command, bumped: bool, ranges: &[f64]) -> StepReport {
         let n = self.particles.len();
-        let mut draws: Vec<[f64; 3]> = Vec::with_capacity(n);
-        let mut explored: Vec<bool> = Vec::with_capacity(n);
-        // Exploring serves the learner; without learning the model is taken as is.
-        let explore = if self.config.learning {
-            self.config.explore
-        } else {
-            0.0
-        };
-        let explorers = (explore * n as f64).round() as usize;
-        for (i, particle) in self.particles.iter_mut().enumerate() {
-            let mut motion = self.model.sample(command, &mut self.rng);
-            // Some particles try the command carrying farther or less far than
-            // the model says: when the model is wrong (a new surface, another
-            // robot), they keep the truth within reach, and their qualities
-            // show the learner where it lies.
-            let explorer = i % n.max(1).div_ceil(explorers.max(1)) == 0 && explorers > 0;
-            explored.push(explorer);
-            if explorer {
-                let scale = self.rng.random_range(EXPLORE_SCALE.0..EXPLORE_SCALE.1);
-                motion.along *= scale;
-                motion.across *= scale;
-                motion.turn *= self.rng.random_range(EXPLORE_SCALE.0..EXPLORE_SCALE.1);
-            }
-            particle.pose = if bumped {
-                particle.pose.advanced(0.0, 0.0, motion.turn)
-            } else {
-                particle
-                    .pose
-                    .advanced(motion.along, motion.across, motion.turn)
-            };
-            draws.push([motion.along, motion.across, motion.turn]);
-        }
-        let sensor = self.config.sensor.clone();
-        let scored: Vec<usize> = (0..ranges.len().min(sensor.beams))
-            .step_by(self.config.score_stride.max(1))
-            .collect();
-        let returned: Vec<usize> = scored
-            .iter()
-            .copied()
-            .filter(|&b| ranges[b] < sensor.max_range)
-            .collect();
-        let information = if scored.is_empty() {
-            0.0
-        } else {
-            returned.len() as f64 / scored.len() as f64
-        };
-        let log_likelihoods: Vec<f64> = if self.steps == 0 {
+        let drawn = self.draw_motions(command, bumped);
+        let (beams, information) = scored_beams(ranges, &self.config);
+        // The learner judges each motion drawn from the model (and each
+        // explorer's) by the whole scan at the pose it leads to. It never
+        // sees where the scan matcher then puts the particle: the matcher's
+        // correction is the scan's knowledge, not the motion's, and learned
+        // from it the model would learn the map's pull instead of the robot.
+        let at_drawn: Vec<f64> = if self.steps == 0 {
             vec![0.0; n]
         } else {
-            // The range noise grows with the range: so does how far off an
-            // obstacle a beam may end.
-            let tolerances: Vec<Tolerance> = returned
-                .iter()
-                .map(|&b| Tolerance::new(sensor.noise_per_m * ranges[b], self.config.cell_size))
-                .collect();
-            // Where each beam ends in the robot's frame is the same for every
-            // particle: computed once, then turned by each particle's heading
-            // (the profile in BENCHMARKS.md, "SLAM", had a sine and cosine
-            // per particle and beam at 12% of the filter's time).
-            let local_ends: Vec<DVec2> = returned
-                .iter()
-                .map(|&b| DVec2::from_angle(sensor.bearing(b)) * ranges[b])
-                .collect();
             // Each particle scores the scan against its own map: the
             // filter's main cost, shared out over the cores.
             self.particles
                 .par_iter()
-                .map(|p| {
-                    let (origin, heading) = (p.pose.position(), DVec2::from_angle(p.pose.theta));
-                    local_ends
-                        .iter()
-                        .zip(&tolerances)
-                        .map(|(local, tolerance)| {
-                            let end = origin + heading.rotate(*local);
-                            f64::from(0.05 + 0.9 * p.map.occupancy_within(end, tolerance)).ln()
-                        })
-                        .sum()
+                .zip(&drawn)
+                .map(|(p, d)| beams.log_likelihood(&p.map, &d.pose))
+                .collect()
+        };
+        if self.config.learning && self.steps > 0 {
+            self.learn(command, bumped, &drawn, &at_drawn, information);
+        }
+        let matched = self.config.proposal == Proposal::ScanMatched
+            && self.steps > 0
+            && !bumped
+            && beams.len() >= MIN_MATCHED_BEAMS;
+        let mut poses_scored = if self.steps == 0 { 0 } else { n };
+        let log_weights = if matched {
+            let (log_weights, scored) = self.propose_by_matching(command, &beams, &drawn);
+            poses_scored += scored;
+            log_weights
+        } else {
+            // The motion model's proposal: each particle goes where its
+            // draw took it, weighted by the scan there, tempered (see
+            // BEAM_TEMPERING); an explorer counts a tenth (EXPLORER_WEIGHT).
+            self.particles
+                .iter_mut()
+                .zip(&drawn)
+                .zip(&at_drawn)
+                .map(|((p, d), l)| {
+                    p.pose = d.pose;
+                    l * BEAM_TEMPERING
+                        + if d.explorer {
+                            EXPLORER_WEIGHT.ln()
+                        } else {
+                            0.0
+                        }
                 })
                 .collect()
         };
-        let best = log_likelihoods
-            .iter()
-            .copied()
-            .fold(f64::NEG_INFINITY, f64::max);
-        // The learner judges each drawn motion by the whole likelihood; the
-        // posterior takes it tempered (see BEAM_TEMPERING).
-        let step_weights: Vec<f64> = log_likelihoods.iter().map(|l| (l - best).exp()).collect();
-        let posterior_weights: Vec<f64> = log_likelihoods
-            .iter()
-            .map(|l| ((l - best) * BEAM_TEMPERING).exp())
-            .collect();
-        let step_total: f64 = step_weights.iter().sum();
-        if self.config.learning && self.steps > 0 && step_total > 0.0 {
-            for (k, param) in Param::ALL.iter().enumerate() {
-                // A bumped step says nothing about how far the command carries.
-                if bumped && *param != Param::T {
-                    continue;
-                }
-                let qualities: Vec<Draw> = draws
-                    .iter()
-                    .zip(&step_weights)
-                    .map(|(d, w)| Draw {
-                        value: d[k],
-                        quality: w / step_total * information,
-                    })
-                    .collect();
-                let learner = &mut self.learners[command.index()][k];
-                learner.update(&qualities);
-                *self.model.command_mut(command).param_mut(*param) = learner.mixture;
-            }
-        }
-        for ((p, w), explorer) in self
-            .particles
-            .iter_mut()
-            .zip(&posterior_weights)
-            .zip(&explored)
-        {
-            p.weight *= if *explorer { w * EXPLORER_WEIGHT } else { *w };
-        }
-        let total: f64 = self.particles.iter().map(|p| p.weight).sum();
-        for p in &mut self.particles {
-            p.weight = if total > 0.0 {
-                p.weight / total
-            } else {
-                1.0 / n as f64
-            };
-        }
+        let effective_particles = self.reweigh(&log_weights);
         let estimate = self.estimate();
-        let effective_particles = 1.0
-            / self
-                .particles
-                .iter()
-                .map(|p| p.weight * p.weight)
-                .sum::<f64>();
         let resampled = effective_particles < n as f64 / 2.0;
         if resampled {
             self.resample();
@@ -316,7 +266,154 @@ impl ParticleFilter {
             effective_particles,
             information,
             resampled,
+            matched,
+            poses_scored,
+            scored_beams: beams.len(),
         }
+    }
+
+    /// One motion per particle drawn from the model, some scaled at random
+    /// (explorers) while learning.
+    fn draw_motions(&mut self, command: Command, bumped: bool) -> Vec<Drawn> {
+        let n = self.particles.len();
+        // Exploring serves the learner; without learning the model is taken as is.
+        let explore = if self.config.learning {
+            self.config.explore
+        } else {
+            0.0
+        };
+        let explorers = (explore * n as f64).round() as usize;
+        let mut drawn = Vec::with_capacity(n);
+        for (i, particle) in self.particles.iter().enumerate() {
+            let mut motion = self.model.sample(command, &mut self.rng);
+            // Some particles try the command carrying farther or less far than
+            // the model says: when the model is wrong (a new surface, another
+            // robot), they keep the truth within reach, and their qualities
+            // show the learner where it lies.
+            let explorer = i % n.max(1).div_ceil(explorers.max(1)) == 0 && explorers > 0;
+            if explorer {
+                let scale = self.rng.random_range(EXPLORE_SCALE.0..EXPLORE_SCALE.1);
+                motion.along *= scale;
+                motion.across *= scale;
+                motion.turn *= self.rng.random_range(EXPLORE_SCALE.0..EXPLORE_SCALE.1);
+            }
+            let pose = if bumped {
+                particle.pose.advanced(0.0, 0.0, motion.turn)
+            } else {
+                particle
+                    .pose
+                    .advanced(motion.along, motion.across, motion.turn)
+            };
+            drawn.push(Drawn {
+                motion: [motion.along, motion.across, motion.turn],
+                pose,
+                explorer,
+            });
+        }
+        drawn
+    }
+
+    /// Updates the motion model of `command` from the drawn motions, each
+    /// as good as the whole scan found the pose it led to.
+    fn learn(
+        &mut self,
+        command: Command,
+        bumped: bool,
+        drawn: &[Drawn],
+        log_likelihoods: &[f64],
+        information: f64,
+    ) {
+        let best = log_likelihoods
+            .iter()
+            .copied()
+            .fold(f64::NEG_INFINITY, f64::max);
+        let weights: Vec<f64> = log_likelihoods.iter().map(|l| (l - best).exp()).collect();
+        let total: f64 = weights.iter().sum();
+        if !(total > 0.0) {
+            return;
+        }
+        for (k, param) in Param::ALL.iter().enumerate() {
+            // A bumped step says nothing about how far the command carries.
+            if bumped && *param != Param::T {
+                continue;
+            }
+            let qualities: Vec<Draw> = drawn
+                .iter()
+                .zip(&weights)
+                .map(|(d, w)| Draw {
+                    value: d.motion[k],
+                    quality: w / total * information,
+                })
+                .collect();
+            let learner = &mut self.learners[command.index()][k];
+            learner.update(&qualities);
+            *self.model.command_mut(command).param_mut(*param) = learner.mixture;
+        }
+    }
+
+    /// Moves every particle by the improved proposal (see
+    /// [`crate::proposal`]): matched from where its drawn step took it,
+    /// drawn around the match. Returns each particle's log weight update,
+    /// and how many poses were scored.
+    fn propose_by_matching(
+        &mut self,
+        command: Command,
+        beams: &ScoredBeams,
+        drawn: &[Drawn],
+    ) -> (Vec<f64>, usize) {
+        let prior = MotionPrior {
+            model: self.model.command(command),
+        };
+        let seeds: Vec<u64> = (0..self.particles.len())
+            .map(|_| self.rng.random())
+            .collect();
+        let proposed: Vec<(f64, usize)> = self
+            .particles
+            .par_iter_mut()
+            .zip(drawn)
+            .zip(seeds)
+            .map(|((p, d), seed)| {
+                let score = |pose: &Pose| BEAM_TEMPERING * beams.log_likelihood(&p.map, pose);
+                let from = p.pose;
+                // Each particle matches from its own draw: a model that is
+                // still wrong puts its mean beyond the matcher's reach, and
+                // the draws (the explorers' above all) keep the truth within it.
+                let posterior = |pose: &Pose| score(pose) + prior.log_density(&from, pose);
+                let (matched, _, scored) = match_scan(&posterior, d.pose);
+                let mut rng = StdRng::seed_from_u64(seed);
+                let proposed = improved_proposal(&score, &prior, &from, matched, &mut rng);
+                p.pose = proposed.pose;
+                (proposed.log_weight, scored + PROPOSAL_POSES_SCORED)
+            })
+            .collect();
+        let scored = proposed.iter().map(|(_, s)| s).sum();
+        (proposed.into_iter().map(|(w, _)| w).collect(), scored)
+    }
+
+    /// Multiplies the particles' weights by `exp(log_weights)` and
+    /// normalises them; returns the effective sample size.
+    fn reweigh(&mut self, log_weights: &[f64]) -> f64 {
+        let n = self.particles.len();
+        let best = log_weights
+            .iter()
+            .copied()
+            .fold(f64::NEG_INFINITY, f64::max);
+        for (p, l) in self.particles.iter_mut().zip(log_weights) {
+            p.weight *= (l - best).exp();
+        }
+        let total: f64 = self.particles.iter().map(|p| p.weight).sum();
+        for p in &mut self.particles {
+            p.weight = if total > 0.0 && total.is_finite() {
+                p.weight / total
+            } else {
+                1.0 / n as f64
+            };
+        }
+        1.0 / self
+            .particles
+            .iter()
+            .map(|p| p.weight * p.weight)
+            .sum::<f64>()
     }
 
     /// Low-variance resampling: one random offset, evenly spaced picks, so
@@ -405,7 +502,42 @@ impl Bodies {
     }
 }
 
-/// Adds a scan taken at the particle's pose to its map.
+/// The beams a step scores with (every `score_stride`-th that returned a
+/// range), and the share of those scored that returned: how much the
+/// step knew.
+fn scored_beams(ranges: &[f64], config: &FilterConfig) -> (ScoredBeams, f64) {
+    let sensor = &config.sensor;
+    let scored: Vec<usize> = (0..ranges.len().min(sensor.beams))
+        .step_by(config.score_stride.max(1))
+        .collect();
+    let returned: Vec<usize> = scored
+        .iter()
+        .copied()
+        .filter(|&b| ranges[b] < sensor.max_range)
+        .collect();
+    let information = if scored.is_empty() {
+        0.0
+    } else {
+        returned.len() as f64 / scored.len() as f64
+    };
+    // Where each beam ends in the robot's frame is the same for every
+    // particle: computed once, then turned by each particle's heading (the
+    // profile in BENCHMARKS.md, "SLAM", had a sine and cosine per particle
+    // and beam at 12% of the filter's time). The range noise grows with the
+    // range: so does how far off an obstacle a beam may end.
+    let beams = ScoredBeams {
+        local_ends: returned
+            .iter()
+            .map(|&b| DVec2::from_angle(sensor.bearing(b)) * ranges[b])
+            .collect(),
+        tolerances: returned
+            .iter()
+            .map(|&b| Tolerance::new(sensor.noise_per_m * ranges[b], config.cell_size))
+            .collect(),
+    };
+    (beams, information)
+}
+
 /// The beams a step maps with: where each ends in the robot's frame, and
 /// whether it hit something. The same for every particle, so computed once.
 fn mapped_beams(ranges: &[f64], config: &FilterConfig) -> Vec<(DVec2, bool)> {

@@ -78,25 +78,34 @@ impl TiledGrid {
     }
 
     /// The highest occupancy near `p`, each cell's discounted by the
-    /// Gaussian weight `tolerance` gives its distance (0.5 outside the
-    /// map): a beam that ends where the range noise could have put it off
-    /// an obstacle still scores. Far beams are noisier, so their tolerance
-    /// is wider; with a fixed one-cell tolerance a 10 m beam scores by
-    /// chance.
+    /// Gaussian weight `tolerance` gives its distance from `p`: a beam that
+    /// ends where the range noise could have put it off an obstacle still
+    /// scores. Far beams are noisier, so their tolerance is wider; with a
+    /// fixed one-cell tolerance a 10 m beam scores by chance. Only cells
+    /// more likely occupied than not count: a beam ending in space never
+    /// seen scores as one ending in free space, nothing. Scored by the
+    /// occupancy of the unseen cell (a half), a robot whose beams reached
+    /// past the walls it had mapped, onto unseen ground, was scored higher
+    /// the farther behind it was believed, and the estimate lagged (one
+    /// robot of the crowd 0.6-1.2 m off, a lone robot 0.26 m). The distance
+    /// is from `p` itself, not from the cell it lies in, so the score
+    /// changes within a cell and a scan can be matched finer than the map.
     pub fn occupancy_within(&self, p: DVec2, tolerance: &Tolerance) -> f32 {
         let Some((cx, cy)) = self.cell_of(p) else {
-            return 0.5;
+            return 0.0;
         };
+        let local = (p - self.origin) / self.cell_size;
         let reach = tolerance.reach;
-        let mut best = self.occupancy((cx, cy));
+        let mut best = 0.0f32;
         for y in cy.saturating_sub(reach)..=(cy + reach).min(self.height - 1) {
-            let dy = y.abs_diff(cy);
+            let dy = local.y - (y as f64 + 0.5);
             for x in cx.saturating_sub(reach)..=(cx + reach).min(self.width - 1) {
                 let odds = self.log_odds((x, y));
-                // Only cells more likely occupied than not can beat the
-                // centre by much; skipping the rest keeps this cheap.
+                // Only cells more likely occupied than not count; skipping
+                // the rest keeps this cheap.
                 if odds > 0.0 {
-                    let weight = tolerance.weight(x.abs_diff(cx), dy);
+                    let dx = local.x - (x as f64 + 0.5);
+                    let weight = tolerance.weight(dx * dx + dy * dy);
                     best = best.max(weight / (1.0 + (-odds).exp()));
                 }
             }
@@ -245,7 +254,7 @@ mod tests {
 #[derive(Clone, Debug)]
 pub struct Tolerance {
     reach: usize,
-    /// Weight by squared offset in cells, dx^2 + dy^2.
+    /// Weight by squared distance in cells, in steps of 1 / [`Self::STEPS`].
     weights: Vec<f32>,
 }
 
@@ -253,18 +262,31 @@ impl Tolerance {
     /// Most cells a tolerance reaches out, each way: past 2 sigma the
     /// weight is below 0.14, and a wider window costs quadratically.
     const MAX_REACH: usize = 6;
+    /// Steps per squared cell of the weight table: a sixteenth of a cell
+    /// squared, finer than a scan is matched.
+    const STEPS: f64 = 16.0;
 
     /// A tolerance of `sigma` metres (at least one cell) on cells of `cell_size`.
     pub fn new(sigma: f64, cell_size: f64) -> Self {
         let sigma_cells = sigma.max(cell_size) / cell_size;
         let reach = ((2.0 * sigma_cells).ceil() as usize).clamp(1, Self::MAX_REACH);
-        let weights = (0..=2 * reach * reach)
-            .map(|squared| (-0.5 * squared as f64 / (sigma_cells * sigma_cells)).exp() as f32)
+        // The farthest cell centre in the window from a point in its
+        // middle cell: reach + 1/2 cells on each axis.
+        let farthest = 2.0 * (reach as f64 + 0.5).powi(2);
+        let weights = (0..=(farthest * Self::STEPS).ceil() as usize)
+            .map(|k| {
+                let squared = k as f64 / Self::STEPS;
+                (-0.5 * squared / (sigma_cells * sigma_cells)).exp() as f32
+            })
             .collect();
         Self { reach, weights }
     }
 
-    fn weight(&self, dx: usize, dy: usize) -> f32 {
-        self.weights.get(dx * dx + dy * dy).copied().unwrap_or(0.0)
+    /// The weight at `squared` cells squared from the beam's end.
+    fn weight(&self, squared: f64) -> f32 {
+        self.weights
+            .get((squared * Self::STEPS).round() as usize)
+            .copied()
+            .unwrap_or(0.0)
     }
 }

@@ -7,3 +7,4 @@ pub mod follower;
 pub mod grid;
 pub mod learning;
 pub mod metrics;
+pub mod proposal;

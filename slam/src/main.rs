@@ -18,7 +18,7 @@ use shoal_broker::{
 use shoal_physics::legged::Param;
 use shoal_physics::{Command, MotionModel, Pose};
 use shoal_runtime::{FollowedReport, SlamReport, SwarmRuntime};
-use shoal_slam::filter::{Bodies, FilterConfig};
+use shoal_slam::filter::{Bodies, FilterConfig, Proposal};
 use shoal_slam::follow::Follow;
 use shoal_slam::follower::{Follower, Scan, Stepped};
 
@@ -47,6 +47,18 @@ struct Args {
     /// Occupancy grid cell size, metres.
     #[arg(long, default_value_t = 0.05)]
     grid: f64,
+    /// Where particles go each step: `motion` (drawn from the motion model,
+    /// weighted by the scan) or `matched` (GMapping's improved proposal:
+    /// scan-matched, then drawn around the match; more accurate with fewer
+    /// particles, each dearer: EXPERIMENTS.md, "SLAM").
+    #[arg(long, value_enum, default_value_t = ProposalArg::Motion)]
+    proposal: ProposalArg,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum ProposalArg {
+    Motion,
+    Matched,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -132,6 +144,10 @@ impl Setup {
                 learning: args.learning == Learning::On,
                 window: args.window as usize,
                 sensor: scenario.sensor.clone(),
+                proposal: match args.proposal {
+                    ProposalArg::Motion => Proposal::Motion,
+                    ProposalArg::Matched => Proposal::ScanMatched,
+                },
                 ..FilterConfig::default()
             },
             arena: [scenario.arena.width, scenario.arena.height],
