@@ -222,7 +222,13 @@ impl Selection<'_> {
                 fitted.effects = vec![zone];
             }
         }
-        confirmed.retain(|f| !is_whole_floor(segs, &f.effects[0].effect));
+        confirmed.retain(|f| {
+            let whole = is_whole_floor(segs, &f.effects[0].effect);
+            if whole {
+                tracing::debug!(zone = ?f.effects[0].effect, "round: a zone over the whole floor is no place");
+            }
+            !whole
+        });
         let Some(best_fit) = confirmed.iter().min_by(|a, b| a.nll.total_cmp(&b.nll)) else {
             return Round::Done;
         };

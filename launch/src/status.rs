@@ -195,7 +195,7 @@ pub fn print_table(out: &mut dyn Write, report: &StatusReport) -> io::Result<()>
     }
     writeln!(
         out,
-        "{:>5} {:<10} {:>8} {:>6} {:>8} {:>8} {:>7}  {:<26} neighbours",
+        "{:>5} {:<10} {:>8} {:>6} {:>8} {:>8} {:>7}  {:<48} neighbours",
         "id", "host", "pid", "state", "x", "y", "theta", "slam"
     )?;
     for a in &report.agents {
@@ -204,8 +204,12 @@ pub fn print_table(out: &mut dyn Write, report: &StatusReport) -> io::Result<()>
         let slam = a.slam.as_ref().map_or_else(
             || "-".to_owned(),
             |f| {
+                let keeping_up = match (f.steps_per_s, f.behind_s) {
+                    (Some(rate), Some(behind)) => format!(" ({rate:.1}/s, {behind:.1} s behind)"),
+                    _ => String::new(),
+                };
                 format!(
-                    "{} steps, model moved {:.2}{}",
+                    "{} steps{keeping_up}, model moved {:.2}{}",
                     f.steps,
                     f.model_distance,
                     if f.paused { ", paused" } else { "" }
@@ -214,7 +218,7 @@ pub fn print_table(out: &mut dyn Write, report: &StatusReport) -> io::Result<()>
         );
         writeln!(
             out,
-            "{:>5} {:<10} {:>8} {:>6} {:>8} {:>8} {:>7}  {:<26} {}",
+            "{:>5} {:<10} {:>8} {:>6} {:>8} {:>8} {:>7}  {:<48} {}",
             a.id,
             a.host,
             a.pid,

@@ -55,6 +55,14 @@ pub struct FollowedReport {
     /// metres: the scalar a reader can hold against the truth.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stride_m: Option<f64>,
+    /// Filter steps per second since the report before: a robot at 5 Hz
+    /// needs 5 to keep up.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub steps_per_s: Option<f64>,
+    /// How far the filter trails its robot: seconds of the robot's scans
+    /// not yet stepped.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub behind_s: Option<f64>,
 }
 
 /// What this host's link (`shoal-link`) knows of the swarm's other hosts,

@@ -49,6 +49,8 @@ pub struct Follower {
     /// Scans that came before their tick's pose, while the filter waits to start.
     waiting: Vec<Scan>,
     steps: u64,
+    /// The tick of the newest scan the filter stepped (or started on).
+    stepped_tick: Option<u64>,
 }
 
 impl Follower {
@@ -71,6 +73,7 @@ impl Follower {
             announced: BTreeMap::new(),
             waiting: Vec::new(),
             steps: 0,
+            stepped_tick: None,
         }
     }
 
@@ -80,6 +83,12 @@ impl Follower {
 
     pub fn steps(&self) -> u64 {
         self.steps
+    }
+
+    /// How many ticks the filter trails the newest pose the roster
+    /// announced for its robot: what it still has to step to be current.
+    pub fn ticks_behind(&self) -> Option<u64> {
+        Some(self.newest_announced()?.saturating_sub(self.stepped_tick?))
     }
 
     /// The newest tick the roster announced for the robot. A robot
@@ -148,6 +157,7 @@ impl Follower {
             };
             let report = filter.step(command, scan.bumped, &scan.ranges);
             self.steps += 1;
+            self.stepped_tick = Some(scan.tick);
             stepped(Stepped {
                 tick: scan.tick,
                 sim_time: scan.sim_time,
@@ -190,6 +200,7 @@ impl Follower {
         );
         filter.observe_start(&ranges);
         self.filter = Some(filter);
+        self.stepped_tick = Some(scans[first].tick);
         Some(first)
     }
 }

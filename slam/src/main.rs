@@ -81,6 +81,8 @@ struct Followed {
     estimates: Sender<EstimateSample>,
     models: Sender<ModelUpdate>,
     last_scan: Option<std::time::Instant>,
+    /// Steps when the last report was written, for the step rate.
+    steps_reported: u64,
 }
 
 const MIN_GRID_M: f64 = 0.01;
@@ -170,6 +172,7 @@ impl Setup {
             estimates: robot_streams::estimate_publisher(bus, id)?,
             models: robot_streams::model_publisher(bus, id)?,
             last_scan: None,
+            steps_reported: 0,
         })
     }
 }
@@ -280,6 +283,7 @@ fn run(args: Args) -> Result<()> {
             .unwrap_or(newest_roster);
         progress.publish(&HelperProgress { tick: done })?;
         if last_report.elapsed() >= REPORT_EVERY {
+            let since = last_report.elapsed().as_secs_f64();
             last_report = std::time::Instant::now();
             if !runtime.is_up() {
                 eprintln!(
@@ -288,7 +292,7 @@ fn run(args: Args) -> Result<()> {
                 );
                 break;
             }
-            let report = report(&followed, &initial);
+            let report = report(&mut followed, &initial, (since, scenario.timing.period_s));
             // Said once, and again if it fails after working again.
             match runtime.write_slam_report(&report) {
                 Err(e) if !report_failing => {
@@ -316,16 +320,26 @@ const REPORT_EVERY: Duration = Duration::from_secs(1);
 /// waits for it to come back.
 const PAUSED_AFTER: Duration = Duration::from_secs(2);
 
-fn report(followed: &BTreeMap<u32, Followed>, initial: &MotionModel) -> SlamReport {
+/// What `shoal status` shows of SLAM: per followed robot, its steps, the
+/// step rate over the last `since` seconds, and how far it trails its robot
+/// (ticks of `period_s`).
+fn report(
+    followed: &mut BTreeMap<u32, Followed>,
+    initial: &MotionModel,
+    (since, period_s): (f64, f64),
+) -> SlamReport {
     SlamReport {
         pid: std::process::id(),
         followed: followed
-            .iter()
+            .iter_mut()
             .map(|(id, robot)| {
+                let steps = robot.follower.steps();
+                let rate = (steps - robot.steps_reported.min(steps)) as f64 / since.max(1e-3);
+                robot.steps_reported = steps;
                 let filter = robot.follower.filter();
                 FollowedReport {
                     id: *id,
-                    steps: robot.follower.steps(),
+                    steps,
                     model_distance: filter.map_or(0.0, |f| f.model().distance_from(initial)),
                     paused: robot.last_scan.is_none_or(|t| t.elapsed() > PAUSED_AFTER),
                     estimate: filter.map(|f| {
@@ -333,6 +347,11 @@ fn report(followed: &BTreeMap<u32, Followed>, initial: &MotionModel) -> SlamRepo
                         [p.x, p.y, p.theta]
                     }),
                     stride_m: filter.map(|f| f.model().full_stride()),
+                    steps_per_s: filter.map(|_| rate),
+                    behind_s: robot
+                        .follower
+                        .ticks_behind()
+                        .map(|ticks| ticks as f64 * period_s),
                 }
             })
             .collect(),

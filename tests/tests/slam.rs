@@ -179,6 +179,15 @@ fn slam_all_follows_every_robot_and_one_that_joins_later() {
         "SLAM did not follow the robot that joined: {}",
         status(&name)
     );
+    // Each followed robot's step rate and lag reach `shoal status`.
+    let s = status(&name);
+    for id in 0..4 {
+        let f = followed(&s, id).expect("followed");
+        assert!(
+            f["steps_per_s"].as_f64().is_some() && f["behind_s"].as_f64().is_some(),
+            "robot {id}: {f}"
+        );
+    }
     let (exit, said) = swarm.interrupt();
     assert!(exit.success(), "{said}");
 }
