@@ -6,7 +6,7 @@
 use glam::DVec2;
 use shoal_agent::robot::Robot;
 use shoal_physics::{MotionModel, Neighbour, Scenario};
-use shoal_slam::filter::{Bodies, FilterConfig};
+use shoal_slam::filter::{Bodies, FilterConfig, Proposal};
 use shoal_slam::follower::{Follower, Scan};
 
 fn demo() -> Scenario {
@@ -25,6 +25,17 @@ struct Followed {
 /// [`Follower`]): started at the announced pose of its first scan, beams
 /// that end on other robots masked.
 fn follow_in_crowd(count: usize, steps: usize, model: &MotionModel, seed: u64) -> Followed {
+    follow_in_crowd_with(count, steps, model, seed, FilterConfig::default())
+}
+
+/// [`follow_in_crowd`] with the filter's `config` (its sensor: the demo's).
+fn follow_in_crowd_with(
+    count: usize,
+    steps: usize,
+    model: &MotionModel,
+    seed: u64,
+    config: FilterConfig,
+) -> Followed {
     let scenario = demo();
     let starts = scenario.start_poses(0, count);
     let mut robots: Vec<Robot> = starts
@@ -34,7 +45,7 @@ fn follow_in_crowd(count: usize, steps: usize, model: &MotionModel, seed: u64) -
         .collect();
     let config = FilterConfig {
         sensor: scenario.sensor.clone(),
-        ..FilterConfig::default()
+        ..config
     };
     let arena = [scenario.arena.width, scenario.arena.height];
     let mut follower = Follower::new(0, seed, model.clone(), config, arena);
@@ -89,8 +100,11 @@ fn in_a_crowd_a_filter_started_with_short_strides_holds_the_robot_and_learns_its
     let short = truth.scaled(0.75, 1.0, 1.0);
     let (wrong, right) = (short.full_stride(), truth.full_stride());
     // Three seeds of the filter; `--nocapture` prints what EXPERIMENTS.md
-    // section 10 reports (13 m and more before the likelihood was tempered
-    // and explorers discounted).
+    // section 10 reports: 0.23, 0.32, 0.18 m at the end today; 0.6-1.2 m
+    // while a beam ending on unseen ground scored as half a hit, 13 m and
+    // more before the likelihood was tempered and explorers discounted.
+    // The robot walks onto the sand from step 50, where its true strides
+    // are 0.6 of the carpet's: the "truth" below is the carpet's.
     for seed in 0..3 {
         let followed = follow_in_crowd(20, 150, &short, seed);
         let worst_late = followed.errors[100..].iter().copied().fold(0.0, f64::max);
@@ -105,12 +119,47 @@ fn in_a_crowd_a_filter_started_with_short_strides_holds_the_robot_and_learns_its
             "seed {seed}: last {last:.2} m, worst of the last 50 steps {worst_late:.2} m; full stride {wrong:.3} -> {learned:.3} m (truth {right:.3})"
         );
         assert!(
-            worst_late < 1.5,
+            worst_late < 0.6,
             "seed {seed}: last 50 steps: worst position error {worst_late:.2} m"
         );
         assert!(
             (learned - right).abs() < (wrong - right).abs(),
             "seed {seed}: the stride moved away from the truth: {wrong:.3} -> {learned:.3} m (truth {right:.3})"
         );
+    }
+}
+
+/// The two proposals side by side in the crowd, from the demo's short
+/// strides and from the true model (EXPERIMENTS.md, "SLAM"): `cargo test
+/// --release -p shoal-slam --test crowd -- --ignored --nocapture`.
+#[test]
+#[ignore = "an experiment: a minute of filtering"]
+fn the_scan_matched_proposal_against_the_motion_models_in_a_crowd() {
+    let truth = demo().motion;
+    for (start, model) in [
+        ("short strides", truth.scaled(0.75, 1.0, 1.0)),
+        ("true model", truth.clone()),
+    ] {
+        for (proposal, particles) in [
+            (Proposal::Motion, 500),
+            (Proposal::ScanMatched, 100),
+            (Proposal::ScanMatched, 30),
+        ] {
+            let ends: Vec<String> = (0..3)
+                .map(|seed| {
+                    let config = FilterConfig {
+                        particles,
+                        proposal,
+                        ..FilterConfig::default()
+                    };
+                    let followed = follow_in_crowd_with(20, 150, &model, seed, config);
+                    format!("{:.2}", followed.errors.last().copied().unwrap_or(f64::NAN))
+                })
+                .collect();
+            eprintln!(
+                "{start}, {proposal:?}, {particles} particles: position error after 150 steps {} m (seeds 0-2)",
+                ends.join(" / ")
+            );
+        }
     }
 }
