@@ -106,7 +106,11 @@ impl TiledGrid {
                 if odds > 0.0 {
                     let dx = local.x - (x as f64 + 0.5);
                     let weight = tolerance.weight(dx * dx + dy * dy);
-                    best = best.max(weight / (1.0 + (-odds).exp()));
+                    // An occupancy is at most 1: a cell whose weight alone
+                    // does not beat the best needs no exp.
+                    if weight > best {
+                        best = best.max(weight / (1.0 + (-odds).exp()));
+                    }
                 }
             }
         }
@@ -284,8 +288,11 @@ impl Tolerance {
 
     /// The weight at `squared` cells squared from the beam's end.
     fn weight(&self, squared: f64) -> f32 {
+        // Rounded by truncation after adding a half (the distance is never
+        // negative): `f64::round` was 13% of the filter's time (perf,
+        // BENCHMARKS.md "SLAM").
         self.weights
-            .get((squared * Self::STEPS).round() as usize)
+            .get((squared * Self::STEPS + 0.5) as usize)
             .copied()
             .unwrap_or(0.0)
     }
