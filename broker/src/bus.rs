@@ -7,32 +7,20 @@ use iceoryx2::service::port_factory::{
     event as event_factory, publish_subscribe as pubsub_factory,
 };
 
+pub use crate::error::BusError;
 use crate::names;
-use crate::ports::Topic;
 
-#[derive(Debug, thiserror::Error)]
-pub enum BusError {
-    #[error("invalid swarm name `{0}`: use letters, digits, `-` and `_` (at most 32)")]
-    InvalidSwarm(String),
-    /// What iceoryx2 refused, with its own error as the source (shown by
-    /// `{:#}` of an `anyhow::Error`, or by walking `source()`).
-    #[error("bus: {what}")]
-    Iceoryx {
-        what: String,
-        source: Box<dyn std::error::Error + Send + Sync>,
-    },
-}
-
-impl BusError {
-    pub fn iceoryx(
-        what: impl Into<String>,
-        source: impl std::error::Error + Send + Sync + 'static,
-    ) -> Self {
-        Self::Iceoryx {
-            what: what.into(),
-            source: Box::new(source),
-        }
-    }
+/// A publish-subscribe service and the limits every process opens it with.
+#[derive(Clone, Debug)]
+pub(crate) struct Topic {
+    pub name: String,
+    pub publishers: usize,
+    pub subscribers: usize,
+    /// Unread samples a subscriber holds per publisher before the oldest
+    /// are overwritten.
+    pub buffer: usize,
+    /// Samples a late subscriber still receives.
+    pub history: usize,
 }
 
 /// Sizes of the swarm's services. iceoryx2's defaults (2 publishers, 8
@@ -279,6 +267,14 @@ impl Bus {
             swarm: swarm.to_owned(),
             limits,
         })
+    }
+
+    /// Joins swarm `swarm` as a tool that serves it (a recorder, SLAM,
+    /// `shoal status`, a test's observer), not as a robot: its node is
+    /// `shoal/<swarm>/<role>`, which liveness and the launcher tell apart
+    /// from robots by name.
+    pub fn join_tool(swarm: &str, role: &str, limits: BusLimits) -> Result<Self, BusError> {
+        Self::join(swarm, &names::tool_node(swarm, role), limits)
     }
 
     pub fn service_name(name: &str) -> Result<ServiceName, BusError> {

@@ -12,10 +12,10 @@ use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::PortFactory as _;
 use iceoryx2::service::port_factory::publish_subscribe::PortFactory;
 
-use crate::bus::{Bus, BusError};
+use crate::bus::{Bus, BusError, Topic};
 use crate::check::Rejected;
 use crate::names;
-use crate::ports::{Sender, Topic, receive_checked, subscribe};
+use crate::ports::{Sender, receive_checked, subscribe};
 use crate::wire::PoseSample;
 
 pub type CellKey = (i32, i32);

@@ -11,7 +11,7 @@ use iceoryx2::prelude::*;
 
 use iceoryx2::port::listener::ListenerWaitError;
 
-use crate::bus::{Bus, BusError};
+use crate::bus::{Bus, BusError, Topic};
 
 /// A signal that interrupts a wait is not an error: the caller's loop checks
 /// for termination next.
@@ -22,7 +22,7 @@ fn waited(result: Result<u64, ListenerWaitError>, what: &str) -> Result<(), BusE
     }
 }
 use crate::names;
-use crate::ports::{Receiver, Sender, Topic};
+use crate::ports::{Receiver, Sender};
 use crate::wire::ClockTick;
 
 fn ticks(bus: &Bus) -> Topic {

@@ -7,6 +7,7 @@ pub mod bus;
 pub mod cells;
 pub mod check;
 pub mod clock;
+pub mod error;
 pub mod liveness;
 pub mod names;
 pub mod ports;

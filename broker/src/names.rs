@@ -1,7 +1,7 @@
 //! Every service of a swarm lives under `shoal/<swarm>/`, so two swarms on one
 //! machine never see each other.
 
-use crate::bus::BusError;
+use crate::error::BusError;
 
 /// Checks a swarm name: letters, digits, `-` and `_`, at most 32 characters.
 pub fn validate_swarm(swarm: &str) -> Result<(), BusError> {

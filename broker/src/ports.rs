@@ -8,21 +8,8 @@ use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 
-use crate::bus::{Bus, BusError};
+use crate::bus::{Bus, BusError, Topic};
 use crate::check::{Rejected, Wire};
-
-/// A publish-subscribe service and the limits every process opens it with.
-#[derive(Clone, Debug)]
-pub(crate) struct Topic {
-    pub name: String,
-    pub publishers: usize,
-    pub subscribers: usize,
-    /// Unread samples a subscriber holds per publisher before the oldest
-    /// are overwritten.
-    pub buffer: usize,
-    /// Samples a late subscriber still receives.
-    pub history: usize,
-}
 
 /// The sending end of a topic.
 pub struct Sender<T: Debug + ZeroCopySend + 'static> {

@@ -6,10 +6,10 @@ use core::fmt::Debug;
 
 use iceoryx2::prelude::*;
 
-use crate::bus::{Bus, BusError};
+use crate::bus::{Bus, BusError, Topic};
 use crate::check::Wire;
 use crate::names;
-use crate::ports::{Receiver, Sender, Topic};
+use crate::ports::{Receiver, Sender};
 use crate::wire::{
     EstimateSample, HelperProgress, ModelUpdate, ScanSample, SlamMap, SlamParticles,
 };

@@ -2,9 +2,9 @@
 //! read the whole swarm (status, recorder, SLAM, the lockstep clock). Robots
 //! never subscribe to it, so it adds nothing to a robot's per-period cost.
 
-use crate::bus::{Bus, BusError};
+use crate::bus::{Bus, BusError, Topic};
 use crate::names;
-use crate::ports::{Receiver, Sender, Topic};
+use crate::ports::{Receiver, Sender};
 use crate::wire::PoseSample;
 
 const ROSTER_BUFFER: usize = 8;
@@ -30,6 +30,18 @@ pub fn publisher(bus: &Bus) -> Result<RosterPublisher, BusError> {
 
 pub fn reader(bus: &Bus) -> Result<RosterReader, BusError> {
     Receiver::open(bus, &topic(bus), "roster pose")
+}
+
+/// Joins swarm `swarm` as tool `role` (see [`Bus::join_tool`]) and opens a
+/// reader of its roster: what every observer of the whole swarm starts with.
+pub fn join_reader(
+    swarm: &str,
+    role: &str,
+    limits: crate::BusLimits,
+) -> Result<(Bus, RosterReader), BusError> {
+    let bus = Bus::join_tool(swarm, role, limits)?;
+    let roster = reader(&bus)?;
+    Ok((bus, roster))
 }
 
 /// How many observers read the roster now: a host's link carries the whole

@@ -8,12 +8,7 @@ use shoal_broker::{Bus, BusLimits, names};
 #[test]
 fn a_sigterm_before_services_are_opened_is_still_seen_after() {
     let swarm = format!("signals-{}", std::process::id());
-    let bus = Bus::join(
-        &swarm,
-        &names::tool_node(&swarm, "test"),
-        BusLimits::default(),
-    )
-    .expect("join the bus");
+    let bus = Bus::join_tool(&swarm, "test", BusLimits::default()).expect("join the bus");
     assert!(!bus.termination_requested());
     // SAFETY: raising a signal this process handles (iceoryx2's and
     // signal-hook's handlers are installed by `join`).
