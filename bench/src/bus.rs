@@ -12,10 +12,10 @@ use anyhow::{Context, Result, bail};
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::ipc;
 use serde::{Deserialize, Serialize};
-use shoal::process::{ProcessUsage, usage};
-use shoal::swarm::RunningSwarm;
 use shoal_broker::{Bus, BusLimits, CellExchange, PoseSample, cell_at, names};
 use shoal_physics::Scenario;
+use shoal_swarm::RunningSwarm;
+use shoal_swarm::process::{ProcessUsage, usage};
 
 /// Samples go out in blocks that alternate between transports, so that
 /// drifting background load touches all of them alike.
@@ -163,11 +163,7 @@ pub fn probe(
         max_listeners_per_cell: listeners_per_cell,
         ..BusLimits::default()
     };
-    let bus = Bus::join(
-        swarm,
-        &names::tool_node(swarm, &format!("probe-{role:?}")),
-        limits,
-    )?;
+    let bus = Bus::join_tool(swarm, &format!("probe-{role:?}"), limits)?;
     // Where the probe stands: 10 m by default; a value that is not a number
     // is an error, not the default.
     let centre: f64 = match std::env::var("SHOAL_PROBE_AT") {
@@ -471,6 +467,6 @@ pub fn run(
             });
         }
     }
-    shoal::report::print(&serde_json::json!({ "rows": rows }), json)?;
+    shoal_runtime::report::print(&serde_json::json!({ "rows": rows }), json)?;
     Ok(())
 }

@@ -50,7 +50,7 @@ fn write_csvs(dir: &Path, minutes: f64) -> Result<(usize, usize)> {
 }
 
 pub fn run(minutes: &[f64], json: bool) -> Result<()> {
-    let binary = shoal::process::sibling_binary("shoal-diagnose")?;
+    let binary = shoal_swarm::process::sibling_binary("shoal-diagnose")?;
     let mut rows = Vec::new();
     for &m in minutes {
         let dir =
@@ -89,5 +89,5 @@ pub fn run(minutes: &[f64], json: bool) -> Result<()> {
             effects_found: value["effects"].as_array().map_or(0, Vec::len),
         });
     }
-    shoal::report::print(&Report { rows }, json)
+    shoal_runtime::report::print(&Report { rows }, json)
 }

@@ -17,10 +17,11 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
-use shoal::process::{sibling_binary, usage};
-use shoal_broker::{Bus, BusLimits, names};
+use shoal_broker::BusLimits;
+use shoal_link::report::LinkReport;
 use shoal_runtime::SwarmRuntime;
 use shoal_runtime::host::{self, Host};
+use shoal_swarm::process::{sibling_binary, usage};
 
 /// Robots of host b have ids from here on.
 const SECOND_FIRST_ID: u32 = 1000;
@@ -99,9 +100,9 @@ fn loopback_tx_bytes() -> u64 {
         .unwrap_or(0)
 }
 
-fn link_state(swarm: &str, host: &Host) -> Option<(i32, u64)> {
-    let report = SwarmRuntime::locate_on(swarm, host).read_link_report()?;
-    Some((report.pid as i32, report.traffic.poses_offered))
+fn link_state(swarm: &str, host: &Host) -> Result<Option<(i32, u64)>> {
+    let report = SwarmRuntime::locate_on(swarm, host).read_report::<LinkReport>()?;
+    Ok(report.map(|r| (r.pid as i32, r.traffic.poses_offered)))
 }
 
 /// Wire bytes and link CPU over `seconds`.
@@ -111,8 +112,7 @@ fn measure_traffic(
     robots: usize,
     seconds: f64,
 ) -> Result<Traffic> {
-    let links = hosts.map(|h| link_state(swarm, h));
-    let [Some(a), Some(b)] = links else {
+    let [Some(a), Some(b)] = [link_state(swarm, hosts[0])?, link_state(swarm, hosts[1])?] else {
         bail!("a host's link is not running");
     };
     // A link that died mid-measurement is an error, never 0 CPU.
@@ -127,7 +127,9 @@ fn measure_traffic(
     std::thread::sleep(Duration::from_secs_f64(seconds));
     let wall = started.elapsed().as_secs_f64();
     let bytes = loopback_tx_bytes().saturating_sub(bytes_before);
-    let [Some(a_after), Some(b_after)] = hosts.map(|h| link_state(swarm, h)) else {
+    let [Some(a_after), Some(b_after)] =
+        [link_state(swarm, hosts[0])?, link_state(swarm, hosts[1])?]
+    else {
         bail!("a host's link stopped reporting during the measurement");
     };
     let after = [a_after, b_after];
@@ -190,7 +192,7 @@ pub fn run(agents: usize, seconds: f64, json: bool) -> Result<()> {
     )?;
     let hosts = [&a.host, &b.host];
     let started = Instant::now();
-    while hosts.iter().any(|h| link_state(&swarm, h).is_none()) {
+    while link_state(&swarm, hosts[0])?.is_none() || link_state(&swarm, hosts[1])?.is_none() {
         if started.elapsed() > Duration::from_secs(60) {
             bail!("the hosts did not come up within 60 s");
         }
@@ -203,12 +205,8 @@ pub fn run(agents: usize, seconds: f64, json: bool) -> Result<()> {
     // Phase 2: an observer on host a; this process belongs to host a.
     host::choose(Some(&a.host.name))?;
     let epoch_ms = SwarmRuntime::locate(&swarm).read_meta()?.epoch_unix_ms as f64;
-    let bus = Bus::join(
-        &swarm,
-        &names::tool_node(&swarm, "bench-observer"),
-        BusLimits::default(),
-    )?;
-    let roster = shoal_broker::roster::reader(&bus)?;
+    let (bus, roster) =
+        shoal_broker::roster::join_reader(&swarm, "bench-observer", BusLimits::default())?;
     // The link asks for every pose at its next second.
     std::thread::sleep(Duration::from_secs(3));
     roster.receive(|_| {})?;
@@ -252,5 +250,5 @@ pub fn run(agents: usize, seconds: f64, json: bool) -> Result<()> {
     drop(b);
     drop(a);
     let _ = std::fs::remove_dir_all(&dir);
-    shoal::report::print(&report, json)
+    shoal_runtime::report::print(&report, json)
 }

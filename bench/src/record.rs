@@ -5,9 +5,9 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 use serde::Serialize;
-use shoal::process::{ProcessUsage, usage};
-use shoal::swarm::RunningSwarm;
 use shoal_physics::Scenario;
+use shoal_swarm::RunningSwarm;
+use shoal_swarm::process::{ProcessUsage, usage};
 
 #[derive(Debug, Serialize)]
 struct Row {
@@ -29,7 +29,7 @@ pub fn run(agents: &[usize], seconds: f64, json: bool) -> Result<()> {
         let name = format!("benchrec{}-{count}", std::process::id());
         let out = std::env::temp_dir().join(format!("{name}.rrd"));
         let mut swarm = RunningSwarm::launch(&name, Scenario::open_arena(count), false)?;
-        swarm.record(&shoal::swarm::RecordOptions::file(&out, None))?;
+        swarm.record(&shoal_swarm::RecordOptions::file(&out, None))?;
         std::thread::sleep(Duration::from_secs(3));
         let recorder = swarm.recorder_pid().context("the recorder did not start")?;
         let robots = swarm.agent_pids();
@@ -57,6 +57,6 @@ pub fn run(agents: &[usize], seconds: f64, json: bool) -> Result<()> {
             recorder_vs_robots: recorder_cpu / robots_cpu.max(1e-9),
         });
     }
-    shoal::report::print(&serde_json::json!({ "rows": rows }), json)?;
+    shoal_runtime::report::print(&serde_json::json!({ "rows": rows }), json)?;
     Ok(())
 }

@@ -65,5 +65,5 @@ pub fn run(robots: &[usize], repeats: usize, json: bool) -> Result<()> {
             scan_vs_every_pair: scan / every_pair,
         });
     }
-    shoal::report::print(&Report { rows }, json)
+    shoal_runtime::report::print(&Report { rows }, json)
 }

@@ -131,5 +131,5 @@ pub fn run(particles: &[usize], steps: usize, json: bool) -> Result<()> {
             }
         }
     }
-    shoal::report::print(&Report { rows }, json)
+    shoal_runtime::report::print(&Report { rows }, json)
 }

@@ -612,7 +612,7 @@ impl Seeds {
             host_summary: serde_json::to_string(&shoal_link::wire::HostSummary {
                 host: "b".into(),
                 epoch_unix_ms: 1_764_000_000_000,
-                robots: vec![shoal_runtime::RemoteRobot {
+                robots: vec![shoal_link::report::RemoteRobot {
                     id: 100,
                     pid: 4321,
                     x: 3.5,

@@ -15,8 +15,9 @@ use serde::Serialize;
 use shoal_physics::metrics::{centroid, formation_metrics};
 use shoal_physics::{MotionModel, Pose, Scenario, Surface};
 
-use crate::swarm::RecordOptions;
-use crate::swarm::RunningSwarm;
+use shoal_slam::report::SlamReport;
+use shoal_swarm::RecordOptions;
+use shoal_swarm::RunningSwarm;
 
 /// The SLAM process starts from strides this much too short.
 const STRIDE_ERROR: f64 = 0.25;
@@ -232,7 +233,7 @@ pub fn demo_scenario(path: Option<&Path>) -> Result<Scenario> {
 /// a floor that scales strides by `floor`.
 fn slam_progress(
     id: u32,
-    followed: Option<&shoal_runtime::FollowedReport>,
+    followed: Option<&shoal_slam::report::FollowedReport>,
     errors: &[(f64, u32, f64)],
     end: f64,
     truth: &MotionModel,
@@ -310,10 +311,10 @@ fn carry_out(swarm: &mut RunningSwarm, now: f64, act: Act) -> Result<()> {
 
 /// (now, robot, position error) of each followed robot SLAM's report has
 /// an estimate of.
-fn slam_errors_now(swarm: &RunningSwarm, now: f64) -> Vec<(f64, u32, f64)> {
-    swarm
+fn slam_errors_now(swarm: &RunningSwarm, now: f64) -> Result<Vec<(f64, u32, f64)>> {
+    Ok(swarm
         .runtime
-        .read_slam_report()
+        .read_report::<SlamReport>()?
         .into_iter()
         .flat_map(|r| r.followed)
         .filter_map(|followed| {
@@ -321,7 +322,7 @@ fn slam_errors_now(swarm: &RunningSwarm, now: f64) -> Vec<(f64, u32, f64)> {
             let truth = swarm.observer.get(followed.id)?;
             Some((now, followed.id, (x - truth.x).hypot(y - truth.y)))
         })
-        .collect()
+        .collect())
 }
 
 pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
@@ -370,7 +371,7 @@ pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
         // SLAM's estimates reach the launcher through its report (once a second).
         if last_slam_read.elapsed() >= Duration::from_secs(1) {
             last_slam_read = std::time::Instant::now();
-            slam_errors.extend(slam_errors_now(&swarm, now));
+            slam_errors.extend(slam_errors_now(&swarm, now)?);
         }
         let robots: Vec<(u32, Pose)> = swarm
             .observer
@@ -395,7 +396,7 @@ pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
     let metrics = swarm.observer.metrics(spread);
     (summary.robots, summary.groups, summary.spacing_ratio) =
         (metrics.agents, metrics.components, metrics.spacing_ratio);
-    let slam_report = swarm.runtime.read_slam_report();
+    let slam_report = swarm.runtime.read_report::<SlamReport>()?;
     let end = swarm.sim_time();
     // The true stride is the floor's: where each followed robot stands at the end.
     let floor_scale: BTreeMap<u32, f64> = follow
@@ -437,11 +438,12 @@ pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
 
 /// `shoal diagnose RECORDING --robot N`: its first finding, as a sentence.
 fn diagnose_robot(recording: &Path, robot: u32) -> Result<String> {
-    let output = std::process::Command::new(crate::process::sibling_binary("shoal-diagnose")?)
-        .arg(recording)
-        .args(["--robot", &robot.to_string(), "--json"])
-        .output()
-        .context("running shoal-diagnose")?;
+    let output =
+        std::process::Command::new(shoal_swarm::process::sibling_binary("shoal-diagnose")?)
+            .arg(recording)
+            .args(["--robot", &robot.to_string(), "--json"])
+            .output()
+            .context("running shoal-diagnose")?;
     if !output.status.success() {
         return Ok(format!(
             "diagnosis failed: {}",

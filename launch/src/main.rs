@@ -1,6 +1,9 @@
 //! `shoal`: the command line of the Shoal swarm runtime.
 
-use shoal::{control, experiment, report, status, up};
+use shoal::{status, up};
+use shoal_lab::{demo, experiment};
+use shoal_runtime::report;
+use shoal_swarm::control;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -246,7 +249,7 @@ enum ExperimentKind {
 /// is the one doing the work, signals reach it, and `--help` is its own.
 fn become_binary(binary: &str, args: &[String]) -> Result<()> {
     use std::os::unix::process::CommandExt;
-    let path = shoal::process::sibling_binary(binary)?;
+    let path = shoal_swarm::process::sibling_binary(binary)?;
     let mut command = std::process::Command::new(&path);
     shoal_runtime::host::pass_to(&mut command);
     let error = command.args(args).exec();
@@ -276,7 +279,7 @@ fn run(cli: Cli) -> Result<()> {
         } => {
             let (link, viewer_at) = match link {
                 Some(LinkKind::Zenoh) => (
-                    Some(shoal::swarm::LinkOptions {
+                    Some(shoal_swarm::LinkOptions {
                         zenoh_config,
                         listen,
                         connect,
@@ -299,14 +302,14 @@ fn run(cli: Cli) -> Result<()> {
                 scenario,
                 agents,
                 seed,
-                launch: shoal::swarm::Launch {
+                launch: shoal_swarm::Launch {
                     lockstep,
                     first_id,
                     link,
                 },
                 duration_s: duration,
                 json,
-                record: shoal::swarm::RecordOptions {
+                record: shoal_swarm::RecordOptions {
                     out: record,
                     tum,
                     viewer,
@@ -323,18 +326,18 @@ fn run(cli: Cli) -> Result<()> {
             swarm,
             json,
         } => {
-            let summary = shoal::demo::run(&shoal::demo::DemoOptions {
+            let summary = demo::run(&demo::DemoOptions {
                 swarm,
                 scenario: scenario.clone(),
                 out,
                 seconds,
             })?;
-            let scenario = shoal::demo::demo_scenario(scenario.as_deref())?;
+            let scenario = demo::demo_scenario(scenario.as_deref())?;
             print_out(|out| {
                 if json {
                     writeln!(out, "{}", serde_json::to_string(&summary)?)
                 } else {
-                    shoal::demo::print(out, &summary, &scenario)
+                    demo::print(out, &summary, &scenario)
                 }
             })?;
         }
@@ -421,10 +424,10 @@ fn run(cli: Cli) -> Result<()> {
 fn robot_count(text: &str) -> Result<usize, String> {
     match text.parse::<usize>() {
         Ok(0) => Err("a swarm needs at least one robot".to_owned()),
-        Ok(n) if n > control::MAX_ROBOT_ID as usize + 1 => Err(format!(
+        Ok(n) if n > shoal_swarm::process::MAX_ROBOT_ID as usize + 1 => Err(format!(
             "Shoal runs at most {} robots (ids 0 to {})",
-            control::MAX_ROBOT_ID as usize + 1,
-            control::MAX_ROBOT_ID
+            shoal_swarm::process::MAX_ROBOT_ID as usize + 1,
+            shoal_swarm::process::MAX_ROBOT_ID
         )),
         Ok(n) => Ok(n),
         Err(e) => Err(format!("not a count of robots: {e}")),

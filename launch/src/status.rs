@@ -7,8 +7,10 @@ use std::time::{Duration, Instant};
 use anyhow::Result;
 use serde::Serialize;
 use shoal_broker::liveness::{SwarmNodeState, swarm_nodes};
-use shoal_broker::{Bus, BusLimits, CellOccupancy, PoseSample, names};
-use shoal_runtime::{FollowedReport, SwarmRuntime};
+use shoal_broker::{BusLimits, CellOccupancy, PoseSample, names};
+use shoal_link::report::LinkReport;
+use shoal_runtime::SwarmRuntime;
+use shoal_slam::report::{FollowedReport, SlamReport};
 
 #[derive(Debug, Serialize)]
 pub struct AgentStatus {
@@ -52,6 +54,10 @@ pub struct StatusReport {
     /// listeners against the slots its service was made with.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub cells: Option<Vec<CellOccupancy>>,
+    /// Helpers' reports that are there but cannot be read (a corrupt
+    /// `slam.toml`, say): the helper may run, but what it says is unknown.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub unreadable_reports: Vec<String>,
 }
 
 /// Listens to the roster for a few periods and lists every node of the
@@ -63,9 +69,11 @@ pub fn gather(swarm: &str, cells: bool) -> Result<StatusReport> {
         .read_meta()
         .map_or(0.2, |m| m.period_s);
     let listen = Duration::from_secs_f64((3.0 * period).clamp(0.3, 3.0));
-    let node_name = names::tool_node(swarm, &format!("status-{}", std::process::id()));
-    let bus = Bus::join(swarm, &node_name, BusLimits::default())?;
-    let roster = shoal_broker::roster::reader(&bus)?;
+    let (bus, roster) = shoal_broker::roster::join_reader(
+        swarm,
+        &format!("status-{}", std::process::id()),
+        BusLimits::default(),
+    )?;
     // The swarm's nodes, listed once (each listing reads every node's
     // details). Once every live robot among them has been heard, listening
     // longer tells nothing more: a formed swarm of 1000 answered in 0.85 s
@@ -91,10 +99,20 @@ pub fn gather(swarm: &str, cells: bool) -> Result<StatusReport> {
         }
         std::thread::sleep(Duration::from_millis(10));
     }
-    // The report of a SLAM process that is gone says nothing of today.
-    let slam = SwarmRuntime::locate(swarm)
-        .read_slam_report()
-        .filter(|r| shoal_runtime::pid_alive(r.pid as i32));
+    // A report that cannot be read is shown as such, not taken for an
+    // absent helper; one whose writer is gone says nothing of today.
+    let runtime = SwarmRuntime::locate(swarm);
+    let mut unreadable_reports = Vec::new();
+    let mut note_unreadable =
+        |error: shoal_runtime::ReportError| unreadable_reports.push(error.to_string());
+    let slam = runtime.read_report::<SlamReport>().unwrap_or_else(|e| {
+        note_unreadable(e);
+        None
+    });
+    let link = runtime.read_report::<LinkReport>().unwrap_or_else(|e| {
+        note_unreadable(e);
+        None
+    });
     let host = shoal_runtime::host::current().name.clone();
     let mut agents = Vec::new();
     let mut stale_nodes = 0;
@@ -132,7 +150,7 @@ pub fn gather(swarm: &str, cells: bool) -> Result<StatusReport> {
     }
     let mut hosts = vec![host.clone()];
     // Robots of other hosts, as this host's link last heard them summarised.
-    if let Some(link) = SwarmRuntime::locate(swarm).read_link_report() {
+    if let Some(link) = link {
         agents.extend(link.robots().map(|(host, robot)| AgentStatus {
             id: robot.id,
             host: host.to_owned(),
@@ -165,6 +183,7 @@ pub fn gather(swarm: &str, cells: bool) -> Result<StatusReport> {
         swept,
         slam: slam.map(|r| r.followed).unwrap_or_default(),
         cells,
+        unreadable_reports,
     })
 }
 
@@ -185,6 +204,9 @@ pub fn print_table(out: &mut dyn Write, report: &StatusReport) -> io::Result<()>
     )?;
     if let Some(swept) = shoal_broker::liveness::describe_swept(&report.swept) {
         writeln!(out, "{swept}")?;
+    }
+    for unreadable in &report.unreadable_reports {
+        writeln!(out, "unreadable report: {unreadable}")?;
     }
     for f in report.slam.iter().filter(|f| f.paused) {
         writeln!(

@@ -10,8 +10,8 @@ use serde::Serialize;
 use shoal_physics::Scenario;
 use shoal_slam::follow::Follow;
 
-use crate::observer::Timeliness;
-use crate::swarm::{Launch, RecordOptions, RunningSwarm};
+use shoal_swarm::observer::Timeliness;
+use shoal_swarm::{Launch, RecordOptions, RunningSwarm};
 
 pub struct UpOptions {
     pub swarm: String,
@@ -112,7 +112,7 @@ fn stop(
         && !swarm
             .deaths()
             .iter()
-            .any(|d| d.crashed && d.who == crate::swarm::RECORDER_BINARY)
+            .any(|d| d.crashed && d.who == shoal_swarm::RECORDER_BINARY)
     {
         eprintln!(
             "shoal: recording in {}; to watch it: pip install rerun-sdk, then rerun {}",
@@ -151,7 +151,7 @@ fn stop(
             );
         }
     }
-    let crashed: Vec<&crate::swarm::Death> = swarm.deaths().iter().filter(|d| d.crashed).collect();
+    let crashed: Vec<&shoal_swarm::Death> = swarm.deaths().iter().filter(|d| d.crashed).collect();
     if !crashed.is_empty() {
         // Said when it happened, and again here, where a user reads last.
         let said: Vec<String> = crashed.iter().map(|d| d.to_string()).collect();
@@ -321,7 +321,7 @@ fn check_command_line(options: &UpOptions) -> Result<()> {
         bail!("--agents 0: a swarm needs at least one robot");
     }
     if let Some(count) = options.agents {
-        crate::control::check_id_range(options.launch.first_id, count)?;
+        shoal_swarm::process::check_id_range(options.launch.first_id, count)?;
     }
     Ok(())
 }

@@ -8,13 +8,14 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result, anyhow, bail};
 use shoal_broker::roster::{self, RosterReaders};
 use shoal_broker::{
-    Bus, BusLimits, CellExchange, CellKey, PoseSample, RosterPublisher, SampleCheck, cell_at, names,
+    Bus, BusLimits, CellExchange, CellKey, PoseSample, RosterPublisher, SampleCheck, cell_at,
 };
 use shoal_link::interest::Interest;
 use shoal_link::keys;
+use shoal_link::report::{IdClash, LinkReport, LinkTraffic, RemoteHost, RemoteRobot};
 use shoal_link::wire::{HostSummary, RemotePose};
 use shoal_physics::Scenario;
-use shoal_runtime::{IdClash, LinkReport, LinkTraffic, RemoteHost, RemoteRobot, SwarmRuntime};
+use shoal_runtime::SwarmRuntime;
 use zenoh::Wait;
 use zenoh::handlers::{FifoChannel, FifoChannelHandler};
 use zenoh::pubsub::Subscriber;
@@ -146,11 +147,7 @@ pub fn run(options: &Options) -> Result<()> {
         .declare_token(&token_key)
         .wait()
         .map_err(zenoh_error("declaring this host present"))?;
-    let bus = Bus::join(
-        &options.swarm,
-        &names::tool_node(&options.swarm, "link"),
-        BusLimits::of(&scenario.bus),
-    )?;
+    let bus = Bus::join_tool(&options.swarm, "link", BusLimits::of(&scenario.bus))?;
     let hosts_inbox = session
         .liveliness()
         .declare_subscriber(keys::all_hosts(&options.swarm))
@@ -504,7 +501,7 @@ impl Gateway {
                 .collect(),
             traffic: self.traffic.clone(),
         };
-        self.runtime.write_link_report(&report).with_context(|| {
+        self.runtime.write_report(&report).with_context(|| {
             format!(
                 "writing the link's report in {}",
                 self.runtime.dir.display()

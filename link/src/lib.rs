@@ -15,6 +15,7 @@
 //!   (process gone, or Zenoh's lease expired on a cut network).
 
 pub mod interest;
+pub mod report;
 pub mod wire;
 
 /// The Zenoh key expressions of swarm `swarm`.

@@ -3,9 +3,9 @@
 //! clock origin of the host it comes from, and a host's 1 Hz summary of its
 //! robots in JSON.
 
+use crate::report::RemoteRobot;
 use serde::{Deserialize, Serialize};
 use shoal_broker::{MAX_NEIGHBOURS, PoseSample};
-use shoal_runtime::folder::RemoteRobot;
 
 /// Marks a pose message and its layout's version.
 const POSE_MAGIC: [u8; 4] = *b"SHP1";

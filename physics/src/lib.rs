@@ -13,6 +13,7 @@ pub mod planner;
 pub mod pose;
 pub mod range;
 pub mod scenario;
+pub mod toml_file;
 pub mod unicycle;
 pub mod wander;
 

@@ -1,7 +1,5 @@
 //! Scenarios: the arena, the robots and the formation parameters, read from TOML.
 
-use std::fmt;
-
 use glam::DVec2;
 use rand::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};
@@ -11,6 +9,8 @@ use crate::formation::FormationParams;
 use crate::legged::MotionModel;
 use crate::pose::Pose;
 use crate::range::RangeSensor;
+pub use crate::toml_file::ScenarioError;
+use crate::toml_file::{line_of_field, parse_toml};
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -144,28 +144,6 @@ impl Default for BusSection {
             max_per_cell: 24,
             max_listeners_per_cell: 216,
         }
-    }
-}
-
-/// A scenario that could not be used, with the place it went wrong.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub struct ScenarioError {
-    pub file: String,
-    pub line: Option<usize>,
-    pub field: Option<String>,
-    pub message: String,
-}
-
-impl fmt::Display for ScenarioError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}", self.file)?;
-        if let Some(line) = self.line {
-            write!(f, ":{line}")?;
-        }
-        if let Some(field) = &self.field {
-            write!(f, ": field `{field}`")?;
-        }
-        write!(f, ": {}", self.message)
     }
 }
 
@@ -324,170 +302,13 @@ impl Scenario {
     /// Errors name the field.
     pub fn validate(&self) -> Result<(), (String, String)> {
         let mut check = RangeCheck::default();
-        let arena = &self.arena;
-        check.number("arena.width", arena.width, 0.0, false, MAX_ARENA_M);
-        check.number("arena.height", arena.height, 0.0, false, MAX_ARENA_M);
-        for (i, wall) in arena.walls.iter().enumerate() {
-            check.point(&format!("arena.walls[{i}].from"), wall.from);
-            check.point(&format!("arena.walls[{i}].to"), wall.to);
-        }
-        for (i, obstacle) in arena.obstacles.iter().enumerate() {
-            let field = format!("arena.obstacles[{i}]");
-            match obstacle {
-                Obstacle::Disc { center, radius } => {
-                    check.point(&format!("{field}.center"), *center);
-                    check.number(&format!("{field}.radius"), *radius, 0.0, false, MAX_ARENA_M);
-                }
-                Obstacle::Box { min, max } => {
-                    check.region(&format!("{field}.min"), [min[0], min[1], max[0], max[1]]);
-                }
-            }
-        }
-        for (i, surface) in arena.surfaces.iter().enumerate() {
-            let field = format!("arena.surfaces[{i}]");
-            check.region(&format!("{field}.region"), surface.region);
-            for (name, scale) in [
-                ("along_scale", surface.along_scale),
-                ("across_scale", surface.across_scale),
-                ("turn_scale", surface.turn_scale),
-            ] {
-                check.number(
-                    &format!("{field}.{name}"),
-                    scale,
-                    0.0,
-                    true,
-                    MAX_SURFACE_SCALE,
-                );
-            }
-            check.number(
-                &format!("{field}.from_s"),
-                surface.from_s,
-                0.0,
-                true,
-                MAX_SECONDS,
-            );
-        }
-        let agents = &self.agents;
-        check.count("agents.count", agents.count, 1, MAX_AGENTS);
-        check.number("agents.radius", agents.radius, 0.0, false, MAX_RADIUS_M);
-        let [x0, y0, x1, y1] = agents.start_region;
-        let inside =
-            x0 < x1 && y0 < y1 && x0 >= 0.0 && y0 >= 0.0 && x1 <= arena.width && y1 <= arena.height;
-        if !inside {
-            check.fail(
-                "agents.start_region",
-                format!(
-                    "{:?} must be [xmin, ymin, xmax, ymax] inside the arena",
-                    agents.start_region
-                ),
-            );
-        }
-        let timing = &self.timing;
-        check.number(
-            "timing.period_s",
-            timing.period_s,
-            MIN_PERIOD_S,
-            true,
-            MAX_PERIOD_S,
-        );
-        check.number(
-            "timing.stale_periods",
-            timing.stale_periods,
-            1.0,
-            true,
-            MAX_STALE_PERIODS,
-        );
-        let bus = &self.bus;
-        check.number(
-            "bus.cell_size",
-            bus.cell_size,
-            MIN_CELL_M,
-            true,
-            MAX_ARENA_M,
-        );
-        check.number(
-            "bus.listen_step",
-            bus.listen_step,
-            MIN_CELL_M,
-            true,
-            MAX_ARENA_M,
-        );
-        check.count("bus.max_ring", bus.max_ring as usize, 0, MAX_RING);
-        let widest = 2.0 * f64::from(bus.max_ring.max(1)) * bus.listen_step / bus.cell_size + 2.0;
-        if widest * widest > MAX_LISTENED_CELLS {
-            check.fail(
-                "bus.cell_size",
-                format!(
-                    "{} m cells would have a robot listening to up to {:.0} cells at its widest \
-                     ({} rings of {} m); at most {MAX_LISTENED_CELLS} are allowed",
-                    bus.cell_size,
-                    widest * widest,
-                    bus.max_ring,
-                    bus.listen_step
-                ),
-            );
-        }
-        check.count("bus.max_per_cell", bus.max_per_cell, 1, MAX_PER_CELL);
-        check.count(
-            "bus.max_listeners_per_cell",
-            bus.max_listeners_per_cell,
-            bus.max_per_cell,
-            MAX_LISTENERS_PER_CELL,
-        );
-        let sensor = &self.sensor;
-        check.count("sensor.beams", sensor.beams, 1, MAX_BEAMS);
-        check.number(
-            "sensor.field_of_view",
-            sensor.field_of_view,
-            0.0,
-            false,
-            std::f64::consts::TAU,
-        );
-        check.number(
-            "sensor.max_range",
-            sensor.max_range,
-            0.0,
-            false,
-            MAX_SENSOR_RANGE_M,
-        );
-        check.number(
-            "sensor.noise_per_m",
-            sensor.noise_per_m,
-            0.0,
-            true,
-            MAX_SENSOR_NOISE,
-        );
-        check.number("sensor.dropout", sensor.dropout, 0.0, true, 1.0);
+        check_arena(&mut check, &self.arena);
+        check_agents(&mut check, &self.agents, &self.arena);
+        check_timing(&mut check, &self.timing);
+        check_bus(&mut check, &self.bus);
+        check_sensor(&mut check, &self.sensor);
         check.count("slam.follow", self.slam.follow.len(), 0, MAX_FOLLOWED);
-        let formation = &self.formation;
-        check.count(
-            "formation.neighbours",
-            formation.neighbours,
-            1,
-            MAX_NEIGHBOURS,
-        );
-        check.number(
-            "formation.spread",
-            formation.spread,
-            0.0,
-            false,
-            MAX_SPREAD_M,
-        );
-        check.number("formation.gain", formation.gain, 0.0, false, MAX_GAIN);
-        check.number(
-            "formation.dead_band",
-            formation.dead_band,
-            0.0,
-            true,
-            MAX_GAIN,
-        );
-        check.number(
-            "formation.goal_gain",
-            formation.goal_gain,
-            0.0,
-            true,
-            MAX_GAIN,
-        );
+        check_formation(&mut check, &self.formation);
         if let Some(error) = check.first {
             return Err(error);
         }
@@ -567,6 +388,187 @@ const MAX_NEIGHBOURS: usize = 16;
 const MAX_SPREAD_M: f64 = 1000.0;
 const MAX_GAIN: f64 = 1.0e6;
 
+/// The arena: its size, walls, obstacles and surfaces.
+fn check_arena(check: &mut RangeCheck, arena: &Arena) {
+    check.number("arena.width", arena.width, 0.0, false, MAX_ARENA_M);
+    check.number("arena.height", arena.height, 0.0, false, MAX_ARENA_M);
+    for (i, wall) in arena.walls.iter().enumerate() {
+        check.point(&format!("arena.walls[{i}].from"), wall.from);
+        check.point(&format!("arena.walls[{i}].to"), wall.to);
+    }
+    for (i, obstacle) in arena.obstacles.iter().enumerate() {
+        let field = format!("arena.obstacles[{i}]");
+        match obstacle {
+            Obstacle::Disc { center, radius } => {
+                check.point(&format!("{field}.center"), *center);
+                check.number(&format!("{field}.radius"), *radius, 0.0, false, MAX_ARENA_M);
+            }
+            Obstacle::Box { min, max } => {
+                check.region(&format!("{field}.min"), [min[0], min[1], max[0], max[1]]);
+            }
+        }
+    }
+    for (i, surface) in arena.surfaces.iter().enumerate() {
+        let field = format!("arena.surfaces[{i}]");
+        check.region(&format!("{field}.region"), surface.region);
+        for (name, scale) in [
+            ("along_scale", surface.along_scale),
+            ("across_scale", surface.across_scale),
+            ("turn_scale", surface.turn_scale),
+        ] {
+            check.number(
+                &format!("{field}.{name}"),
+                scale,
+                0.0,
+                true,
+                MAX_SURFACE_SCALE,
+            );
+        }
+        check.number(
+            &format!("{field}.from_s"),
+            surface.from_s,
+            0.0,
+            true,
+            MAX_SECONDS,
+        );
+    }
+}
+
+/// The robots: how many, how large, and a start region inside the arena.
+fn check_agents(check: &mut RangeCheck, agents: &AgentsSection, arena: &Arena) {
+    check.count("agents.count", agents.count, 1, MAX_AGENTS);
+    check.number("agents.radius", agents.radius, 0.0, false, MAX_RADIUS_M);
+    let [x0, y0, x1, y1] = agents.start_region;
+    let inside =
+        x0 < x1 && y0 < y1 && x0 >= 0.0 && y0 >= 0.0 && x1 <= arena.width && y1 <= arena.height;
+    if !inside {
+        check.fail(
+            "agents.start_region",
+            format!(
+                "{:?} must be [xmin, ymin, xmax, ymax] inside the arena",
+                agents.start_region
+            ),
+        );
+    }
+}
+
+/// The control period and when a neighbour counts as gone.
+fn check_timing(check: &mut RangeCheck, timing: &TimingSection) {
+    check.number(
+        "timing.period_s",
+        timing.period_s,
+        MIN_PERIOD_S,
+        true,
+        MAX_PERIOD_S,
+    );
+    check.number(
+        "timing.stale_periods",
+        timing.stale_periods,
+        1.0,
+        true,
+        MAX_STALE_PERIODS,
+    );
+}
+
+/// The cells and their services: no robot may listen to more cells than the bus can hold.
+fn check_bus(check: &mut RangeCheck, bus: &BusSection) {
+    check.number(
+        "bus.cell_size",
+        bus.cell_size,
+        MIN_CELL_M,
+        true,
+        MAX_ARENA_M,
+    );
+    check.number(
+        "bus.listen_step",
+        bus.listen_step,
+        MIN_CELL_M,
+        true,
+        MAX_ARENA_M,
+    );
+    check.count("bus.max_ring", bus.max_ring as usize, 0, MAX_RING);
+    let widest = 2.0 * f64::from(bus.max_ring.max(1)) * bus.listen_step / bus.cell_size + 2.0;
+    if widest * widest > MAX_LISTENED_CELLS {
+        check.fail(
+            "bus.cell_size",
+            format!(
+                "{} m cells would have a robot listening to up to {:.0} cells at its widest \
+                 ({} rings of {} m); at most {MAX_LISTENED_CELLS} are allowed",
+                bus.cell_size,
+                widest * widest,
+                bus.max_ring,
+                bus.listen_step
+            ),
+        );
+    }
+    check.count("bus.max_per_cell", bus.max_per_cell, 1, MAX_PER_CELL);
+    check.count(
+        "bus.max_listeners_per_cell",
+        bus.max_listeners_per_cell,
+        bus.max_per_cell,
+        MAX_LISTENERS_PER_CELL,
+    );
+}
+
+/// The range sensor.
+fn check_sensor(check: &mut RangeCheck, sensor: &RangeSensor) {
+    check.count("sensor.beams", sensor.beams, 1, MAX_BEAMS);
+    check.number(
+        "sensor.field_of_view",
+        sensor.field_of_view,
+        0.0,
+        false,
+        std::f64::consts::TAU,
+    );
+    check.number(
+        "sensor.max_range",
+        sensor.max_range,
+        0.0,
+        false,
+        MAX_SENSOR_RANGE_M,
+    );
+    check.number(
+        "sensor.noise_per_m",
+        sensor.noise_per_m,
+        0.0,
+        true,
+        MAX_SENSOR_NOISE,
+    );
+    check.number("sensor.dropout", sensor.dropout, 0.0, true, 1.0);
+}
+
+/// The formation controller's gains.
+fn check_formation(check: &mut RangeCheck, formation: &FormationParams) {
+    check.count(
+        "formation.neighbours",
+        formation.neighbours,
+        1,
+        MAX_NEIGHBOURS,
+    );
+    check.number(
+        "formation.spread",
+        formation.spread,
+        0.0,
+        false,
+        MAX_SPREAD_M,
+    );
+    check.number("formation.gain", formation.gain, 0.0, false, MAX_GAIN);
+    check.number(
+        "formation.dead_band",
+        formation.dead_band,
+        0.0,
+        true,
+        MAX_GAIN,
+    );
+    check.number(
+        "formation.goal_gain",
+        formation.goal_gain,
+        0.0,
+        true,
+        MAX_GAIN,
+    );
+}
+
 /// Collects the first out-of-range field of a scenario.
 #[derive(Default)]
 struct RangeCheck {
@@ -625,93 +627,6 @@ impl RangeCheck {
             );
         }
     }
-}
-
-fn line_of_offset(text: &str, offset: usize) -> usize {
-    text[..offset.min(text.len())].matches('\n').count() + 1
-}
-
-/// The line where `section.key` is written, for errors found after parsing.
-/// Parses TOML `text` into `T`; errors name `file`, the line and the field.
-pub fn parse_toml<T: serde::de::DeserializeOwned>(
-    text: &str,
-    file: &str,
-) -> Result<T, ScenarioError> {
-    let error = |line, field: Option<String>, message: String| ScenarioError {
-        file: file.to_owned(),
-        line,
-        field,
-        message,
-    };
-    let deserializer = toml::Deserializer::parse(text).map_err(|e| {
-        error(
-            e.span().map(|s| line_of_offset(text, s.start)),
-            None,
-            e.message().to_owned(),
-        )
-    })?;
-    serde_path_to_error::deserialize(deserializer).map_err(|e| {
-        let field = e.path().to_string();
-        let inner = e.into_inner();
-        let line = inner.span().map(|s| line_of_offset(text, s.start));
-        let line = line.or_else(|| line_of_field(text, &field));
-        error(line, Some(field), inner.message().to_owned())
-    })
-}
-
-/// The line of the `index`-th `[[name]]` table in `text`.
-pub(crate) fn line_of_nth_table(text: &str, name: &str, index: usize) -> Option<usize> {
-    let header = format!("[[{name}]]");
-    text.lines()
-        .enumerate()
-        .filter(|(_, line)| line.trim() == header)
-        .nth(index)
-        .map(|(number, _)| number + 1)
-}
-
-pub(crate) fn line_of_field(text: &str, field: &str) -> Option<usize> {
-    let (section, key) = match field.rsplit_once('.') {
-        Some((section, key)) => (section, key),
-        None => ("", field),
-    };
-    // `arena.surfaces[1].region`: the key inside the second `[[arena.surfaces]]`.
-    if let Some((table, index)) = section
-        .strip_suffix(']')
-        .and_then(|s| s.rsplit_once('['))
-        .and_then(|(table, index)| Some((table, index.parse::<usize>().ok()?)))
-    {
-        let header = line_of_nth_table(text, table, index)?;
-        let found = text
-            .lines()
-            .enumerate()
-            .skip(header)
-            .take_while(|(_, line)| !line.trim_start().starts_with('['))
-            .find(|(_, line)| line.split('=').next().map(str::trim) == Some(key))
-            .map(|(number, _)| number + 1);
-        return found.or(Some(header));
-    }
-    let key = key.split('[').next().unwrap_or(key);
-    let mut current = String::new();
-    let mut section_line = None;
-    for (index, raw) in text.lines().enumerate() {
-        let line = raw.trim();
-        if let Some(header) = line.strip_prefix('[') {
-            current = header
-                .trim_start_matches('[')
-                .trim_end_matches(']')
-                .trim()
-                .to_owned();
-            if current == section || (section.is_empty() && current == key) {
-                section_line = Some(index + 1);
-            }
-            continue;
-        }
-        let written_key = line.split('=').next().unwrap_or("").trim();
-        if current == section && written_key == key {
-            return Some(index + 1);
-        }
-    }
-    section_line
 }
 
 #[cfg(test)]

@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::effects::{Effect, ScopedEffect};
 use crate::pose::{Pose, wrap_angle};
-use crate::scenario::{ScenarioError, parse_toml};
+use crate::toml_file::{ScenarioError, parse_toml};
 
 /// A unicycle model with effects; `effects = []` is the plain model.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -213,7 +213,7 @@ impl UnicycleModel {
                 let field = format!("effects[{index}]");
                 return Err(ScenarioError {
                     file: file.to_owned(),
-                    line: crate::scenario::line_of_nth_table(text, "effects", index),
+                    line: crate::toml_file::line_of_nth_table(text, "effects", index),
                     field: Some(field),
                     message: format!(
                         "{} has parameters outside what is physical: {:?}",

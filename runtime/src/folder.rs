@@ -32,115 +32,25 @@ pub enum Sweep<R> {
     Busy,
 }
 
-/// The SLAM process's view of each robot it follows.
-#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct SlamReport {
-    pub pid: u32,
-    pub followed: Vec<FollowedReport>,
+/// A report a helper process keeps in the swarm's folder for the other
+/// processes (SLAM's for `shoal status`; the link's for the launcher,
+/// `kill`, `spawn` and the recorder). Its type lives with the helper that
+/// writes it; the folder only stores it.
+pub trait HelperReport: Serialize + serde::de::DeserializeOwned {
+    /// Its file in the swarm's folder.
+    const FILE: &'static str;
+    /// The process that writes it: a report whose writer is gone says
+    /// nothing of today.
+    fn writer_pid(&self) -> u32;
 }
 
-#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct FollowedReport {
-    pub id: u32,
-    pub steps: u64,
-    /// How far the learned model has moved from the one SLAM started with:
-    /// the mean over commands and parameters of |mean shift| / starting std.
-    pub model_distance: f64,
-    /// No scan for a while: the robot is gone, its filter waits.
-    pub paused: bool,
-    /// The filter's pose estimate, once it has started.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub estimate: Option<[f64; 3]>,
-    /// How far the learned model says a full stride (`walk(3)`) carries,
-    /// metres: the scalar a reader can hold against the truth.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub stride_m: Option<f64>,
-    /// Filter steps per second since the report before: a robot at 5 Hz
-    /// needs 5 to keep up.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub steps_per_s: Option<f64>,
-    /// How far the filter trails its robot: seconds of the robot's scans
-    /// not yet stepped.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub behind_s: Option<f64>,
-}
-
-/// What this host's link (`shoal-link`) knows of the swarm's other hosts,
-/// for `shoal status`, `kill` and `spawn` here.
-#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct LinkReport {
-    pub pid: u32,
-    pub host: String,
-    /// Set once the link has listened long enough to have heard every host
-    /// it found: only then does an id it does not list belong to no one.
-    pub ready: bool,
-    pub hosts: Vec<RemoteHost>,
-    /// Remote robots refused because a robot of this host has their id.
-    pub clashes: Vec<IdClash>,
-    pub traffic: LinkTraffic,
-}
-
-impl LinkReport {
-    /// Every robot of the other hosts, with its host's name.
-    pub fn robots(&self) -> impl Iterator<Item = (&str, &RemoteRobot)> {
-        self.hosts
-            .iter()
-            .flat_map(|h| h.robots.iter().map(move |r| (h.name.as_str(), r)))
-    }
-
-    /// The other host that runs robot `id`.
-    pub fn host_of(&self, id: u32) -> Option<&str> {
-        self.robots()
-            .find(|(_, r)| r.id == id)
-            .map(|(host, _)| host)
-    }
-}
-
-#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct RemoteHost {
-    pub name: String,
-    pub robots: Vec<RemoteRobot>,
-}
-
-/// A robot of another host, as that host last summarised it.
-#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct RemoteRobot {
-    pub id: u32,
-    /// Its process on its own host.
-    pub pid: u32,
-    pub x: f64,
-    pub y: f64,
-    pub theta: f64,
-    pub tick: u64,
-    pub neighbours: Vec<u32>,
-    pub missed_periods: u32,
-    pub neighbour_age_ms: u32,
-}
-
-#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct IdClash {
-    pub id: u32,
-    /// The other host that runs a robot with this id.
-    pub host: String,
-}
-
-/// What the link handed to Zenoh and took from it since it started.
-#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct LinkTraffic {
-    /// Poses handed to Zenoh, which sends each only to hosts that asked
-    /// for its cell (none, when no other host's robots are near).
-    pub poses_offered: u64,
-    pub poses_received: u64,
-    pub bytes_offered: u64,
-    pub bytes_received: u64,
-    /// Messages that failed to decode or their plausibility check.
-    pub rejected: u64,
-    /// Remote robots standing in this host's cells for its robots now.
-    pub proxies: usize,
-    /// Cells whose remote poses this host asks for now.
-    pub cells_wanted: usize,
-    /// Whether it asks for every remote pose (a recorder or status listens here).
-    pub whole_swarm: bool,
+/// A report that is there but cannot be read: an error to show, never
+/// taken for an absent helper.
+#[derive(Debug, thiserror::Error)]
+#[error("{}: {message}", path.display())]
+pub struct ReportError {
+    pub path: PathBuf,
+    pub message: String,
 }
 
 #[derive(Clone, Debug)]
@@ -155,8 +65,6 @@ pub struct SwarmRuntime {
 /// `SHOAL_RUNTIME_DIR` that names a user's own folder is refused, not
 /// emptied.
 const OWNER_MARK: &str = ".shoal-swarm";
-const SLAM_REPORT: &str = "slam.toml";
-const LINK_REPORT: &str = "link.toml";
 const OWNER_MARK_TEXT: &str =
     "This folder was created by Shoal for one swarm and is removed when the swarm stops.\n";
 
@@ -485,36 +393,33 @@ impl SwarmRuntime {
         })
     }
 
-    /// A helper's report (`slam.toml`, `link.toml`) in the swarm's folder,
-    /// written whole so a reader never sees half of one.
-    fn write_report(&self, file: &str, report: &impl Serialize) -> io::Result<()> {
+    /// A helper's report in the swarm's folder, written whole so a reader
+    /// never sees half of one.
+    pub fn write_report<R: HelperReport>(&self, report: &R) -> io::Result<()> {
         let text = toml::to_string(report).map_err(io::Error::other)?;
-        write_atomically(&self.dir.join(file), &text)
+        write_atomically(&self.dir.join(R::FILE), &text)
     }
 
-    fn read_report<T: serde::de::DeserializeOwned>(&self, file: &str) -> Option<T> {
-        let text = read_no_follow(&self.dir.join(file)).ok()?;
-        toml::from_str(&text).ok()
-    }
-
-    /// What the SLAM process says of the robots it follows, for `shoal status`.
-    pub fn write_slam_report(&self, report: &SlamReport) -> io::Result<()> {
-        self.write_report(SLAM_REPORT, report)
-    }
-
-    pub fn read_slam_report(&self) -> Option<SlamReport> {
-        self.read_report(SLAM_REPORT)
-    }
-
-    /// What this host's link knows of the other hosts.
-    pub fn write_link_report(&self, report: &LinkReport) -> io::Result<()> {
-        self.write_report(LINK_REPORT, report)
-    }
-
-    /// The link's report, if a link runs for this host (its process is alive).
-    pub fn read_link_report(&self) -> Option<LinkReport> {
-        self.read_report::<LinkReport>(LINK_REPORT)
-            .filter(|r| crate::pid_alive(r.pid as i32))
+    /// A helper's report, if its writer still runs: `None` when there is no
+    /// report or its writer is gone; an error when the file is there but
+    /// cannot be read or parsed.
+    pub fn read_report<R: HelperReport>(&self) -> Result<Option<R>, ReportError> {
+        let path = self.dir.join(R::FILE);
+        let text = match read_no_follow(&path) {
+            Ok(text) => text,
+            Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(None),
+            Err(e) => {
+                return Err(ReportError {
+                    path,
+                    message: format!("cannot read it: {e}"),
+                });
+            }
+        };
+        let report: R = toml::from_str(&text).map_err(|e| ReportError {
+            path: path.clone(),
+            message: format!("not a report Shoal can read: {}", e.message()),
+        })?;
+        Ok(crate::pid_alive(report.writer_pid() as i32).then_some(report))
     }
 
     pub fn write_last_pose(&self, id: u32, pose: [f64; 3]) -> io::Result<()> {

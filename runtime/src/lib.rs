@@ -1,20 +1,19 @@
 //! What every Shoal process shares beside the bus: the swarm's runtime
-//! folder (its scenario, clock mode, robots' last poses, SLAM's report) and
+//! folder (its scenario, clock mode, robots' last poses, the helpers'
+//! reports) and
 //! the frame of every binary. Reading files is here, so `shoal-physics`
 //! stays free of I/O.
 
 pub mod folder;
 pub mod host;
 pub mod process_main;
+pub mod report;
 
 use std::path::Path;
 
 use shoal_physics::{Scenario, scenario::ScenarioError};
 
-pub use folder::{
-    FollowedReport, IdClash, LinkReport, LinkTraffic, RemoteHost, RemoteRobot, SlamReport,
-    SwarmMeta, SwarmRuntime, Sweep,
-};
+pub use folder::{HelperReport, ReportError, SwarmMeta, SwarmRuntime, Sweep};
 
 /// Reads and checks a scenario file; errors name the file (and the line
 /// and field, for what is in it).

@@ -1,7 +1,7 @@
 //! Reports of experiments and benchmarks: JSON, or a Markdown table of their one list of records.
 
+use crate::process_main::print_out;
 use serde_json::Value;
-use shoal_runtime::process_main::print_out;
 
 /// A record's fields, nested objects flattened into dotted names
 /// (`learning.pos_rmse_m`), so every cell of the table is one value.

@@ -8,3 +8,4 @@ pub mod grid;
 pub mod learning;
 pub mod metrics;
 pub mod proposal;
+pub mod report;

@@ -13,14 +13,15 @@ use clap::Parser;
 use shoal_broker::robot_streams;
 use shoal_broker::{
     Bus, BusLimits, EstimateSample, HelperProgress, ModelUpdate, Receiver, ScanSample, Sender,
-    SlamMap, SlamParticles, names,
+    SlamMap, SlamParticles,
 };
 use shoal_physics::legged::Param;
 use shoal_physics::{Command, MotionModel, Pose};
-use shoal_runtime::{FollowedReport, SlamReport, SwarmRuntime};
+use shoal_runtime::SwarmRuntime;
 use shoal_slam::filter::{Bodies, FilterConfig, Proposal};
 use shoal_slam::follow::Follow;
 use shoal_slam::follower::{Follower, Scan, Stepped};
+use shoal_slam::report::{FollowedReport, SlamReport};
 
 #[derive(Parser)]
 #[command(
@@ -192,12 +193,11 @@ fn run(args: Args) -> Result<()> {
             args.grid
         );
     }
-    let bus = Bus::join(
+    let (bus, roster) = shoal_broker::roster::join_reader(
         &args.swarm,
-        &names::tool_node(&args.swarm, &format!("slam-{}", std::process::id())),
+        &format!("slam-{}", std::process::id()),
         BusLimits::default(),
     )?;
-    let roster = shoal_broker::roster::reader(&bus)?;
     let views = Views {
         particles: robot_streams::slam_particles_publisher(&bus)?,
         maps: robot_streams::slam_map_publisher(&bus)?,
@@ -294,7 +294,7 @@ fn run(args: Args) -> Result<()> {
             }
             let report = report(&mut followed, &initial, (since, scenario.timing.period_s));
             // Said once, and again if it fails after working again.
-            match runtime.write_slam_report(&report) {
+            match runtime.write_report(&report) {
                 Err(e) if !report_failing => {
                     report_failing = true;
                     eprintln!(

@@ -9,11 +9,12 @@ const DOWN_GRACE: Duration = Duration::from_secs(8);
 
 use anyhow::{Context, Result, bail};
 use shoal_broker::liveness::{SwarmNode, SwarmNodeState, remove_dead_nodes, swarm_nodes};
+use shoal_link::report::LinkReport;
 use shoal_physics::{Pose, Scenario};
 use shoal_runtime::SwarmRuntime;
 
-use crate::process::{Pinned, Tie, start_agent, stop_processes};
-use crate::swarm::shutdown_grace;
+use crate::process::{MAX_ROBOT_ID, Pinned, Tie, check_id_range, start_agent, stop_processes};
+use crate::shutdown::shutdown_grace;
 
 fn alive_robot(nodes: &[SwarmNode], id: u32) -> Option<&SwarmNode> {
     nodes
@@ -24,7 +25,7 @@ fn alive_robot(nodes: &[SwarmNode], id: u32) -> Option<&SwarmNode> {
 /// Refuses to act here on robots another host runs (as this host's link
 /// knows them), naming that host.
 fn refuse_remote(swarm: &str, runtime: &SwarmRuntime, ids: &[u32], verb: &str) -> Result<()> {
-    let Some(report) = runtime.read_link_report() else {
+    let Some(report) = runtime.read_report::<LinkReport>()? else {
         return Ok(());
     };
     let remote: Vec<String> = ids
@@ -93,10 +94,6 @@ fn open_swarm(swarm: &str) -> Result<(SwarmRuntime, Scenario)> {
     Ok((runtime, scenario))
 }
 
-/// The highest robot id a command accepts: ids index start poses, which
-/// are drawn in order, so an id of a million would take minutes to place.
-pub const MAX_ROBOT_ID: u32 = 65_535;
-
 /// Starts a new process for each id, at its last pose or at `at`.
 pub fn restart(swarm: &str, ids: &[u32], at: Option<[f64; 2]>) -> Result<()> {
     if let Some(id) = ids.iter().find(|id| **id > MAX_ROBOT_ID) {
@@ -137,16 +134,6 @@ pub fn restart(swarm: &str, ids: &[u32], at: Option<[f64; 2]>) -> Result<()> {
 }
 
 /// Adds `count` robots with fresh ids, around `at` or in the start region.
-/// Refuses `count` robots from id `first` when they would pass the highest
-/// id Shoal runs.
-pub(crate) fn check_id_range(first: u32, count: usize) -> Result<()> {
-    if u64::from(first) + count as u64 > u64::from(MAX_ROBOT_ID) + 1 {
-        bail!(
-            "{count} robots from id {first} would pass the highest id Shoal runs, {MAX_ROBOT_ID}"
-        );
-    }
-    Ok(())
-}
 
 pub fn spawn(swarm: &str, count: usize, at: Option<[f64; 2]>) -> Result<Vec<u32>> {
     let (runtime, scenario) = open_swarm(swarm)?;
@@ -156,7 +143,7 @@ pub fn spawn(swarm: &str, count: usize, at: Option<[f64; 2]>) -> Result<Vec<u32>
     let highest_file = runtime.known_agent_ids().into_iter().max();
     // Ids are unique across the hosts of a swarm: above every other host's too.
     let highest_remote = runtime
-        .read_link_report()
+        .read_report::<LinkReport>()?
         .and_then(|report| report.robots().map(|(_, r)| r.id).max());
     let first = highest_node
         .max(highest_file)

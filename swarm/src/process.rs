@@ -6,6 +6,21 @@ use std::process::{Child, Command, Stdio};
 use anyhow::{Context, Result, bail};
 use shoal_physics::Pose;
 
+/// The highest robot id a command accepts: ids index start poses, which
+/// are drawn in order, so an id of a million would take minutes to place.
+pub const MAX_ROBOT_ID: u32 = 65_535;
+
+/// Refuses `count` robots from id `first` when they would pass the highest
+/// id Shoal runs.
+pub fn check_id_range(first: u32, count: usize) -> Result<()> {
+    if u64::from(first) + count as u64 > u64::from(MAX_ROBOT_ID) + 1 {
+        bail!(
+            "{count} robots from id {first} would pass the highest id Shoal runs, {MAX_ROBOT_ID}"
+        );
+    }
+    Ok(())
+}
+
 /// A workspace binary beside this executable.
 pub fn sibling_binary(name: &str) -> Result<PathBuf> {
     let me = std::env::current_exe().context("locating the shoal executable")?;

@@ -343,12 +343,7 @@ fn forged_clock_ticks_and_model_updates_are_rejected_and_the_swarm_keeps_steppin
     let _turn = serial();
     let mut swarm = BackgroundSwarm::start("e2e-forger", &["--agents", "4", "--lockstep"]);
     swarm.wait_alive(4, Duration::from_secs(60));
-    let bus = Bus::join(
-        &swarm.name,
-        &names::tool_node(&swarm.name, "forger"),
-        BusLimits::default(),
-    )
-    .expect("join");
+    let bus = Bus::join_tool(&swarm.name, "forger", BusLimits::default()).expect("join");
     let ticks = |status: &serde_json::Value| -> Vec<u64> {
         alive_agents(status)
             .iter()

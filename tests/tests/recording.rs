@@ -36,13 +36,9 @@ fn a_recording_holds_the_swarm_as_the_robots_published_it() {
     );
     // Listen to the roster ourselves, as one more observer, to know what the robots published.
     swarm.wait_alive(12, Duration::from_secs(30));
-    let bus = Bus::join(
-        swarm_name,
-        &names::tool_node(swarm_name, "e2e-observer"),
-        BusLimits::default(),
-    )
-    .expect("join");
-    let roster = shoal_broker::roster::reader(&bus).expect("roster");
+    let (bus, roster) =
+        shoal_broker::roster::join_reader(swarm_name, "e2e-observer", BusLimits::default())
+            .expect("join the bus and read the roster");
     let mut published: HashMap<String, [f64; 2]> = HashMap::new();
     let started = Instant::now();
     while started.elapsed() < Duration::from_secs(6) {

@@ -97,7 +97,8 @@ fn slam_pauses_with_its_robot_and_the_swarm_outlives_slam() {
     assert!(resumed, "the filter did not resume: {}", status(&name));
 
     let slam_pid = shoal_runtime::SwarmRuntime::locate(&name)
-        .read_slam_report()
+        .read_report::<shoal_slam::report::SlamReport>()
+        .expect("a readable SLAM report")
         .expect("a SLAM report")
         .pid as i32;
     // SAFETY: plain kill(2) of the SLAM process the swarm started.

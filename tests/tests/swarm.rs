@@ -301,12 +301,7 @@ fn malformed_bus_samples_are_rejected_and_counted() {
 
     // A rogue publisher writes NaN and far-away poses into the cells where the
     // robots stand and into the roster.
-    let bus = Bus::join(
-        &swarm.name,
-        &names::tool_node(&swarm.name, "rogue"),
-        BusLimits::default(),
-    )
-    .expect("join");
+    let bus = Bus::join_tool(&swarm.name, "rogue", BusLimits::default()).expect("join");
     let roster = shoal_broker::roster::publisher(&bus).expect("roster");
     let s = status(&swarm.name);
     let target = alive_agents(&s)[0].clone();

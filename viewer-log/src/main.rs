@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 use clap::Parser;
-use shoal_broker::{Bus, BusLimits, SampleCheck, names};
+use shoal_broker::{Bus, BusLimits, SampleCheck};
 use shoal_runtime::SwarmRuntime;
 use shoal_viewer_log::recorder::{Frame, Recorder};
 use shoal_viewer_log::rrd_file::{RrdFileSink, RrdFileState, WriteFault};
@@ -153,6 +153,8 @@ struct Session {
     estimated: bool,
     /// Whether the user was told a flush did not complete.
     told_flush_stalled: bool,
+    /// Whether the user was told the link's report cannot be read.
+    unreadable_link_report_said: bool,
 }
 
 impl Session {
@@ -172,9 +174,9 @@ impl Session {
             },
         );
         let scenario = runtime.read_scenario()?;
-        let bus = Bus::join(
+        let bus = Bus::join_tool(
             &args.swarm,
-            &names::tool_node(&args.swarm, &format!("recorder-{}", std::process::id())),
+            &format!("recorder-{}", std::process::id()),
             BusLimits::default(),
         )?;
         let (rec, file, live) = open_stream(args)?;
@@ -204,6 +206,7 @@ impl Session {
             robots: scenario.agents.count,
             estimated: false,
             told_flush_stalled: false,
+            unreadable_link_report_said: false,
             runtime,
             bus,
         })
@@ -264,7 +267,19 @@ impl Session {
     /// Flushes and checks the file and its disk; false once the swarm has
     /// stopped.
     fn each_second(&mut self) -> Result<bool> {
-        if let Some(link) = self.runtime.read_link_report() {
+        // A link report that cannot be read costs the recording only its
+        // robots' host tags: said once, and the recording goes on.
+        let link = self
+            .runtime
+            .read_report::<shoal_link::report::LinkReport>()
+            .unwrap_or_else(|e| {
+                if !self.unreadable_link_report_said {
+                    tracing::warn!("robots of other hosts are not tagged with their host: {e}");
+                    self.unreadable_link_report_said = true;
+                }
+                None
+            });
+        if let Some(link) = link {
             self.recorder.set_remote_hosts(
                 link.pid,
                 link.robots()

@@ -19,7 +19,7 @@ use shoal_broker::liveness::{swarm_nodes, swarm_services};
 use shoal_physics::{Pose, Scenario};
 
 use super::swarm_name;
-use crate::swarm::RunningSwarm;
+use shoal_swarm::RunningSwarm;
 
 /// What to do to the swarm, and for how long.
 #[derive(Clone, Debug, clap::Args)]
@@ -178,7 +178,7 @@ fn figure(measure: &str, value: Option<f64>, goal: &str, met: bool) -> Figure {
 /// outlived the run: processes, shared-memory files, bus nodes and services.
 fn figures(
     kills: &[Kill],
-    crashes: &[crate::swarm::Death],
+    crashes: &[shoal_swarm::Death],
     recording_gap_s: &[f64],
     left: [usize; 3],
     seconds: f64,
@@ -260,7 +260,7 @@ struct Abuse {
     freezes: usize,
     /// Sim times of the recorder kills.
     recorder_kills: Vec<f64>,
-    crashes: Vec<crate::swarm::Death>,
+    crashes: Vec<shoal_swarm::Death>,
 }
 
 /// `args.seconds` of chaos on `swarm`: kills and restarts, freezes, and
@@ -362,7 +362,7 @@ fn abuse(
             recorder_kills.push(swarm.sim_time());
             swarm.kill_recorder()?;
             let (rrd, tum) = segment(recorder_kills.len());
-            swarm.record(&crate::swarm::RecordOptions::file(&rrd, Some(&tum)))?;
+            swarm.record(&shoal_swarm::RecordOptions::file(&rrd, Some(&tum)))?;
         }
         if now >= next_progress {
             next_progress += 10.0;
@@ -407,7 +407,7 @@ pub fn run(args: &ChaosArgs) -> Result<Report> {
         )
     };
     let (rrd, tum) = segment(0);
-    swarm.record(&crate::swarm::RecordOptions::file(&rrd, Some(&tum)))?;
+    swarm.record(&shoal_swarm::RecordOptions::file(&rrd, Some(&tum)))?;
     // Everyone in, before the chaos starts.
     let joined = Instant::now();
     while swarm.observer.len() < args.agents && joined.elapsed() < Duration::from_secs(60) {

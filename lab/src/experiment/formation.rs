@@ -5,7 +5,7 @@ use serde::Serialize;
 use shoal_physics::Scenario;
 
 use super::{mean, run_until_settled, swarm_name};
-use crate::swarm::RunningSwarm;
+use shoal_swarm::RunningSwarm;
 
 #[derive(Debug, Serialize)]
 pub struct Row {

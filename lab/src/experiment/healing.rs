@@ -7,7 +7,7 @@ use shoal_physics::metrics::centroid;
 use shoal_physics::{Pose, Scenario};
 
 use super::{run_until, run_until_settled, swarm_name};
-use crate::swarm::RunningSwarm;
+use shoal_swarm::RunningSwarm;
 
 /// A hole counts as closed once a robot stands this close (in spreads) to its centre.
 const HOLE_CLOSED_SPREADS: f64 = 0.75;

@@ -8,14 +8,14 @@ use anyhow::{Context, Result};
 use glam::DVec2;
 use rand::{Rng, SeedableRng};
 use serde::Serialize;
+use shoal_broker::BusLimits;
 use shoal_broker::robot_streams;
-use shoal_broker::{Bus, BusLimits, names};
 use shoal_physics::legged::Param;
 use shoal_physics::{Command, MotionModel, Pose, Scenario, Surface, wrap_angle};
 use shoal_slam::metrics::{CoarseMap, map_error};
 
 use super::swarm_name;
-use crate::swarm::RunningSwarm;
+use shoal_swarm::RunningSwarm;
 
 /// The commands a wandering robot uses, where the learned model is scored.
 const USED: [Command; 4] = [
@@ -102,12 +102,7 @@ fn run_once(
     let model_file = swarm.runtime.dir.join("initial-model.toml");
     std::fs::write(&model_file, toml::to_string(initial)?)
         .with_context(|| format!("writing {}", model_file.display()))?;
-    let bus = Bus::join(
-        &name,
-        &names::tool_node(&name, "learning"),
-        BusLimits::default(),
-    )?;
-    let roster = shoal_broker::roster::reader(&bus)?;
+    let (bus, roster) = shoal_broker::roster::join_reader(&name, "learning", BusLimits::default())?;
     let estimates = robot_streams::estimate_subscriber(&bus, 0)?;
     let models = robot_streams::model_subscriber(&bus, 0)?;
     let maps = robot_streams::slam_map_subscriber(&bus)?;

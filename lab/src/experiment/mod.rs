@@ -11,8 +11,8 @@ pub mod scale;
 use anyhow::Result;
 use shoal_physics::metrics::FormationMetrics;
 
-use crate::observer::Observer;
-use crate::swarm::RunningSwarm;
+use shoal_swarm::RunningSwarm;
+use shoal_swarm::observer::Observer;
 
 /// How a run ended.
 #[derive(Clone, Copy, Debug)]

@@ -6,7 +6,7 @@ use serde::Serialize;
 use shoal_physics::{Obstacle, Scenario};
 
 use super::{run_until_settled, swarm_name};
-use crate::swarm::RunningSwarm;
+use shoal_swarm::RunningSwarm;
 
 #[derive(Debug, Serialize)]
 pub struct Case {

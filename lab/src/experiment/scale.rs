@@ -7,9 +7,9 @@ use serde::Serialize;
 use shoal_physics::Scenario;
 
 use super::{run_until_settled, swarm_name};
-use crate::observer::Timeliness;
-use crate::process::{ProcessUsage, usage};
-use crate::swarm::RunningSwarm;
+use shoal_swarm::RunningSwarm;
+use shoal_swarm::observer::Timeliness;
+use shoal_swarm::process::{ProcessUsage, usage};
 
 #[derive(Debug, Serialize)]
 pub struct Row {

@@ -1,0 +1,44 @@
+//! SLAM's report in the swarm's folder: what the SLAM process says of each
+//! robot it follows, for `shoal status`, the demo and the tests.
+
+use shoal_runtime::folder::HelperReport;
+
+/// The SLAM process's view of each robot it follows.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct SlamReport {
+    pub pid: u32,
+    pub followed: Vec<FollowedReport>,
+}
+
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct FollowedReport {
+    pub id: u32,
+    pub steps: u64,
+    /// How far the learned model has moved from the one SLAM started with:
+    /// the mean over commands and parameters of |mean shift| / starting std.
+    pub model_distance: f64,
+    /// No scan for a while: the robot is gone, its filter waits.
+    pub paused: bool,
+    /// The filter's pose estimate, once it has started.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub estimate: Option<[f64; 3]>,
+    /// How far the learned model says a full stride (`walk(3)`) carries,
+    /// metres: the scalar a reader can hold against the truth.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stride_m: Option<f64>,
+    /// Filter steps per second since the report before: a robot at 5 Hz
+    /// needs 5 to keep up.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub steps_per_s: Option<f64>,
+    /// How far the filter trails its robot: seconds of the robot's scans
+    /// not yet stepped.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub behind_s: Option<f64>,
+}
+
+impl HelperReport for SlamReport {
+    const FILE: &'static str = "slam.toml";
+    fn writer_pid(&self) -> u32 {
+        self.pid
+    }
+}

@@ -1,0 +1,85 @@
+//! Lockstep pacing: a lockstep clock waits each tick for the helpers
+//! (recorder, SLAM) to keep up, within the buffers between them and the robots.
+
+use std::time::{Duration, Instant};
+
+use anyhow::Result;
+use shoal_broker::HelperProgress;
+use shoal_broker::robot_streams;
+
+use crate::helpers::RECORDER_BINARY;
+use crate::supervisor::RunningSwarm;
+
+/// A helper's progress, which a lockstep clock must not outrun by more than
+/// the buffers between robots and helpers (8 roster samples, 32 scans).
+pub(crate) struct Pace {
+    pub(crate) helper: &'static str,
+    /// Ticks the clock may run ahead of this helper.
+    lag: u64,
+    pub(crate) progress: shoal_broker::Receiver<HelperProgress>,
+    tick: Option<u64>,
+}
+
+/// The name a helper's progress reports go by, which a lockstep clock paces to.
+pub(crate) fn pace_name(binary: &str) -> &str {
+    match binary {
+        RECORDER_BINARY => "recorder",
+        "shoal-slam" => "slam",
+        other => other,
+    }
+}
+
+/// Ticks a lockstep clock may run ahead of its recorder (within the
+/// roster's buffer); SLAM gets none, so its estimates reach the robot the
+/// next tick.
+pub(crate) const RECORDER_LAG_TICKS: u64 = 4;
+pub(crate) const SLAM_LAG_TICKS: u64 = 0;
+/// A helper silent this long is no longer waited for.
+const HELPER_PATIENCE: Duration = Duration::from_secs(10);
+
+impl Pace {
+    /// Waits until the helper has read up to `tick - lag`;
+    /// false when it stopped answering. Reports it rejects are added to `rejected`.
+    pub(crate) fn wait_for(&mut self, tick: u64, rejected: &mut u64) -> Result<bool> {
+        let started = Instant::now();
+        loop {
+            let mut newest = self.tick;
+            self.progress.receive(|p| {
+                // A helper cannot have read a tick the clock has not sent yet.
+                if p.tick > tick {
+                    *rejected += 1;
+                } else {
+                    newest = Some(newest.map_or(p.tick, |n: u64| n.max(p.tick)));
+                }
+            })?;
+            // A helper that just joined has missed nothing it could have
+            // read: it is caught up with the tick at which it first spoke.
+            self.tick = newest.map(|t| match self.tick {
+                None => t.max(tick),
+                Some(_) => t,
+            });
+            if self.tick.is_some_and(|t| t + self.lag >= tick) {
+                return Ok(true);
+            }
+            if started.elapsed() > HELPER_PATIENCE {
+                return Ok(false);
+            }
+            std::thread::sleep(Duration::from_micros(200));
+        }
+    }
+}
+
+impl RunningSwarm {
+    /// In lockstep, makes the clock wait for `helper`'s progress.
+    pub(crate) fn pace_to(&mut self, helper: &'static str, lag: u64) -> Result<()> {
+        if self.clock.is_some() {
+            self.paces.push(Pace {
+                helper,
+                lag,
+                progress: robot_streams::progress_subscriber(&self.bus, helper)?,
+                tick: None,
+            });
+        }
+        Ok(())
+    }
+}
