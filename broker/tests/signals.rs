@@ -3,7 +3,7 @@
 //! then). Its own test binary: the signal ends every bus loop of the
 //! process that receives it.
 
-use shoal_broker::{Bus, BusLimits, names};
+use shoal_broker::{Bus, BusLimits};
 
 #[test]
 fn a_sigterm_before_services_are_opened_is_still_seen_after() {

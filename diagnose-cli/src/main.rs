@@ -367,6 +367,10 @@ struct ExperimentArgs {
     /// Only these cases (e.g. null,latency); default: all.
     #[arg(long, value_delimiter = ',')]
     cases: Vec<String>,
+    /// The first run's seed; runs take the seeds after it. A method tuned
+    /// on one range of seeds is checked on another.
+    #[arg(long, default_value_t = 1000)]
+    first_seed: u64,
     #[command(flatten)]
     naming: Naming,
     #[arg(long)]
@@ -391,7 +395,7 @@ fn run_experiment(args: &ExperimentArgs) -> Result<()> {
                     generator,
                     &case,
                     noise,
-                    1000..1000 + n,
+                    args.first_seed..args.first_seed + n,
                     args.duration,
                     &options,
                 );

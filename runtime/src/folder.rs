@@ -613,6 +613,53 @@ mod tests {
         }
     }
 
+    #[derive(Debug, PartialEq, Serialize, Deserialize)]
+    struct TestReport {
+        pid: u32,
+        steps: u64,
+    }
+
+    impl HelperReport for TestReport {
+        const FILE: &'static str = "test-report.toml";
+        fn writer_pid(&self) -> u32 {
+            self.pid
+        }
+    }
+
+    /// A report reads back as written while its writer runs; a missing one
+    /// or one whose writer is gone is no report; a corrupt one is an error
+    /// naming the file, never taken for an absent helper.
+    #[test]
+    fn a_report_reads_back_and_a_corrupt_one_is_an_error_not_an_absent_helper() {
+        let root = scratch("report");
+        let runtime = runtime_in(&root, "s");
+        runtime.create("", &meta()).expect("create");
+        assert!(matches!(runtime.read_report::<TestReport>(), Ok(None)));
+        let mine = TestReport {
+            pid: std::process::id(),
+            steps: 7,
+        };
+        runtime.write_report(&mine).expect("write");
+        assert_eq!(
+            runtime.read_report::<TestReport>().expect("read"),
+            Some(mine)
+        );
+        // No process has pid 0 to own it: a report of a writer that is gone.
+        runtime
+            .write_report(&TestReport { pid: 0, steps: 1 })
+            .expect("write");
+        assert!(matches!(runtime.read_report::<TestReport>(), Ok(None)));
+        std::fs::write(
+            runtime.dir.join(TestReport::FILE),
+            "pid = 12\nsteps = \"many\"\n",
+        )
+        .expect("corrupt it");
+        let error = runtime.read_report::<TestReport>().unwrap_err().to_string();
+        assert!(error.contains("test-report.toml"), "{error}");
+        assert!(error.contains("not a report Shoal can read"), "{error}");
+        std::fs::remove_dir_all(&root).expect("cleanup");
+    }
+
     #[test]
     fn a_folder_shoal_did_not_make_is_never_removed() {
         let root = scratch("foreign");

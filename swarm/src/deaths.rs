@@ -127,3 +127,39 @@ impl Children {
         count
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::os::unix::process::ExitStatusExt;
+
+    /// An error exit or a fault is a crash; a kill from outside is said but
+    /// is not a crash of ours.
+    #[test]
+    fn a_death_says_how_it_ended_and_whether_it_was_a_crash() {
+        let exited = Death::of(
+            "robot 3".into(),
+            std::process::ExitStatus::from_raw(1 << 8),
+            vec!["boom".into()],
+        );
+        assert!(exited.crashed);
+        assert_eq!(
+            exited.to_string(),
+            "robot 3 exited with status 1\n    | boom"
+        );
+        let killed = Death::of(
+            "robot 4".into(),
+            std::process::ExitStatus::from_raw(libc::SIGKILL),
+            vec![],
+        );
+        assert!(!killed.crashed);
+        assert_eq!(killed.status, "was killed by signal 9 (SIGKILL)");
+        let faulted = Death::of(
+            "shoal-slam".into(),
+            std::process::ExitStatus::from_raw(libc::SIGSEGV),
+            vec![],
+        );
+        assert!(faulted.crashed);
+        assert!(faulted.status.contains("SIGSEGV"), "{}", faulted.status);
+    }
+}

@@ -311,3 +311,40 @@ impl RunningSwarm {
         note
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_recorder_and_the_link_get_the_arguments_asked_for() {
+        let mut record = RecordOptions::file(
+            std::path::Path::new("run.rrd"),
+            Some(std::path::Path::new("tum")),
+        );
+        record.expected_seconds = Some(60.0);
+        assert!(record.wanted());
+        assert_eq!(
+            record.recorder_args(),
+            ["run.rrd", "--tum", "tum", "--expected-seconds", "60"].map(std::ffi::OsString::from)
+        );
+        assert!(!RecordOptions::default().wanted());
+        let link = LinkOptions {
+            zenoh_config: None,
+            listen: vec!["tcp/0.0.0.0:7447".into()],
+            connect: vec!["tcp/10.0.0.2:7447".into()],
+        };
+        assert_eq!(
+            link.args("lab"),
+            [
+                "--swarm",
+                "lab",
+                "--listen",
+                "tcp/0.0.0.0:7447",
+                "--connect",
+                "tcp/10.0.0.2:7447"
+            ]
+            .map(std::ffi::OsString::from)
+        );
+    }
+}

@@ -83,3 +83,15 @@ impl RunningSwarm {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn helpers_report_progress_under_their_short_names() {
+        assert_eq!(pace_name(RECORDER_BINARY), "recorder");
+        assert_eq!(pace_name("shoal-slam"), "slam");
+        assert_eq!(pace_name("shoal-link"), "shoal-link");
+    }
+}

@@ -295,3 +295,17 @@ mod tests {
         assert!(pinned.signal(libc::SIGKILL).is_err());
     }
 }
+
+#[cfg(test)]
+mod id_tests {
+    use super::*;
+
+    #[test]
+    fn robots_past_the_highest_id_are_refused() {
+        assert!(check_id_range(0, MAX_ROBOT_ID as usize + 1).is_ok());
+        assert!(check_id_range(1, MAX_ROBOT_ID as usize + 1).is_err());
+        assert!(check_id_range(MAX_ROBOT_ID, 1).is_ok());
+        let error = check_id_range(MAX_ROBOT_ID, 2).unwrap_err().to_string();
+        assert!(error.contains("65535"), "{error}");
+    }
+}

@@ -92,3 +92,17 @@ impl Drop for RunningSwarm {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A thousand robots leaving together queue on the kernel for seconds:
+    /// their grace grows with their number.
+    #[test]
+    fn the_grace_grows_with_the_robots_to_stop() {
+        assert_eq!(shutdown_grace(0), Duration::from_secs(5));
+        assert_eq!(shutdown_grace(1000), Duration::from_secs(20));
+        assert!(HELPER_GRACE >= Duration::from_secs(2));
+    }
+}

@@ -336,7 +336,7 @@ fn an_absurd_robot_id_is_refused_at_once() {
 /// goes to infinity.
 #[test]
 fn forged_clock_ticks_and_model_updates_are_rejected_and_the_swarm_keeps_stepping() {
-    use shoal_broker::{Bus, BusLimits, ClockSource, ClockTick, Health, ModelUpdate, names};
+    use shoal_broker::{Bus, BusLimits, ClockSource, ClockTick, Health, ModelUpdate};
     use shoal_physics::Command as Motion;
     use shoal_physics::legged::Param;
 

@@ -6,7 +6,7 @@ use std::process::Command;
 use std::time::{Duration, Instant};
 
 use serde_json::Value;
-use shoal_broker::{Bus, BusLimits, names};
+use shoal_broker::BusLimits;
 use shoal_e2e::*;
 
 fn rerun_cli(args: &[&str]) -> std::process::Output {

@@ -294,7 +294,7 @@ fn a_malformed_scenario_names_file_line_and_field() {
 
 #[test]
 fn malformed_bus_samples_are_rejected_and_counted() {
-    use shoal_broker::{Bus, BusLimits, CellExchange, PoseSample, names};
+    use shoal_broker::{Bus, BusLimits, CellExchange, PoseSample};
     let _turn = serial();
     let mut swarm = BackgroundSwarm::start("e2e-rogue", &["--agents", "8", "--lockstep"]);
     swarm.wait_alive(8, Duration::from_secs(60));
