@@ -316,7 +316,7 @@ struct GenerateArgs {
     /// The experiment's noise colour to generate with.
     #[arg(long, value_parser = NoiseColour::parse, default_value = "white")]
     noise: NoiseColour,
-    /// The experiment's generator: bench, waypoints or speed-only.
+    /// The experiment's generator: bench, waypoints, waypoints-open or speed-only.
     #[arg(long, value_parser = Generator::parse, default_value = "bench")]
     generator: Generator,
     #[arg(long)]
@@ -353,9 +353,11 @@ struct ExperimentArgs {
     noise: Vec<NoiseColour>,
     /// Generators: bench (the one diagnosis was developed against, with its
     /// concealed cases), waypoints (a waypoint follower at 20 Hz, poses at
-    /// 120 Hz, noise only while moving) and speed-only (held commands at
-    /// 10 Hz, poses at 30 Hz, noise growing with speed, not turn rate);
-    /// the last two run the independent cases: gains above 1, other sizes
+    /// 120 Hz, noise only while moving, steering on where the body is),
+    /// waypoints-open (the same, steering open loop) and speed-only (held
+    /// commands at 10 Hz, poses at 30 Hz, noise growing with speed, not
+    /// turn rate);
+    /// all but the bench run the independent cases: gains above 1, other sizes
     /// and signs, effects acting together.
     #[arg(
         long,

@@ -211,6 +211,18 @@ impl Generator {
                 max_speed: 0.5,
                 max_turn: 1.2,
             },
+            // The same robot and follower, steering open loop: its
+            // commands never respond to the motion noise.
+            Self {
+                name: "waypoints-open",
+                cases_of: independent_cases,
+                operator: Operator::WaypointsOpenLoop,
+                noise_law: NoiseLaw::WhileMoving,
+                command_hz: 20.0,
+                pose_hz: 120.0,
+                max_speed: 0.5,
+                max_turn: 1.2,
+            },
             // A slow teleoperated robot: held commands at 10 Hz, poses at
             // 30 Hz, noise that grows with speed but not with turn rate.
             Self {

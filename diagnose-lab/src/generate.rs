@@ -52,8 +52,15 @@ pub enum Operator {
     /// A waypoint follower, as a navigation stack drives: it steers to
     /// random points of the arena with a proportional controller, slows down
     /// to turn and to arrive, and sends a new command every message, so
-    /// speed and turn rate are never held and always move together.
+    /// speed and turn rate are never held and always move together. It
+    /// steers on where the body is, so its commands respond to the motion
+    /// noise (closed loop), as a navigation stack's do.
     Waypoints,
+    /// The same waypoint follower steering on where its commands alone
+    /// would have taken the body (dead reckoning without noise): its
+    /// commands never respond to the motion noise (open loop). Beside
+    /// `Waypoints` it shows what a controller's feedback does to diagnosis.
+    WaypointsOpenLoop,
 }
 
 /// How motion noise depends on the motion. Diagnosis assumes `Constant`.
@@ -236,6 +243,8 @@ pub fn generate(truth: &UnicycleModel, settings: &Settings) -> Recording {
     let mut observed = Poses::default();
     let mut pose = Pose::new(0.0, 0.0, rng.random_range(-3.14..3.14));
     let mut operator = OperatorState::default();
+    // Where the commands alone take the body: what an open-loop operator sees.
+    let mut plan = pose;
     let (mut v, mut omega) = (0.0, 0.0);
     let mut actuators = Actuators::default();
     let mut next_observation = rng.random_range(0.0..pose_every);
@@ -253,6 +262,7 @@ pub fn generate(truth: &UnicycleModel, settings: &Settings) -> Recording {
             (v, omega) = match settings.operator {
                 Operator::Held => operator.held(&pose, t, settings, &mut rng),
                 Operator::Waypoints => operator.waypoints(&pose, t, settings, &mut rng),
+                Operator::WaypointsOpenLoop => operator.waypoints(&plan, t, settings, &mut rng),
             };
             commanded.t.push(t);
             commanded.v.push(v);
@@ -280,6 +290,7 @@ pub fn generate(truth: &UnicycleModel, settings: &Settings) -> Recording {
             + m * turn_law
                 * (settings.turn_noise * unit.sample(&mut rng) / BODY_DT.sqrt() + coloured_omega);
         pose = truth.step(pose, noisy_v, noisy_omega, t, BODY_DT);
+        plan = truth.step(plan, ev, eomega, t, BODY_DT);
         while next_observation <= t + BODY_DT {
             let stamp = next_observation + settings.timestamp_jitter_s * unit.sample(&mut rng);
             let (mut x, mut y) = (
