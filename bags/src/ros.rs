@@ -7,8 +7,10 @@ use serde::Deserialize;
 use crate::run::Selection;
 
 pub const COMMAND_TYPES: [&str; 2] = ["geometry_msgs/msg/Twist", "geometry_msgs/msg/TwistStamped"];
-pub const POSE_TYPES: [&str; 4] = [
+pub const POSE_TYPES: [&str; 5] = [
     "geometry_msgs/msg/PoseStamped",
+    // What motion-capture bridges (vicon_bridge) publish per body.
+    "geometry_msgs/msg/TransformStamped",
     "geometry_msgs/msg/PoseWithCovarianceStamped",
     "nav_msgs/msg/Odometry",
     "tf2_msgs/msg/TFMessage",
@@ -109,6 +111,15 @@ pub fn decode_poses(
         "nav_msgs/msg/Odometry" => {
             let m = decode::<msg::Odometry>(data)?;
             one(m.header, m.pose.pose)
+        }
+        "geometry_msgs/msg/TransformStamped" => {
+            let m = decode::<msg::TransformStamped>(data)?;
+            Ok(vec![planar(
+                m.header.stamp.nanoseconds(),
+                log_time,
+                &m.transform.translation,
+                &m.transform.rotation,
+            )?])
         }
         "tf2_msgs/msg/TFMessage" => {
             let frame = selection

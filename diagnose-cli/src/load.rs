@@ -119,7 +119,7 @@ fn load_bag(path: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
             }
             bail!(
                 "{listing}choose the commands with --commands-topic (Twist or TwistStamped: {}) and the poses with --poses-topic \
-                 (PoseStamped, PoseWithCovarianceStamped, Odometry, or TFMessage with --frame CHILD: {})",
+                 (PoseStamped, TransformStamped, PoseWithCovarianceStamped, Odometry, or TFMessage with --frame CHILD: {})",
                 or_none(&command_topics),
                 or_none(&pose_topics),
             );

@@ -61,7 +61,8 @@ struct DiagnoseArgs {
     #[arg(long, value_name = "TOPIC")]
     commands_topic: Option<String>,
     /// The bag's observed poses: geometry_msgs/msg/PoseStamped,
-    /// PoseWithCovarianceStamped, nav_msgs/msg/Odometry, or
+    /// TransformStamped (motion-capture bridges), PoseWithCovarianceStamped,
+    /// nav_msgs/msg/Odometry, or
     /// tf2_msgs/msg/TFMessage with --frame.
     #[arg(long, value_name = "TOPIC")]
     poses_topic: Option<String>,

@@ -625,6 +625,49 @@ fn gazebo_bags_in_sqlite3_mcap_split_and_compressed_are_diagnosed_on_one_clock()
     assert_eq!(d["input"]["clock"]["poses"], "the bag's log times", "{d}");
 }
 
+/// A motion-capture bridge's bag (rosbags' writer, MCAP): poses as
+/// `geometry_msgs/msg/TransformStamped` stamped by a robot clock 2.5 s
+/// ahead of the recorder's, commands without headers: both are timed by the
+/// bag's log times, and the delay fitted is the robot's response plus the
+/// poses' transport (4 ms) less the commands' (2 ms).
+#[test]
+fn a_motion_capture_bridges_bag_with_a_robot_clock_that_is_off_is_diagnosed_on_log_times() {
+    let case = case_named(&Generator::bench(), "latency", DURATION_S).expect("latency case");
+    let (from_csv, dir) = diagnose_generated("vicon", &truth_toml(&case), &[]);
+    let from_csv = from_csv["effects"][0]["params"]["seconds"]
+        .as_f64()
+        .expect("latency from the CSV files");
+    let bag = write_gazebo_bag(&dir, "vicon-bag", &["storage=mcap", "poses=vicon"]);
+    let output = Command::new(binary())
+        .arg(&bag)
+        .args([
+            "--commands-topic",
+            "/cmd_vel",
+            "--poses-topic",
+            "/vicon/robot/robot",
+            "--json",
+        ])
+        .output()
+        .expect("run shoal-diagnose");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    let d: Value = serde_json::from_slice(&output.stdout).expect("JSON");
+    let clock = &d["input"]["clock"];
+    assert_eq!(clock["poses"], "the bag's log times", "{clock}");
+    assert_eq!(
+        kinds(&d).first().map(String::as_str),
+        Some("latency"),
+        "{d}"
+    );
+    let fitted = d["effects"][0]["params"]["seconds"]
+        .as_f64()
+        .expect("seconds");
+    assert!(
+        (fitted - (from_csv + 0.002)).abs() < 0.003,
+        "{fitted} s, the CSV's {from_csv} s moved by the transports' 2 ms"
+    );
+}
+
 #[test]
 fn motion_capture_glitches_are_set_aside_reported_and_never_fitted() {
     let case = case_named(&Generator::bench(), "latency", DURATION_S).expect("latency case");

@@ -16,6 +16,11 @@ few milliseconds after it was made. OPTIONS, any of:
   split=N                cut the bag into N files, listed by metadata.yaml
   compression=none|file|message   rosbag2's zstd compression
   version=8|9            rosbag2 metadata version (default 8)
+  poses=odom|vicon       /odom in simulation time (default), or a motion-
+                         capture bridge's /vicon/robot/robot
+                         (geometry_msgs/msg/TransformStamped) stamped by a
+                         robot clock 2.5 s ahead of the recorder's; with
+                         vicon there is no simulation and no /clock
 """
 
 import csv
@@ -49,6 +54,8 @@ def main(run_dir, out_dir, *options):
     split = int(opts.get("split", "1"))
     compression = opts.get("compression", "none")
     version = int(opts.get("version", "8"))
+    vicon = opts.get("poses", "odom") == "vicon"
+    with_clock = with_clock and not vicon
 
     typestore = get_typestore(Stores.ROS2_HUMBLE)
     Twist = typestore.types["geometry_msgs/msg/Twist"]
@@ -62,6 +69,10 @@ def main(run_dir, out_dir, *options):
     Point = typestore.types["geometry_msgs/msg/Point"]
     Quaternion = typestore.types["geometry_msgs/msg/Quaternion"]
     Clock = typestore.types["rosgraph_msgs/msg/Clock"]
+    Transform = typestore.types["geometry_msgs/msg/Transform"]
+    TransformStamped = typestore.types["geometry_msgs/msg/TransformStamped"]
+    poses_topic = "/vicon/robot/robot" if vicon else "/odom"
+    pose_type = TransformStamped if vicon else Odometry
 
     def sim_ns(t):
         return SIM_START_NS + round(t * 1e9)
@@ -88,6 +99,15 @@ def main(run_dir, out_dir, *options):
             position=Point(x=r["x"], y=r["y"], z=0.0),
             orientation=Quaternion(x=0.0, y=0.0, z=math.sin(half), w=math.cos(half)),
         )
+        if vicon:
+            robot_clock_ns = wall_ns(r["t"]) + 2_500_000_000
+            msg = TransformStamped(
+                header=Header(stamp=stamp(robot_clock_ns), frame_id="world"),
+                child_frame_id="robot",
+                transform=Transform(translation=Vector3(x=r["x"], y=r["y"], z=0.0), rotation=pose.orientation),
+            )
+            messages.append((wall_ns(r["t"]) + POSE_TRANSPORT_NS, poses_topic, msg))
+            continue
         msg = Odometry(
             header=Header(stamp=stamp(sim_ns(r["t"])), frame_id="odom"),
             child_frame_id="base_footprint",
@@ -105,7 +125,7 @@ def main(run_dir, out_dir, *options):
             t += 0.01
     messages.sort(key=lambda m: m[0])
 
-    types = {"/cmd_vel": Twist.__msgtype__, "/odom": Odometry.__msgtype__, "/clock": Clock.__msgtype__}
+    types = {"/cmd_vel": Twist.__msgtype__, poses_topic: pose_type.__msgtype__, "/clock": Clock.__msgtype__}
     out = Path(out_dir)
     if out.exists():
         shutil.rmtree(out)
