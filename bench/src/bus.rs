@@ -64,7 +64,7 @@ enum Transport {
 /// blocks in a new order, the same for sender and receiver (a fixed seed
 /// per round). In a fixed order, whichever transport came right after the
 /// event-woken one measured about 2 µs slower at p50 whatever it was
-/// (BENCHMARKS.md, "1000 robots: memory, start-up and the bus").
+/// (BENCHMARKS.md, "Pose latency: Shoal's path against raw iceoryx2 and a Unix socket").
 fn schedule(samples: usize) -> impl Iterator<Item = Transport> {
     use rand::SeedableRng;
     use rand::seq::SliceRandom;

@@ -227,7 +227,7 @@ fn node_config() -> Config {
     // By default every node, when created and when dropped, lists every node
     // on the machine to clean up the dead ones: reading each one's details
     // file. A thousand robots starting made that a million reads, and the
-    // machine spent its start-up on it (BENCHMARKS.md, "1000 robots in real time: the first run"). Dead
+    // machine spent its start-up on it (BENCHMARKS.md, "1000 robots in real time"). Dead
     // nodes are still cleaned where it matters: iceoryx2 cleans those of a
     // service whenever a robot opens it, the launcher sweeps when a robot of
     // its own ends, a robot sweeps when a neighbour's process is gone, and

@@ -38,7 +38,7 @@ const PUBLISH_SLACK_M: f64 = 0.4;
 /// (about 100 KB of connection storage, sized for the cell's publishers),
 /// so the margin is what a robot's jitter needs, not more: half a cell kept
 /// about 14 cells per robot where 8 to 10 are needed, a third of its memory
-/// (BENCHMARKS.md, "1000 robots: memory, start-up and the bus").
+/// (BENCHMARKS.md, "Where a robot's time and memory go").
 const LISTEN_SLACK_M: f64 = 0.5;
 
 pub struct CellExchange {

@@ -185,7 +185,7 @@ const MANY_ROBOTS: usize = 200;
 /// thousands for 1000 robots. On this machine's ext4 (no journal) that was
 /// a third of start-up: 1000 robots started in 22-29 s with iceoryx2's
 /// default `/tmp/iceoryx2`, 7.8 s with its root in `/dev/shm`
-/// (BENCHMARKS.md, "1000 robots: memory, start-up and the bus"). The root is the user's to choose: every
+/// (BENCHMARKS.md, "Start-up"). The root is the user's to choose: every
 /// iceoryx2 program of the machine, Python ones included, must agree on it.
 fn warn_if_iceoryx_on_disk(robots: usize) {
     if robots < MANY_ROBOTS {

@@ -471,7 +471,7 @@ impl SwarmRuntime {
 /// line of fixed width is rewritten at its start. Writing a new file and
 /// renaming it over the old one takes the folder's lock, and a thousand
 /// robots queued on that lock for a fifth of the machine's time
-/// (BENCHMARKS.md, "1000 robots in real time: the first run"). A write this small is never seen half done
+/// (BENCHMARKS.md, "1000 robots in real time"). A write this small is never seen half done
 /// by a robot that is killed, and the pose is read only once it is dead.
 pub struct PoseNote {
     file: std::fs::File,

@@ -14,7 +14,7 @@ use crate::supervisor::RunningSwarm;
 /// leaves in milliseconds, but a thousand leaving at once queue on the
 /// kernel for seconds (their shared mappings unmapped together), and every
 /// one killed leaves resources the launcher must then clean up one node at
-/// a time, a third of a second each (BENCHMARKS.md, "1000 robots in real time: the first run").
+/// a time, a third of a second each (BENCHMARKS.md, "1000 robots in real time").
 pub fn shutdown_grace(robots: usize) -> Duration {
     Duration::from_secs(5) + Duration::from_millis(15) * robots as u32
 }

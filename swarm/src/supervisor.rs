@@ -360,7 +360,7 @@ impl RunningSwarm {
 /// in id order, robots scattered over the whole start region, each found too
 /// few neighbours, listened as far as it could (the widest ring: about 40
 /// cells where it needs 9), and every robot started after it connected to
-/// all those listeners (BENCHMARKS.md, "1000 robots: memory, start-up and the bus").
+/// all those listeners (BENCHMARKS.md, "Start-up").
 fn inside_out(poses: &[Pose]) -> Vec<usize> {
     let positions: Vec<_> = poses.iter().map(Pose::position).collect();
     let middle = shoal_physics::metrics::centroid(&positions);
