@@ -37,61 +37,7 @@ enum LinkKind {
 #[derive(Subcommand)]
 enum Commands {
     /// Start a swarm and watch it until Ctrl-C or --duration.
-    Up {
-        /// How many robots (overrides the scenario).
-        #[arg(long, value_parser = robot_count)]
-        agents: Option<usize>,
-        /// A scenario file (TOML); default: a walled arena with obstacles and two surfaces.
-        #[arg(long)]
-        scenario: Option<PathBuf>,
-        /// The swarm's name: swarms with different names never see each other.
-        #[arg(long, default_value = "default")]
-        swarm: String,
-        /// Stop after this many seconds (simulated seconds in lockstep).
-        #[arg(long, value_parser = positive_seconds, allow_negative_numbers = true)]
-        duration: Option<f64>,
-        /// Step all robots on one clock, faster than real time and deterministic for a seed.
-        #[arg(long)]
-        lockstep: bool,
-        /// Seed of start poses and noise (overrides the scenario).
-        #[arg(long)]
-        seed: Option<u64>,
-        /// Print a JSON summary when the swarm stops.
-        #[arg(long)]
-        json: bool,
-        /// Record the run into this Rerun file (.rrd).
-        #[arg(long)]
-        record: Option<PathBuf>,
-        /// With --record: also write each robot's true and believed trajectory as TUM files here.
-        #[arg(long, requires = "record")]
-        tum: Option<PathBuf>,
-        /// Watch the run live in a Rerun viewer started now (`rerun` on PATH).
-        #[arg(long)]
-        viewer: bool,
-        /// Without --link: stream the run live to a Rerun viewer already
-        /// running at ADDR (HOST:PORT). With --link zenoh: a Zenoh endpoint
-        /// of another host to connect to, e.g. tcp/10.0.0.2:7447 (repeatable).
-        #[arg(long, value_name = "ADDR")]
-        connect: Vec<String>,
-        /// Join this host's robots to the swarm's other hosts.
-        #[arg(long, value_enum)]
-        link: Option<LinkKind>,
-        /// The first robot's id; the others follow. Ids must be unique
-        /// across the hosts of a swarm.
-        #[arg(long, default_value_t = 0)]
-        first_id: u32,
-        /// With --link zenoh: a Zenoh configuration file (JSON5), for
-        /// endpoints, scouting, TLS and access control.
-        #[arg(long, requires = "link")]
-        zenoh_config: Option<PathBuf>,
-        /// With --link zenoh: a Zenoh endpoint to listen on, e.g. tcp/0.0.0.0:7447 (repeatable).
-        #[arg(long, requires = "link")]
-        listen: Vec<String>,
-        /// Start a SLAM process following these robots, e.g. 0,3, or `all`
-        /// (every robot, those that join later included).
-        #[arg(long)]
-        slam: Option<shoal_slam::follow::Follow>,
-    },
+    Up(UpArgs),
     /// All of Shoal in one run: robots form, SLAM learns, four robots are
     /// killed and restarted, and the recording is diagnosed.
     Demo {
@@ -245,6 +191,64 @@ enum ExperimentKind {
     },
 }
 
+/// `shoal up`'s arguments.
+#[derive(clap::Args)]
+struct UpArgs {
+    /// How many robots (overrides the scenario).
+    #[arg(long, value_parser = robot_count)]
+    agents: Option<usize>,
+    /// A scenario file (TOML); default: a walled arena with obstacles and two surfaces.
+    #[arg(long)]
+    scenario: Option<PathBuf>,
+    /// The swarm's name: swarms with different names never see each other.
+    #[arg(long, default_value = "default")]
+    swarm: String,
+    /// Stop after this many seconds (simulated seconds in lockstep).
+    #[arg(long, value_parser = positive_seconds, allow_negative_numbers = true)]
+    duration: Option<f64>,
+    /// Step all robots on one clock, faster than real time and deterministic for a seed.
+    #[arg(long)]
+    lockstep: bool,
+    /// Seed of start poses and noise (overrides the scenario).
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Print a JSON summary when the swarm stops.
+    #[arg(long)]
+    json: bool,
+    /// Record the run into this Rerun file (.rrd).
+    #[arg(long)]
+    record: Option<PathBuf>,
+    /// With --record: also write each robot's true and believed trajectory as TUM files here.
+    #[arg(long, requires = "record")]
+    tum: Option<PathBuf>,
+    /// Watch the run live in a Rerun viewer started now (`rerun` on PATH).
+    #[arg(long)]
+    viewer: bool,
+    /// Without --link: stream the run live to a Rerun viewer already
+    /// running at ADDR (HOST:PORT). With --link zenoh: a Zenoh endpoint
+    /// of another host to connect to, e.g. tcp/10.0.0.2:7447 (repeatable).
+    #[arg(long, value_name = "ADDR")]
+    connect: Vec<String>,
+    /// Join this host's robots to the swarm's other hosts.
+    #[arg(long, value_enum)]
+    link: Option<LinkKind>,
+    /// The first robot's id; the others follow. Ids must be unique
+    /// across the hosts of a swarm.
+    #[arg(long, default_value_t = 0)]
+    first_id: u32,
+    /// With --link zenoh: a Zenoh configuration file (JSON5), for
+    /// endpoints, scouting, TLS and access control.
+    #[arg(long, requires = "link")]
+    zenoh_config: Option<PathBuf>,
+    /// With --link zenoh: a Zenoh endpoint to listen on, e.g. tcp/0.0.0.0:7447 (repeatable).
+    #[arg(long, requires = "link")]
+    listen: Vec<String>,
+    /// Start a SLAM process following these robots, e.g. 0,3, or `all`
+    /// (every robot, those that join later included).
+    #[arg(long)]
+    slam: Option<shoal_slam::follow::Follow>,
+}
+
 /// Becomes the sibling binary (exec): one process, so the pid the user sees
 /// is the one doing the work, signals reach it, and `--help` is its own.
 fn become_binary(binary: &str, args: &[String]) -> Result<()> {
@@ -259,164 +263,183 @@ fn become_binary(binary: &str, args: &[String]) -> Result<()> {
 fn run(cli: Cli) -> Result<()> {
     shoal_runtime::host::choose(cli.host.as_deref())?;
     match cli.command {
-        Commands::Up {
-            agents,
-            scenario,
-            swarm,
-            duration,
-            lockstep,
-            seed,
-            json,
-            record,
-            tum,
-            viewer,
-            connect,
-            slam,
-            link,
-            first_id,
-            zenoh_config,
-            listen,
-        } => {
-            let (link, viewer_at) = match link {
-                Some(LinkKind::Zenoh) => (
-                    Some(shoal_swarm::LinkOptions {
-                        zenoh_config,
-                        listen,
-                        connect,
-                    }),
-                    None,
-                ),
-                None => match connect.as_slice() {
-                    [] => (None, None),
-                    [addr] if !viewer => (None, Some(addr.clone())),
-                    [_] => anyhow::bail!(
-                        "--viewer starts a viewer; --connect streams to a running one: choose one"
-                    ),
-                    _ => anyhow::bail!(
-                        "--connect names one Rerun viewer, or with --link zenoh the Zenoh endpoints of other hosts"
-                    ),
-                },
-            };
-            up::up(up::UpOptions {
-                swarm,
-                scenario,
-                agents,
-                seed,
-                launch: shoal_swarm::Launch {
-                    lockstep,
-                    first_id,
-                    link,
-                },
-                duration_s: duration,
-                json,
-                record: shoal_swarm::RecordOptions {
-                    out: record,
-                    tum,
-                    viewer,
-                    connect: viewer_at,
-                    expected_seconds: duration,
-                },
-                slam,
-            })?;
-        }
+        Commands::Up(args) => up_command(args),
         Commands::Demo {
             scenario,
             out,
             seconds,
             swarm,
             json,
-        } => {
-            let summary = demo::run(&demo::DemoOptions {
-                swarm,
-                scenario: scenario.clone(),
-                out,
-                seconds,
-            })?;
-            let scenario = demo::demo_scenario(scenario.as_deref())?;
-            print_out(|out| {
-                if json {
-                    writeln!(out, "{}", serde_json::to_string(&summary)?)
-                } else {
-                    demo::print(out, &summary, &scenario)
-                }
-            })?;
-        }
-        Commands::Slam { args } => become_binary("shoal-slam", &args)?,
-        Commands::Record { args } => become_binary("shoal-viewer-log", &args)?,
-        Commands::Diagnose { args } => become_binary("shoal-diagnose", &args)?,
-        Commands::Status { swarm, json, cells } => {
-            let report = status::gather(&swarm, cells)?;
-            print_out(|out| {
-                if json {
-                    return writeln!(out, "{}", serde_json::to_string(&report)?);
-                }
-                status::print_table(out, &report)?;
-                match &report.cells {
-                    Some(cells) => status::print_cells(out, cells),
-                    None => Ok(()),
-                }
-            })?;
-        }
-        Commands::Experiment { which, json } => match which {
-            ExperimentKind::Formation {
-                agents,
-                seeds,
-                max_seconds,
-            } => report::print(
-                &experiment::formation::run(agents, seeds, max_seconds)?,
-                json,
-            )?,
-            ExperimentKind::Obstacles {
-                agents,
-                seeds,
-                max_seconds,
-            } => report::print(
-                &experiment::obstacles::run(agents, seeds, max_seconds)?,
-                json,
-            )?,
-            ExperimentKind::Healing { seeds, max_seconds } => {
-                report::print(&experiment::healing::run(seeds, max_seconds)?, json)?
-            }
-            ExperimentKind::Chaos(args) => report::print(&experiment::chaos::run(&args)?, json)?,
-            ExperimentKind::Scale {
-                sizes,
-                max_seconds,
-                real_time,
-            } => report::print(
-                &experiment::scale::run(&sizes, max_seconds, real_time)?,
-                json,
-            )?,
-            ExperimentKind::Learning {
-                seconds,
-                perturbed,
-                particles,
-            } => report::print(
-                &experiment::learning::run(seconds, perturbed, particles)?,
-                json,
-            )?,
-            ExperimentKind::Diagnose { mut args } => {
-                args.insert(0, "experiment".into());
-                if json {
-                    args.push("--json".into());
-                }
-                become_binary("shoal-diagnose", &args)?
-            }
-        },
+        } => demo_command(scenario, out, seconds, swarm, json),
+        Commands::Slam { args } => become_binary("shoal-slam", &args),
+        Commands::Record { args } => become_binary("shoal-viewer-log", &args),
+        Commands::Diagnose { args } => become_binary("shoal-diagnose", &args),
+        Commands::Status { swarm, json, cells } => status_command(&swarm, json, cells),
+        Commands::Experiment { which, json } => experiment_command(which, json),
         Commands::Kill {
             ids,
             swarm,
             graceful,
-        } => control::kill(&swarm, &ids, graceful)?,
-        Commands::Restart { ids, swarm, at } => control::restart(&swarm, &ids, at)?,
+        } => control::kill(&swarm, &ids, graceful),
+        Commands::Restart { ids, swarm, at } => control::restart(&swarm, &ids, at),
         Commands::Down { swarm } => {
             let stopped = control::down(&swarm)?;
-            print_out(|out| writeln!(out, "stopped swarm `{swarm}` ({stopped} processes)"))?;
+            print_out(|out| writeln!(out, "stopped swarm `{swarm}` ({stopped} processes)"))
         }
-        Commands::Spawn { count, swarm, at } => {
-            control::spawn(&swarm, count, at)?;
+        Commands::Spawn { count, swarm, at } => control::spawn(&swarm, count, at).map(drop),
+    }
+}
+
+/// `shoal up`: where the run goes (a linked swarm's hosts, a viewer), then
+/// the swarm until Ctrl-C or its duration.
+fn up_command(args: UpArgs) -> Result<()> {
+    let UpArgs {
+        agents,
+        scenario,
+        swarm,
+        duration,
+        lockstep,
+        seed,
+        json,
+        record,
+        tum,
+        viewer,
+        connect,
+        slam,
+        link,
+        first_id,
+        zenoh_config,
+        listen,
+    } = args;
+    let (link, viewer_at) = match link {
+        Some(LinkKind::Zenoh) => (
+            Some(shoal_swarm::LinkOptions {
+                zenoh_config,
+                listen,
+                connect,
+            }),
+            None,
+        ),
+        None => match connect.as_slice() {
+            [] => (None, None),
+            [addr] if !viewer => (None, Some(addr.clone())),
+            [_] => anyhow::bail!(
+                "--viewer starts a viewer; --connect streams to a running one: choose one"
+            ),
+            _ => anyhow::bail!(
+                "--connect names one Rerun viewer, or with --link zenoh the Zenoh endpoints of other hosts"
+            ),
+        },
+    };
+    up::up(up::UpOptions {
+        swarm,
+        scenario,
+        agents,
+        seed,
+        launch: shoal_swarm::Launch {
+            lockstep,
+            first_id,
+            link,
+        },
+        duration_s: duration,
+        json,
+        record: shoal_swarm::RecordOptions {
+            out: record,
+            tum,
+            viewer,
+            connect: viewer_at,
+            expected_seconds: duration,
+        },
+        slam,
+    })
+    .map(drop)
+}
+
+fn demo_command(
+    scenario: Option<PathBuf>,
+    out: PathBuf,
+    seconds: f64,
+    swarm: String,
+    json: bool,
+) -> Result<()> {
+    let summary = demo::run(&demo::DemoOptions {
+        swarm,
+        scenario: scenario.clone(),
+        out,
+        seconds,
+    })?;
+    let scenario = demo::demo_scenario(scenario.as_deref())?;
+    print_out(|out| {
+        if json {
+            writeln!(out, "{}", serde_json::to_string(&summary)?)
+        } else {
+            demo::print(out, &summary, &scenario)
+        }
+    })
+}
+
+fn status_command(swarm: &str, json: bool, cells: bool) -> Result<()> {
+    let report = status::gather(swarm, cells)?;
+    print_out(|out| {
+        if json {
+            return writeln!(out, "{}", serde_json::to_string(&report)?);
+        }
+        status::print_table(out, &report)?;
+        match &report.cells {
+            Some(cells) => status::print_cells(out, cells),
+            None => Ok(()),
+        }
+    })
+}
+
+/// `shoal experiment`: runs one of the lab's experiments and prints its
+/// report; the diagnosis's experiment is `shoal-diagnose experiment`.
+fn experiment_command(which: ExperimentKind, json: bool) -> Result<()> {
+    match which {
+        ExperimentKind::Formation {
+            agents,
+            seeds,
+            max_seconds,
+        } => report::print(
+            &experiment::formation::run(agents, seeds, max_seconds)?,
+            json,
+        ),
+        ExperimentKind::Obstacles {
+            agents,
+            seeds,
+            max_seconds,
+        } => report::print(
+            &experiment::obstacles::run(agents, seeds, max_seconds)?,
+            json,
+        ),
+        ExperimentKind::Healing { seeds, max_seconds } => {
+            report::print(&experiment::healing::run(seeds, max_seconds)?, json)
+        }
+        ExperimentKind::Chaos(args) => report::print(&experiment::chaos::run(&args)?, json),
+        ExperimentKind::Scale {
+            sizes,
+            max_seconds,
+            real_time,
+        } => report::print(
+            &experiment::scale::run(&sizes, max_seconds, real_time)?,
+            json,
+        ),
+        ExperimentKind::Learning {
+            seconds,
+            perturbed,
+            particles,
+        } => report::print(
+            &experiment::learning::run(seconds, perturbed, particles)?,
+            json,
+        ),
+        ExperimentKind::Diagnose { mut args } => {
+            args.insert(0, "experiment".into());
+            if json {
+                args.push("--json".into());
+            }
+            become_binary("shoal-diagnose", &args)
         }
     }
-    Ok(())
 }
 
 /// A count of robots: at least one (ids are checked against their range

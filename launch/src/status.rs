@@ -6,7 +6,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::Result;
 use serde::Serialize;
-use shoal_broker::liveness::{SwarmNodeState, swarm_nodes};
+use shoal_broker::liveness::{SwarmNode, SwarmNodeState, swarm_nodes};
 use shoal_broker::{BusLimits, CellOccupancy, PoseSample, names};
 use shoal_link::report::LinkReport;
 use shoal_runtime::SwarmRuntime;
@@ -65,20 +65,73 @@ pub struct StatusReport {
 pub fn gather(swarm: &str, cells: bool) -> Result<StatusReport> {
     names::validate_swarm(swarm)?;
     let swept = shoal_broker::liveness::remove_dead_nodes_of_abandoned_swarms()?;
-    let period = SwarmRuntime::locate(swarm)
-        .read_meta()
-        .map_or(0.2, |m| m.period_s);
-    let listen = Duration::from_secs_f64((3.0 * period).clamp(0.3, 3.0));
+    let runtime = SwarmRuntime::locate(swarm);
+    let period = runtime.read_meta().map_or(0.2, |m| m.period_s);
     let (bus, roster) = shoal_broker::roster::join_reader(
         swarm,
         &format!("status-{}", std::process::id()),
         BusLimits::default(),
     )?;
-    // The swarm's nodes, listed once (each listing reads every node's
-    // details). Once every live robot among them has been heard, listening
-    // longer tells nothing more: a formed swarm of 1000 answered in 0.85 s
-    // when status always listened three periods.
+    // The swarm's nodes, listed once (each listing reads every node's details).
     let nodes = swarm_nodes(swarm)?;
+    let latest = listen(&roster, &nodes, period)?;
+    // A report that cannot be read is shown as such, not taken for an
+    // absent helper; one whose writer is gone says nothing of today.
+    let mut unreadable_reports = Vec::new();
+    let mut note_unreadable =
+        |error: shoal_runtime::ReportError| unreadable_reports.push(error.to_string());
+    let slam = runtime.read_report::<SlamReport>().unwrap_or_else(|e| {
+        note_unreadable(e);
+        None
+    });
+    let link = runtime.read_report::<LinkReport>().unwrap_or_else(|e| {
+        note_unreadable(e);
+        None
+    });
+    let host = shoal_runtime::host::current().name.clone();
+    let stale_nodes = nodes
+        .iter()
+        .filter(|n| n.state == SwarmNodeState::Dead)
+        .count();
+    let mut agents: Vec<AgentStatus> = nodes
+        .iter()
+        .filter_map(|node| local_robot(node, &latest, &host, slam.as_ref()))
+        .collect();
+    let mut hosts = vec![host.clone()];
+    // Robots of other hosts, as this host's link last heard them summarised.
+    if let Some(link) = link {
+        agents.extend(link.robots().map(|(host, robot)| remote_robot(host, robot)));
+        hosts.extend(link.hosts.into_iter().map(|h| h.name));
+    }
+    agents.sort_by_key(|a| (a.id, a.state));
+    let cells = if cells {
+        Some(shoal_broker::cells::occupancy(&bus)?)
+    } else {
+        None
+    };
+    Ok(StatusReport {
+        swarm: swarm.to_owned(),
+        host,
+        hosts,
+        agents,
+        stale_nodes,
+        swept,
+        slam: slam.map(|r| r.followed).unwrap_or_default(),
+        cells,
+        unreadable_reports,
+    })
+}
+
+/// Each robot's newest sample on the roster, heard for up to three
+/// periods. Once every live robot among `nodes` has been heard, listening
+/// longer tells nothing more: a formed swarm of 1000 answered in 0.85 s
+/// when status always listened three periods.
+fn listen(
+    roster: &shoal_broker::RosterReader,
+    nodes: &[SwarmNode],
+    period_s: f64,
+) -> Result<BTreeMap<u32, PoseSample>> {
+    let listen = Duration::from_secs_f64((3.0 * period_s).clamp(0.3, 3.0));
     let expected: Vec<(u32, i32)> = nodes
         .iter()
         .filter(|n| n.state == SwarmNodeState::Alive)
@@ -99,92 +152,57 @@ pub fn gather(swarm: &str, cells: bool) -> Result<StatusReport> {
         }
         std::thread::sleep(Duration::from_millis(10));
     }
-    // A report that cannot be read is shown as such, not taken for an
-    // absent helper; one whose writer is gone says nothing of today.
-    let runtime = SwarmRuntime::locate(swarm);
-    let mut unreadable_reports = Vec::new();
-    let mut note_unreadable =
-        |error: shoal_runtime::ReportError| unreadable_reports.push(error.to_string());
-    let slam = runtime.read_report::<SlamReport>().unwrap_or_else(|e| {
-        note_unreadable(e);
-        None
-    });
-    let link = runtime.read_report::<LinkReport>().unwrap_or_else(|e| {
-        note_unreadable(e);
-        None
-    });
-    let host = shoal_runtime::host::current().name.clone();
-    let mut agents = Vec::new();
-    let mut stale_nodes = 0;
-    for node in nodes {
-        if node.state == SwarmNodeState::Dead {
-            stale_nodes += 1;
-        }
-        let Some(id) = node.agent_id else { continue };
-        let sample = latest
-            .get(&id)
-            .filter(|s| s.pid as i32 == node.pid && node.state == SwarmNodeState::Alive);
-        agents.push(AgentStatus {
-            id,
-            host: host.clone(),
-            pid: node.pid,
-            state: if node.state == SwarmNodeState::Alive {
-                "alive"
-            } else {
-                "dead"
-            },
-            x: sample.map(|s| s.x),
-            y: sample.map(|s| s.y),
-            theta: sample.map(|s| s.theta),
-            tick: sample.map(|s| s.tick),
-            health: sample.map(|s| s.health),
-            neighbours: sample
-                .map(|s| s.neighbour_ids().to_vec())
-                .unwrap_or_default(),
-            missed_periods: sample.map(|s| s.missed_periods),
-            neighbour_age_ms: sample.map(|s| s.neighbour_age_ms),
-            slam: slam
-                .as_ref()
-                .and_then(|r| r.followed.iter().find(|f| f.id == id).cloned()),
-        });
-    }
-    let mut hosts = vec![host.clone()];
-    // Robots of other hosts, as this host's link last heard them summarised.
-    if let Some(link) = link {
-        agents.extend(link.robots().map(|(host, robot)| AgentStatus {
-            id: robot.id,
-            host: host.to_owned(),
-            pid: robot.pid as i32,
-            state: "alive",
-            x: Some(robot.x),
-            y: Some(robot.y),
-            theta: Some(robot.theta),
-            tick: Some(robot.tick),
-            health: None,
-            neighbours: robot.neighbours.clone(),
-            missed_periods: Some(robot.missed_periods),
-            neighbour_age_ms: Some(robot.neighbour_age_ms),
-            slam: None,
-        }));
-        hosts.extend(link.hosts.into_iter().map(|h| h.name));
-    }
-    agents.sort_by_key(|a| (a.id, a.state));
-    let cells = if cells {
-        Some(shoal_broker::cells::occupancy(&bus)?)
-    } else {
-        None
-    };
-    Ok(StatusReport {
-        swarm: swarm.to_owned(),
-        host,
-        hosts,
-        agents,
-        stale_nodes,
-        swept,
-        slam: slam.map(|r| r.followed).unwrap_or_default(),
-        cells,
-        unreadable_reports,
+    Ok(latest)
+}
+
+/// A robot of this host, as its bus node and its newest sample show it.
+fn local_robot(
+    node: &SwarmNode,
+    latest: &BTreeMap<u32, PoseSample>,
+    host: &str,
+    slam: Option<&SlamReport>,
+) -> Option<AgentStatus> {
+    let id = node.agent_id?;
+    let alive = node.state == SwarmNodeState::Alive;
+    let sample = latest
+        .get(&id)
+        .filter(|s| s.pid as i32 == node.pid && alive);
+    Some(AgentStatus {
+        id,
+        host: host.to_owned(),
+        pid: node.pid,
+        state: if alive { "alive" } else { "dead" },
+        x: sample.map(|s| s.x),
+        y: sample.map(|s| s.y),
+        theta: sample.map(|s| s.theta),
+        tick: sample.map(|s| s.tick),
+        health: sample.map(|s| s.health),
+        neighbours: sample
+            .map(|s| s.neighbour_ids().to_vec())
+            .unwrap_or_default(),
+        missed_periods: sample.map(|s| s.missed_periods),
+        neighbour_age_ms: sample.map(|s| s.neighbour_age_ms),
+        slam: slam.and_then(|r| r.followed.iter().find(|f| f.id == id).cloned()),
     })
+}
+
+/// A robot of another host, as that host's summary last said.
+fn remote_robot(host: &str, robot: &shoal_link::report::RemoteRobot) -> AgentStatus {
+    AgentStatus {
+        id: robot.id,
+        host: host.to_owned(),
+        pid: robot.pid as i32,
+        state: "alive",
+        x: Some(robot.x),
+        y: Some(robot.y),
+        theta: Some(robot.theta),
+        tick: Some(robot.tick),
+        health: None,
+        neighbours: robot.neighbours.clone(),
+        missed_periods: Some(robot.missed_periods),
+        neighbour_age_ms: Some(robot.neighbour_age_ms),
+        slam: None,
+    }
 }
 
 /// Prints `report` as a table, one robot a line.

@@ -82,9 +82,8 @@ impl RunningSwarm {
     /// Starts `scenario.agents.count` robots in swarm `name`, with ids from
     /// `launch.first_id`, linked to the swarm's other hosts if asked.
     pub fn launch_with(name: &str, scenario: Scenario, launch: &Launch) -> Result<Self> {
-        let lockstep = launch.lockstep;
         names::validate_swarm(name)?;
-        if lockstep && launch.link.is_some() {
+        if launch.lockstep && launch.link.is_some() {
             bail!(
                 "--lockstep cannot span hosts: its clock waits for every robot's answer through this \
                  machine's shared memory each tick, which across a network would pace the swarm to \
@@ -97,46 +96,11 @@ impl RunningSwarm {
         let launch_lock = SwarmRuntime::locate(name)
             .lock("launch", false)
             .with_context(|| format!("swarm `{name}` is already being started or run"))?;
-        // Robots and a launcher mean the swarm runs; a `shoal status` that
-        // happens to be looking (a node of its own for a moment) does not. A
-        // node under this very process's pid cannot be another launcher.
-        let me = std::process::id() as i32;
-        let launcher = names::tool_node(name, "launcher");
-        let alive: Vec<String> = swarm_nodes(name)?
-            .iter()
-            .filter(|n| n.state == SwarmNodeState::Alive && n.pid != me)
-            .filter(|n| n.agent_id.is_some() || n.name == launcher)
-            .map(|n| format!("{} (pid {})", n.name, n.pid))
-            .collect();
-        if !alive.is_empty() {
-            bail!(
-                "swarm `{name}` is already running: {}; stop it first (shoal down --swarm {name}) or pick another --swarm",
-                alive.join(", ")
-            );
-        }
-        remove_dead_nodes(name)?;
-        let swept = shoal_broker::liveness::remove_dead_nodes_of_abandoned_swarms()?;
-        if let Some(swept) = shoal_broker::liveness::describe_swept(&swept) {
-            eprintln!("shoal: {swept}");
-        }
-        let runtime = SwarmRuntime::locate(name);
-        let epoch_unix_ms = SystemTime::now()
-            .duration_since(UNIX_EPOCH)
-            .map_or(0, |d| d.as_millis() as u64);
-        let meta = SwarmMeta {
-            lockstep,
-            epoch_unix_ms,
-            period_s: scenario.timing.period_s,
-        };
-        let scenario_file = scenario
-            .to_toml()
-            .context("writing the scenario for the swarm's robots")?;
-        runtime
-            .create(&scenario_file, &meta)
-            .with_context(|| format!("writing the swarm's files in {}", runtime.dir.display()))?;
+        refuse_a_running_swarm(name)?;
+        let runtime = create_folder(name, &scenario, launch.lockstep)?;
         let (bus, roster) =
             shoal_broker::roster::join_reader(name, "launcher", BusLimits::of(&scenario.bus))?;
-        let clock = if lockstep {
+        let clock = if launch.lockstep {
             Some(LockstepClock::new(&bus, scenario.timing.period_s)?)
         } else {
             None
@@ -164,41 +128,48 @@ impl RunningSwarm {
             sweeper,
             _launch_lock: launch_lock,
         };
-        let count = swarm.scenario.agents.count;
         if let Some(link) = &launch.link {
             swarm.start_helper(LINK_BINARY, &link.args(name))?;
-            swarm.await_link(launch.first_id, count)?;
+            swarm.await_link(launch.first_id, swarm.scenario.agents.count)?;
         }
-        let poses = swarm.scenario.start_poses(0, count);
+        swarm.start_robots(launch.first_id)?;
+        Ok(swarm)
+    }
+
+    /// Starts the scenario's robots from id `first_id`, from the middle of
+    /// their start poses outwards, and in lockstep waits until each has
+    /// answered the clock.
+    fn start_robots(&mut self, first_id: u32) -> Result<()> {
+        let count = self.scenario.agents.count;
+        let poses = self.scenario.start_poses(0, count);
         for (started, index) in inside_out(&poses).into_iter().enumerate() {
             // Starting many robots takes a while: Ctrl-C stops it at once,
             // and dropping the swarm stops the robots already started.
-            if swarm.termination_requested() {
+            if self.termination_requested() {
                 bail!("interrupted while starting robots ({started} of {count} started)");
             }
-            swarm.start(launch.first_id + index as u32, poses[index])?;
+            self.start(first_id + index as u32, poses[index])?;
         }
-        if let Some(clock) = &mut swarm.clock {
-            let observer = &mut swarm.observer;
-            let joined = clock.await_robots(&swarm.roster, count, STARTUP_TIMEOUT, |s| {
-                observer.record(s)
-            })?;
-            if joined < count {
-                swarm.children.reap(&swarm.runtime);
-                swarm.keep_logs = true;
-                bail!(
-                    "only {joined} of {count} robots started{}; their logs are kept in {}",
-                    swarm
-                        .children
-                        .deaths
-                        .first()
-                        .map(|d| format!("; {d}"))
-                        .unwrap_or_default(),
-                    swarm.runtime.dir.display()
-                );
-            }
+        let Some(clock) = &mut self.clock else {
+            return Ok(());
+        };
+        let observer = &mut self.observer;
+        let joined =
+            clock.await_robots(&self.roster, count, STARTUP_TIMEOUT, |s| observer.record(s))?;
+        if joined < count {
+            self.children.reap(&self.runtime);
+            self.keep_logs = true;
+            bail!(
+                "only {joined} of {count} robots started{}; their logs are kept in {}",
+                self.children
+                    .deaths
+                    .first()
+                    .map(|d| format!("; {d}"))
+                    .unwrap_or_default(),
+                self.runtime.dir.display()
+            );
         }
-        Ok(swarm)
+        Ok(())
     }
 
     /// Starts robot `id` at `pose` as a child of this process.
@@ -353,6 +324,54 @@ impl RunningSwarm {
         };
         process.with_context(|| format!("robot {id} of swarm `{}` has already ended", self.name))
     }
+}
+
+/// Refuses to start swarm `name` while it runs. Robots and a launcher mean
+/// it runs; a `shoal status` that happens to be looking (a node of its own
+/// for a moment) does not, nor does a node under this very process's pid.
+/// Dead nodes of the swarm, and of swarms with no live node, are swept.
+fn refuse_a_running_swarm(name: &str) -> Result<()> {
+    let me = std::process::id() as i32;
+    let launcher = names::tool_node(name, "launcher");
+    let alive: Vec<String> = swarm_nodes(name)?
+        .iter()
+        .filter(|n| n.state == SwarmNodeState::Alive && n.pid != me)
+        .filter(|n| n.agent_id.is_some() || n.name == launcher)
+        .map(|n| format!("{} (pid {})", n.name, n.pid))
+        .collect();
+    if !alive.is_empty() {
+        bail!(
+            "swarm `{name}` is already running: {}; stop it first (shoal down --swarm {name}) or pick another --swarm",
+            alive.join(", ")
+        );
+    }
+    remove_dead_nodes(name)?;
+    let swept = shoal_broker::liveness::remove_dead_nodes_of_abandoned_swarms()?;
+    if let Some(swept) = shoal_broker::liveness::describe_swept(&swept) {
+        eprintln!("shoal: {swept}");
+    }
+    Ok(())
+}
+
+/// The swarm's runtime folder, with the scenario its robots read and its
+/// clock mode.
+fn create_folder(name: &str, scenario: &Scenario, lockstep: bool) -> Result<SwarmRuntime> {
+    let runtime = SwarmRuntime::locate(name);
+    let epoch_unix_ms = SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_millis() as u64);
+    let meta = SwarmMeta {
+        lockstep,
+        epoch_unix_ms,
+        period_s: scenario.timing.period_s,
+    };
+    let scenario_file = scenario
+        .to_toml()
+        .context("writing the scenario for the swarm's robots")?;
+    runtime
+        .create(&scenario_file, &meta)
+        .with_context(|| format!("writing the swarm's files in {}", runtime.dir.display()))?;
+    Ok(runtime)
 }
 
 /// The order to start robots at `poses` in: from the middle of the group
