@@ -4,8 +4,6 @@
 
 use serde::Deserialize;
 
-use crate::run::Selection;
-
 pub const COMMAND_TYPES: [&str; 2] = ["geometry_msgs/msg/Twist", "geometry_msgs/msg/TwistStamped"];
 pub const POSE_TYPES: [&str; 5] = [
     "geometry_msgs/msg/PoseStamped",
@@ -85,11 +83,19 @@ pub fn decode_command(
     })
 }
 
+/// The transform of a TF topic that is the robot's pose: its child frame,
+/// and if given, its parent frame.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct TfFrames<'a> {
+    pub child: Option<&'a str>,
+    pub parent: Option<&'a str>,
+}
+
 pub fn decode_poses(
     kind: &str,
     data: &[u8],
     log_time: i64,
-    selection: &Selection,
+    tf: TfFrames,
 ) -> Result<Vec<Stamped<PlanarPose>>, String> {
     let one = |header: msg::Header, pose: msg::Pose| -> Result<Vec<_>, String> {
         Ok(vec![planar(
@@ -122,15 +128,15 @@ pub fn decode_poses(
             )?])
         }
         "tf2_msgs/msg/TFMessage" => {
-            let frame = selection
-                .frame
+            let frame = tf
+                .child
                 .ok_or("a TF topic needs --frame CHILD: the robot's frame (e.g. base_link)")?;
             let m = decode::<msg::TfMessage>(data)?;
             let same = |a: &str, b: &str| a.trim_start_matches('/') == b.trim_start_matches('/');
             m.transforms
                 .into_iter()
                 .filter(|t| same(&t.child_frame_id, frame))
-                .filter(|t| selection.parent.is_none_or(|p| same(&t.header.frame_id, p)))
+                .filter(|t| tf.parent.is_none_or(|p| same(&t.header.frame_id, p)))
                 .map(|t| {
                     planar(
                         t.header.stamp.nanoseconds(),

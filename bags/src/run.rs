@@ -85,7 +85,16 @@ pub fn read_run(
             commands.push(ros::decode_command(&message_type, &data, log_time_ns).map_err(at)?);
         } else {
             poses.extend(
-                ros::decode_poses(&message_type, &data, log_time_ns, selection).map_err(at)?,
+                ros::decode_poses(
+                    &message_type,
+                    &data,
+                    log_time_ns,
+                    ros::TfFrames {
+                        child: selection.frame,
+                        parent: selection.parent,
+                    },
+                )
+                .map_err(at)?,
             );
         }
     }

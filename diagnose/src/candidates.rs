@@ -6,9 +6,9 @@
 use shoal_physics::effects::EFFECT_KINDS;
 use shoal_physics::{CommandGrid, Effect, ScopedEffect};
 
-use crate::diagnosis::{OperatingPoint, Options, joined};
 use crate::fit::{Fitted, fit};
 use crate::locate::Located;
+use crate::prepared::{OperatingPoint, Options, joined};
 use crate::segments::Segment;
 use crate::zones::{at_least_min_side, region_driven};
 

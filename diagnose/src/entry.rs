@@ -8,11 +8,11 @@ use shoal_physics::{CommandGrid, Effect, ScopedEffect, UnicycleModel};
 use statrs::distribution::{ChiSquared, ContinuousCDF, FisherSnedecor};
 
 use crate::candidates::extra_params;
-use crate::diagnosis::{Options, prepare};
 use crate::likelihood::{
     LongRun, component_nll, estimate_noise, long_run_factor, long_run_of_components, residuals,
     segment_nll, standardised,
 };
+use crate::prepared::{Options, prepare};
 use crate::recording::Recording;
 use crate::segments::Segment;
 

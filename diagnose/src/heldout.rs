@@ -9,38 +9,10 @@
 use serde::Serialize;
 use shoal_physics::{ScopedEffect, UnicycleModel};
 
-use crate::diagnosis::{Heldout, Options, Prepared, joined};
 use crate::fit::fit;
 use crate::likelihood::{Residual, estimate_noise, residuals, rmse, segment_nll};
-use crate::segments::Segment;
-use crate::selection::subsample;
-
-/// The held-out blocks of `segments`: one per recording where several were
-/// joined (a block starts at each of `joins`), else `folds` equal stretches.
-pub fn blocks(segments: &[Segment], joins: &[f64], folds: usize) -> Vec<std::ops::Range<usize>> {
-    let n = segments.len();
-    if !joins.is_empty() {
-        let mut starts: Vec<usize> = std::iter::once(0)
-            .chain(
-                joins
-                    .iter()
-                    .map(|&t| segments.partition_point(|s| s.t_start < t)),
-            )
-            .collect();
-        starts.dedup();
-        return starts
-            .iter()
-            .zip(starts.iter().skip(1).chain([&n]))
-            .map(|(&a, &b)| a..b)
-            .filter(|r| !r.is_empty())
-            .collect();
-    }
-    let folds = folds.clamp(2, n.max(2));
-    (0..folds)
-        .map(|f| f * n / folds..(f + 1) * n / folds)
-        .filter(|r| !r.is_empty())
-        .collect()
-}
+use crate::prepared::{Heldout, Options, Prepared, joined};
+use crate::segments::{Segment, subsample};
 
 /// Runs `per_fold(train, test)` with each held-out block as `test` and the
 /// others as `train`, in parallel; results in block order.

@@ -12,6 +12,7 @@ pub mod heldout;
 pub mod input;
 pub mod likelihood;
 pub mod locate;
+pub mod prepared;
 pub mod recording;
 pub mod replay;
 pub mod segments;

@@ -4,8 +4,8 @@
 
 use shoal_physics::{Pose, UnicycleModel};
 
-use crate::diagnosis::{Options, Prepared, prepare};
 use crate::likelihood::{Residual, traced_residuals};
+use crate::prepared::{Options, Prepared, prepare};
 use crate::recording::Recording;
 
 /// One model's prediction over one segment.

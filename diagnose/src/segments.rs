@@ -61,3 +61,36 @@ pub fn segments(recording: &Recording, grid: &CommandGrid, horizon: f64) -> Vec<
     }
     out
 }
+
+/// The held-out blocks of `segments`: one per recording where several were
+/// joined (a block starts at each of `joins`), else `folds` equal stretches.
+pub fn blocks(segments: &[Segment], joins: &[f64], folds: usize) -> Vec<std::ops::Range<usize>> {
+    let n = segments.len();
+    if !joins.is_empty() {
+        let mut starts: Vec<usize> = std::iter::once(0)
+            .chain(
+                joins
+                    .iter()
+                    .map(|&t| segments.partition_point(|s| s.t_start < t)),
+            )
+            .collect();
+        starts.dedup();
+        return starts
+            .iter()
+            .zip(starts.iter().skip(1).chain([&n]))
+            .map(|(&a, &b)| a..b)
+            .filter(|r| !r.is_empty())
+            .collect();
+    }
+    let folds = folds.clamp(2, n.max(2));
+    (0..folds)
+        .map(|f| f * n / folds..(f + 1) * n / folds)
+        .filter(|r| !r.is_empty())
+        .collect()
+}
+
+/// Every k-th segment, at most `count` of them.
+pub fn subsample(segments: &[Segment], count: usize) -> Vec<Segment> {
+    let every = segments.len().div_ceil(count.max(1)).max(1);
+    segments.iter().step_by(every).cloned().collect()
+}

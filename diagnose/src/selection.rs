@@ -6,7 +6,6 @@ use shoal_physics::effects::EFFECT_KINDS;
 use shoal_physics::{CommandGrid, Effect, ScopedEffect};
 
 use crate::candidates::{candidates, extra_params, fit_all, narrower_scope};
-use crate::diagnosis::{Alternative, OperatingPoint, Options, Prepared, Unexplained};
 use crate::entry::{
     EntryTest, calibrated_gain, calibrated_gain_of_move, components_of, entry_test_of_move,
     factors_of, factors_with,
@@ -15,6 +14,7 @@ use crate::fit::{fit, nll_of};
 use crate::heldout::{CONTRADICTION_NATS, heldout_gain, heldout_gain_of_joint, must_transfer};
 use crate::likelihood::LongRun;
 use crate::locate::Located;
+use crate::prepared::{Alternative, OperatingPoint, Options, Prepared, Unexplained};
 use crate::segments::Segment;
 use crate::zones::{is_whole_floor, refine_zone, zone_of_span};
 
@@ -49,12 +49,6 @@ pub(crate) fn on_bound(scoped: &ScopedEffect) -> Option<String> {
         }
     }
     None
-}
-
-/// Every k-th segment, at most `count` of them.
-pub(crate) fn subsample(segments: &[Segment], count: usize) -> Vec<Segment> {
-    let every = segments.len().div_ceil(count.max(1)).max(1);
-    segments.iter().step_by(every).cloned().collect()
 }
 
 /// What one round of forward selection decided.

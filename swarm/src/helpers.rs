@@ -1,28 +1,40 @@
 //! The processes that serve a swarm beside its robots: the recorder, SLAM
 //! and the link to other hosts. Each is started with its log in the swarm's
 //! folder; one that ends unasked is reported as a death, with its log's end.
+//! The supervisor owns them as one [`Helpers`].
 
+use std::ffi::OsString;
+use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use shoal_broker::liveness::remove_dead_nodes;
-use shoal_link::report::LinkReport;
+use shoal_runtime::SwarmRuntime;
 
 use crate::deaths::{Death, helper_log_name};
-use crate::pacing::{RECORDER_LAG_TICKS, SLAM_LAG_TICKS, pace_name};
-use crate::process::{Pinned, sibling_binary};
-use crate::shutdown::HELPER_GRACE;
-use crate::supervisor::RunningSwarm;
+use crate::helper_log::HelperLog;
+use crate::pacing::pace_name;
+use crate::process::{Pinned, RECORDER_BINARY, SLAM_BINARY, Tie, sibling_binary, stop_processes};
+
+/// How long a helper (the recorder writing its footer) gets to leave cleanly.
+const HELPER_GRACE: Duration = Duration::from_secs(10);
 
 /// A process that serves the swarm (recorder, SLAM, link).
-pub(crate) struct Helper {
-    pub(crate) binary: String,
-    pub(crate) child: Child,
-    pub(crate) log: crate::helper_log::HelperLog,
+struct Helper {
+    binary: String,
+    child: Child,
+    log: HelperLog,
 }
 
-pub const RECORDER_BINARY: &str = "shoal-viewer-log";
+/// The processes that serve a swarm: those running, the recording the
+/// recorder writes, and what stopping them cost.
+#[derive(Default)]
+pub(crate) struct Helpers {
+    running: Vec<Helper>,
+    recording: Option<PathBuf>,
+    stop_notes: Vec<String>,
+}
 
 /// Where the recorder sends the run: a file, a live viewer, or both.
 #[derive(Clone, Debug, Default)]
@@ -100,104 +112,17 @@ impl LinkOptions {
     }
 }
 
-/// How long the launcher waits for its link to have heard the other hosts.
-const LINK_TIMEOUT: Duration = Duration::from_secs(20);
-pub(crate) const LINK_BINARY: &str = "shoal-link";
-
-impl RunningSwarm {
-    /// Waits until the link has heard the other hosts, and refuses robot
-    /// ids `first_id..first_id + count` if another host runs one of them.
-    pub(crate) fn await_link(&mut self, first_id: u32, count: usize) -> Result<()> {
-        let started = Instant::now();
-        let report = loop {
-            self.reap_helpers();
-            if let Some(death) = self.children.deaths.iter().find(|d| d.who == LINK_BINARY) {
-                self.keep_logs = true;
-                bail!("the link to the other hosts failed: {death}");
-            }
-            if self.termination_requested() {
-                bail!("interrupted while linking to the other hosts");
-            }
-            if let Some(report) = self
-                .runtime
-                .read_report::<LinkReport>()?
-                .filter(|r| r.ready)
-            {
-                break report;
-            }
-            if started.elapsed() > LINK_TIMEOUT {
-                self.keep_logs = true;
-                bail!(
-                    "the link to the other hosts did not get ready within {} s; its log is kept in {}",
-                    LINK_TIMEOUT.as_secs(),
-                    self.runtime.dir.display()
-                );
-            }
-            std::thread::sleep(Duration::from_millis(100));
-        };
-        let ours = u64::from(first_id)..u64::from(first_id) + count as u64;
-        let clashes: Vec<String> = report
-            .hosts
-            .iter()
-            .filter_map(|host| {
-                let ids: Vec<String> = host
-                    .robots
-                    .iter()
-                    .filter(|r| ours.contains(&u64::from(r.id)))
-                    .map(|r| r.id.to_string())
-                    .collect();
-                (!ids.is_empty())
-                    .then(|| format!("host `{}` runs robots {}", host.name, ids.join(", ")))
-            })
-            .collect();
-        if !clashes.is_empty() {
-            bail!(
-                "robot ids {}..={} of this host `{}` are taken: {}; robot ids must be unique across the swarm: choose another --first-id",
-                ours.start,
-                ours.end.saturating_sub(1),
-                report.host,
-                clashes.join("; ")
-            );
-        }
-        let remote: usize = report.hosts.iter().map(|h| h.robots.len()).sum();
-        eprintln!(
-            "shoal: linked host `{}` to {} other host(s) of swarm `{}` ({remote} robots there)",
-            report.host,
-            report.hosts.len(),
-            self.name
-        );
-        Ok(())
-    }
-
-    /// Starts the recorder process: into a file, a live viewer, or both.
-    pub fn record(&mut self, to: &RecordOptions) -> Result<()> {
-        let mut args = to.recorder_args();
-        args.extend(["--swarm".into(), self.name.clone().into()]);
-        self.pace_to("recorder", RECORDER_LAG_TICKS)?;
-        self.recording.clone_from(&to.out);
-        self.start_helper(RECORDER_BINARY, &args)
-    }
-
-    /// Starts a SLAM process following `follow`, with more `options`
-    /// of `shoal-slam` (particles, learning, initial model).
-    pub fn follow_with_slam(
+impl Helpers {
+    /// Starts helper `binary` with `args`, its output into its log in the
+    /// swarm's folder.
+    pub(crate) fn start(
         &mut self,
-        follow: &shoal_slam::follow::Follow,
-        options: &[String],
+        runtime: &SwarmRuntime,
+        tie: Tie,
+        binary: &str,
+        args: &[OsString],
     ) -> Result<()> {
-        let mut args: Vec<std::ffi::OsString> = vec![
-            "--swarm".into(),
-            self.name.clone().into(),
-            "--follow".into(),
-            follow.to_string().into(),
-        ];
-        args.extend(options.iter().map(Into::into));
-        self.pace_to("slam", SLAM_LAG_TICKS)?;
-        self.start_helper("shoal-slam", &args)
-    }
-
-    pub(crate) fn start_helper(&mut self, binary: &str, args: &[std::ffi::OsString]) -> Result<()> {
-        let log = self.runtime.create_log(&helper_log_name(binary))?;
+        let log = runtime.create_log(&helper_log_name(binary))?;
         let mut command = Command::new(sibling_binary(binary)?);
         command
             .args(args)
@@ -205,20 +130,54 @@ impl RunningSwarm {
             .stdout(log.try_clone()?)
             .stderr(log);
         shoal_runtime::host::pass_to(&mut command);
-        self.tie().apply(&mut command);
+        tie.apply(&mut command);
         let child = command
             .spawn()
             .with_context(|| format!("starting {binary}"))?;
-        self.helpers.push(Helper {
+        self.running.push(Helper {
             binary: binary.to_owned(),
             child,
-            log: crate::helper_log::HelperLog::new(self.runtime.dir.join(helper_log_name(binary))),
+            log: HelperLog::new(runtime.dir.join(helper_log_name(binary))),
         });
         Ok(())
     }
 
-    pub fn recorder_pid(&self) -> Option<i32> {
-        self.helpers
+    /// Starts the recorder of swarm `swarm`: into a file, a live viewer, or both.
+    pub(crate) fn start_recorder(
+        &mut self,
+        runtime: &SwarmRuntime,
+        tie: Tie,
+        swarm: &str,
+        to: &RecordOptions,
+    ) -> Result<()> {
+        let mut args = to.recorder_args();
+        args.extend(["--swarm".into(), swarm.into()]);
+        self.recording.clone_from(&to.out);
+        self.start(runtime, tie, RECORDER_BINARY, &args)
+    }
+
+    /// Starts a SLAM process of swarm `swarm` following `follow`, with more
+    /// `options` of `shoal-slam` (particles, learning, initial model).
+    pub(crate) fn start_slam(
+        &mut self,
+        runtime: &SwarmRuntime,
+        tie: Tie,
+        swarm: &str,
+        follow: &shoal_slam::follow::Follow,
+        options: &[String],
+    ) -> Result<()> {
+        let mut args: Vec<OsString> = vec![
+            "--swarm".into(),
+            swarm.into(),
+            "--follow".into(),
+            follow.to_string().into(),
+        ];
+        args.extend(options.iter().map(Into::into));
+        self.start(runtime, tie, SLAM_BINARY, &args)
+    }
+
+    pub(crate) fn recorder_pid(&self) -> Option<i32> {
+        self.running
             .iter()
             .find(|h| h.binary == RECORDER_BINARY)
             .map(|h| h.child.id() as i32)
@@ -226,42 +185,39 @@ impl RunningSwarm {
 
     /// Warnings the helpers wrote into their logs since the last call
     /// (a disk filling up, a viewer that does not answer).
-    pub fn take_helper_warnings(&mut self) -> Vec<String> {
-        self.helpers
+    pub(crate) fn take_warnings(&mut self) -> Vec<String> {
+        self.running
             .iter_mut()
             .flat_map(|h| h.log.new_warnings())
             .collect()
     }
 
     /// What stopping the swarm cost: helpers that had to be killed.
-    pub fn stop_notes(&self) -> &[String] {
+    pub(crate) fn stop_notes(&self) -> &[String] {
         &self.stop_notes
     }
 
-    /// Kills the recorder as a crash would (SIGKILL); not reported as a death.
-    pub fn kill_recorder(&mut self) -> Result<()> {
+    /// Kills the recorder of swarm `swarm` as a crash would (SIGKILL); not
+    /// reported as a death.
+    pub(crate) fn kill_recorder(&mut self, swarm: &str) -> Result<()> {
         if let Some(index) = self
-            .helpers
+            .running
             .iter()
             .position(|h| h.binary == RECORDER_BINARY)
         {
-            let Helper { mut child, .. } = self.helpers.remove(index);
+            let Helper { mut child, .. } = self.running.remove(index);
             if let Some(process) = Pinned::child(&child) {
                 process.signal(libc::SIGKILL)?;
             }
             child.wait().context("waiting for the killed recorder")?;
-            remove_dead_nodes(&self.name)?;
+            remove_dead_nodes(swarm)?;
         }
-        self.paces.retain(|p| p.helper != "recorder");
         Ok(())
     }
 
-    /// Notes helpers (recorder, SLAM) that ended on their own; a lockstep
-    /// clock no longer waits for them.
-    pub(crate) fn reap_helpers(&mut self) {
-        let runtime = &self.runtime;
-        let deaths = &mut self.children.deaths;
-        self.helpers.retain_mut(|h| match h.child.try_wait() {
+    /// Notes helpers that ended on their own into `deaths`.
+    pub(crate) fn reap(&mut self, runtime: &SwarmRuntime, deaths: &mut Vec<Death>) {
+        self.running.retain_mut(|h| match h.child.try_wait() {
             Ok(None) => true,
             Ok(Some(status)) => {
                 let log = helper_log_name(&h.binary);
@@ -270,15 +226,33 @@ impl RunningSwarm {
             }
             Err(_) => false,
         });
-        let helpers = &self.helpers;
-        self.paces
-            .retain(|p| helpers.iter().any(|h| pace_name(&h.binary) == p.helper));
+    }
+
+    /// Whether a running helper reports its progress as `pace`.
+    pub(crate) fn serves(&self, pace: &str) -> bool {
+        self.running.iter().any(|h| pace_name(&h.binary) == pace)
+    }
+
+    /// Stops every helper (SIGTERM, then SIGKILL after its grace), noting
+    /// those that had to be killed and what that cost.
+    pub(crate) fn stop_all(&mut self) {
+        for mut helper in std::mem::take(&mut self.running) {
+            let killed = stop_processes(
+                &Pinned::child(&helper.child).into_iter().collect::<Vec<_>>(),
+                HELPER_GRACE,
+            ) > 0;
+            let _ = helper.child.wait();
+            if killed {
+                let note = self.killed_note(&helper.binary);
+                self.stop_notes.push(note);
+            }
+        }
     }
 
     /// What killing helper `binary` after its grace cost, and for the
     /// recorder, the repair of its file's end: a write cut short by the kill
     /// would leave a partial message that readers refuse.
-    pub(crate) fn killed_helper_note(&self, binary: &str) -> String {
+    fn killed_note(&self, binary: &str) -> String {
         let mut note = format!(
             "{binary} did not stop within {} s of SIGTERM and was killed",
             HELPER_GRACE.as_secs()

@@ -19,5 +19,6 @@ pub mod supervisor;
 pub mod sweeper;
 
 pub use deaths::Death;
-pub use helpers::{LinkOptions, RECORDER_BINARY, RecordOptions};
+pub use helpers::{LinkOptions, RecordOptions};
+pub use process::RECORDER_BINARY;
 pub use supervisor::{Launch, RunningSwarm};

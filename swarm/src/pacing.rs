@@ -7,8 +7,7 @@ use anyhow::Result;
 use shoal_broker::HelperProgress;
 use shoal_broker::robot_streams;
 
-use crate::helpers::RECORDER_BINARY;
-use crate::supervisor::RunningSwarm;
+use crate::process::{RECORDER_BINARY, SLAM_BINARY};
 
 /// A helper's progress, which a lockstep clock must not outrun by more than
 /// the buffers between robots and helpers (8 roster samples, 32 scans).
@@ -24,7 +23,7 @@ pub(crate) struct Pace {
 pub(crate) fn pace_name(binary: &str) -> &str {
     match binary {
         RECORDER_BINARY => "recorder",
-        "shoal-slam" => "slam",
+        SLAM_BINARY => "slam",
         other => other,
     }
 }
@@ -38,6 +37,17 @@ pub(crate) const SLAM_LAG_TICKS: u64 = 0;
 const HELPER_PATIENCE: Duration = Duration::from_secs(10);
 
 impl Pace {
+    /// Follows the progress reports of helper `helper`, which the clock may
+    /// outrun by `lag` ticks.
+    pub(crate) fn open(bus: &shoal_broker::Bus, helper: &'static str, lag: u64) -> Result<Self> {
+        Ok(Self {
+            helper,
+            lag,
+            progress: robot_streams::progress_subscriber(bus, helper)?,
+            tick: None,
+        })
+    }
+
     /// Waits until the helper has read up to `tick - lag`;
     /// false when it stopped answering. Reports it rejects are added to `rejected`.
     pub(crate) fn wait_for(&mut self, tick: u64, rejected: &mut u64) -> Result<bool> {
@@ -66,21 +76,6 @@ impl Pace {
             }
             std::thread::sleep(Duration::from_micros(200));
         }
-    }
-}
-
-impl RunningSwarm {
-    /// In lockstep, makes the clock wait for `helper`'s progress.
-    pub(crate) fn pace_to(&mut self, helper: &'static str, lag: u64) -> Result<()> {
-        if self.clock.is_some() {
-            self.paces.push(Pace {
-                helper,
-                lag,
-                progress: robot_streams::progress_subscriber(&self.bus, helper)?,
-                tick: None,
-            });
-        }
-        Ok(())
     }
 }
 

@@ -6,6 +6,11 @@ use std::process::{Child, Command, Stdio};
 use anyhow::{Context, Result, bail};
 use shoal_physics::Pose;
 
+/// The helpers' binaries, beside this executable.
+pub const RECORDER_BINARY: &str = "shoal-viewer-log";
+pub const SLAM_BINARY: &str = "shoal-slam";
+pub const LINK_BINARY: &str = "shoal-link";
+
 /// The highest robot id a command accepts: ids index start poses, which
 /// are drawn in order, so an id of a million would take minutes to place.
 pub const MAX_ROBOT_ID: u32 = 65_535;

@@ -18,8 +18,6 @@ use crate::supervisor::RunningSwarm;
 pub fn shutdown_grace(robots: usize) -> Duration {
     Duration::from_secs(5) + Duration::from_millis(15) * robots as u32
 }
-/// How long a helper (the recorder writing its footer) gets to leave cleanly.
-pub(crate) const HELPER_GRACE: Duration = Duration::from_secs(10);
 
 impl RunningSwarm {
     /// Stops every robot of the swarm (also those started elsewhere), cleans
@@ -36,17 +34,7 @@ impl RunningSwarm {
         self.reap_helpers();
         // Helpers go first: the recorder then does not log every robot
         // leaving, and gets time to write the recording's footer.
-        for mut helper in std::mem::take(&mut self.helpers) {
-            let killed = stop_processes(
-                &Pinned::child(&helper.child).into_iter().collect::<Vec<_>>(),
-                HELPER_GRACE,
-            ) > 0;
-            let _ = helper.child.wait();
-            if killed {
-                let note = self.killed_helper_note(&helper.binary);
-                self.stop_notes.push(note);
-            }
-        }
+        self.helpers.stop_all();
         let pids = self.agent_pids();
         let mut processes: Vec<Pinned> = self
             .children
@@ -103,6 +91,5 @@ mod tests {
     fn the_grace_grows_with_the_robots_to_stop() {
         assert_eq!(shutdown_grace(0), Duration::from_secs(5));
         assert_eq!(shutdown_grace(1000), Duration::from_secs(20));
-        assert!(HELPER_GRACE >= Duration::from_secs(2));
     }
 }

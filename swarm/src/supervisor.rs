@@ -1,10 +1,12 @@
 //! A swarm started from this process: its robots, its clock (in lockstep),
 //! an observer of the roster, and the deaths it reports. `shoal up`, the
-//! lab's experiments and the demo drive it; its helpers
-//! ([`crate::helpers`]), the lockstep pacing ([`crate::pacing`]) and the
-//! stop ([`crate::shutdown`]) are modules of their own.
+//! lab's experiments and the demo drive it; its helpers, the lockstep
+//! pacing and the stop are modules of their own (`helpers`, `pacing`,
+//! `shutdown`).
 
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use shoal_link::report::LinkReport;
 
 use anyhow::{Context, Result, bail};
 use shoal_broker::liveness::{SwarmNodeState, remove_dead_nodes, swarm_nodes};
@@ -14,14 +16,16 @@ use shoal_runtime::{SwarmMeta, SwarmRuntime, pid_alive};
 
 use crate::clock::LockstepClock;
 use crate::deaths::{Children, Death};
-use crate::helpers::{Helper, LINK_BINARY, LinkOptions};
+use crate::helpers::{Helpers, LinkOptions, RecordOptions};
 use crate::observer::Observer;
-use crate::pacing::Pace;
-use crate::process::{Pinned, Tie, check_id_range, start_agent};
+use crate::pacing::{Pace, RECORDER_LAG_TICKS, SLAM_LAG_TICKS};
+use crate::process::{LINK_BINARY, Pinned, Tie, check_id_range, start_agent};
 use crate::sweeper::Sweeper;
 
 /// How long the launcher waits for its robots to announce themselves.
 const STARTUP_TIMEOUT: Duration = Duration::from_secs(30);
+/// How long the launcher waits for its link to have heard the other hosts.
+const LINK_TIMEOUT: Duration = Duration::from_secs(20);
 
 pub struct RunningSwarm {
     pub name: String,
@@ -32,12 +36,8 @@ pub struct RunningSwarm {
     pub(crate) bus: Bus,
     pub(crate) roster: RosterReader,
     pub(crate) children: Children,
-    /// Processes that serve the swarm (recorder, SLAM).
-    pub(crate) helpers: Vec<Helper>,
-    /// The recording the recorder writes, if any.
-    pub(crate) recording: Option<std::path::PathBuf>,
-    /// What stopping the swarm cost (helpers that had to be killed).
-    pub(crate) stop_notes: Vec<String>,
+    /// Processes that serve the swarm (recorder, SLAM, link).
+    pub(crate) helpers: Helpers,
     /// In lockstep, the clock waits for helpers (recorder, SLAM) to keep up.
     pub(crate) paces: Vec<Pace>,
     /// Helper progress reports rejected, by helpers no longer paced or as
@@ -116,9 +116,7 @@ impl RunningSwarm {
             bus,
             roster,
             children: Children::default(),
-            helpers: Vec::new(),
-            recording: None,
-            stop_notes: Vec::new(),
+            helpers: Helpers::default(),
             paces: Vec::new(),
             rejected_progress: 0,
             started: Instant::now(),
@@ -129,7 +127,10 @@ impl RunningSwarm {
             _launch_lock: launch_lock,
         };
         if let Some(link) = &launch.link {
-            swarm.start_helper(LINK_BINARY, &link.args(name))?;
+            let tie = swarm.tie();
+            swarm
+                .helpers
+                .start(&swarm.runtime, tie, LINK_BINARY, &link.args(name))?;
             swarm.await_link(launch.first_id, swarm.scenario.agents.count)?;
         }
         swarm.start_robots(launch.first_id)?;
@@ -170,6 +171,129 @@ impl RunningSwarm {
             );
         }
         Ok(())
+    }
+
+    /// Waits until the link has heard the other hosts, and refuses robot
+    /// ids `first_id..first_id + count` if another host runs one of them.
+    fn await_link(&mut self, first_id: u32, count: usize) -> Result<()> {
+        let started = Instant::now();
+        let report = loop {
+            self.reap_helpers();
+            if let Some(death) = self.children.deaths.iter().find(|d| d.who == LINK_BINARY) {
+                self.keep_logs = true;
+                bail!("the link to the other hosts failed: {death}");
+            }
+            if self.termination_requested() {
+                bail!("interrupted while linking to the other hosts");
+            }
+            if let Some(report) = self
+                .runtime
+                .read_report::<LinkReport>()?
+                .filter(|r| r.ready)
+            {
+                break report;
+            }
+            if started.elapsed() > LINK_TIMEOUT {
+                self.keep_logs = true;
+                bail!(
+                    "the link to the other hosts did not get ready within {} s; its log is kept in {}",
+                    LINK_TIMEOUT.as_secs(),
+                    self.runtime.dir.display()
+                );
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        };
+        let ours = u64::from(first_id)..u64::from(first_id) + count as u64;
+        let clashes: Vec<String> = report
+            .hosts
+            .iter()
+            .filter_map(|host| {
+                let ids: Vec<String> = host
+                    .robots
+                    .iter()
+                    .filter(|r| ours.contains(&u64::from(r.id)))
+                    .map(|r| r.id.to_string())
+                    .collect();
+                (!ids.is_empty())
+                    .then(|| format!("host `{}` runs robots {}", host.name, ids.join(", ")))
+            })
+            .collect();
+        if !clashes.is_empty() {
+            bail!(
+                "robot ids {}..={} of this host `{}` are taken: {}; robot ids must be unique across the swarm: choose another --first-id",
+                ours.start,
+                ours.end.saturating_sub(1),
+                report.host,
+                clashes.join("; ")
+            );
+        }
+        let remote: usize = report.hosts.iter().map(|h| h.robots.len()).sum();
+        eprintln!(
+            "shoal: linked host `{}` to {} other host(s) of swarm `{}` ({remote} robots there)",
+            report.host,
+            report.hosts.len(),
+            self.name
+        );
+        Ok(())
+    }
+
+    /// Starts the recorder process: into a file, a live viewer, or both.
+    pub fn record(&mut self, to: &RecordOptions) -> Result<()> {
+        self.pace_to("recorder", RECORDER_LAG_TICKS)?;
+        let tie = self.tie();
+        self.helpers
+            .start_recorder(&self.runtime, tie, &self.name, to)
+    }
+
+    /// Starts a SLAM process following `follow`, with more `options`
+    /// of `shoal-slam` (particles, learning, initial model).
+    pub fn follow_with_slam(
+        &mut self,
+        follow: &shoal_slam::follow::Follow,
+        options: &[String],
+    ) -> Result<()> {
+        self.pace_to("slam", SLAM_LAG_TICKS)?;
+        let tie = self.tie();
+        self.helpers
+            .start_slam(&self.runtime, tie, &self.name, follow, options)
+    }
+
+    /// In lockstep, makes the clock wait for `helper`'s progress.
+    fn pace_to(&mut self, helper: &'static str, lag: u64) -> Result<()> {
+        if self.clock.is_some() {
+            self.paces.push(Pace::open(&self.bus, helper, lag)?);
+        }
+        Ok(())
+    }
+
+    pub fn recorder_pid(&self) -> Option<i32> {
+        self.helpers.recorder_pid()
+    }
+
+    /// Warnings the helpers wrote into their logs since the last call
+    /// (a disk filling up, a viewer that does not answer).
+    pub fn take_helper_warnings(&mut self) -> Vec<String> {
+        self.helpers.take_warnings()
+    }
+
+    /// What stopping the swarm cost: helpers that had to be killed.
+    pub fn stop_notes(&self) -> &[String] {
+        self.helpers.stop_notes()
+    }
+
+    /// Kills the recorder as a crash would (SIGKILL); not reported as a death.
+    pub fn kill_recorder(&mut self) -> Result<()> {
+        self.helpers.kill_recorder(&self.name)?;
+        self.paces.retain(|p| p.helper != "recorder");
+        Ok(())
+    }
+
+    /// Notes helpers (recorder, SLAM) that ended on their own; a lockstep
+    /// clock no longer waits for them.
+    pub(crate) fn reap_helpers(&mut self) {
+        self.helpers.reap(&self.runtime, &mut self.children.deaths);
+        let helpers = &self.helpers;
+        self.paces.retain(|p| helpers.serves(p.helper));
     }
 
     /// Starts robot `id` at `pose` as a child of this process.

@@ -1,0 +1,158 @@
+//! What every stage of the diagnosis works on: its options, the run
+//! prepared into a command grid and segments with their held-out blocks,
+//! where the robot usually drives, and the findings the stages share.
+//! Apart from `diagnosis`, which runs the stages, so that no stage imports
+//! the module that calls it.
+
+use std::collections::BTreeMap;
+
+use serde::Serialize;
+use shoal_physics::{CommandGrid, Effect};
+
+use crate::recording::Recording;
+use crate::segments::{Segment, blocks, command_grid, segments};
+
+#[derive(Clone, Debug)]
+pub struct Options {
+    /// Seconds each segment predicts ahead.
+    pub horizon_s: f64,
+    /// The command grid's step.
+    pub grid_dt: f64,
+    /// A narrower scope (part of the run, a region) replaces an effect
+    /// acting everywhere when it lowers BIC by more than this.
+    pub min_scope_bic_gain: f64,
+    /// Family-wise level of the test an effect must pass to enter: its
+    /// calibrated likelihood-ratio statistic against the library's kinds,
+    /// Bonferroni-corrected (see [`entry_threshold`]).
+    pub select_alpha: f64,
+    pub max_effects: usize,
+    /// Family-wise level of the locating tests.
+    pub alpha: f64,
+    pub folds: usize,
+    pub max_iters: u64,
+    /// How many segments rank the candidates of a round.
+    pub screen_segments: usize,
+    /// How many of the best-ranked candidates are fitted on every segment.
+    pub confirm: usize,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Self {
+            horizon_s: 1.0,
+            grid_dt: 0.02,
+            min_scope_bic_gain: 10.0,
+            select_alpha: 0.01,
+            max_effects: 4,
+            alpha: 0.01,
+            folds: 5,
+            max_iters: 120,
+            screen_segments: 400,
+            confirm: 3,
+        }
+    }
+}
+
+/// Another effect that explains the same mismatch about as well.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Alternative {
+    pub kind: &'static str,
+    pub params: BTreeMap<&'static str, f64>,
+    pub delta_bic: f64,
+    pub sentence: String,
+}
+
+/// A mismatch the library could only fit with a parameter on the edge of
+/// what is physical: not reported as physics.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Unexplained {
+    /// The effect that was tried, and where its fit ended.
+    pub tried: &'static str,
+    pub params: BTreeMap<&'static str, f64>,
+    pub reason: String,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Heldout {
+    pub heldout_rmse_pos_m: f64,
+    pub heldout_rmse_theta_rad: f64,
+    /// Mean negative log-likelihood per held-out segment.
+    pub heldout_nll: f64,
+}
+
+/// The prepared run: grid and segments.
+pub struct Prepared {
+    pub grid: CommandGrid,
+    pub segments: Vec<Segment>,
+    /// Observed poses set aside as gross outliers before segmenting.
+    pub pose_outliers: usize,
+    /// Stretches set aside as no body's motion (`glitches::set_aside`).
+    pub glitches: Vec<crate::glitches::Glitch>,
+    /// The held-out blocks, as ranges of `segments`: one per recording
+    /// joined, or `Options::folds` equal stretches of time.
+    pub blocks: Vec<std::ops::Range<usize>>,
+}
+
+/// The run as diagnosis compares it: what no body's motion explains set
+/// aside (`glitches::set_aside`), then gross pose outliers (see
+/// `Poses::without_outliers`), commands on a grid, segments started at the
+/// observed poses.
+pub fn prepare(recording: &Recording, options: &Options) -> Prepared {
+    let (recording, glitches) = crate::glitches::set_aside(recording);
+    let (recording, pose_outliers) = recording.without_pose_outliers();
+    let grid = command_grid(&recording, options.grid_dt);
+    let segments = segments(&recording, &grid, options.horizon_s);
+    let blocks = blocks(&segments, &recording.joins, options.folds);
+    Prepared {
+        grid,
+        segments,
+        pose_outliers,
+        glitches,
+        blocks,
+    }
+}
+
+/// A worker's result, or its panic carried on in this thread: a fit that
+/// panicked is a bug to see, and dropping its result would pair the other
+/// fits with the wrong candidates or folds.
+pub(crate) fn joined<T>(result: std::thread::Result<T>) -> T {
+    result.unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+}
+
+/// Where the robot usually drives: the median commanded speed and turn
+/// rate of the segments in which it moves.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct OperatingPoint {
+    pub speed_m_per_s: f64,
+    pub turn_rad_per_s: f64,
+}
+
+impl OperatingPoint {
+    /// `effect` in one sentence, stated here.
+    pub(crate) fn sentence(&self, effect: &Effect, duration: f64) -> String {
+        effect.sentence_at(self.speed_m_per_s, self.turn_rad_per_s, duration)
+    }
+
+    pub(crate) fn of(segments: &[Segment]) -> Self {
+        let median = |mut values: Vec<f64>| {
+            values.sort_by(f64::total_cmp);
+            values.get(values.len() / 2).copied().unwrap_or(0.0)
+        };
+        Self {
+            speed_m_per_s: median(
+                segments
+                    .iter()
+                    .filter(|s| s.speed >= 0.01)
+                    .map(|s| s.speed)
+                    .collect(),
+            ),
+            turn_rad_per_s: median(
+                segments
+                    .iter()
+                    .filter(|s| s.turn.abs() >= 0.02)
+                    .map(|s| s.turn.abs())
+                    .collect(),
+            ),
+        }
+    }
+}
