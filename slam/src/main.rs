@@ -241,37 +241,7 @@ fn run(args: Args) -> Result<()> {
             }
         }
         bodies.forget_gone();
-        let mut idle = true;
-        for (&id, robot) in &mut followed {
-            let mut samples = Vec::new();
-            robot.scans.receive(|scan| samples.push(scan))?;
-            if !samples.is_empty() {
-                idle = false;
-                robot.last_scan = Some(std::time::Instant::now());
-            }
-            let scans = samples.iter().map(scan_of).collect();
-            let Followed {
-                follower,
-                estimates,
-                models,
-                ..
-            } = robot;
-            follower.on_scans(scans, &bodies, |step| {
-                views.publish(id, &step)?;
-                estimates.publish(&estimate_of(id, &step))?;
-                for param in Param::ALL {
-                    let mixture = step.filter.model().command(step.command).param(param);
-                    models.publish(&ModelUpdate::new(
-                        id,
-                        step.command,
-                        param,
-                        step.steps,
-                        mixture,
-                    ))?;
-                }
-                Ok::<(), anyhow::Error>(())
-            })?;
-        }
+        let idle = !step_followed(&mut followed, &bodies, &views)?;
         // A lockstep launcher paces its clock to this, so no scan is dropped.
         // Done up to the oldest tick of the followed robots still stepping;
         // a robot that is gone (two ticks behind the swarm) is not waited for.
@@ -293,25 +263,72 @@ fn run(args: Args) -> Result<()> {
                 break;
             }
             let report = report(&mut followed, &initial, (since, scenario.timing.period_s));
-            // Said once, and again if it fails after working again.
-            match runtime.write_report(&report) {
-                Err(e) if !report_failing => {
-                    report_failing = true;
-                    eprintln!(
-                        "shoal-slam: warning: cannot write the SLAM report in {}: {e}; \
-                         `shoal status` shows what it last read; SLAM goes on",
-                        runtime.dir.display()
-                    );
-                }
-                Err(_) => {}
-                Ok(()) => report_failing = false,
-            }
+            write_report(&runtime, &report, &mut report_failing);
         }
         if idle {
             std::thread::sleep(Duration::from_millis(5));
         }
     }
     Ok(())
+}
+
+/// Steps every followed robot's filter on the scans it sent and publishes
+/// each step: the views, the estimate and the model. False when no robot
+/// sent a scan.
+fn step_followed(
+    followed: &mut BTreeMap<u32, Followed>,
+    bodies: &Bodies,
+    views: &Views,
+) -> Result<bool> {
+    let mut stepped = false;
+    for (&id, robot) in followed.iter_mut() {
+        let mut samples = Vec::new();
+        robot.scans.receive(|scan| samples.push(scan))?;
+        if !samples.is_empty() {
+            stepped = true;
+            robot.last_scan = Some(std::time::Instant::now());
+        }
+        let scans = samples.iter().map(scan_of).collect();
+        let Followed {
+            follower,
+            estimates,
+            models,
+            ..
+        } = robot;
+        follower.on_scans(scans, bodies, |step| {
+            views.publish(id, &step)?;
+            estimates.publish(&estimate_of(id, &step))?;
+            for param in Param::ALL {
+                let mixture = step.filter.model().command(step.command).param(param);
+                models.publish(&ModelUpdate::new(
+                    id,
+                    step.command,
+                    param,
+                    step.steps,
+                    mixture,
+                ))?;
+            }
+            Ok::<(), anyhow::Error>(())
+        })?;
+    }
+    Ok(stepped)
+}
+
+/// Writes SLAM's report for `shoal status`. A failure is said once, and
+/// again if it fails after working again; SLAM goes on either way.
+fn write_report(runtime: &SwarmRuntime, report: &SlamReport, failing: &mut bool) {
+    match runtime.write_report(report) {
+        Err(e) if !*failing => {
+            *failing = true;
+            eprintln!(
+                "shoal-slam: warning: cannot write the SLAM report in {}: {e}; \
+                 `shoal status` shows what it last read; SLAM goes on",
+                runtime.dir.display()
+            );
+        }
+        Err(_) => {}
+        Ok(()) => *failing = false,
+    }
 }
 
 /// How often `shoal status` learns what SLAM knows.
