@@ -338,18 +338,82 @@ pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
     let follow: Vec<u32> = scenario.slam.follow.clone();
     let spread = scenario.formation.spread;
     let mut swarm = launch(options, &scenario)?;
+    let watched = watch(&mut swarm, &scenario, options.seconds, &follow)?;
     let mut summary = DemoSummary {
         recording: options.out.clone(),
+        killed: watched.healing.killed(),
+        hole_closed_s: watched.healing.hole_closed_s,
+        whole_again_s: watched.healing.whole_again_s,
         ..DemoSummary::default()
     };
-    let mut healing = Healing::new(KILL_AT * options.seconds, spread, follow.clone());
-    let mut on_floor: BTreeMap<u32, f64> = BTreeMap::new();
-    // (sim time, robot, position error) of the followed robots.
-    let mut slam_errors: Vec<(f64, u32, f64)> = Vec::new();
+    let metrics = swarm.observer.metrics(spread);
+    (summary.robots, summary.groups, summary.spacing_ratio) =
+        (metrics.agents, metrics.components, metrics.spacing_ratio);
+    let slam_report = swarm.runtime.read_report::<SlamReport>()?;
+    let end = swarm.sim_time();
+    let floor_scale = floor_scales(&swarm, &scenario, &follow, end);
+    swarm.shutdown()?;
+    summary.slam = follow
+        .iter()
+        .map(|id| {
+            let followed = slam_report
+                .as_ref()
+                .and_then(|r| r.followed.iter().find(|f| f.id == *id));
+            let floor = floor_scale.get(id).copied().unwrap_or(1.0);
+            slam_progress(
+                *id,
+                followed,
+                &watched.slam_errors,
+                end,
+                &scenario.motion,
+                floor,
+            )
+        })
+        .collect();
+    let mut walkers: Vec<(u32, f64)> = watched
+        .on_floor
+        .into_iter()
+        .filter(|(id, _)| !summary.killed.contains(id))
+        .collect();
+    walkers.sort_by(|a, b| b.1.total_cmp(&a.1));
+    for (robot, seconds) in walkers.into_iter().take(DIAGNOSED) {
+        summary.diagnoses.push(DiagnosisLine {
+            robot,
+            seconds_on_unknown_floor: seconds,
+            finding: diagnose_robot(&options.out, robot)?,
+        });
+    }
+    Ok(summary)
+}
+
+/// What the demo saw while the swarm ran.
+struct Watched {
+    healing: Healing,
+    /// Seconds each robot moved on a floor its model lacks.
+    on_floor: BTreeMap<u32, f64>,
+    /// (sim time, robot, position error) of the followed robots.
+    slam_errors: Vec<(f64, u32, f64)>,
+}
+
+/// Runs the swarm for `seconds`: kills and restarts robots as `Healing`
+/// says, notes who walks on unknown floors and how far SLAM is off, and
+/// prints a line every 10 s.
+fn watch(
+    swarm: &mut RunningSwarm,
+    scenario: &Scenario,
+    seconds: f64,
+    follow: &[u32],
+) -> Result<Watched> {
+    let spread = scenario.formation.spread;
+    let mut watched = Watched {
+        healing: Healing::new(KILL_AT * seconds, spread, follow.to_vec()),
+        on_floor: BTreeMap::new(),
+        slam_errors: Vec::new(),
+    };
     let mut last_tick = 0;
     let mut last_line = std::time::Instant::now();
     let mut last_slam_read = std::time::Instant::now();
-    while swarm.sim_time() < options.seconds {
+    while swarm.sim_time() < seconds {
         if swarm.termination_requested() {
             eprintln!("shoal demo: interrupted");
             break;
@@ -363,23 +427,23 @@ pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
             last_tick = swarm.observer.newest_tick;
             for s in swarm.observer.samples() {
                 let moved = s.vx.hypot(s.vy) > 0.01;
-                if moved && unknown_floor_at(&scenario, DVec2::new(s.x, s.y), s.sim_time) {
-                    *on_floor.entry(s.agent_id).or_default() += scenario.timing.period_s;
+                if moved && unknown_floor_at(scenario, DVec2::new(s.x, s.y), s.sim_time) {
+                    *watched.on_floor.entry(s.agent_id).or_default() += scenario.timing.period_s;
                 }
             }
         }
         // SLAM's estimates reach the launcher through its report (once a second).
         if last_slam_read.elapsed() >= Duration::from_secs(1) {
             last_slam_read = std::time::Instant::now();
-            slam_errors.extend(slam_errors_now(&swarm, now)?);
+            watched.slam_errors.extend(slam_errors_now(swarm, now)?);
         }
         let robots: Vec<(u32, Pose)> = swarm
             .observer
             .samples()
             .map(|s| (s.agent_id, Pose::new(s.x, s.y, s.theta)))
             .collect();
-        if let Some(act) = healing.step(now, &robots, scenario.agents.count) {
-            carry_out(&mut swarm, now, act)?;
+        if let Some(act) = watched.healing.step(now, &robots, scenario.agents.count) {
+            carry_out(swarm, now, act)?;
         }
         if last_line.elapsed() >= Duration::from_secs(10) {
             last_line = std::time::Instant::now();
@@ -390,16 +454,18 @@ pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
             );
         }
     }
-    summary.killed = healing.killed();
-    summary.hole_closed_s = healing.hole_closed_s;
-    summary.whole_again_s = healing.whole_again_s;
-    let metrics = swarm.observer.metrics(spread);
-    (summary.robots, summary.groups, summary.spacing_ratio) =
-        (metrics.agents, metrics.components, metrics.spacing_ratio);
-    let slam_report = swarm.runtime.read_report::<SlamReport>()?;
-    let end = swarm.sim_time();
-    // The true stride is the floor's: where each followed robot stands at the end.
-    let floor_scale: BTreeMap<u32, f64> = follow
+    Ok(watched)
+}
+
+/// The stride scale of the floor each followed robot stands on at `end`:
+/// the true stride its SLAM model should have learned.
+fn floor_scales(
+    swarm: &RunningSwarm,
+    scenario: &Scenario,
+    follow: &[u32],
+    end: f64,
+) -> BTreeMap<u32, f64> {
+    follow
         .iter()
         .filter_map(|id| swarm.observer.get(*id).map(|s| (*id, DVec2::new(s.x, s.y))))
         .map(|(id, at)| {
@@ -409,31 +475,7 @@ pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
                 .map_or(1.0, |floor| floor.along_scale);
             (id, scale)
         })
-        .collect();
-    swarm.shutdown()?;
-    summary.slam = follow
-        .iter()
-        .map(|id| {
-            let followed = slam_report
-                .as_ref()
-                .and_then(|r| r.followed.iter().find(|f| f.id == *id));
-            let floor = floor_scale.get(id).copied().unwrap_or(1.0);
-            slam_progress(*id, followed, &slam_errors, end, &scenario.motion, floor)
-        })
-        .collect();
-    let mut walkers: Vec<(u32, f64)> = on_floor
-        .into_iter()
-        .filter(|(id, _)| !summary.killed.contains(id))
-        .collect();
-    walkers.sort_by(|a, b| b.1.total_cmp(&a.1));
-    for (robot, seconds) in walkers.into_iter().take(DIAGNOSED) {
-        summary.diagnoses.push(DiagnosisLine {
-            robot,
-            seconds_on_unknown_floor: seconds,
-            finding: diagnose_robot(&options.out, robot)?,
-        });
-    }
-    Ok(summary)
+        .collect()
 }
 
 /// `shoal diagnose RECORDING --robot N`: its first finding, as a sentence.

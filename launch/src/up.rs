@@ -77,6 +77,43 @@ pub fn load_scenario(path: Option<&PathBuf>) -> Result<Scenario> {
 
 /// Stops the swarm and says how it ended; an error if a robot or helper
 /// crashed during the run.
+/// The run's summary: JSON on stdout, or lines on stderr beside the
+/// launcher's other lines.
+fn print_summary(summary: &UpSummary, json: bool) -> Result<()> {
+    if json {
+        let line = serde_json::to_string(&summary)?;
+        shoal_runtime::process_main::print_out(|out| writeln!(out, "{line}"))?;
+    } else {
+        eprintln!(
+            "shoal: {} robots, {} group(s), spacing {:.2} x spread (cv {:.2}), formed since {}",
+            summary.agents,
+            summary.components,
+            summary.spacing_ratio,
+            summary.spacing_cv,
+            summary
+                .converge_s
+                .map_or_else(|| "never".to_owned(), |t| format!("{t:.1} s"))
+        );
+        if !summary.lockstep {
+            let t = &summary.timeliness;
+            let ms = |age: Option<u32>| age.map_or_else(|| "-".to_owned(), |a| format!("{a} ms"));
+            let counted = t.counted_from_s.map_or_else(
+                || "since the launch (not every robot was heard)".to_owned(),
+                |s| format!("once every robot had joined ({s:.1} s after the launch)"),
+            );
+            eprintln!(
+                "shoal: real time, {counted}: {:.2} missed periods per robot \
+                 (at most {}); the oldest neighbour pose a robot acted on was {} old at p50, {} at p99",
+                t.missed_periods_mean,
+                t.missed_periods_max,
+                ms(t.neighbour_age_p50_ms),
+                ms(t.neighbour_age_p99_ms)
+            );
+        }
+    }
+    Ok(())
+}
+
 fn stop(
     mut swarm: RunningSwarm,
     options: &UpOptions,
@@ -120,37 +157,7 @@ fn stop(
             out.display()
         );
     }
-    if options.json {
-        let line = serde_json::to_string(&summary)?;
-        shoal_runtime::process_main::print_out(|out| writeln!(out, "{line}"))?;
-    } else {
-        eprintln!(
-            "shoal: {} robots, {} group(s), spacing {:.2} x spread (cv {:.2}), formed since {}",
-            summary.agents,
-            summary.components,
-            summary.spacing_ratio,
-            summary.spacing_cv,
-            summary
-                .converge_s
-                .map_or_else(|| "never".to_owned(), |t| format!("{t:.1} s"))
-        );
-        if !summary.lockstep {
-            let t = &summary.timeliness;
-            let ms = |age: Option<u32>| age.map_or_else(|| "-".to_owned(), |a| format!("{a} ms"));
-            let counted = t.counted_from_s.map_or_else(
-                || "since the launch (not every robot was heard)".to_owned(),
-                |s| format!("once every robot had joined ({s:.1} s after the launch)"),
-            );
-            eprintln!(
-                "shoal: real time, {counted}: {:.2} missed periods per robot \
-                 (at most {}); the oldest neighbour pose a robot acted on was {} old at p50, {} at p99",
-                t.missed_periods_mean,
-                t.missed_periods_max,
-                ms(t.neighbour_age_p50_ms),
-                ms(t.neighbour_age_p99_ms)
-            );
-        }
-    }
+    print_summary(&summary, options.json)?;
     let crashed: Vec<&shoal_swarm::Death> = swarm.deaths().iter().filter(|d| d.crashed).collect();
     if !crashed.is_empty() {
         // Said when it happened, and again here, where a user reads last.
