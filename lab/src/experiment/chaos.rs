@@ -271,31 +271,94 @@ fn abuse(
     name: &str,
     segment: impl Fn(usize) -> (PathBuf, PathBuf),
 ) -> Result<Abuse> {
-    let mut rng = StdRng::seed_from_u64(args.seed);
     let spread = swarm.scenario.formation.spread;
     let started = Instant::now();
-    let mut kills: Vec<Kill> = Vec::new();
-    let mut restarts: Vec<(f64, u32, Pose)> = Vec::new();
-    let mut frozen: Option<(u32, f64)> = None;
-    let mut freezes = 0;
-    let mut next_kill = args.kill_every;
-    let mut next_freeze = 1.0;
-    let mut next_recorder = args.recorder_every;
-    let mut recorder_kills: Vec<f64> = Vec::new();
-    let mut crashes = Vec::new();
+    let mut chaos = Chaos {
+        rng: StdRng::seed_from_u64(args.seed),
+        restarts: Vec::new(),
+        frozen: None,
+        next_kill: args.kill_every,
+        next_freeze: 1.0,
+        next_recorder: args.recorder_every,
+        abuse: Abuse {
+            kills: Vec::new(),
+            freezes: 0,
+            recorder_kills: Vec::new(),
+            crashes: Vec::new(),
+        },
+    };
     let mut next_progress = 10.0;
     while started.elapsed().as_secs_f64() < args.seconds {
         if swarm.termination_requested() {
             anyhow::bail!("interrupted");
         }
         swarm.advance()?;
-        crashes.extend(swarm.take_deaths().into_iter().filter(|d| d.crashed));
+        let crashed = swarm.take_deaths().into_iter().filter(|d| d.crashed);
+        chaos.abuse.crashes.extend(crashed);
         let now = started.elapsed().as_secs_f64();
         // One group of every robot not frozen: the killed one restarted and back in.
-        let expected = args.agents - usize::from(frozen.is_some());
+        let expected = args.agents - usize::from(chaos.frozen.is_some());
         let whole =
             swarm.observer.len() >= expected && swarm.observer.metrics(spread).components == 1;
-        for kill in kills.iter_mut().filter(|k| k.regroup_s.is_none()) {
+        chaos.note_regroups(swarm, now, whole);
+        chaos.kill_and_restart(swarm, args, name, now)?;
+        chaos.freeze_or_thaw(swarm, now)?;
+        // A recorder kill needs time after it to see what the recording lost.
+        if now >= chaos.next_recorder && now + GAP_WINDOW_S < args.seconds {
+            chaos.next_recorder += args.recorder_every;
+            // The recorder's times are the swarm's clock, which started with it.
+            chaos.abuse.recorder_kills.push(swarm.sim_time());
+            swarm.kill_recorder()?;
+            let (rrd, tum) = segment(chaos.abuse.recorder_kills.len());
+            swarm.record(&shoal_swarm::RecordOptions::file(&rrd, Some(&tum)))?;
+        }
+        if now >= next_progress {
+            next_progress += 10.0;
+            eprintln!(
+                "chaos: {now:4.0} s, {} kills, {} freezes, {} recorder kills",
+                chaos.abuse.kills.len(),
+                chaos.abuse.freezes,
+                chaos.abuse.recorder_kills.len()
+            );
+        }
+    }
+    if let Some((id, _)) = chaos.frozen {
+        swarm.pause_robot(id, false)?;
+    }
+    let mut abuse = chaos.abuse;
+    // The last kill is judged as the others were: one kill interval later.
+    if let Some(last) = abuse.kills.last_mut() {
+        while started.elapsed().as_secs_f64() < last.at_s + args.kill_every {
+            swarm.advance()?;
+        }
+        last.stale_nodes = Some(dead_nodes(name)?);
+    }
+    Ok(abuse)
+}
+
+/// The chaos run's state between steps.
+struct Chaos {
+    rng: StdRng,
+    /// (when, robot, where) of the killed robots still to restart.
+    restarts: Vec<(f64, u32, Pose)>,
+    /// The frozen robot, and until when.
+    frozen: Option<(u32, f64)>,
+    next_kill: f64,
+    next_freeze: f64,
+    next_recorder: f64,
+    abuse: Abuse,
+}
+
+impl Chaos {
+    /// A killed robot has regrouped once another process speaks for it and
+    /// the swarm is one group again.
+    fn note_regroups(&mut self, swarm: &RunningSwarm, now: f64, whole: bool) {
+        for kill in self
+            .abuse
+            .kills
+            .iter_mut()
+            .filter(|k| k.regroup_s.is_none())
+        {
             let back = swarm
                 .observer
                 .get(kill.id)
@@ -304,29 +367,43 @@ fn abuse(
                 kill.regroup_s = Some(now - kill.at_s);
             }
         }
-        let busy: Vec<u32> = restarts
+    }
+
+    /// A random robot neither being restarted nor frozen.
+    fn pick(&mut self, swarm: &RunningSwarm) -> Option<(u32, u32, Pose)> {
+        let busy: Vec<u32> = self
+            .restarts
             .iter()
             .map(|(_, id, _)| *id)
-            .chain(frozen.map(|(id, _)| id))
+            .chain(self.frozen.map(|(id, _)| id))
             .collect();
-        let pick = |rng: &mut StdRng, swarm: &RunningSwarm| {
-            let ids: Vec<(u32, u32, Pose)> = swarm
-                .observer
-                .samples()
-                .filter(|s| !busy.contains(&s.agent_id))
-                .map(|s| (s.agent_id, s.pid, Pose::new(s.x, s.y, s.theta)))
-                .collect();
-            (!ids.is_empty()).then(|| ids[rng.random_range(0..ids.len())])
-        };
-        if now >= next_kill {
-            next_kill += args.kill_every;
-            if let Some(last) = kills.last_mut() {
+        let ids: Vec<(u32, u32, Pose)> = swarm
+            .observer
+            .samples()
+            .filter(|s| !busy.contains(&s.agent_id))
+            .map(|s| (s.agent_id, s.pid, Pose::new(s.x, s.y, s.theta)))
+            .collect();
+        (!ids.is_empty()).then(|| ids[self.rng.random_range(0..ids.len())])
+    }
+
+    /// Every kill interval, SIGKILLs a random robot (noting the stale nodes
+    /// the previous kill left); restarts those whose time has come.
+    fn kill_and_restart(
+        &mut self,
+        swarm: &mut RunningSwarm,
+        args: &ChaosArgs,
+        name: &str,
+        now: f64,
+    ) -> Result<()> {
+        if now >= self.next_kill {
+            self.next_kill += args.kill_every;
+            if let Some(last) = self.abuse.kills.last_mut() {
                 last.stale_nodes = Some(dead_nodes(name)?);
             }
-            if let Some((id, pid, pose)) = pick(&mut rng, swarm) {
+            if let Some((id, pid, pose)) = self.pick(swarm) {
                 swarm.signal_robot(id, libc::SIGKILL)?;
-                restarts.push((now + args.restart_after, id, pose));
-                kills.push(Kill {
+                self.restarts.push((now + args.restart_after, id, pose));
+                self.abuse.kills.push(Kill {
                     at_s: now,
                     id,
                     pid,
@@ -335,60 +412,39 @@ fn abuse(
                 });
             }
         }
-        let due: Vec<(f64, u32, Pose)> = restarts.iter().filter(|r| r.0 <= now).copied().collect();
-        restarts.retain(|r| r.0 > now);
+        let due: Vec<(f64, u32, Pose)> = self
+            .restarts
+            .iter()
+            .filter(|r| r.0 <= now)
+            .copied()
+            .collect();
+        self.restarts.retain(|r| r.0 > now);
         for (_, id, pose) in due {
             swarm.start(id, pose)?;
         }
-        match frozen {
+        Ok(())
+    }
+
+    /// Thaws the frozen robot when its time is up; a second later freezes
+    /// another for 3-15 s.
+    fn freeze_or_thaw(&mut self, swarm: &mut RunningSwarm, now: f64) -> Result<()> {
+        match self.frozen {
             Some((id, until)) if now >= until => {
                 swarm.pause_robot(id, false)?;
-                frozen = None;
-                next_freeze = now + 1.0;
+                self.frozen = None;
+                self.next_freeze = now + 1.0;
             }
-            None if now >= next_freeze => {
-                if let Some((id, _, _)) = pick(&mut rng, swarm) {
+            None if now >= self.next_freeze => {
+                if let Some((id, _, _)) = self.pick(swarm) {
                     swarm.pause_robot(id, true)?;
-                    frozen = Some((id, now + rng.random_range(3.0..15.0)));
-                    freezes += 1;
+                    self.frozen = Some((id, now + self.rng.random_range(3.0..15.0)));
+                    self.abuse.freezes += 1;
                 }
             }
             _ => {}
         }
-        // A recorder kill needs time after it to see what the recording lost.
-        if now >= next_recorder && now + GAP_WINDOW_S < args.seconds {
-            next_recorder += args.recorder_every;
-            // The recorder's times are the swarm's clock, which started with it.
-            recorder_kills.push(swarm.sim_time());
-            swarm.kill_recorder()?;
-            let (rrd, tum) = segment(recorder_kills.len());
-            swarm.record(&shoal_swarm::RecordOptions::file(&rrd, Some(&tum)))?;
-        }
-        if now >= next_progress {
-            next_progress += 10.0;
-            eprintln!(
-                "chaos: {now:4.0} s, {} kills, {freezes} freezes, {} recorder kills",
-                kills.len(),
-                recorder_kills.len()
-            );
-        }
+        Ok(())
     }
-    if let Some((id, _)) = frozen {
-        swarm.pause_robot(id, false)?;
-    }
-    // The last kill is judged as the others were: one kill interval later.
-    if let Some(last) = kills.last_mut() {
-        while started.elapsed().as_secs_f64() < last.at_s + args.kill_every {
-            swarm.advance()?;
-        }
-        last.stale_nodes = Some(dead_nodes(name)?);
-    }
-    Ok(Abuse {
-        kills,
-        freezes,
-        recorder_kills,
-        crashes,
-    })
 }
 
 pub fn run(args: &ChaosArgs) -> Result<Report> {
