@@ -367,6 +367,9 @@ impl Selection<'_> {
             if !test.passed() {
                 tracing::debug!(
                     kind = found[k].effect.kind(),
+                    chi2 = test.chi2,
+                    needed = test.needed,
+                    delta_bic = needed,
                     "pruned: the others do as well"
                 );
                 *found = refit.effects;
