@@ -178,6 +178,25 @@ impl Recorder {
             sim_time: first.sim_time,
         });
         let robots: Vec<&PoseSample> = samples.iter().collect();
+        self.log_robots(tick, &robots)?;
+        self.log_tags(&robots)?;
+        self.log_swarm(&robots)?;
+        crate::motion::log_tick(&self.rec, &self.motion, self.period_s, &robots)?;
+        if let Some(files) = &mut self.files {
+            for s in &robots {
+                files.write(
+                    s,
+                    crate::motion::executed_velocity(&self.motion, self.period_s, s),
+                    self.period_s,
+                )?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Where each robot truly is (by health), where it believes it is, its
+    /// heading, its links to its neighbours, and now and then its trail.
+    fn log_robots(&mut self, tick: u64, robots: &[&PoseSample]) -> anyhow::Result<()> {
         let true_positions: Vec<[f32; 2]> =
             robots.iter().map(|s| [s.x as f32, s.y as f32]).collect();
         let labels: Vec<String> = robots.iter().map(|s| s.agent_id.to_string()).collect();
@@ -214,7 +233,7 @@ impl Recorder {
             .map(|s| (s.agent_id, [s.x as f32, s.y as f32]))
             .collect();
         let mut links: Vec<Vec<[f32; 2]>> = Vec::new();
-        for s in &robots {
+        for s in robots {
             let from = [s.x as f32, s.y as f32];
             links.extend(
                 s.neighbour_ids()
@@ -231,7 +250,12 @@ impl Recorder {
             self.rec
                 .log("world/robots/trails", &rerun::LineStrips2D::new(trails))?;
         }
-        for s in &robots {
+        Ok(())
+    }
+
+    /// Each robot's host and health, logged only when they change.
+    fn log_tags(&mut self, robots: &[&PoseSample]) -> anyhow::Result<()> {
+        for s in robots {
             // Each robot is tagged with its host when first seen and when
             // that changes (a robot id restarted on another host).
             // A robot of another host is untagged until the link has named
@@ -258,6 +282,11 @@ impl Recorder {
                 )?;
             }
         }
+        Ok(())
+    }
+
+    /// The formation's quality and what the recorder dropped or refused.
+    fn log_swarm(&mut self, robots: &[&PoseSample]) -> anyhow::Result<()> {
         let positions: Vec<DVec2> = robots.iter().map(|s| DVec2::new(s.x, s.y)).collect();
         let metrics = formation_metrics(&positions, self.spread);
         self.rec.log(
@@ -280,16 +309,6 @@ impl Recorder {
             "recorder/rejected_samples",
             &rerun::Scalars::new([self.stats.rejected as f64]),
         )?;
-        crate::motion::log_tick(&self.rec, &self.motion, self.period_s, &robots)?;
-        if let Some(files) = &mut self.files {
-            for s in &robots {
-                files.write(
-                    s,
-                    crate::motion::executed_velocity(&self.motion, self.period_s, s),
-                    self.period_s,
-                )?;
-            }
-        }
         Ok(())
     }
 
