@@ -217,41 +217,17 @@ fn run(args: Args) -> Result<()> {
     // for longer than the swarm's staleness is gone, and so is its body.
     let mut bodies = Bodies::new((scenario.timing.stale_periods.ceil() as u64).max(1) + 1);
     while !bus.termination_requested() {
-        // The roster passes only samples that pass their wire check.
-        let mut joined = Vec::new();
-        roster.receive(|s| {
-            newest_roster = newest_roster.max(s.tick);
-            if let Some(robot) = followed.get_mut(&s.agent_id) {
-                robot
-                    .follower
-                    .announced(s.tick, Pose::new(s.x, s.y, s.theta));
-            } else if args.follow.includes(s.agent_id) {
-                joined.push((s.agent_id, s.tick, Pose::new(s.x, s.y, s.theta)));
-            }
-            bodies.saw(s.agent_id, glam::DVec2::new(s.x, s.y), s.tick);
-        })?;
-        // With `--follow all`, a robot is followed from the first pose the
-        // roster shows of it, whenever it joined.
-        for (id, tick, pose) in joined {
-            if !followed.contains_key(&id) {
-                let mut robot = setup.follow(&bus, id)?;
-                robot.follower.announced(tick, pose);
-                tracing::info!(robot = id, "SLAM follows a robot that joined");
-                followed.insert(id, robot);
-            }
-        }
+        newest_roster = newest_roster.max(hear_roster(
+            &roster,
+            &mut followed,
+            &mut bodies,
+            (&setup, &bus, &args.follow),
+        )?);
         bodies.forget_gone();
         let idle = !step_followed(&mut followed, &bodies, &views)?;
-        // A lockstep launcher paces its clock to this, so no scan is dropped.
-        // Done up to the oldest tick of the followed robots still stepping;
-        // a robot that is gone (two ticks behind the swarm) is not waited for.
-        let done = followed
-            .values()
-            .filter_map(|robot| robot.follower.newest_announced())
-            .filter(|&t| t + 2 >= newest_roster)
-            .min()
-            .unwrap_or(newest_roster);
-        progress.publish(&HelperProgress { tick: done })?;
+        progress.publish(&HelperProgress {
+            tick: done_up_to(&followed, newest_roster),
+        })?;
         if last_report.elapsed() >= REPORT_EVERY {
             let since = last_report.elapsed().as_secs_f64();
             last_report = std::time::Instant::now();
@@ -270,6 +246,54 @@ fn run(args: Args) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// Reads the roster: each followed robot's announced pose, where every
+/// robot stands (to drop beams that ended on one), and with `--follow all`
+/// a robot that joined, followed from the first pose the roster shows of
+/// it. Returns the newest tick heard (0 if none).
+fn hear_roster(
+    roster: &shoal_broker::RosterReader,
+    followed: &mut BTreeMap<u32, Followed>,
+    bodies: &mut Bodies,
+    (setup, bus, follow): (&Setup, &Bus, &Follow),
+) -> Result<u64> {
+    let mut newest = 0;
+    let mut joined = Vec::new();
+    // The roster passes only samples that pass their wire check.
+    roster.receive(|s| {
+        newest = newest.max(s.tick);
+        if let Some(robot) = followed.get_mut(&s.agent_id) {
+            robot
+                .follower
+                .announced(s.tick, Pose::new(s.x, s.y, s.theta));
+        } else if follow.includes(s.agent_id) {
+            joined.push((s.agent_id, s.tick, Pose::new(s.x, s.y, s.theta)));
+        }
+        bodies.saw(s.agent_id, glam::DVec2::new(s.x, s.y), s.tick);
+    })?;
+    for (id, tick, pose) in joined {
+        if !followed.contains_key(&id) {
+            let mut robot = setup.follow(bus, id)?;
+            robot.follower.announced(tick, pose);
+            tracing::info!(robot = id, "SLAM follows a robot that joined");
+            followed.insert(id, robot);
+        }
+    }
+    Ok(newest)
+}
+
+/// The tick SLAM is done up to, which a lockstep launcher paces its clock
+/// to so no scan is dropped: the oldest tick of the followed robots still
+/// stepping; a robot that is gone (two ticks behind the swarm) is not
+/// waited for.
+fn done_up_to(followed: &BTreeMap<u32, Followed>, newest_roster: u64) -> u64 {
+    followed
+        .values()
+        .filter_map(|robot| robot.follower.newest_announced())
+        .filter(|&t| t + 2 >= newest_roster)
+        .min()
+        .unwrap_or(newest_roster)
 }
 
 /// Steps every followed robot's filter on the scans it sent and publishes
