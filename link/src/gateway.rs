@@ -114,6 +114,34 @@ fn zenoh_config(options: &Options) -> Result<zenoh::Config> {
     Ok(config)
 }
 
+/// Declares host `host` present in swarm `swarm`, unless another machine or
+/// domain already is that host. The token goes when this link does.
+fn claim_host(
+    session: &zenoh::Session,
+    swarm: &str,
+    host: &str,
+) -> Result<zenoh::liveliness::LivelinessToken> {
+    let token_key = keys::host_token(swarm, host);
+    let others = session
+        .liveliness()
+        .get(&token_key)
+        .timeout(Duration::from_millis(500))
+        .wait()
+        .map_err(zenoh_error("asking which hosts are present"))?;
+    while let Ok(reply) = others.recv() {
+        if reply.result().is_ok() {
+            bail!(
+                "host `{host}` is already part of swarm `{swarm}` on another machine or domain; give this one another --host"
+            );
+        }
+    }
+    session
+        .liveliness()
+        .declare_token(&token_key)
+        .wait()
+        .map_err(zenoh_error("declaring this host present"))
+}
+
 pub fn run(options: &Options) -> Result<()> {
     let host = shoal_runtime::host::current().name.clone();
     let runtime = SwarmRuntime::locate(&options.swarm);
@@ -127,26 +155,7 @@ pub fn run(options: &Options) -> Result<()> {
     let session = zenoh::open(zenoh_config(options)?)
         .wait()
         .map_err(zenoh_error("opening the Zenoh session"))?;
-    let token_key = keys::host_token(&options.swarm, &host);
-    let others = session
-        .liveliness()
-        .get(&token_key)
-        .timeout(Duration::from_millis(500))
-        .wait()
-        .map_err(zenoh_error("asking which hosts are present"))?;
-    while let Ok(reply) = others.recv() {
-        if reply.result().is_ok() {
-            bail!(
-                "host `{host}` is already part of swarm `{}` on another machine or domain; give this one another --host",
-                options.swarm
-            );
-        }
-    }
-    let _token = session
-        .liveliness()
-        .declare_token(&token_key)
-        .wait()
-        .map_err(zenoh_error("declaring this host present"))?;
+    let _token = claim_host(&session, &options.swarm, &host)?;
     let bus = Bus::join_tool(&options.swarm, "link", BusLimits::of(&scenario.bus))?;
     let hosts_inbox = session
         .liveliness()
