@@ -168,6 +168,30 @@ fn write_into_place(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Res
     written
 }
 
+/// Writes `model.toml` (the input model with the effects found, to load
+/// with `--model`) and `fit.png` into `dir`, each whole or not at all.
+fn write_out(
+    dir: &std::path::Path,
+    recording: &shoal_diagnose::Recording,
+    diagnosis: &shoal_diagnose::Diagnosis,
+) -> Result<(Option<PathBuf>, Option<PathBuf>)> {
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let path = dir.join("model.toml");
+    let text = format!(
+        "# Written by shoal diagnose: the input model plus the effects it found.\n# Load it with --model, or as the body of a simulated robot.\n{}",
+        diagnosis
+            .model
+            .to_toml()
+            .context("writing the fitted model")?
+    );
+    write_into_place(&path, |partial| {
+        std::fs::write(partial, text).with_context(|| format!("cannot write {}", partial.display()))
+    })?;
+    let png = dir.join("fit.png");
+    write_into_place(&png, |partial| plot::fit_png(partial, recording, diagnosis))?;
+    Ok((Some(path), Some(png)))
+}
+
 fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
     let load::Loaded { recording, notes } = load::load(args)?;
     let model = match &args.model {
@@ -196,25 +220,7 @@ fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
     }
     let mut written = Written::default();
     if let Some(dir) = &args.out {
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-        let path = dir.join("model.toml");
-        let text = format!(
-            "# Written by shoal diagnose: the input model plus the effects it found.\n# Load it with --model, or as the body of a simulated robot.\n{}",
-            diagnosis
-                .model
-                .to_toml()
-                .context("writing the fitted model")?
-        );
-        write_into_place(&path, |partial| {
-            std::fs::write(partial, text)
-                .with_context(|| format!("cannot write {}", partial.display()))
-        })?;
-        written.model_out = Some(path);
-        let png = dir.join("fit.png");
-        write_into_place(&png, |partial| {
-            plot::fit_png(partial, &recording, &diagnosis)
-        })?;
-        written.plot = Some(png);
+        (written.model_out, written.plot) = write_out(dir, &recording, &diagnosis)?;
     }
     let report = report::report_text(&diagnosis, &notes);
     if let Some(path) = &args.rrd {
