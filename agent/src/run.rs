@@ -85,18 +85,8 @@ pub fn run(options: AgentOptions) -> Result<()> {
             rejected: ports.rejected(),
         };
         let said = member.period(&heard, &last, &scenario);
-        if !said.died_nearby.is_empty() {
-            tracing::info!(died_nearby = ?said.died_nearby, "dropped robots that fell silent nearby");
-            // A robot can fall silent because the machine is overloaded, not
-            // dead; sweeping lists every node on the machine, which would only
-            // load it more. Sweep for processes that are really gone.
-            let gone = dropped
-                .iter()
-                .filter(|s| said.died_nearby.contains(&s.agent_id))
-                .any(|s| !shoal_runtime::pid_alive(s.pid as i32));
-            if gone {
-                dead_noticed.get_or_insert_with(std::time::SystemTime::now);
-            }
+        if process_gone_nearby(&said.died_nearby, &dropped) {
+            dead_noticed.get_or_insert_with(std::time::SystemTime::now);
         }
         ports.scans.publish(&said.scan)?;
         last = said.pose;
@@ -107,14 +97,7 @@ pub fn run(options: AgentOptions) -> Result<()> {
             if let Err(e) = pose_note.note_if_moved([last.x, last.y, last.theta]) {
                 tracing::warn!("cannot note last pose: {e}");
             }
-            // Its neighbours noticed the same death: one of them sweeps, and
-            // the others take its result. A sweep under way is waited for at
-            // the next housekeeping, not here.
-            if let Some(noticed) = dead_noticed
-                && sweep_dead_nodes(&runtime, &options.swarm, noticed, false, || true)
-            {
-                dead_noticed = None;
-            }
+            sweep_if_noticed(&runtime, &options.swarm, &mut dead_noticed);
         }
     }
     // Once, on the way out, a whole new file: the last pose is there even if
@@ -124,6 +107,37 @@ pub fn run(options: AgentOptions) -> Result<()> {
         .context("noting the last pose on the way out")?;
     tracing::info!(id = options.id, tick = last.tick, "robot left the swarm");
     Ok(())
+}
+
+/// Whether a robot dropped as silent nearby (`died_nearby`, among
+/// `dropped`) has a process that is really gone. A robot can fall silent
+/// because the machine is overloaded, not dead; sweeping lists every node
+/// on the machine, which would only load it more.
+fn process_gone_nearby(died_nearby: &[u32], dropped: &[PoseSample]) -> bool {
+    if died_nearby.is_empty() {
+        return false;
+    }
+    tracing::info!(?died_nearby, "dropped robots that fell silent nearby");
+    dropped
+        .iter()
+        .filter(|s| died_nearby.contains(&s.agent_id))
+        .any(|s| !shoal_runtime::pid_alive(s.pid as i32))
+}
+
+/// Sweeps the swarm's dead nodes if this robot noticed a death since the
+/// last sweep. Its neighbours noticed the same death: one of them sweeps,
+/// and the others take its result; a sweep under way is waited for at the
+/// next housekeeping, not here.
+fn sweep_if_noticed(
+    runtime: &SwarmRuntime,
+    swarm: &str,
+    dead_noticed: &mut Option<std::time::SystemTime>,
+) {
+    if let Some(noticed) = *dead_noticed
+        && sweep_dead_nodes(runtime, swarm, noticed, false, || true)
+    {
+        *dead_noticed = None;
+    }
 }
 
 /// A robot's ports on the bus, and what it keeps of what it heard.
