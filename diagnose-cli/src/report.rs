@@ -12,6 +12,51 @@ use crate::load::InputNotes;
 const SIGNIFICANT: f64 = 0.01;
 
 /// The report a person reads: printed, and the recording's document.
+/// Each effect named, with the test that let it in and the alternatives the
+/// data cannot tell from it; then what the residuals still follow.
+fn effects_text(d: &Diagnosis) -> Vec<String> {
+    let mut lines = Vec::new();
+    let mut line = |text: String| lines.push(text);
+    for e in &d.effects {
+        line(format!(
+            "  {} (χ² {:.1} on {} parameters, {:.1} needed at {}; p {:.1e} after correcting for the library's kinds; ΔBIC {:.0})",
+            e.sentence,
+            e.test.chi2,
+            e.test.dof,
+            e.test.needed,
+            e.test.level,
+            e.test.p_adjusted,
+            e.delta_bic
+        ));
+        // An effect the data cannot tell from another is one finding with
+        // both fits, never a choice made silently.
+        for a in &e.alternatives {
+            line(format!(
+                "    these data explain it about as well (ΔBIC {:.0} against {:.0}) as: {}",
+                a.delta_bic, e.delta_bic, a.sentence
+            ));
+        }
+    }
+    let following: Vec<String> = d
+        .residual_covariates
+        .iter()
+        .filter(|c| c.significance < SIGNIFICANT)
+        .map(|c| {
+            format!(
+                "{} residual with {} (r {:+.2}, p {:.1e})",
+                c.component, c.covariate, c.correlation, c.significance
+            )
+        })
+        .collect();
+    if !following.is_empty() {
+        line(format!(
+            "What is left still follows: {}.",
+            following.join("; ")
+        ));
+    }
+    lines
+}
+
 pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
     use std::fmt::Write as _;
     let mut out = String::new();
@@ -55,42 +100,8 @@ pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
     for u in &d.unexplained {
         line(format!("  not explained: tried {}: {}", u.tried, u.reason));
     }
-    for e in &d.effects {
-        line(format!(
-            "  {} (χ² {:.1} on {} parameters, {:.1} needed at {}; p {:.1e} after correcting for the library's kinds; ΔBIC {:.0})",
-            e.sentence,
-            e.test.chi2,
-            e.test.dof,
-            e.test.needed,
-            e.test.level,
-            e.test.p_adjusted,
-            e.delta_bic
-        ));
-        // An effect the data cannot tell from another is one finding with
-        // both fits, never a choice made silently.
-        for a in &e.alternatives {
-            line(format!(
-                "    these data explain it about as well (ΔBIC {:.0} against {:.0}) as: {}",
-                a.delta_bic, e.delta_bic, a.sentence
-            ));
-        }
-    }
-    let following: Vec<String> = d
-        .residual_covariates
-        .iter()
-        .filter(|c| c.significance < SIGNIFICANT)
-        .map(|c| {
-            format!(
-                "{} residual with {} (r {:+.2}, p {:.1e})",
-                c.component, c.covariate, c.correlation, c.significance
-            )
-        })
-        .collect();
-    if !following.is_empty() {
-        line(format!(
-            "What is left still follows: {}.",
-            following.join("; ")
-        ));
+    for text in effects_text(d) {
+        line(text);
     }
     for text in transfer_text(d) {
         line(text);
