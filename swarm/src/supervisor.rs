@@ -6,11 +6,10 @@
 
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
-use shoal_link::report::LinkReport;
-
 use anyhow::{Context, Result, bail};
 use shoal_broker::liveness::{SwarmNodeState, remove_dead_nodes, swarm_nodes};
 use shoal_broker::{Bus, BusLimits, RosterReader, SampleCheck, names};
+use shoal_link::report::LinkReport;
 use shoal_physics::{Pose, Scenario};
 use shoal_runtime::{SwarmMeta, SwarmRuntime, pid_alive};
 
