@@ -50,22 +50,9 @@ pub fn command_class(segment: &Segment) -> &'static str {
     }
 }
 
-fn groups(segments: &[Segment]) -> Vec<Group> {
-    let n = segments.len();
+/// Place: an 8 x 8 grid over where the robot went, a group per cell.
+fn place_groups(segments: &[Segment]) -> Vec<Group> {
     let mut out = Vec::new();
-    // Time: contiguous blocks of about 25 segments, 4 to 40 of them.
-    let blocks = (n / 25).clamp(4, 40).min(n / MIN_GROUP).max(1);
-    for b in 0..blocks {
-        let members: Vec<usize> = (b * n / blocks..(b + 1) * n / blocks).collect();
-        out.push(Group {
-            family: "time",
-            members,
-            commands: "any".into(),
-            region: None,
-            key: (b as i64, 0),
-        });
-    }
-    // Place: an 8 x 8 grid over where the robot went.
     let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
     for s in segments {
         x0 = x0.min(s.mid[0]);
@@ -97,6 +84,25 @@ fn groups(segments: &[Segment]) -> Vec<Group> {
             key,
         });
     }
+    out
+}
+
+fn groups(segments: &[Segment]) -> Vec<Group> {
+    let n = segments.len();
+    let mut out = Vec::new();
+    // Time: contiguous blocks of about 25 segments, 4 to 40 of them.
+    let blocks = (n / 25).clamp(4, 40).min(n / MIN_GROUP).max(1);
+    for b in 0..blocks {
+        let members: Vec<usize> = (b * n / blocks..(b + 1) * n / blocks).collect();
+        out.push(Group {
+            family: "time",
+            members,
+            commands: "any".into(),
+            region: None,
+            key: (b as i64, 0),
+        });
+    }
+    out.extend(place_groups(segments));
     // Command classes.
     for class in ["standing", "straight", "turning left", "turning right"] {
         let members: Vec<usize> = (0..n)

@@ -393,6 +393,24 @@ pub(crate) struct Selected {
 
 /// Forward selection: round after round, the best candidate enters if its
 /// fit is physical and it predicts held-out time blocks better.
+/// The held-out gain of adding `chosen` to `base`, if it holds out: it
+/// must predict the held-out blocks better in all, and, if it is physics
+/// of the body (`heldout::must_transfer`), no block may contradict it
+/// (`heldout::CONTRADICTION_NATS`).
+fn holds_out(selection: &Selection, base: &[ScopedEffect], chosen: &ScopedEffect) -> Option<f64> {
+    let gains = selection.heldout_through_lens(base, chosen);
+    let gain_heldout: f64 = gains.iter().sum();
+    let worst = gains.iter().copied().fold(f64::INFINITY, f64::min);
+    let contradicted = must_transfer(chosen) && worst < -CONTRADICTION_NATS;
+    tracing::debug!(
+        kind = chosen.effect.kind(),
+        ?gains,
+        contradicted,
+        "round: held out"
+    );
+    (gain_heldout > 0.0 && !contradicted).then_some(gain_heldout)
+}
+
 pub(crate) fn select(selection: &Selection, located: &[Located], at: OperatingPoint) -> Selected {
     let segs = selection.segs();
     let mut out = Selected::default();
@@ -432,23 +450,10 @@ pub(crate) fn select(selection: &Selection, located: &[Located], at: OperatingPo
                 });
                 continue;
             }
-            // It must predict the held-out blocks better in all, and, if it
-            // is physics of the body (`heldout::must_transfer`), no block
-            // may contradict it (`heldout::CONTRADICTION_NATS`).
-            let gains = selection.heldout_through_lens(&base, &chosen);
-            let gain_heldout: f64 = gains.iter().sum();
-            let worst = gains.iter().copied().fold(f64::INFINITY, f64::min);
-            let contradicted = must_transfer(&chosen) && worst < -CONTRADICTION_NATS;
-            tracing::debug!(
-                kind = chosen.effect.kind(),
-                ?gains,
-                contradicted,
-                "round: held out"
-            );
-            if !(gain_heldout > 0.0) || contradicted {
+            let Some(gain_heldout) = holds_out(selection, &base, &chosen) else {
                 out.rejected_heldout.push(chosen.effect.kind());
                 continue;
-            }
+            };
             out.found.push(chosen);
             out.evidence.push(Evidence {
                 delta_bic,
