@@ -85,6 +85,9 @@ pub fn run(options: AgentOptions) -> Result<()> {
             rejected: ports.rejected(),
         };
         let said = member.period(&heard, &last, &scenario);
+        if !said.died_nearby.is_empty() {
+            tracing::info!(died_nearby = ?said.died_nearby, "dropped robots that fell silent nearby");
+        }
         if process_gone_nearby(&said.died_nearby, &dropped) {
             dead_noticed.get_or_insert_with(std::time::SystemTime::now);
         }
@@ -114,10 +117,6 @@ pub fn run(options: AgentOptions) -> Result<()> {
 /// because the machine is overloaded, not dead; sweeping lists every node
 /// on the machine, which would only load it more.
 fn process_gone_nearby(died_nearby: &[u32], dropped: &[PoseSample]) -> bool {
-    if died_nearby.is_empty() {
-        return false;
-    }
-    tracing::info!(?died_nearby, "dropped robots that fell silent nearby");
     dropped
         .iter()
         .filter(|s| died_nearby.contains(&s.agent_id))

@@ -120,12 +120,7 @@ pub fn decode_poses(
         }
         "geometry_msgs/msg/TransformStamped" => {
             let m = decode::<msg::TransformStamped>(data)?;
-            Ok(vec![planar(
-                m.header.stamp.nanoseconds(),
-                log_time,
-                &m.transform.translation,
-                &m.transform.rotation,
-            )?])
+            Ok(vec![transformed(&m, log_time)?])
         }
         "tf2_msgs/msg/TFMessage" => {
             let frame = tf
@@ -137,14 +132,7 @@ pub fn decode_poses(
                 .into_iter()
                 .filter(|t| same(&t.child_frame_id, frame))
                 .filter(|t| tf.parent.is_none_or(|p| same(&t.header.frame_id, p)))
-                .map(|t| {
-                    planar(
-                        t.header.stamp.nanoseconds(),
-                        log_time,
-                        &t.transform.translation,
-                        &t.transform.rotation,
-                    )
-                })
+                .map(|t| transformed(&t, log_time))
                 .collect()
         }
         other => Err(format!(
@@ -152,6 +140,19 @@ pub fn decode_poses(
             POSE_TYPES.join(", ")
         )),
     }
+}
+
+/// The pose a stamped transform gives its child frame.
+fn transformed(
+    t: &msg::TransformStamped,
+    log_time: i64,
+) -> Result<Stamped<(f64, f64, f64)>, String> {
+    planar(
+        t.header.stamp.nanoseconds(),
+        log_time,
+        &t.transform.translation,
+        &t.transform.rotation,
+    )
 }
 
 /// A pose on the floor: position and yaw (heading about z).

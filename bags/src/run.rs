@@ -11,10 +11,8 @@ use crate::storage::{Bag, RawMessage};
 pub struct Selection<'a> {
     pub commands_topic: &'a str,
     pub poses_topic: &'a str,
-    /// The child frame whose transform is the robot's pose (TF topics only).
-    pub frame: Option<&'a str>,
-    /// Only transforms from this parent frame (TF topics only).
-    pub parent: Option<&'a str>,
+    /// For TF topics only: the transform that is the robot's pose.
+    pub tf: ros::TfFrames<'a>,
 }
 
 /// The topic Gazebo and every ROS 2 simulator publishes simulation time on.
@@ -85,16 +83,7 @@ pub fn read_run(
             commands.push(ros::decode_command(&message_type, &data, log_time_ns).map_err(at)?);
         } else {
             poses.extend(
-                ros::decode_poses(
-                    &message_type,
-                    &data,
-                    log_time_ns,
-                    ros::TfFrames {
-                        child: selection.frame,
-                        parent: selection.parent,
-                    },
-                )
-                .map_err(at)?,
+                ros::decode_poses(&message_type, &data, log_time_ns, selection.tf).map_err(at)?,
             );
         }
     }
@@ -149,8 +138,9 @@ fn check_found(
             format!(
                 "topic {} has no transform to child frame {}{}",
                 selection.poses_topic,
-                selection.frame.unwrap_or("?"),
+                selection.tf.child.unwrap_or("?"),
                 selection
+                    .tf
                     .parent
                     .map(|p| format!(" from parent {p}"))
                     .unwrap_or_default()

@@ -130,8 +130,10 @@ fn load_bag(path: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
         &shoal_bags::Selection {
             commands_topic: &commands_topic,
             poses_topic: &poses_topic,
-            frame: args.frame.as_deref(),
-            parent: args.parent.as_deref(),
+            tf: shoal_bags::ros::TfFrames {
+                child: args.frame.as_deref(),
+                parent: args.parent.as_deref(),
+            },
         },
         args.stamps.into(),
     )?;

@@ -398,9 +398,7 @@ fn a_ros2_bag_is_diagnosed_from_pose_tf_and_odometry_topics() {
         assert_eq!(clock["commands"], "the bag's log times", "{clock}");
         assert_eq!(clock["poses"], "header stamps", "{clock}");
         assert_eq!(kinds(&d), ["latency"], "{poses_as}: {d}");
-        let fitted = d["effects"][0]["params"]["seconds"]
-            .as_f64()
-            .expect("seconds");
+        let fitted = first_latency(&d);
         assert!(
             (fitted - true_latency).abs() < 0.2 * true_latency,
             "{poses_as}: {fitted} s for {true_latency} s"
@@ -505,6 +503,13 @@ fn write_gazebo_bag(dir: &Path, name: &str, options: &[&str]) -> PathBuf {
     bag
 }
 
+/// The delay of the first effect a diagnosis named (a latency).
+fn first_latency(diagnosis: &Value) -> f64 {
+    diagnosis["effects"][0]["params"]["seconds"]
+        .as_f64()
+        .unwrap_or_else(|| panic!("no latency in {diagnosis}"))
+}
+
 /// Diagnoses a Gazebo bag given as a positional argument, as a user types
 /// it, with its /cmd_vel and /odom topics and `extra` arguments.
 fn diagnose_gazebo(bag: &Path, extra: &[&str]) -> std::process::Output {
@@ -526,9 +531,7 @@ fn diagnose_gazebo(bag: &Path, extra: &[&str]) -> std::process::Output {
 fn gazebo_bags_in_sqlite3_mcap_split_and_compressed_are_diagnosed_on_one_clock() {
     let case = case_named(&Generator::bench(), "latency", DURATION_S).expect("latency case");
     let (from_csv, dir) = diagnose_generated("gazebo", &truth_toml(&case), &[]);
-    let from_csv = from_csv["effects"][0]["params"]["seconds"]
-        .as_f64()
-        .expect("latency from the CSV files");
+    let from_csv = first_latency(&from_csv);
     // Commands arrive 2 ms after they were sent, poses 4 ms after they were
     // made, /clock 1 ms after its time: how far each clock moves the delay.
     for (name, options, commands_timed, shift) in [
@@ -597,9 +600,7 @@ fn gazebo_bags_in_sqlite3_mcap_split_and_compressed_are_diagnosed_on_one_clock()
             Some("latency"),
             "{name}: {d}"
         );
-        let fitted = d["effects"][0]["params"]["seconds"]
-            .as_f64()
-            .expect("seconds");
+        let fitted = first_latency(&d);
         assert!(
             (fitted - (from_csv + shift)).abs() < 0.003,
             "{name}: {fitted} s, the CSV's {from_csv} s moved by {shift} s"
@@ -634,21 +635,17 @@ fn gazebo_bags_in_sqlite3_mcap_split_and_compressed_are_diagnosed_on_one_clock()
 fn a_motion_capture_bridges_bag_with_a_robot_clock_that_is_off_is_diagnosed_on_log_times() {
     let case = case_named(&Generator::bench(), "latency", DURATION_S).expect("latency case");
     let (from_csv, dir) = diagnose_generated("vicon", &truth_toml(&case), &[]);
-    let from_csv = from_csv["effects"][0]["params"]["seconds"]
-        .as_f64()
-        .expect("latency from the CSV files");
+    let from_csv = first_latency(&from_csv);
     let bag = write_gazebo_bag(&dir, "vicon-bag", &["storage=mcap", "poses=vicon"]);
-    let output = Command::new(binary())
-        .arg(&bag)
-        .args([
+    let output = diagnose_bag(
+        &bag,
+        &[
             "--commands-topic",
             "/cmd_vel",
             "--poses-topic",
             "/vicon/robot/robot",
-            "--json",
-        ])
-        .output()
-        .expect("run shoal-diagnose");
+        ],
+    );
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(output.status.success(), "{stderr}");
     let d: Value = serde_json::from_slice(&output.stdout).expect("JSON");
@@ -659,9 +656,7 @@ fn a_motion_capture_bridges_bag_with_a_robot_clock_that_is_off_is_diagnosed_on_l
         Some("latency"),
         "{d}"
     );
-    let fitted = d["effects"][0]["params"]["seconds"]
-        .as_f64()
-        .expect("seconds");
+    let fitted = first_latency(&d);
     assert!(
         (fitted - (from_csv + 0.002)).abs() < 0.003,
         "{fitted} s, the CSV's {from_csv} s moved by the transports' 2 ms"

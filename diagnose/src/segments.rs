@@ -90,7 +90,7 @@ pub fn blocks(segments: &[Segment], joins: &[f64], folds: usize) -> Vec<std::ops
 }
 
 /// Every k-th segment, at most `count` of them.
-pub fn subsample(segments: &[Segment], count: usize) -> Vec<Segment> {
+pub(crate) fn subsample(segments: &[Segment], count: usize) -> Vec<Segment> {
     let every = segments.len().div_ceil(count.max(1)).max(1);
     segments.iter().step_by(every).cloned().collect()
 }

@@ -9,7 +9,7 @@ use serde::Serialize;
 use shoal_broker::liveness::{SwarmNode, SwarmNodeState, swarm_nodes};
 use shoal_broker::{BusLimits, CellOccupancy, PoseSample, names};
 use shoal_link::report::LinkReport;
-use shoal_runtime::SwarmRuntime;
+use shoal_runtime::{HelperReport, SwarmRuntime};
 use shoal_slam::report::{FollowedReport, SlamReport};
 
 #[derive(Debug, Serialize)]
@@ -78,16 +78,8 @@ pub fn gather(swarm: &str, cells: bool) -> Result<StatusReport> {
     // A report that cannot be read is shown as such, not taken for an
     // absent helper; one whose writer is gone says nothing of today.
     let mut unreadable_reports = Vec::new();
-    let mut note_unreadable =
-        |error: shoal_runtime::ReportError| unreadable_reports.push(error.to_string());
-    let slam = runtime.read_report::<SlamReport>().unwrap_or_else(|e| {
-        note_unreadable(e);
-        None
-    });
-    let link = runtime.read_report::<LinkReport>().unwrap_or_else(|e| {
-        note_unreadable(e);
-        None
-    });
+    let slam = readable::<SlamReport>(&runtime, &mut unreadable_reports);
+    let link = readable::<LinkReport>(&runtime, &mut unreadable_reports);
     let host = shoal_runtime::host::current().name.clone();
     let stale_nodes = nodes
         .iter()
@@ -119,6 +111,15 @@ pub fn gather(swarm: &str, cells: bool) -> Result<StatusReport> {
         slam: slam.map(|r| r.followed).unwrap_or_default(),
         cells,
         unreadable_reports,
+    })
+}
+
+/// A helper's report, if it can be read; one that cannot is noted in
+/// `unreadable` for the user to see.
+fn readable<R: HelperReport>(runtime: &SwarmRuntime, unreadable: &mut Vec<String>) -> Option<R> {
+    runtime.read_report::<R>().unwrap_or_else(|e| {
+        unreadable.push(e.to_string());
+        None
     })
 }
 

@@ -191,7 +191,7 @@ pub fn down(swarm: &str) -> Result<usize> {
     let me = std::process::id() as i32;
     // Only Shoal's own processes: a user's Python reader on the bus is not ours to stop.
     let alive = |launcher_only: bool| -> Result<Vec<Pinned>> {
-        let launcher = shoal_broker::names::tool_node(swarm, "launcher");
+        let launcher = shoal_broker::names::tool_node(swarm, crate::supervisor::LAUNCHER_ROLE);
         let mut pids: Vec<i32> = swarm_nodes(swarm)?
             .into_iter()
             .filter(|n| n.state == SwarmNodeState::Alive && n.pid != me)

@@ -19,11 +19,15 @@ pub(crate) struct Pace {
     tick: Option<u64>,
 }
 
+/// The names the recorder's and SLAM's progress reports go by.
+pub(crate) const RECORDER_PACE: &str = "recorder";
+pub(crate) const SLAM_PACE: &str = "slam";
+
 /// The name a helper's progress reports go by, which a lockstep clock paces to.
 pub(crate) fn pace_name(binary: &str) -> &str {
     match binary {
-        RECORDER_BINARY => "recorder",
-        SLAM_BINARY => "slam",
+        RECORDER_BINARY => RECORDER_PACE,
+        SLAM_BINARY => SLAM_PACE,
         other => other,
     }
 }

@@ -17,10 +17,13 @@ use crate::clock::LockstepClock;
 use crate::deaths::{Children, Death};
 use crate::helpers::{Helpers, LinkOptions, RecordOptions};
 use crate::observer::Observer;
-use crate::pacing::{Pace, RECORDER_LAG_TICKS, SLAM_LAG_TICKS};
+use crate::pacing::{Pace, RECORDER_LAG_TICKS, RECORDER_PACE, SLAM_LAG_TICKS, SLAM_PACE};
 use crate::process::{LINK_BINARY, Pinned, Tie, check_id_range, start_agent};
 use crate::sweeper::Sweeper;
 
+/// The launcher's tool role on the bus (`shoal/<swarm>/launcher`): how a
+/// running swarm's launcher is told from a passing `shoal status`.
+pub(crate) const LAUNCHER_ROLE: &str = "launcher";
 /// How long the launcher waits for its robots to announce themselves.
 const STARTUP_TIMEOUT: Duration = Duration::from_secs(30);
 /// How long the launcher waits for its link to have heard the other hosts.
@@ -98,7 +101,7 @@ impl RunningSwarm {
         refuse_a_running_swarm(name)?;
         let runtime = create_folder(name, &scenario, launch.lockstep)?;
         let (bus, roster) =
-            shoal_broker::roster::join_reader(name, "launcher", BusLimits::of(&scenario.bus))?;
+            shoal_broker::roster::join_reader(name, LAUNCHER_ROLE, BusLimits::of(&scenario.bus))?;
         let clock = if launch.lockstep {
             Some(LockstepClock::new(&bus, scenario.timing.period_s)?)
         } else {
@@ -238,7 +241,7 @@ impl RunningSwarm {
 
     /// Starts the recorder process: into a file, a live viewer, or both.
     pub fn record(&mut self, to: &RecordOptions) -> Result<()> {
-        self.pace_to("recorder", RECORDER_LAG_TICKS)?;
+        self.pace_to(RECORDER_PACE, RECORDER_LAG_TICKS)?;
         let tie = self.tie();
         self.helpers
             .start_recorder(&self.runtime, tie, &self.name, to)
@@ -251,7 +254,7 @@ impl RunningSwarm {
         follow: &shoal_slam::follow::Follow,
         options: &[String],
     ) -> Result<()> {
-        self.pace_to("slam", SLAM_LAG_TICKS)?;
+        self.pace_to(SLAM_PACE, SLAM_LAG_TICKS)?;
         let tie = self.tie();
         self.helpers
             .start_slam(&self.runtime, tie, &self.name, follow, options)
@@ -283,7 +286,7 @@ impl RunningSwarm {
     /// Kills the recorder as a crash would (SIGKILL); not reported as a death.
     pub fn kill_recorder(&mut self) -> Result<()> {
         self.helpers.kill_recorder(&self.name)?;
-        self.paces.retain(|p| p.helper != "recorder");
+        self.paces.retain(|p| p.helper != RECORDER_PACE);
         Ok(())
     }
 
@@ -455,7 +458,7 @@ impl RunningSwarm {
 /// Dead nodes of the swarm, and of swarms with no live node, are swept.
 fn refuse_a_running_swarm(name: &str) -> Result<()> {
     let me = std::process::id() as i32;
-    let launcher = names::tool_node(name, "launcher");
+    let launcher = names::tool_node(name, LAUNCHER_ROLE);
     let alive: Vec<String> = swarm_nodes(name)?
         .iter()
         .filter(|n| n.state == SwarmNodeState::Alive && n.pid != me)
