@@ -9,6 +9,9 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::ipc;
 use serde::{Deserialize, Serialize};
@@ -152,6 +155,92 @@ fn from_raw(
     Ok(sent)
 }
 
+/// Where the probe stands: 10 m by default; a value that is not a number
+/// is an error, not the default.
+fn probe_position() -> Result<f64> {
+    match std::env::var("SHOAL_PROBE_AT") {
+        Ok(text) => text
+            .parse()
+            .ok()
+            .filter(|x: &f64| x.is_finite())
+            .with_context(|| format!("SHOAL_PROBE_AT={text:?} is not a position in metres")),
+        Err(_) => Ok(10.0),
+    }
+}
+
+/// The receiving end's ports, one per transport.
+struct Receivers {
+    listener: Listener<ipc::Service>,
+    cells: CellExchange,
+    raw: Subscriber<ipc::Service, PoseSample, ()>,
+    raw_cell: Subscriber<ipc::Service, PoseSample, ()>,
+    datagram: UnixDatagram,
+}
+
+impl Receivers {
+    /// The send time of probe sample `sequence` over `transport`, or `None`
+    /// if it did not come within a second.
+    fn sent_time(&self, transport: Transport, sequence: usize) -> Result<Option<u64>> {
+        match transport {
+            Transport::IceoryxEvent => poll_for_a_second(|| {
+                let _ = self.listener.timed_wait(|_| {}, Duration::from_secs(1));
+                from_cells(&self.cells, sequence)
+            }),
+            Transport::IceoryxPoll => poll_for_a_second(|| from_cells(&self.cells, sequence)),
+            Transport::RawIceoryxPoll => poll_for_a_second(|| from_raw(&self.raw, sequence)),
+            Transport::RawIceoryxCellPoll => {
+                poll_for_a_second(|| from_raw(&self.raw_cell, sequence))
+            }
+            Transport::UnixSocket => {
+                let mut buffer = [0u8; 512];
+                Ok(match self.datagram.recv(&mut buffer) {
+                    Ok(n) if n == size_of::<PoseSample>() => {
+                        // SAFETY: n bytes of a PoseSample the sender wrote; read unaligned.
+                        let s: PoseSample =
+                            unsafe { std::ptr::read_unaligned(buffer.as_ptr().cast()) };
+                        probe_send_time(&s, sequence)
+                    }
+                    _ => None,
+                })
+            }
+        }
+    }
+}
+
+/// The sending end's ports, one per transport.
+struct Senders<'a> {
+    bus: &'a Bus,
+    cells: &'a mut CellExchange,
+    notifier: Notifier<ipc::Service>,
+    raw: Publisher<ipc::Service, PoseSample, ()>,
+    raw_cell: Publisher<ipc::Service, PoseSample, ()>,
+    datagram: UnixDatagram,
+}
+
+impl Senders<'_> {
+    fn send(&mut self, transport: Transport, sample: PoseSample) -> Result<()> {
+        match transport {
+            Transport::IceoryxEvent => {
+                self.cells.publish(self.bus, &sample)?;
+                self.notifier.notify().map_err(|e| anyhow::anyhow!("{e:?}"))?;
+            }
+            Transport::IceoryxPoll => self.cells.publish(self.bus, &sample)?,
+            Transport::RawIceoryxPoll => {
+                self.raw.send_copy(sample).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+            }
+            Transport::RawIceoryxCellPoll => {
+                self.raw_cell
+                    .send_copy(sample)
+                    .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+            }
+            Transport::UnixSocket => {
+                self.datagram.send(as_bytes(&sample))?;
+            }
+        }
+        Ok(())
+    }
+}
+
 pub fn probe(
     role: Role,
     swarm: &str,
@@ -164,16 +253,7 @@ pub fn probe(
         ..BusLimits::default()
     };
     let bus = Bus::join_tool(swarm, &format!("probe-{role:?}"), limits)?;
-    // Where the probe stands: 10 m by default; a value that is not a number
-    // is an error, not the default.
-    let centre: f64 = match std::env::var("SHOAL_PROBE_AT") {
-        Ok(text) => text
-            .parse()
-            .ok()
-            .filter(|x: &f64| x.is_finite())
-            .with_context(|| format!("SHOAL_PROBE_AT={text:?} is not a position in metres"))?,
-        Err(_) => 10.0,
-    };
+    let centre = probe_position()?;
     let event_name = format!("{}probe-event", names::prefix(swarm));
     let event = bus
         .node
@@ -195,80 +275,24 @@ pub fn probe(
     let cell_size = Scenario::default_arena().bus.cell_size;
     let raw_cell = CellExchange::cell_service(&bus, cell_at(cell_size, centre, centre))?;
     let mut cells = CellExchange::new(cell_size);
+    let failed = |e: &dyn std::fmt::Debug| anyhow::anyhow!("probe port: {e:?}");
     match role {
         Role::Receive => {
-            let listener = event
-                .listener_builder()
-                .create()
-                .map_err(|e| anyhow::anyhow!("{e:?}"))?;
             // Only the cell the probe stands in.
             cells.listen(&bus, (centre, centre), 0.0)?;
-            let raw_subscriber = raw
-                .subscriber_builder()
-                .create()
-                .map_err(|e| anyhow::anyhow!("{e:?}"))?;
-            let raw_cell_subscriber = raw_cell
-                .subscriber_builder()
-                .create()
-                .map_err(|e| anyhow::anyhow!("{e:?}"))?;
             let datagram = UnixDatagram::bind(socket)
                 .with_context(|| format!("binding {}", socket.display()))?;
             datagram.set_read_timeout(Some(Duration::from_secs(1)))?;
-            // The sender waits for this acknowledgement before its next sample,
-            // so a slow receiver never finds a queue of stale samples.
-            let acks = UnixDatagram::unbound()?;
-            let ack_path = socket.with_extension("ack");
-            let mut result = ProbeResult {
-                latencies: vec![Vec::new(); TRANSPORTS.len()],
-                lost: vec![0; TRANSPORTS.len()],
+            let receivers = Receivers {
+                listener: event.listener_builder().create().map_err(|e| failed(&e))?,
+                cells,
+                raw: raw.subscriber_builder().create().map_err(|e| failed(&e))?,
+                raw_cell: raw_cell.subscriber_builder().create().map_err(|e| failed(&e))?,
+                datagram,
             };
-            let mut buffer = [0u8; 512];
-            for (sequence, transport) in schedule(samples).enumerate() {
-                let index = TRANSPORTS.iter().position(|t| *t == transport).unwrap_or(0);
-                let sent = match transport {
-                    Transport::IceoryxEvent => poll_for_a_second(|| {
-                        let _ = listener.timed_wait(|_| {}, Duration::from_secs(1));
-                        from_cells(&cells, sequence)
-                    })?,
-                    Transport::IceoryxPoll => poll_for_a_second(|| from_cells(&cells, sequence))?,
-                    Transport::RawIceoryxPoll => {
-                        poll_for_a_second(|| from_raw(&raw_subscriber, sequence))?
-                    }
-                    Transport::RawIceoryxCellPoll => {
-                        poll_for_a_second(|| from_raw(&raw_cell_subscriber, sequence))?
-                    }
-                    Transport::UnixSocket => match datagram.recv(&mut buffer) {
-                        Ok(n) if n == size_of::<PoseSample>() => {
-                            // SAFETY: n bytes of a PoseSample the sender wrote; read unaligned.
-                            let s: PoseSample =
-                                unsafe { std::ptr::read_unaligned(buffer.as_ptr().cast()) };
-                            probe_send_time(&s, sequence)
-                        }
-                        _ => None,
-                    },
-                };
-                let now = monotonic_ns();
-                match sent {
-                    Some(sent) => result.latencies[index].push(now.saturating_sub(sent)),
-                    None => result.lost[index] += 1,
-                }
-                let _ = acks.send_to(&(sequence as u64).to_le_bytes(), &ack_path);
-            }
-            println!("{}", serde_json::to_string(&result)?);
+            receive(&receivers, samples, socket)
         }
         Role::Send => {
-            let raw_publisher = raw
-                .publisher_builder()
-                .create()
-                .map_err(|e| anyhow::anyhow!("{e:?}"))?;
-            let raw_cell_publisher = raw_cell
-                .publisher_builder()
-                .create()
-                .map_err(|e| anyhow::anyhow!("{e:?}"))?;
-            let notifier = event
-                .notifier_builder()
-                .create()
-                .map_err(|e| anyhow::anyhow!("{e:?}"))?;
             let deadline = Instant::now() + Duration::from_secs(10);
             while !socket.exists() && Instant::now() < deadline {
                 std::thread::sleep(Duration::from_millis(10));
@@ -277,42 +301,62 @@ pub fn probe(
             datagram
                 .connect(socket)
                 .with_context(|| format!("connecting {}", socket.display()))?;
-            let acks = UnixDatagram::bind(socket.with_extension("ack"))?;
-            acks.set_read_timeout(Some(Duration::from_secs(2)))?;
-            let mut ack = [0u8; 8];
-            // Let the receiver's subscriber settle before the first sample.
-            cells.publish(&bus, &probe_sample(u64::MAX, centre))?;
-            std::thread::sleep(Duration::from_millis(300));
-            for (sequence, transport) in schedule(samples).enumerate() {
-                std::thread::sleep(GAP);
-                let mut sample = probe_sample(sequence as u64, centre);
-                sample.sim_time = f64::from_bits(monotonic_ns());
-                match transport {
-                    Transport::IceoryxEvent => {
-                        cells.publish(&bus, &sample)?;
-                        notifier.notify().map_err(|e| anyhow::anyhow!("{e:?}"))?;
-                    }
-                    Transport::IceoryxPoll => cells.publish(&bus, &sample)?,
-                    Transport::RawIceoryxPoll => {
-                        raw_publisher
-                            .send_copy(sample)
-                            .map_err(|e| anyhow::anyhow!("{e:?}"))?;
-                    }
-                    Transport::RawIceoryxCellPoll => {
-                        raw_cell_publisher
-                            .send_copy(sample)
-                            .map_err(|e| anyhow::anyhow!("{e:?}"))?;
-                    }
-                    Transport::UnixSocket => {
-                        datagram.send(as_bytes(&sample))?;
-                    }
-                }
-                // Wait for the receiver (a lost sample times out there first).
-                while let Ok(8) = acks.recv(&mut ack) {
-                    if u64::from_le_bytes(ack) >= sequence as u64 {
-                        break;
-                    }
-                }
+            let mut senders = Senders {
+                bus: &bus,
+                cells: &mut cells,
+                notifier: event.notifier_builder().create().map_err(|e| failed(&e))?,
+                raw: raw.publisher_builder().create().map_err(|e| failed(&e))?,
+                raw_cell: raw_cell.publisher_builder().create().map_err(|e| failed(&e))?,
+                datagram,
+            };
+            send(&mut senders, samples, socket, centre)
+        }
+    }
+}
+
+/// Receives every probe sample and prints the latencies as JSON.
+fn receive(receivers: &Receivers, samples: usize, socket: &Path) -> Result<()> {
+    // The sender waits for this acknowledgement before its next sample,
+    // so a slow receiver never finds a queue of stale samples.
+    let acks = UnixDatagram::unbound()?;
+    let ack_path = socket.with_extension("ack");
+    let mut result = ProbeResult {
+        latencies: vec![Vec::new(); TRANSPORTS.len()],
+        lost: vec![0; TRANSPORTS.len()],
+    };
+    for (sequence, transport) in schedule(samples).enumerate() {
+        let index = TRANSPORTS.iter().position(|t| *t == transport).unwrap_or(0);
+        let sent = receivers.sent_time(transport, sequence)?;
+        let now = monotonic_ns();
+        match sent {
+            Some(sent) => result.latencies[index].push(now.saturating_sub(sent)),
+            None => result.lost[index] += 1,
+        }
+        let _ = acks.send_to(&(sequence as u64).to_le_bytes(), &ack_path);
+    }
+    println!("{}", serde_json::to_string(&result)?);
+    Ok(())
+}
+
+/// Sends every probe sample, each after the receiver acknowledged the last.
+fn send(senders: &mut Senders, samples: usize, socket: &Path, centre: f64) -> Result<()> {
+    let acks = UnixDatagram::bind(socket.with_extension("ack"))?;
+    acks.set_read_timeout(Some(Duration::from_secs(2)))?;
+    let mut ack = [0u8; 8];
+    // Let the receiver's subscriber settle before the first sample.
+    senders
+        .cells
+        .publish(senders.bus, &probe_sample(u64::MAX, centre))?;
+    std::thread::sleep(Duration::from_millis(300));
+    for (sequence, transport) in schedule(samples).enumerate() {
+        std::thread::sleep(GAP);
+        let mut sample = probe_sample(sequence as u64, centre);
+        sample.sim_time = f64::from_bits(monotonic_ns());
+        senders.send(transport, sample)?;
+        // Wait for the receiver (a lost sample times out there first).
+        while let Ok(8) = acks.recv(&mut ack) {
+            if u64::from_le_bytes(ack) >= sequence as u64 {
+                break;
             }
         }
     }
@@ -357,7 +401,6 @@ pub fn run(
     listeners_per_cell: Option<usize>,
     json: bool,
 ) -> Result<()> {
-    let me = std::env::current_exe()?;
     let listeners_per_cell =
         listeners_per_cell.unwrap_or(Scenario::default_arena().bus.max_listeners_per_cell);
     let mut rows = Vec::new();
@@ -387,31 +430,7 @@ pub fn run(
         let started = Instant::now();
         let socket =
             std::env::temp_dir().join(format!("shoal-bench-{}-{agents}.sock", std::process::id()));
-        let _ = std::fs::remove_file(&socket);
-        let _ = std::fs::remove_file(socket.with_extension("ack"));
-        let spawn = |role: &str| {
-            Command::new(&me)
-                .args([
-                    "probe",
-                    "--role",
-                    role,
-                    "--swarm",
-                    &swarm_name,
-                    "--samples",
-                    &samples.to_string(),
-                ])
-                .arg("--socket")
-                .arg(&socket)
-                .arg("--listeners-per-cell")
-                .arg(listeners_per_cell.to_string())
-                .env("SHOAL_PROBE_AT", centre.to_string())
-                .stdout(Stdio::piped())
-                .spawn()
-        };
-        let receiver = spawn("receive")?;
-        let sender = spawn("send")?;
-        let sent = sender.wait_with_output()?;
-        let received = receiver.wait_with_output()?;
+        let probes = run_probes(&swarm_name, samples, &socket, listeners_per_cell, centre);
         // CPU time is counted in 10 ms steps per process: measure long enough.
         if let Some(rest) = CPU_WINDOW.checked_sub(started.elapsed()) {
             std::thread::sleep(rest);
@@ -419,54 +438,104 @@ pub fn run(
         let elapsed = started.elapsed().as_secs_f64();
         let cpu_after: ProcessUsage = pids.iter().filter_map(|p| usage(*p)).sum();
         drop(swarm);
-        let _ = std::fs::remove_file(&socket);
-        let _ = std::fs::remove_file(socket.with_extension("ack"));
-        if !sent.status.success() || !received.status.success() {
-            bail!("the probe failed for {agents} robots");
-        }
-        let result: ProbeResult =
-            serde_json::from_slice(&received.stdout).context("probe output")?;
+        let result = probes.with_context(|| format!("the probe failed for {agents} robots"))?;
         let period = scenario.timing.period_s;
         let robot_cpu = (robots > 0).then(|| {
             (cpu_after.cpu_s - cpu_before.cpu_s) * 1000.0 / (robots as f64 * elapsed / period)
         });
-        let mut sorted: Vec<Vec<u64>> = result.latencies.clone();
-        sorted.iter_mut().for_each(|l| l.sort_unstable());
-        let baseline = |transport: Transport| {
-            let index = TRANSPORTS.iter().position(|t| *t == transport).unwrap_or(0);
-            (
-                percentile(&sorted[index], 0.5),
-                percentile(&sorted[index], 0.99),
-            )
-        };
-        let (base50, base99) = baseline(Transport::UnixSocket);
-        let (raw50, raw99) = baseline(Transport::RawIceoryxPoll);
-        let (cell50, cell99) = baseline(Transport::RawIceoryxCellPoll);
-        for (index, transport) in TRANSPORTS.iter().enumerate() {
-            let (p50, p99) = (
-                percentile(&sorted[index], 0.5),
-                percentile(&sorted[index], 0.99),
-            );
-            rows.push(Row {
-                agents,
-                listeners_per_cell,
-                transport: *transport,
-                p50_us: p50,
-                p99_us: p99,
-                max_us: sorted[index]
-                    .last()
-                    .map_or(f64::NAN, |v| *v as f64 / 1000.0),
-                lost: result.lost[index],
-                p50_vs_unix_socket: p50 / base50,
-                p99_vs_unix_socket: p99 / base99,
-                p50_vs_raw_iceoryx2: p50 / raw50,
-                p99_vs_raw_iceoryx2: p99 / raw99,
-                p50_vs_raw_iceoryx2_cell: p50 / cell50,
-                p99_vs_raw_iceoryx2_cell: p99 / cell99,
-                robot_cpu_ms_per_period: robot_cpu,
-            });
-        }
+        rows.extend(rows_of(agents, listeners_per_cell, &result, robot_cpu));
     }
     shoal_runtime::report::print(&serde_json::json!({ "rows": rows }), json)?;
     Ok(())
+}
+
+/// The table's rows for one swarm size: each transport's percentiles and
+/// their ratios to the baselines measured in the same run.
+fn rows_of(
+    agents: usize,
+    listeners_per_cell: usize,
+    result: &ProbeResult,
+    robot_cpu: Option<f64>,
+) -> Vec<Row> {
+    let mut rows = Vec::new();
+    let mut sorted: Vec<Vec<u64>> = result.latencies.clone();
+    sorted.iter_mut().for_each(|l| l.sort_unstable());
+    let baseline = |transport: Transport| {
+        let index = TRANSPORTS.iter().position(|t| *t == transport).unwrap_or(0);
+        (
+            percentile(&sorted[index], 0.5),
+            percentile(&sorted[index], 0.99),
+        )
+    };
+    let (base50, base99) = baseline(Transport::UnixSocket);
+    let (raw50, raw99) = baseline(Transport::RawIceoryxPoll);
+    let (cell50, cell99) = baseline(Transport::RawIceoryxCellPoll);
+    for (index, transport) in TRANSPORTS.iter().enumerate() {
+        let (p50, p99) = (
+            percentile(&sorted[index], 0.5),
+            percentile(&sorted[index], 0.99),
+        );
+        rows.push(Row {
+            agents,
+            listeners_per_cell,
+            transport: *transport,
+            p50_us: p50,
+            p99_us: p99,
+            max_us: sorted[index]
+                .last()
+                .map_or(f64::NAN, |v| *v as f64 / 1000.0),
+            lost: result.lost[index],
+            p50_vs_unix_socket: p50 / base50,
+            p99_vs_unix_socket: p99 / base99,
+            p50_vs_raw_iceoryx2: p50 / raw50,
+            p99_vs_raw_iceoryx2: p99 / raw99,
+            p50_vs_raw_iceoryx2_cell: p50 / cell50,
+            p99_vs_raw_iceoryx2_cell: p99 / cell99,
+            robot_cpu_ms_per_period: robot_cpu,
+        });
+    }
+    rows
+}
+
+/// Runs the probe's receiver and sender against swarm `swarm_name` and
+/// reads the receiver's latencies.
+fn run_probes(
+    swarm_name: &str,
+    samples: usize,
+    socket: &Path,
+    listeners_per_cell: usize,
+    centre: f64,
+) -> Result<ProbeResult> {
+    let me = std::env::current_exe()?;
+    let _ = std::fs::remove_file(socket);
+    let _ = std::fs::remove_file(socket.with_extension("ack"));
+    let spawn = |role: &str| {
+        Command::new(&me)
+            .args([
+                "probe",
+                "--role",
+                role,
+                "--swarm",
+                swarm_name,
+                "--samples",
+                &samples.to_string(),
+            ])
+            .arg("--socket")
+            .arg(socket)
+            .arg("--listeners-per-cell")
+            .arg(listeners_per_cell.to_string())
+            .env("SHOAL_PROBE_AT", centre.to_string())
+            .stdout(Stdio::piped())
+            .spawn()
+    };
+    let receiver = spawn("receive")?;
+    let sender = spawn("send")?;
+    let sent = sender.wait_with_output()?;
+    let received = receiver.wait_with_output()?;
+    let _ = std::fs::remove_file(socket);
+    let _ = std::fs::remove_file(socket.with_extension("ack"));
+    if !sent.status.success() || !received.status.success() {
+        bail!("a probe process failed ({}, {})", sent.status, received.status);
+    }
+    serde_json::from_slice(&received.stdout).context("probe output")
 }
