@@ -222,11 +222,15 @@ impl Senders<'_> {
         match transport {
             Transport::IceoryxEvent => {
                 self.cells.publish(self.bus, &sample)?;
-                self.notifier.notify().map_err(|e| anyhow::anyhow!("{e:?}"))?;
+                self.notifier
+                    .notify()
+                    .map_err(|e| anyhow::anyhow!("{e:?}"))?;
             }
             Transport::IceoryxPoll => self.cells.publish(self.bus, &sample)?,
             Transport::RawIceoryxPoll => {
-                self.raw.send_copy(sample).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+                self.raw
+                    .send_copy(sample)
+                    .map_err(|e| anyhow::anyhow!("{e:?}"))?;
             }
             Transport::RawIceoryxCellPoll => {
                 self.raw_cell
@@ -287,7 +291,10 @@ pub fn probe(
                 listener: event.listener_builder().create().map_err(|e| failed(&e))?,
                 cells,
                 raw: raw.subscriber_builder().create().map_err(|e| failed(&e))?,
-                raw_cell: raw_cell.subscriber_builder().create().map_err(|e| failed(&e))?,
+                raw_cell: raw_cell
+                    .subscriber_builder()
+                    .create()
+                    .map_err(|e| failed(&e))?,
                 datagram,
             };
             receive(&receivers, samples, socket)
@@ -306,7 +313,10 @@ pub fn probe(
                 cells: &mut cells,
                 notifier: event.notifier_builder().create().map_err(|e| failed(&e))?,
                 raw: raw.publisher_builder().create().map_err(|e| failed(&e))?,
-                raw_cell: raw_cell.publisher_builder().create().map_err(|e| failed(&e))?,
+                raw_cell: raw_cell
+                    .publisher_builder()
+                    .create()
+                    .map_err(|e| failed(&e))?,
                 datagram,
             };
             send(&mut senders, samples, socket, centre)
@@ -535,7 +545,11 @@ fn run_probes(
     let _ = std::fs::remove_file(socket);
     let _ = std::fs::remove_file(socket.with_extension("ack"));
     if !sent.status.success() || !received.status.success() {
-        bail!("a probe process failed ({}, {})", sent.status, received.status);
+        bail!(
+            "a probe process failed ({}, {})",
+            sent.status,
+            received.status
+        );
     }
     serde_json::from_slice(&received.stdout).context("probe output")
 }

@@ -148,71 +148,68 @@ fn percentile(sorted: &[f64], share: f64) -> f64 {
     sorted[((share * sorted.len() as f64).ceil() as usize).clamp(1, sorted.len()) - 1]
 }
 
-pub fn run(agents: usize, seconds: f64, json: bool) -> Result<()> {
-    let swarm = format!("benchlink{}", std::process::id() % 100_000);
-    let dir = std::env::temp_dir().join(&swarm);
-    std::fs::create_dir_all(&dir)?;
-    // Two halves of one arena, the goal on their border.
-    let width = (agents as f64).sqrt() * 3.0 + 6.0;
+/// A scenario for one of the two hosts: its half of one arena (starting at
+/// `x0`), the goal on the halves' border.
+fn half_scenario(
+    dir: &Path,
+    name: &str,
+    agents: usize,
+    x0: f64,
+    seed: u64,
+) -> Result<std::path::PathBuf> {
+    let width = arena_width(agents);
     let height = width * 0.75;
-    let scenario = |name: &str, x0: f64, seed: u64| -> Result<std::path::PathBuf> {
-        let path = dir.join(format!("{name}.toml"));
-        std::fs::write(
-            &path,
-            format!(
-                "name = \"{name}\"\n[arena]\nwidth = {width}\nheight = {height}\n\
-                 [agents]\ncount = {agents}\nstart_region = [{x0}, 2.0, {}, {}]\nseed = {seed}\n\
-                 [formation]\ngoal = [{}, {}]\n",
-                x0 + width / 2.0 - 3.0,
-                height - 2.0,
-                width / 2.0,
-                height / 2.0
-            ),
-        )?;
-        Ok(path)
-    };
-    let port = std::net::TcpListener::bind("127.0.0.1:0")?
-        .local_addr()?
-        .port();
-    let endpoint = format!("tcp/127.0.0.1:{port}");
-    let a = start_host(
-        &swarm,
-        "bench-a",
-        0,
-        &scenario("bench-a", 2.0, 1)?,
-        ["--listen", &endpoint],
+    let path = dir.join(format!("{name}.toml"));
+    std::fs::write(
+        &path,
+        format!(
+            "name = \"{name}\"\n[arena]\nwidth = {width}\nheight = {height}\n\
+             [agents]\ncount = {agents}\nstart_region = [{x0}, 2.0, {}, {}]\nseed = {seed}\n\
+             [formation]\ngoal = [{}, {}]\n",
+            x0 + width / 2.0 - 3.0,
+            height - 2.0,
+            width / 2.0,
+            height / 2.0
+        ),
     )?;
-    std::thread::sleep(Duration::from_secs(2));
-    let b = start_host(
-        &swarm,
-        "bench-b",
-        SECOND_FIRST_ID,
-        &scenario("bench-b", width / 2.0 + 1.0, 2)?,
-        ["--connect", &endpoint],
-    )?;
-    let hosts = [&a.host, &b.host];
+    Ok(path)
+}
+
+/// The width of the arena both hosts share, for `agents` robots each.
+fn arena_width(agents: usize) -> f64 {
+    (agents as f64).sqrt() * 3.0 + 6.0
+}
+
+/// Waits until both hosts' links report a state.
+fn wait_for_links(swarm: &str, hosts: [&Host; 2]) -> Result<()> {
     let started = Instant::now();
-    while link_state(&swarm, hosts[0])?.is_none() || link_state(&swarm, hosts[1])?.is_none() {
+    while link_state(swarm, hosts[0])?.is_none() || link_state(swarm, hosts[1])?.is_none() {
         if started.elapsed() > Duration::from_secs(60) {
             bail!("the hosts did not come up within 60 s");
         }
         std::thread::sleep(Duration::from_millis(200));
     }
-    // Let every robot start and the formation settle.
-    std::thread::sleep(Duration::from_secs(15));
-    let border_only = measure_traffic(&swarm, &hosts, 2 * agents, seconds)?;
+    Ok(())
+}
 
-    // Phase 2: an observer on host a; this process belongs to host a.
-    host::choose(Some(&a.host.name))?;
-    let epoch_ms = SwarmRuntime::locate(&swarm).read_meta()?.epoch_unix_ms as f64;
-    let (bus, roster) =
-        shoal_broker::roster::join_reader(&swarm, "bench-observer", BusLimits::default())?;
+/// Phase 2: an observer on host a (this process joins it) times every
+/// pose it hears, by host, while the link's traffic is measured.
+fn pose_ages(
+    swarm: &str,
+    hosts: [&Host; 2],
+    agents: usize,
+    seconds: f64,
+) -> Result<(Traffic, [Vec<f64>; 2])> {
+    host::choose(Some(&hosts[0].name))?;
+    let epoch_ms = SwarmRuntime::locate(swarm).read_meta()?.epoch_unix_ms as f64;
+    let (_bus, roster) =
+        shoal_broker::roster::join_reader(swarm, "bench-observer", BusLimits::default())?;
     // The link asks for every pose at its next second.
     std::thread::sleep(Duration::from_secs(3));
     roster.receive(|_| {})?;
     let mut ages: [Vec<f64>; 2] = [Vec::new(), Vec::new()];
-    let traffic_during = std::thread::scope(|scope| -> Result<Traffic> {
-        let traffic = scope.spawn(|| measure_traffic(&swarm, &hosts, 2 * agents, seconds));
+    let traffic = std::thread::scope(|scope| -> Result<Traffic> {
+        let traffic = scope.spawn(|| measure_traffic(swarm, &hosts, 2 * agents, seconds));
         let timed = Instant::now();
         while timed.elapsed().as_secs_f64() < seconds {
             roster.receive(|sample| {
@@ -231,22 +228,51 @@ pub fn run(agents: usize, seconds: f64, json: bool) -> Result<()> {
     for list in &mut ages {
         list.sort_by(f64::total_cmp);
     }
-    let [same, other] = &ages;
+    Ok((traffic, ages))
+}
+
+pub fn run(agents: usize, seconds: f64, json: bool) -> Result<()> {
+    let swarm = format!("benchlink{}", std::process::id() % 100_000);
+    let dir = std::env::temp_dir().join(&swarm);
+    std::fs::create_dir_all(&dir)?;
+    let port = std::net::TcpListener::bind("127.0.0.1:0")?
+        .local_addr()?
+        .port();
+    let endpoint = format!("tcp/127.0.0.1:{port}");
+    let a = start_host(
+        &swarm,
+        "bench-a",
+        0,
+        &half_scenario(&dir, "bench-a", agents, 2.0, 1)?,
+        ["--listen", &endpoint],
+    )?;
+    std::thread::sleep(Duration::from_secs(2));
+    let b = start_host(
+        &swarm,
+        "bench-b",
+        SECOND_FIRST_ID,
+        &half_scenario(&dir, "bench-b", agents, arena_width(agents) / 2.0 + 1.0, 2)?,
+        ["--connect", &endpoint],
+    )?;
+    let hosts = [&a.host, &b.host];
+    wait_for_links(&swarm, hosts)?;
+    // Let every robot start and the formation settle.
+    std::thread::sleep(Duration::from_secs(15));
+    let border_only = measure_traffic(&swarm, &hosts, 2 * agents, seconds)?;
+    let (whole_swarm, [same, other]) = pose_ages(&swarm, hosts, agents, seconds)?;
     let report = Report {
         robots_per_host: agents,
         seconds_per_phase: seconds,
         border_only,
-        whole_swarm: traffic_during,
-        same_host_p50_ms: percentile(same, 0.5),
-        same_host_p99_ms: percentile(same, 0.99),
-        other_host_p50_ms: percentile(other, 0.5),
-        other_host_p99_ms: percentile(other, 0.99),
-        added_p50_ms: percentile(other, 0.5) - percentile(same, 0.5),
-        other_vs_same_p50: percentile(other, 0.5) / percentile(same, 0.5),
+        whole_swarm,
+        same_host_p50_ms: percentile(&same, 0.5),
+        same_host_p99_ms: percentile(&same, 0.99),
+        other_host_p50_ms: percentile(&other, 0.5),
+        other_host_p99_ms: percentile(&other, 0.99),
+        added_p50_ms: percentile(&other, 0.5) - percentile(&same, 0.5),
+        other_vs_same_p50: percentile(&other, 0.5) / percentile(&same, 0.5),
         poses_timed: [same.len(), other.len()],
     };
-    drop(roster);
-    drop(bus);
     drop(b);
     drop(a);
     let _ = std::fs::remove_dir_all(&dir);
