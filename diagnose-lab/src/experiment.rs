@@ -20,144 +20,164 @@ pub struct Case {
 
 const ZONE: [f64; 4] = [0.5, 0.5, 2.0, 2.0];
 
+/// A case of one name and concealment, outside any zone.
+fn case(name: &'static str, concealment: &'static str, truth: Vec<ScopedEffect>) -> Case {
+    Case {
+        name,
+        concealment,
+        truth,
+        turn_inside: None,
+    }
+}
+
+fn always(effect: Effect) -> Vec<ScopedEffect> {
+    vec![ScopedEffect::always(effect)]
+}
+
 /// The cases: every effect of the library, concealed, then two pairs.
 pub fn cases(duration_s: f64) -> Vec<Case> {
-    let always = |effect| vec![ScopedEffect::always(effect)];
-    let tiny = "per-step effect far below the per-step noise";
+    let mut out = bench_single_effects(duration_s);
+    out.extend(bench_pairs());
+    out
+}
+
+/// The bench's cases of one effect each, and its null case.
+fn bench_single_effects(duration_s: f64) -> Vec<Case> {
+    let mut out = bench_gains_and_response(duration_s);
+    out.extend(bench_time_place_and_body());
+    out
+}
+
+/// Effects far below the per-step noise.
+const TINY: &str = "per-step effect far below the per-step noise";
+
+/// The null case and the bench's effects on how the robot answers its
+/// commands: a delay, gains, a bias, a drift, a limit, a slip.
+fn bench_gains_and_response(duration_s: f64) -> Vec<Case> {
+    let tiny = TINY;
     vec![
-        Case {
-            name: "null",
-            concealment: "no effect",
-            truth: vec![],
-            turn_inside: None,
-        },
-        Case {
-            name: "latency",
-            concealment: tiny,
-            truth: always(Effect::Latency { seconds: 0.12 }),
-            turn_inside: None,
-        },
-        Case {
-            name: "speed_scale",
-            concealment: tiny,
-            truth: always(Effect::SpeedScale { factor: 0.96 }),
-            turn_inside: None,
-        },
-        Case {
-            name: "turn_scale",
-            concealment: tiny,
-            truth: always(Effect::TurnScale { factor: 0.94 }),
-            turn_inside: None,
-        },
-        Case {
-            name: "turn_bias",
-            concealment: "only in the second half of the run",
-            truth: vec![ScopedEffect {
+        case("null", "no effect", vec![]),
+        case("latency", tiny, always(Effect::Latency { seconds: 0.12 })),
+        case(
+            "speed_scale",
+            tiny,
+            always(Effect::SpeedScale { factor: 0.96 }),
+        ),
+        case(
+            "turn_scale",
+            tiny,
+            always(Effect::TurnScale { factor: 0.94 }),
+        ),
+        case(
+            "turn_bias",
+            "only in the second half of the run",
+            vec![ScopedEffect {
                 effect: Effect::TurnBias { rad_per_s: 0.015 },
                 during: Some([duration_s / 2.0, duration_s]),
             }],
-            turn_inside: None,
-        },
+        ),
+        case(
+            "heading_drift",
+            tiny,
+            always(Effect::HeadingDrift { rad_per_m: 0.04 }),
+        ),
+        case(
+            "accel_limit",
+            tiny,
+            always(Effect::AccelLimit { m_per_s2: 0.4 }),
+        ),
+        case("slip", tiny, always(Effect::Slip { per_m_per_s: 0.3 })),
+    ]
+}
+
+/// The bench's effects of time (a fading battery), place (a zone, a flow)
+/// and body (play, noise, speed lost in turns, where the marker sits).
+fn bench_time_place_and_body() -> Vec<Case> {
+    let tiny = TINY;
+    vec![
+        case(
+            "battery_fade",
+            "grows slowly over the run",
+            always(Effect::BatteryFade { per_minute: 0.008 }),
+        ),
         Case {
-            name: "heading_drift",
-            concealment: tiny,
-            truth: always(Effect::HeadingDrift { rad_per_m: 0.04 }),
-            turn_inside: None,
-        },
-        Case {
-            name: "accel_limit",
-            concealment: tiny,
-            truth: always(Effect::AccelLimit { m_per_s2: 0.4 }),
-            turn_inside: None,
-        },
-        Case {
-            name: "slip",
-            concealment: tiny,
-            truth: always(Effect::Slip { per_m_per_s: 0.3 }),
-            turn_inside: None,
-        },
-        Case {
-            name: "battery_fade",
-            concealment: "grows slowly over the run",
-            truth: always(Effect::BatteryFade { per_minute: 0.008 }),
-            turn_inside: None,
-        },
-        Case {
-            name: "surface_zone",
-            concealment: "only in part of the map, visited mostly while turning",
-            truth: always(Effect::SurfaceZone {
-                region: ZONE,
-                speed_factor: 0.8,
-                turn_factor: 0.75,
-            }),
             turn_inside: Some(ZONE),
+            ..case(
+                "surface_zone",
+                "only in part of the map, visited mostly while turning",
+                always(Effect::SurfaceZone {
+                    region: ZONE,
+                    speed_factor: 0.8,
+                    turn_factor: 0.75,
+                }),
+            )
         },
-        Case {
-            name: "external_flow",
-            concealment: tiny,
-            truth: always(Effect::ExternalFlow {
+        case(
+            "external_flow",
+            tiny,
+            always(Effect::ExternalFlow {
                 vx: 0.006,
                 vy: -0.004,
             }),
-            turn_inside: None,
-        },
-        Case {
-            name: "hysteresis",
-            concealment: tiny,
-            truth: always(Effect::Hysteresis {
+        ),
+        case(
+            "hysteresis",
+            tiny,
+            always(Effect::Hysteresis {
                 play_rad_per_s: 0.08,
             }),
-            turn_inside: None,
-        },
-        Case {
-            name: "speed_noise",
-            concealment: "noise only, no bias",
-            // Variance 1 + 6 |v|: at 0.5 m/s, three quarters from driving.
-            truth: always(Effect::SpeedNoise {
+        ),
+        // Variance 1 + 6 |v|: at 0.5 m/s, three quarters from driving.
+        case(
+            "speed_noise",
+            "noise only, no bias",
+            always(Effect::SpeedNoise {
                 driving_share: 0.75,
                 at_m_per_s: 0.5,
             }),
-            turn_inside: None,
-        },
-        Case {
-            name: "turn_speed_loss",
-            concealment: tiny,
-            truth: always(Effect::TurnSpeedLoss {
+        ),
+        case(
+            "turn_speed_loss",
+            tiny,
+            always(Effect::TurnSpeedLoss {
                 per_rad_per_s: 0.15,
             }),
-            turn_inside: None,
-        },
-        Case {
-            // A marker 4 cm ahead of the axle and 1 cm to its right.
-            name: "turn_centre_offset",
-            concealment: tiny,
-            truth: always(Effect::TurnCentreOffset {
+        ),
+        // A marker 4 cm ahead of the axle and 1 cm to its right.
+        case(
+            "turn_centre_offset",
+            tiny,
+            always(Effect::TurnCentreOffset {
                 forward_m: 0.04,
                 left_m: -0.01,
             }),
-            turn_inside: None,
-        },
-        Case {
-            name: "latency+heading_drift",
-            concealment: "two effects together",
-            truth: vec![
+        ),
+    ]
+}
+
+/// The bench's two pairs of effects acting together.
+fn bench_pairs() -> Vec<Case> {
+    let pair = "two effects together";
+    vec![
+        case(
+            "latency+heading_drift",
+            pair,
+            vec![
                 ScopedEffect::always(Effect::Latency { seconds: 0.12 }),
                 ScopedEffect::always(Effect::HeadingDrift { rad_per_m: 0.04 }),
             ],
-            turn_inside: None,
-        },
-        Case {
-            name: "speed_scale+external_flow",
-            concealment: "two effects together",
-            truth: vec![
+        ),
+        case(
+            "speed_scale+external_flow",
+            pair,
+            vec![
                 ScopedEffect::always(Effect::SpeedScale { factor: 0.96 }),
                 ScopedEffect::always(Effect::ExternalFlow {
                     vx: 0.006,
                     vy: -0.004,
                 }),
             ],
-            turn_inside: None,
-        },
+        ),
     ]
 }
 
@@ -278,16 +298,16 @@ impl Generator {
 /// that act three and two at a time, in the combinations real robots show
 /// (a fading battery with a wrong turn gain; latency with turn losses).
 pub fn independent_cases(duration_s: f64) -> Vec<Case> {
-    let always = |effect| vec![ScopedEffect::always(effect)];
-    let case = |name, concealment, truth| Case {
-        name,
-        concealment,
-        truth,
-        turn_inside: None,
-    };
+    let mut out = independent_single_effects();
+    out.extend(independent_scoped(duration_s));
+    out.extend(independent_together());
+    out
+}
+
+/// The independent cases of one effect each, and the null case.
+fn independent_single_effects() -> Vec<Case> {
     let above = "a gain above 1";
     let other = "another size and sign than the bench's";
-    let together = "effects acting together";
     vec![
         case("null", "no effect", vec![]),
         case(
@@ -347,6 +367,12 @@ pub fn independent_cases(duration_s: f64) -> Vec<Case> {
                 left_m: 0.015,
             }),
         ),
+    ]
+}
+
+/// An effect in part of the run, and a zone of the floor.
+fn independent_scoped(duration_s: f64) -> Vec<Case> {
+    vec![
         case(
             "turn_bias",
             "only in the first third of the run",
@@ -364,6 +390,13 @@ pub fn independent_cases(duration_s: f64) -> Vec<Case> {
                 turn_factor: 0.85,
             }),
         ),
+    ]
+}
+
+/// Effects acting together, in the combinations real robots show.
+fn independent_together() -> Vec<Case> {
+    let together = "effects acting together";
+    vec![
         case(
             "latency+turn_scale+turn_speed_loss",
             together,
