@@ -36,7 +36,17 @@ pub fn fit_png(path: &Path, recording: &Recording, diagnosis: &Diagnosis) -> Res
         )
         .map_err(|e| error(&e))?;
     let (left, right) = root.split_horizontally(640);
+    draw_path(&left, recording, diagnosis).map_err(|e| error(&e))?;
+    draw_errors(&right, diagnosis).map_err(|e| error(&e))?;
+    root.present().map_err(|e| error(&e))?;
+    Ok(())
+}
 
+/// Where the plot draws: the bitmap, in pixels.
+type Area<'b> = DrawingArea<BitMapBackend<'b>, plotters::coord::Shift>;
+
+/// The left chart: the observed path and the regions where an effect was found.
+fn draw_path(area: &Area, recording: &Recording, diagnosis: &Diagnosis) -> DrawResult {
     let p = &recording.poses;
     let bounds = |v: &[f64]| {
         let lo = v.iter().copied().fold(f64::MAX, f64::min);
@@ -46,24 +56,21 @@ pub fn fit_png(path: &Path, recording: &Recording, diagnosis: &Diagnosis) -> Res
     };
     let (xr, yr) = (bounds(&p.x), bounds(&p.y));
     let side = (xr.end - xr.start).max(yr.end - yr.start);
-    let mut path_chart = ChartBuilder::on(&left)
+    let mut path_chart = ChartBuilder::on(area)
         .caption("Observed path and located regions", (FONT, 18))
         .margin(12)
         .x_label_area_size(45)
         .y_label_area_size(60)
-        .build_cartesian_2d(xr.start..xr.start + side, yr.start..yr.start + side)
-        .map_err(|e| error(&e))?;
-    draw_axes(&mut path_chart, "x (m)", "y (m)").map_err(|e| error(&e))?;
+        .build_cartesian_2d(xr.start..xr.start + side, yr.start..yr.start + side)?;
+    draw_axes(&mut path_chart, "x (m)", "y (m)")?;
     let zone_colour = RGBColor(255, 200, 120);
     let mut zone_labelled = false;
     for effect in &diagnosis.effects {
         if let Some([x0, y0, x1, y1]) = effect.place.region {
-            let series = path_chart
-                .draw_series(std::iter::once(Rectangle::new(
-                    [(x0, y0), (x1, y1)],
-                    zone_colour.filled(),
-                )))
-                .map_err(|e| error(&e))?;
+            let series = path_chart.draw_series(std::iter::once(Rectangle::new(
+                [(x0, y0), (x1, y1)],
+                zone_colour.filled(),
+            )))?;
             if !zone_labelled {
                 zone_labelled = true;
                 series
@@ -78,12 +85,16 @@ pub fn fit_png(path: &Path, recording: &Recording, diagnosis: &Diagnosis) -> Res
         .draw_series(LineSeries::new(
             p.x.iter().zip(&p.y).step_by(2).map(|(&x, &y)| (x, y)),
             BLACK.stroke_width(1),
-        ))
-        .map_err(|e| error(&e))?
+        ))?
         .label("observed path")
         .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLACK.stroke_width(2)));
-    draw_legend(&mut path_chart).map_err(|e| error(&e))?;
+    draw_legend(&mut path_chart)?;
+    Ok(())
+}
 
+/// The right chart: each held-out segment's position error over time, with
+/// the input model and with the fitted one.
+fn draw_errors(area: &Area, diagnosis: &Diagnosis) -> DrawResult {
     let errors = &diagnosis.heldout_errors;
     let t_end = errors.last().map_or(1.0, |e| e.0).max(1.0);
     let e_max_mm = errors
@@ -92,7 +103,7 @@ pub fn fit_png(path: &Path, recording: &Recording, diagnosis: &Diagnosis) -> Res
         .fold(0.0, f64::max)
         .max(1e-6)
         * 1e3;
-    let mut error_chart = ChartBuilder::on(&right)
+    let mut error_chart = ChartBuilder::on(area)
         .caption(
             format!(
                 "Held-out {:.0} s prediction error: RMSE {:.1} -> {:.1} mm",
@@ -105,21 +116,18 @@ pub fn fit_png(path: &Path, recording: &Recording, diagnosis: &Diagnosis) -> Res
         .margin(12)
         .x_label_area_size(45)
         .y_label_area_size(60)
-        .build_cartesian_2d(0.0..t_end, 0.0..e_max_mm * 1.05)
-        .map_err(|e| error(&e))?;
+        .build_cartesian_2d(0.0..t_end, 0.0..e_max_mm * 1.05)?;
     draw_axes(
         &mut error_chart,
         "time into the run (s)",
         "position error of the segment (mm)",
-    )
-    .map_err(|e| error(&e))?;
+    )?;
     error_chart
         .draw_series(
             errors
                 .iter()
                 .map(|&(t, plain, _)| Circle::new((t, plain * 1e3), 2, RED.filled())),
-        )
-        .map_err(|e| error(&e))?
+        )?
         .label("input model")
         .legend(|(x, y)| Circle::new((x + 8, y), 4, RED.filled()));
     error_chart
@@ -127,12 +135,10 @@ pub fn fit_png(path: &Path, recording: &Recording, diagnosis: &Diagnosis) -> Res
             errors
                 .iter()
                 .map(|&(t, _, better)| Circle::new((t, better * 1e3), 2, BLUE.filled())),
-        )
-        .map_err(|e| error(&e))?
+        )?
         .label("with the effects found")
         .legend(|(x, y)| Circle::new((x + 8, y), 4, BLUE.filled()));
-    draw_legend(&mut error_chart).map_err(|e| error(&e))?;
-    root.present().map_err(|e| error(&e))?;
+    draw_legend(&mut error_chart)?;
     Ok(())
 }
 
