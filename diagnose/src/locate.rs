@@ -168,6 +168,93 @@ pub fn holm(p: &[f64]) -> Vec<f64> {
     adjusted
 }
 
+/// The tests of one group: the mean of each component (along, across,
+/// heading) against its own spread, and the spread against the noise; each
+/// as (component, z, two-sided p), the spread as component 3.
+fn group_tests(
+    group: &Group,
+    standardised: &[[f64; 3]],
+    long_run: [f64; 3],
+) -> Vec<(usize, f64, f64)> {
+    let normal = Normal::standard();
+    let n = group.members.len() as f64;
+    let mut tests = Vec::with_capacity(4);
+    for c in 0..3 {
+        let values: Vec<f64> = group.members.iter().map(|&i| standardised[i][c]).collect();
+        let z = values.iter().sum::<f64>() / (n * long_run[c] * own_variance(&values)).sqrt();
+        tests.push((c, z, 2.0 * normal.sf(z.abs())));
+    }
+    // Spread: are the residuals larger (or smaller) than the noise says?
+    let dof = 3.0 * n;
+    let sum: f64 = group
+        .members
+        .iter()
+        .map(|&i| standardised[i].iter().map(|z| z * z).sum::<f64>())
+        .sum();
+    // Correlated residuals make the sum of squares vary more; for
+    // Gaussian ones squares correlate with rho^2 <= rho, so the mean
+    // inflation of the components bounds it.
+    let inflation = long_run.iter().sum::<f64>() / 3.0;
+    if inflation <= 1.0 + 1e-9 {
+        if let Ok(chi) = ChiSquared::new(dof) {
+            let p = 2.0 * chi.cdf(sum).min(chi.sf(sum));
+            tests.push((3, (sum - dof) / (2.0 * dof).sqrt(), p.min(1.0)));
+        }
+    } else {
+        let z = (sum - dof) / (2.0 * dof * inflation).sqrt();
+        tests.push((3, z, (2.0 * normal.sf(z.abs())).min(1.0)));
+    }
+    tests
+}
+
+/// Group `g` with its significant neighbours of the same family (adjacent
+/// time blocks or floor cells), which form one span or region: their
+/// segments, their region, and the strongest test among them as
+/// (component, p, z). Marks each neighbour taken.
+fn with_neighbours(
+    groups: &[Group],
+    best: &[Option<(usize, f64, f64)>],
+    g: usize,
+    taken: &mut [bool],
+) -> (Vec<usize>, Option<[f64; 4]>, (usize, f64, f64)) {
+    let mut members = groups[g].members.clone();
+    let mut region = groups[g].region;
+    let Some(mut strongest) = best[g] else {
+        return (members, region, (0, 1.0, 0.0));
+    };
+    if !matches!(groups[g].family, "time" | "place") {
+        return (members, region, strongest);
+    }
+    let mut frontier = vec![g];
+    while let Some(h) = frontier.pop() {
+        for k in 0..groups.len() {
+            let adjacent = groups[k].family == groups[h].family
+                && (groups[k].key.0 - groups[h].key.0).abs()
+                    + (groups[k].key.1 - groups[h].key.1).abs()
+                    == 1;
+            let Some(test) = best[k] else { continue };
+            if taken[k] || !adjacent {
+                continue;
+            }
+            taken[k] = true;
+            frontier.push(k);
+            members.extend_from_slice(&groups[k].members);
+            if let (Some(r), Some(o)) = (region, groups[k].region) {
+                region = Some([
+                    r[0].min(o[0]),
+                    r[1].min(o[1]),
+                    r[2].max(o[2]),
+                    r[3].max(o[3]),
+                ]);
+            }
+            if test.1 < strongest.1 {
+                strongest = test;
+            }
+        }
+    }
+    (members, region, strongest)
+}
+
 /// Tests `standardised` residuals (one per segment) and returns what is
 /// significant at `alpha` after correction, most significant first.
 ///
@@ -181,37 +268,16 @@ pub fn locate(
     long_run: [f64; 3],
     alpha: f64,
 ) -> Vec<Located> {
-    let normal = Normal::standard();
     let groups = groups(segments);
-    let mut tests: Vec<(usize, usize, f64, f64)> = Vec::new();
-    for (g, group) in groups.iter().enumerate() {
-        let n = group.members.len() as f64;
-        for c in 0..3 {
-            let values: Vec<f64> = group.members.iter().map(|&i| standardised[i][c]).collect();
-            let z = values.iter().sum::<f64>() / (n * long_run[c] * own_variance(&values)).sqrt();
-            tests.push((g, c, z, 2.0 * normal.sf(z.abs())));
-        }
-        // Spread: are the residuals larger (or smaller) than the noise says?
-        let dof = 3.0 * n;
-        let sum: f64 = group
-            .members
-            .iter()
-            .map(|&i| standardised[i].iter().map(|z| z * z).sum::<f64>())
-            .sum();
-        // Correlated residuals make the sum of squares vary more; for
-        // Gaussian ones squares correlate with rho^2 <= rho, so the mean
-        // inflation of the components bounds it.
-        let inflation = long_run.iter().sum::<f64>() / 3.0;
-        if inflation <= 1.0 + 1e-9 {
-            if let Ok(chi) = ChiSquared::new(dof) {
-                let p = 2.0 * chi.cdf(sum).min(chi.sf(sum));
-                tests.push((g, 3, (sum - dof) / (2.0 * dof).sqrt(), p.min(1.0)));
-            }
-        } else {
-            let z = (sum - dof) / (2.0 * dof * inflation).sqrt();
-            tests.push((g, 3, z, (2.0 * normal.sf(z.abs())).min(1.0)));
-        }
-    }
+    let tests: Vec<(usize, usize, f64, f64)> = groups
+        .iter()
+        .enumerate()
+        .flat_map(|(g, group)| {
+            group_tests(group, standardised, long_run)
+                .into_iter()
+                .map(move |(c, z, p)| (g, c, z, p))
+        })
+        .collect();
     let adjusted = holm(&tests.iter().map(|t| t.3).collect::<Vec<_>>());
     // The strongest significant test of each group.
     let mut best: Vec<Option<(usize, f64, f64)>> = vec![None; groups.len()];
@@ -223,44 +289,12 @@ pub fn locate(
     let mut found = Vec::new();
     let mut taken = vec![false; groups.len()];
     for g in 0..groups.len() {
-        let Some((c, p, z)) = best[g] else { continue };
-        if taken[g] {
+        if best[g].is_none() || taken[g] {
             continue;
         }
-        // Neighbouring significant blocks or cells form one span or region.
-        let mut members = groups[g].members.clone();
-        let mut region = groups[g].region;
-        let (mut p_min, mut z_best, mut component) = (p, z, c);
-        if matches!(groups[g].family, "time" | "place") {
-            let mut frontier = vec![g];
-            taken[g] = true;
-            while let Some(h) = frontier.pop() {
-                for k in 0..groups.len() {
-                    let adjacent = groups[k].family == groups[h].family
-                        && (groups[k].key.0 - groups[h].key.0).abs()
-                            + (groups[k].key.1 - groups[h].key.1).abs()
-                            == 1;
-                    if !taken[k] && adjacent && best[k].is_some() {
-                        taken[k] = true;
-                        frontier.push(k);
-                        members.extend_from_slice(&groups[k].members);
-                        if let (Some(r), Some(o)) = (region, groups[k].region) {
-                            region = Some([
-                                r[0].min(o[0]),
-                                r[1].min(o[1]),
-                                r[2].max(o[2]),
-                                r[3].max(o[3]),
-                            ]);
-                        }
-                        if let Some((kc, kp, kz)) = best[k]
-                            && kp < p_min
-                        {
-                            (p_min, z_best, component) = (kp, kz, kc);
-                        }
-                    }
-                }
-            }
-        }
+        taken[g] = true;
+        let (members, region, (component, p_min, z_best)) =
+            with_neighbours(&groups, &best, g, &mut taken);
         let t_start = members
             .iter()
             .map(|&i| segments[i].t_start)

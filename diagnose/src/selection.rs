@@ -10,7 +10,7 @@ use crate::entry::{
     EntryTest, calibrated_gain, calibrated_gain_of_move, components_of, entry_test_of_move,
     factors_of, factors_with,
 };
-use crate::fit::{fit, nll_of};
+use crate::fit::{Fitted, fit, nll_of};
 use crate::heldout::{CONTRADICTION_NATS, heldout_gain, heldout_gain_of_joint, must_transfer};
 use crate::likelihood::LongRun;
 use crate::locate::Located;
@@ -177,17 +177,16 @@ impl Selection<'_> {
         &self.prepared.segments
     }
 
-    /// One round: candidates are ranked on the screen, the best few fitted
-    /// on every segment (zones edge by edge) and judged with calibrated
-    /// gains; the best may then act in part of the run only.
-    fn round(&self, base: &[ScopedEffect], remaining: &[ScopedEffect]) -> Round {
-        let (grid, segs, options) = (self.grid(), self.segs(), self.options);
-        let base_nll = components_of(grid, segs, base);
-        let screen_current = nll_of(grid, &self.screen, base);
+    /// The best few candidates, by their fit on the screen (each already
+    /// fitted there, in `screened`), that lower its plain BIC. Ranking only:
+    /// the decision is made on all segments with calibrated gains.
+    fn ranked(
+        &self,
+        screened: &[Fitted],
+        remaining: &[ScopedEffect],
+        screen_current: f64,
+    ) -> Vec<ScopedEffect> {
         let screen_log_n = ((3 * self.screen.len()).max(2) as f64).ln();
-        let screened = fit_all(grid, &self.screen, base, remaining, options.max_iters);
-        // Ranking only: the screen's plain BIC orders the candidates; the
-        // decision below is made on all segments with calibrated gains.
         let mut ranked: Vec<(f64, ScopedEffect)> = screened
             .iter()
             .zip(remaining)
@@ -198,9 +197,15 @@ impl Selection<'_> {
             .filter(|(g, _)| *g < 0.0)
             .collect();
         ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
-        ranked.truncate(options.confirm);
-        let top: Vec<ScopedEffect> = ranked.into_iter().map(|(_, c)| c).collect();
-        let mut confirmed = fit_all(grid, segs, base, &top, options.max_iters / 2);
+        ranked.truncate(self.options.confirm);
+        ranked.into_iter().map(|(_, c)| c).collect()
+    }
+
+    /// `top` fitted on every segment beside `base`, zones edge by edge; a
+    /// zone over the whole floor is dropped (it is no place).
+    fn confirmed(&self, base: &[ScopedEffect], top: &[ScopedEffect]) -> Vec<Fitted> {
+        let (grid, segs, options) = (self.grid(), self.segs(), self.options);
+        let mut confirmed = fit_all(grid, segs, base, top, options.max_iters / 2);
         for fitted in &mut confirmed {
             let zone = refine_zone(
                 grid,
@@ -223,6 +228,19 @@ impl Selection<'_> {
             }
             !whole
         });
+        confirmed
+    }
+
+    /// One round: candidates are ranked on the screen, the best few fitted
+    /// on every segment (zones edge by edge) and judged with calibrated
+    /// gains; the best may then act in part of the run only.
+    fn round(&self, base: &[ScopedEffect], remaining: &[ScopedEffect]) -> Round {
+        let (grid, segs, options) = (self.grid(), self.segs(), self.options);
+        let base_nll = components_of(grid, segs, base);
+        let screen_current = nll_of(grid, &self.screen, base);
+        let screened = fit_all(grid, &self.screen, base, remaining, options.max_iters);
+        let top = self.ranked(&screened, remaining, screen_current);
+        let confirmed = self.confirmed(base, &top);
         let Some(best_fit) = confirmed.iter().min_by(|a, b| a.nll.total_cmp(&b.nll)) else {
             return Round::Done;
         };
