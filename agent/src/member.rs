@@ -130,29 +130,7 @@ impl Member {
     pub fn period(&mut self, heard: &Heard, previous: &PoseSample, scenario: &Scenario) -> Said {
         let me = self.robot.body.pose.position();
         let step = scenario.bus.listen_step;
-        let radius = self.range.sense_radius(step);
-        let died_nearby: Vec<u32> = heard
-            .dropped
-            .iter()
-            .filter(|s| DVec2::new(s.x, s.y).distance(me) <= radius)
-            .map(|s| s.agent_id)
-            .collect();
-        let acted_on: Vec<&PoseSample> = heard
-            .current
-            .iter()
-            .filter(|s| DVec2::new(s.x, s.y).distance(me) <= radius)
-            .collect();
-        let sensed: Vec<Neighbour> = acted_on
-            .iter()
-            .map(|s| Neighbour {
-                id: s.agent_id,
-                position: DVec2::new(s.x, s.y),
-            })
-            .collect();
-        let oldest_s = acted_on
-            .iter()
-            .map(|s| heard.now_s - s.sim_time)
-            .fold(0.0, f64::max);
+        let (sensed, died_nearby, oldest_s) = within(heard, me, self.range.sense_radius(step));
         if let Some(last) = self.last_period {
             let missed = heard.tick.saturating_sub(last + 1);
             self.missed_periods = self
@@ -173,20 +151,6 @@ impl Member {
         let bodies: Vec<DVec2> = sensed.iter().map(|n| n.position).collect();
         let ranges = self.robot.scan(scenario, &bodies);
         let scan = self.scan_sample(heard, &decision, &ranges, scenario);
-        let mut health = 0;
-        if decision.outcome.bumped {
-            health |= Health::BUMPED;
-        }
-        if sensed.is_empty() {
-            health |= Health::ISOLATED;
-        }
-        if heard.rejected > 0 {
-            health |= Health::REJECTED_INPUT;
-        }
-        let mut neighbours = [0; MAX_NEIGHBOURS];
-        for (slot, n) in neighbours.iter_mut().zip(&decision.tracked) {
-            *slot = n.id;
-        }
         let dt = scenario.timing.period_s;
         let believed = self.robot.believed;
         let pose = PoseSample {
@@ -201,10 +165,10 @@ impl Member {
             vx: (after.x - before.x) / dt,
             vy: (after.y - before.y) / dt,
             command: decision.command.index() as u32,
-            health,
+            health: health_of(&decision, &sensed, heard),
             visible: sensed.len() as u32,
             neighbour_count: decision.tracked.len().min(MAX_NEIGHBOURS) as u32,
-            neighbours,
+            neighbours: neighbour_ids(&decision),
             missed_periods: self.missed_periods,
             neighbour_age_ms: (oldest_s * 1000.0).round().min(f64::from(u32::MAX)) as u32,
             ..*previous
@@ -229,6 +193,55 @@ impl Member {
             died_nearby,
         }
     }
+}
+
+/// The neighbours `heard` within `radius` of `me`, those that fell silent
+/// there (by id) and the age of the oldest pose acted on (seconds).
+fn within(heard: &Heard, me: DVec2, radius: f64) -> (Vec<Neighbour>, Vec<u32>, f64) {
+    let near = |s: &&PoseSample| DVec2::new(s.x, s.y).distance(me) <= radius;
+    let died_nearby = heard
+        .dropped
+        .iter()
+        .filter(near)
+        .map(|s| s.agent_id)
+        .collect();
+    let acted_on: Vec<&PoseSample> = heard.current.iter().filter(near).collect();
+    let sensed = acted_on
+        .iter()
+        .map(|s| Neighbour {
+            id: s.agent_id,
+            position: DVec2::new(s.x, s.y),
+        })
+        .collect();
+    let oldest_s = acted_on
+        .iter()
+        .map(|s| heard.now_s - s.sim_time)
+        .fold(0.0, f64::max);
+    (sensed, died_nearby, oldest_s)
+}
+
+/// The health flags of a period.
+fn health_of(decision: &Decision, sensed: &[Neighbour], heard: &Heard) -> u32 {
+    let mut health = 0;
+    if decision.outcome.bumped {
+        health |= Health::BUMPED;
+    }
+    if sensed.is_empty() {
+        health |= Health::ISOLATED;
+    }
+    if heard.rejected > 0 {
+        health |= Health::REJECTED_INPUT;
+    }
+    health
+}
+
+/// The ids of the neighbours a decision tracked, in its pose sample's slots.
+fn neighbour_ids(decision: &Decision) -> [u32; MAX_NEIGHBOURS] {
+    let mut neighbours = [0; MAX_NEIGHBOURS];
+    for (slot, n) in neighbours.iter_mut().zip(&decision.tracked) {
+        *slot = n.id;
+    }
+    neighbours
 }
 
 #[cfg(test)]
