@@ -9,6 +9,7 @@ use glam::DVec2;
 use rand::{Rng, SeedableRng};
 use serde::Serialize;
 use shoal_broker::BusLimits;
+use shoal_broker::SlamMap;
 use shoal_broker::robot_streams;
 use shoal_physics::legged::Param;
 use shoal_physics::{Command, MotionModel, Pose, Scenario, Surface, wrap_angle};
@@ -88,6 +89,43 @@ fn true_model(base: &MotionModel, surface: Option<&Surface>) -> MotionModel {
     )
 }
 
+/// Position and heading RMSE of the estimates of ticks `1..=ticks` against
+/// the truth, and how many were compared (NaN where none were).
+fn rmse(
+    estimated: &BTreeMap<u64, Pose>,
+    truth: &BTreeMap<u64, Pose>,
+    ticks: u64,
+) -> (f64, f64, f64) {
+    let (mut pos, mut theta, mut n) = (0.0, 0.0, 0.0);
+    for (tick, e) in estimated.range(1..=ticks) {
+        if let Some(t) = truth.get(tick) {
+            pos += e.position().distance_squared(t.position());
+            theta += wrap_angle(e.theta - t.theta).powi(2);
+            n += 1.0;
+        }
+    }
+    if n > 0.0 {
+        ((pos / n).sqrt(), (theta / n).sqrt(), n)
+    } else {
+        (f64::NAN, f64::NAN, n)
+    }
+}
+
+/// How far SLAM's last map is from the arena's walls.
+fn map_error_of(m: &SlamMap, scenario: &Scenario) -> Option<f64> {
+    let cells = (m.width * m.height) as usize;
+    map_error(
+        &CoarseMap {
+            width: m.width as usize,
+            height: m.height as usize,
+            cell_size: f64::from(m.cell_size),
+            origin: DVec2::new(f64::from(m.origin[0]), f64::from(m.origin[1])),
+            cells: &m.cells[..cells.min(m.cells.len())],
+        },
+        &scenario.arena,
+    )
+}
+
 fn run_once(
     label: &str,
     index: usize,
@@ -147,36 +185,12 @@ fn run_once(
     }
     swarm.shutdown()?;
 
-    let (mut pos, mut theta, mut n) = (0.0, 0.0, 0.0);
-    for (tick, e) in estimated.range(1..=ticks) {
-        if let Some(t) = truth.get(tick) {
-            pos += e.position().distance_squared(t.position());
-            theta += wrap_angle(e.theta - t.theta).powi(2);
-            n += 1.0;
-        }
-    }
-    let map_error = last_map.and_then(|m| {
-        let cells = (m.width * m.height) as usize;
-        map_error(
-            &CoarseMap {
-                width: m.width as usize,
-                height: m.height as usize,
-                cell_size: f64::from(m.cell_size),
-                origin: DVec2::new(f64::from(m.origin[0]), f64::from(m.origin[1])),
-                cells: &m.cells[..cells.min(m.cells.len())],
-            },
-            &scenario.arena,
-        )
-    });
     let truth_now = true_model(&scenario.motion, scenario.arena.surfaces.last());
+    let (pos_rmse_m, theta_rmse_rad, n) = rmse(&estimated, &truth, ticks);
     let scores = Scores {
-        pos_rmse_m: if n > 0.0 { (pos / n).sqrt() } else { f64::NAN },
-        theta_rmse_rad: if n > 0.0 {
-            (theta / n).sqrt()
-        } else {
-            f64::NAN
-        },
-        map_error,
+        pos_rmse_m,
+        theta_rmse_rad,
+        map_error: last_map.and_then(|m| map_error_of(&m, scenario)),
         param_error: learned.distance_over(&truth_now, &USED),
     };
     eprintln!(
