@@ -43,67 +43,17 @@ fn read_rows(text: &str, file: &str, layout: Layout) -> Result<Vec<(usize, Vec<f
     };
     let (columns, rows_of_fields) = match layout {
         Layout::Csv { columns } => (columns, csv_fields(text, file, columns)?),
-        Layout::Whitespace { columns } => {
-            let rows = text
-                .lines()
-                .enumerate()
-                .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'))
-                .map(|(index, line)| {
-                    (
-                        index + 1,
-                        line.split_whitespace().map(str::to_owned).collect(),
-                    )
-                })
-                .collect();
-            (columns, rows)
-        }
+        Layout::Whitespace { columns } => (columns, whitespace_fields(text)),
     };
     let mut rows = Vec::new();
     let mut last_time = f64::NEG_INFINITY;
     for (number, fields) in rows_of_fields {
-        let mut values = Vec::with_capacity(columns.len());
-        for (position, column) in columns.iter().enumerate() {
-            let Some(field) = fields.get(position) else {
-                return Err(error(number, format!("missing field `{column}`")));
-            };
-            let value: f64 = field.parse().map_err(|_| {
-                error(
-                    number,
-                    format!("field `{column}` is not a number: `{field}`"),
-                )
-            })?;
-            if !value.is_finite() {
-                return Err(error(
-                    number,
-                    format!("field `{column}` is not finite: `{field}`"),
-                ));
-            }
-            values.push(value);
-        }
-        if values[0] < last_time {
-            return Err(error(
-                number,
-                format!(
-                    "times go backwards: `{}` = {} after {last_time}; rows must be sorted by time",
-                    columns[0], values[0]
-                ),
-            ));
-        }
+        let values = numbers(&fields, columns).map_err(|message| error(number, message))?;
         let first_time = rows
             .first()
             .map_or(values[0], |(_, r): &(usize, Vec<f64>)| r[0]);
-        if values[0] - first_time > MAX_SPAN_S {
-            return Err(error(
-                number,
-                format!(
-                    "`{}` = {} is {:.0} s after the first row; runs longer than {} h are not diagnosed (a time in the wrong unit?)",
-                    columns[0],
-                    values[0],
-                    values[0] - first_time,
-                    MAX_SPAN_S / 3600.0
-                ),
-            ));
-        }
+        check_time(columns[0], values[0], last_time, first_time)
+            .map_err(|message| error(number, message))?;
         last_time = values[0];
         rows.push((number, values));
     }
@@ -115,6 +65,98 @@ fn read_rows(text: &str, file: &str, layout: Layout) -> Result<Vec<(usize, Vec<f
         });
     }
     Ok(rows)
+}
+
+/// A whitespace-separated file's fields, each row with its line number;
+/// blank lines and `#` comments skipped.
+fn whitespace_fields(text: &str) -> Vec<(usize, Vec<String>)> {
+    text.lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'))
+        .map(|(index, line)| {
+            (
+                index + 1,
+                line.split_whitespace().map(str::to_owned).collect(),
+            )
+        })
+        .collect()
+}
+
+/// The finite numbers of a row's `fields`, one per column, or what is wrong.
+fn numbers(fields: &[String], columns: &[&str]) -> Result<Vec<f64>, String> {
+    let mut values = Vec::with_capacity(columns.len());
+    for (position, column) in columns.iter().enumerate() {
+        let Some(field) = fields.get(position) else {
+            return Err(format!("missing field `{column}`"));
+        };
+        let value: f64 = field
+            .parse()
+            .map_err(|_| format!("field `{column}` is not a number: `{field}`"))?;
+        if !value.is_finite() {
+            return Err(format!("field `{column}` is not finite: `{field}`"));
+        }
+        values.push(value);
+    }
+    Ok(values)
+}
+
+/// A row's time `t` (column `name`) after the last row's and within
+/// [`MAX_SPAN_S`] of the first row's, or what is wrong.
+fn check_time(name: &str, t: f64, last_time: f64, first_time: f64) -> Result<(), String> {
+    if t < last_time {
+        return Err(format!(
+            "times go backwards: `{name}` = {t} after {last_time}; rows must be sorted by time"
+        ));
+    }
+    if t - first_time > MAX_SPAN_S {
+        return Err(format!(
+            "`{name}` = {t} is {:.0} s after the first row; runs longer than {} h are not diagnosed (a time in the wrong unit?)",
+            t - first_time,
+            MAX_SPAN_S / 3600.0
+        ));
+    }
+    Ok(())
+}
+
+/// The line of each CSV record, from its byte offset. The reader's
+/// positions are unreliable with CRLF and comments (they can point at the
+/// previous record's line end, and its line count skips comments), so a
+/// record's line is found past line ends and comment lines to where the
+/// record's text starts. Records come in order, so counting on from the
+/// previous one keeps this linear in the file's length.
+struct LineFinder<'a> {
+    bytes: &'a [u8],
+    /// Byte counted up to, and the line number there.
+    counted: (usize, usize),
+}
+
+impl LineFinder<'_> {
+    fn line_of(&mut self, position: Option<&csv::Position>) -> Option<usize> {
+        let bytes = self.bytes;
+        position.map(|p| {
+            let mut at = (p.byte() as usize).clamp(self.counted.0, bytes.len());
+            loop {
+                while at < bytes.len() && matches!(bytes[at], b'\r' | b'\n') {
+                    at += 1;
+                }
+                let line_start = at == 0 || bytes[at - 1] == b'\n';
+                if at < bytes.len() && bytes[at] == b'#' && line_start {
+                    at = bytes[at..]
+                        .iter()
+                        .position(|&b| b == b'\n')
+                        .map_or(bytes.len(), |n| at + n + 1);
+                    continue;
+                }
+                break;
+            }
+            self.counted.1 += bytes[self.counted.0..at]
+                .iter()
+                .filter(|&&b| b == b'\n')
+                .count();
+            self.counted.0 = at;
+            self.counted.1
+        })
+    }
 }
 
 /// A CSV file's fields in `columns`' order, each row with its line number:
@@ -136,36 +178,11 @@ fn csv_fields(
         .comment(Some(b'#'))
         .flexible(true)
         .from_reader(text.as_bytes());
-    // The reader's positions are unreliable with CRLF and comments (they
-    // can point at the previous record's line end, and its line count
-    // skips comments), so a record's line is found from its byte offset:
-    // past line ends and comment lines to where the record's text starts.
-    // Records come in order, so counting on from the previous one keeps
-    // this linear in the file's length.
-    let bytes = text.as_bytes();
-    let mut counted = (0_usize, 1_usize);
-    let mut line_of = |position: Option<&csv::Position>| {
-        position.map(|p| {
-            let mut at = (p.byte() as usize).clamp(counted.0, bytes.len());
-            loop {
-                while at < bytes.len() && matches!(bytes[at], b'\r' | b'\n') {
-                    at += 1;
-                }
-                let line_start = at == 0 || bytes[at - 1] == b'\n';
-                if at < bytes.len() && bytes[at] == b'#' && line_start {
-                    at = bytes[at..]
-                        .iter()
-                        .position(|&b| b == b'\n')
-                        .map_or(bytes.len(), |n| at + n + 1);
-                    continue;
-                }
-                break;
-            }
-            counted.1 += bytes[counted.0..at].iter().filter(|&&b| b == b'\n').count();
-            counted.0 = at;
-            counted.1
-        })
+    let mut lines = LineFinder {
+        bytes: text.as_bytes(),
+        counted: (0, 1),
     };
+    let mut line_of = |position: Option<&csv::Position>| lines.line_of(position);
     let header = reader
         .headers()
         .map_err(|e| {
