@@ -7,21 +7,8 @@ use shoal_physics::{Arena, Obstacle};
 /// Cell size of the logged occupancy map, metres.
 const MAP_CELL_M: f64 = 0.05;
 
-pub fn log_arena(rec: &RecordingStream, arena: &Arena) -> rerun::RecordingStreamResult<()> {
-    let walls: Vec<Vec<[f32; 2]>> = arena
-        .all_walls()
-        .map(|w| {
-            vec![
-                [w.from[0] as f32, w.from[1] as f32],
-                [w.to[0] as f32, w.to[1] as f32],
-            ]
-        })
-        .collect();
-    rec.log_static(
-        "world/arena/walls",
-        &rerun::LineStrips2D::new(walls).with_colors([rerun::Color::from_rgb(200, 200, 200)]),
-    )?;
-
+/// The arena's discs and boxes, grey.
+fn log_obstacles(rec: &RecordingStream, arena: &Arena) -> rerun::RecordingStreamResult<()> {
     let (discs, boxes): (Vec<&Obstacle>, Vec<&Obstacle>) = arena
         .obstacles
         .iter()
@@ -61,7 +48,11 @@ pub fn log_arena(rec: &RecordingStream, arena: &Arena) -> rerun::RecordingStream
         &rerun::Boxes2D::from_mins_and_sizes(mins, sizes)
             .with_colors([rerun::Color::from_rgb(120, 120, 120)]),
     )?;
+    Ok(())
+}
 
+/// The arena's surfaces as labelled boxes under everything else.
+fn log_surfaces(rec: &RecordingStream, arena: &Arena) -> rerun::RecordingStreamResult<()> {
     let (mins, sizes): (Vec<[f32; 2]>, Vec<[f32; 2]>) = arena
         .surfaces
         .iter()
@@ -82,7 +73,26 @@ pub fn log_arena(rec: &RecordingStream, arena: &Arena) -> rerun::RecordingStream
             .with_labels(labels)
             .with_draw_order(-10.0),
     )?;
+    Ok(())
+}
 
+pub fn log_arena(rec: &RecordingStream, arena: &Arena) -> rerun::RecordingStreamResult<()> {
+    let walls: Vec<Vec<[f32; 2]>> = arena
+        .all_walls()
+        .map(|w| {
+            vec![
+                [w.from[0] as f32, w.from[1] as f32],
+                [w.to[0] as f32, w.to[1] as f32],
+            ]
+        })
+        .collect();
+    rec.log_static(
+        "world/arena/walls",
+        &rerun::LineStrips2D::new(walls).with_colors([rerun::Color::from_rgb(200, 200, 200)]),
+    )?;
+
+    log_obstacles(rec, arena)?;
+    log_surfaces(rec, arena)?;
     let (width, height, cells) = occupancy(arena);
     rec.log_static(
         "world/arena/map",
