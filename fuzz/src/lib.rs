@@ -97,51 +97,34 @@ impl Target {
     const FILE: &'static str = "fuzzed-input";
 
     fn run_one(self, rng: &mut StdRng, seeds: &Seeds) -> Outcome {
+        use shoal_diagnose::input;
         match self {
-            Target::Scenario => text_outcome(
-                shoal_physics::Scenario::from_toml(&mutate(rng, &seeds.scenario), Self::FILE)
-                    .map(|_| ()),
-            ),
-            Target::MotionModel => text_outcome(
-                shoal_physics::MotionModel::from_toml(
-                    &mutate(rng, &seeds.motion_model),
-                    Self::FILE,
-                )
-                .map(|_| ()),
-            ),
-            Target::EffectsModel => text_outcome(
-                shoal_physics::UnicycleModel::from_toml(
-                    &mutate(rng, &seeds.effects_model),
-                    Self::FILE,
-                )
-                .map(|_| ()),
-            ),
-            Target::CommandsCsv => text_outcome(
-                shoal_diagnose::input::commands_csv(&mutate(rng, &seeds.commands_csv), Self::FILE)
-                    .map(|_| ()),
-            ),
-            Target::PosesCsv => text_outcome(
-                shoal_diagnose::input::poses_csv(&mutate(rng, &seeds.poses_csv), Self::FILE).map(
-                    |poses| {
-                        // The outlier filter runs on whatever parsed.
-                        let _ = poses.without_outliers();
-                    },
-                ),
-            ),
-            Target::MrclamOdometry => text_outcome(
-                shoal_diagnose::input::mrclam_odometry(
-                    &mutate(rng, &seeds.mrclam_odometry),
-                    Self::FILE,
-                )
-                .map(|_| ()),
-            ),
-            Target::MrclamGroundtruth => text_outcome(
-                shoal_diagnose::input::mrclam_groundtruth(
-                    &mutate(rng, &seeds.mrclam_groundtruth),
-                    Self::FILE,
-                )
-                .map(|_| ()),
-            ),
+            Target::Scenario => parse_mutated(rng, &seeds.scenario, |text, file| {
+                shoal_physics::Scenario::from_toml(text, file).map(|_| ())
+            }),
+            Target::MotionModel => parse_mutated(rng, &seeds.motion_model, |text, file| {
+                shoal_physics::MotionModel::from_toml(text, file).map(|_| ())
+            }),
+            Target::EffectsModel => parse_mutated(rng, &seeds.effects_model, |text, file| {
+                shoal_physics::UnicycleModel::from_toml(text, file).map(|_| ())
+            }),
+            Target::CommandsCsv => parse_mutated(rng, &seeds.commands_csv, |text, file| {
+                input::commands_csv(text, file).map(|_| ())
+            }),
+            Target::PosesCsv => parse_mutated(rng, &seeds.poses_csv, |text, file| {
+                // The outlier filter runs on whatever parsed.
+                input::poses_csv(text, file).map(|poses| {
+                    let _ = poses.without_outliers();
+                })
+            }),
+            Target::MrclamOdometry => parse_mutated(rng, &seeds.mrclam_odometry, |text, file| {
+                input::mrclam_odometry(text, file).map(|_| ())
+            }),
+            Target::MrclamGroundtruth => {
+                parse_mutated(rng, &seeds.mrclam_groundtruth, |text, file| {
+                    input::mrclam_groundtruth(text, file).map(|_| ())
+                })
+            }
             Target::Pose => wire_outcome::<shoal_broker::PoseSample>(rng),
             Target::ClockTick => wire_outcome::<shoal_broker::ClockTick>(rng),
             Target::HelperProgress => wire_outcome::<shoal_broker::HelperProgress>(rng),
@@ -150,33 +133,8 @@ impl Target {
             Target::ModelUpdate => wire_outcome::<shoal_broker::ModelUpdate>(rng),
             Target::SlamParticles => wire_outcome::<shoal_broker::SlamParticles>(rng),
             Target::SlamMap => wire_outcome::<shoal_broker::SlamMap>(rng),
-            Target::RosBag => text_outcome(
-                shoal_bags::read_run(
-                    &shoal_bags::Bag::from_bytes(
-                        std::path::Path::new(Self::FILE),
-                        mutate_bytes(rng, &seeds.ros_bag),
-                    ),
-                    &shoal_bags::Selection {
-                        commands_topic: shoal_bags::write::WRITTEN_COMMANDS_TOPIC,
-                        poses_topic: shoal_bags::write::WRITTEN_POSES_TOPIC,
-                        ..Default::default()
-                    },
-                    shoal_bags::StampsPreference::Auto,
-                )
-                .map(|_| ()),
-            ),
-            Target::LinkPose => {
-                let bytes = mutate_bytes(rng, &seeds.link_pose);
-                message_outcome(
-                    shoal_link::wire::RemotePose::decode(&bytes)
-                        .map_err(|e| e.to_string())
-                        .and_then(|pose| {
-                            pose.in_local_time(pose.epoch_unix_ms, 0.2)
-                                .ok_or_else(|| "a time before this host's clock".to_owned())
-                        })
-                        .and_then(|sample| sample.check().map_err(|e| e.to_string())),
-                )
-            }
+            Target::RosBag => bag_outcome(rng, &seeds.ros_bag),
+            Target::LinkPose => link_pose_outcome(rng, &seeds.link_pose),
             Target::HostSummary => message_outcome(
                 serde_json::from_str::<shoal_link::wire::HostSummary>(&mutate(
                     rng,
@@ -187,6 +145,49 @@ impl Target {
             ),
         }
     }
+}
+
+/// Parses a mutation of the text file `seed` and judges the outcome.
+fn parse_mutated<E: std::fmt::Display>(
+    rng: &mut StdRng,
+    seed: &str,
+    parse: impl FnOnce(&str, &str) -> Result<(), E>,
+) -> Outcome {
+    text_outcome(parse(&mutate(rng, seed), Target::FILE))
+}
+
+/// Reads a mutation of the bag `seed` as a run.
+fn bag_outcome(rng: &mut StdRng, seed: &[u8]) -> Outcome {
+    text_outcome(
+        shoal_bags::read_run(
+            &shoal_bags::Bag::from_bytes(
+                std::path::Path::new(Target::FILE),
+                mutate_bytes(rng, seed),
+            ),
+            &shoal_bags::Selection {
+                commands_topic: shoal_bags::write::WRITTEN_COMMANDS_TOPIC,
+                poses_topic: shoal_bags::write::WRITTEN_POSES_TOPIC,
+                ..Default::default()
+            },
+            shoal_bags::StampsPreference::Auto,
+        )
+        .map(|_| ()),
+    )
+}
+
+/// Decodes a mutation of the remote pose `seed` as the link does: the
+/// message, its time on this host's clock, the sample's checks.
+fn link_pose_outcome(rng: &mut StdRng, seed: &[u8]) -> Outcome {
+    let bytes = mutate_bytes(rng, seed);
+    message_outcome(
+        shoal_link::wire::RemotePose::decode(&bytes)
+            .map_err(|e| e.to_string())
+            .and_then(|pose| {
+                pose.in_local_time(pose.epoch_unix_ms, 0.2)
+                    .ok_or_else(|| "a time before this host's clock".to_owned())
+            })
+            .and_then(|sample| sample.check().map_err(|e| e.to_string())),
+    )
 }
 
 /// Judges a network message's rejection: it must say what is wrong.
@@ -536,57 +537,7 @@ impl Seeds {
     /// error (fuzzing an empty seed would test nothing and say it passed).
     pub fn new() -> anyhow::Result<Self> {
         use anyhow::Context as _;
-        use shoal_physics::{Effect, ScopedEffect, UnicycleModel};
-        let mut scenario = shoal_physics::Scenario::default_arena();
-        scenario.arena.surfaces.push(shoal_physics::Surface {
-            name: "mud".into(),
-            region: [1.0, 1.0, 3.0, 2.0],
-            along_scale: 0.5,
-            across_scale: 1.0,
-            turn_scale: 0.8,
-            from_s: 10.0,
-        });
-        // One effect of every shape of parameter: scalars, a region, a vector, a span.
-        let effects = UnicycleModel::with_effects(vec![
-            ScopedEffect::always(Effect::ActuatorLag { seconds: 0.12 }),
-            ScopedEffect::always(Effect::Slip { per_m_per_s: 0.3 }),
-            ScopedEffect::always(Effect::ExternalFlow {
-                vx: 0.01,
-                vy: -0.02,
-            }),
-            ScopedEffect {
-                effect: Effect::SurfaceZone {
-                    region: [0.5, 0.5, 3.0, 2.5],
-                    speed_factor: 0.6,
-                    turn_factor: 0.8,
-                },
-                during: Some([5.0, 30.0]),
-            },
-            ScopedEffect::always(Effect::TurnBias { rad_per_s: 0.02 }),
-        ]);
-        let mut commands = String::from("t,v,omega\n");
-        let mut poses = String::from("t,x,y,theta\n");
-        let mut odometry =
-            String::from("# Time [s]\tforward velocity [m/s]\tangular velocity[rad/s]\n");
-        let mut truth = String::from("# Time [s]\tx [m]\ty [m]\torientation [rad]\n");
-        for i in 0..40 {
-            let t = f64::from(i) * 0.1;
-            commands.push_str(&format!("{t:.2},0.2,0.1\n"));
-            poses.push_str(&format!(
-                "{t:.2},{:.4},{:.4},{:.4}\n",
-                0.02 * t,
-                0.001 * t,
-                0.01 * t
-            ));
-            odometry.push_str(&format!("{:.3}\t0.2\t-0.05\n", 1248272272.841 + t));
-            truth.push_str(&format!(
-                "{:.3}\t{:.4}\t{:.4}\t{:.4}\n",
-                1248272272.841 + t,
-                1.0 + 0.02 * t,
-                -2.0,
-                3.1
-            ));
-        }
+        let (commands, poses, odometry, truth) = run_seeds();
         // The bag holds the CSV seeds' run; both parse, as the unit tests show.
         let run = shoal_diagnose::input::commands_csv(&commands, "seed")
             .and_then(|c| Ok((c, shoal_diagnose::input::poses_csv(&poses, "seed")?)))
@@ -596,10 +547,10 @@ impl Seeds {
             ros_bag: shoal_bags::write::write_bag(&run.commands.rows(), &run.poses.rows())
                 .map_err(anyhow::Error::msg)
                 .context("the ROS 2 bag seed")?,
-            scenario: scenario.to_toml().context("the scenario seed")?,
+            scenario: scenario_seed().to_toml().context("the scenario seed")?,
             motion_model: toml::to_string(&shoal_physics::MotionModel::legged_default())
                 .context("the motion model seed")?,
-            effects_model: effects.to_toml().context("the effects model seed")?,
+            effects_model: effects_seed().to_toml().context("the effects model seed")?,
             commands_csv: commands,
             poses_csv: poses,
             mrclam_odometry: odometry,
@@ -609,23 +560,93 @@ impl Seeds {
                 sample: shoal_broker::PoseSample::example(),
             }
             .encode(),
-            host_summary: serde_json::to_string(&shoal_link::wire::HostSummary {
-                host: "b".into(),
-                epoch_unix_ms: 1_764_000_000_000,
-                robots: vec![shoal_link::report::RemoteRobot {
-                    id: 100,
-                    pid: 4321,
-                    x: 3.5,
-                    y: 2.0,
-                    theta: 0.25,
-                    tick: 80,
-                    neighbours: vec![101, 3],
-                    missed_periods: 0,
-                    neighbour_age_ms: 210,
-                }],
-            })
-            .context("the host summary seed")?,
+            host_summary: serde_json::to_string(&host_summary_seed())
+                .context("the host summary seed")?,
         })
+    }
+}
+
+/// A scenario with a surface that changes in time.
+fn scenario_seed() -> shoal_physics::Scenario {
+    let mut scenario = shoal_physics::Scenario::default_arena();
+    scenario.arena.surfaces.push(shoal_physics::Surface {
+        name: "mud".into(),
+        region: [1.0, 1.0, 3.0, 2.0],
+        along_scale: 0.5,
+        across_scale: 1.0,
+        turn_scale: 0.8,
+        from_s: 10.0,
+    });
+    scenario
+}
+
+/// One effect of every shape of parameter: scalars, a region, a vector, a span.
+fn effects_seed() -> shoal_physics::UnicycleModel {
+    use shoal_physics::{Effect, ScopedEffect, UnicycleModel};
+    UnicycleModel::with_effects(vec![
+        ScopedEffect::always(Effect::ActuatorLag { seconds: 0.12 }),
+        ScopedEffect::always(Effect::Slip { per_m_per_s: 0.3 }),
+        ScopedEffect::always(Effect::ExternalFlow {
+            vx: 0.01,
+            vy: -0.02,
+        }),
+        ScopedEffect {
+            effect: Effect::SurfaceZone {
+                region: [0.5, 0.5, 3.0, 2.5],
+                speed_factor: 0.6,
+                turn_factor: 0.8,
+            },
+            during: Some([5.0, 30.0]),
+        },
+        ScopedEffect::always(Effect::TurnBias { rad_per_s: 0.02 }),
+    ])
+}
+
+/// A short run as CSV commands and poses, and as MRCLAM odometry and
+/// ground truth.
+fn run_seeds() -> (String, String, String, String) {
+    let mut commands = String::from("t,v,omega\n");
+    let mut poses = String::from("t,x,y,theta\n");
+    let mut odometry =
+        String::from("# Time [s]\tforward velocity [m/s]\tangular velocity[rad/s]\n");
+    let mut truth = String::from("# Time [s]\tx [m]\ty [m]\torientation [rad]\n");
+    for i in 0..40 {
+        let t = f64::from(i) * 0.1;
+        commands.push_str(&format!("{t:.2},0.2,0.1\n"));
+        poses.push_str(&format!(
+            "{t:.2},{:.4},{:.4},{:.4}\n",
+            0.02 * t,
+            0.001 * t,
+            0.01 * t
+        ));
+        odometry.push_str(&format!("{:.3}\t0.2\t-0.05\n", 1248272272.841 + t));
+        truth.push_str(&format!(
+            "{:.3}\t{:.4}\t{:.4}\t{:.4}\n",
+            1248272272.841 + t,
+            1.0 + 0.02 * t,
+            -2.0,
+            3.1
+        ));
+    }
+    (commands, poses, odometry, truth)
+}
+
+/// A host's summary as the link sends it.
+fn host_summary_seed() -> shoal_link::wire::HostSummary {
+    shoal_link::wire::HostSummary {
+        host: "b".into(),
+        epoch_unix_ms: 1_764_000_000_000,
+        robots: vec![shoal_link::report::RemoteRobot {
+            id: 100,
+            pid: 4321,
+            x: 3.5,
+            y: 2.0,
+            theta: 0.25,
+            tick: 80,
+            neighbours: vec![101, 3],
+            missed_periods: 0,
+            neighbour_age_ms: 210,
+        }],
     }
 }
 
