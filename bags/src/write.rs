@@ -67,42 +67,15 @@ pub fn write_bag(
     let nanos = |t: f64| WRITTEN_EPOCH_NS + (t * 1e9).round() as i64;
     let mut messages: Vec<(i64, u16, Vec<u8>)> = Vec::with_capacity(commands.len() + poses.len());
     for &(t, v, omega) in commands {
-        let message = msg::Twist {
-            linear: msg::Vector3 {
-                x: v,
-                y: 0.0,
-                z: 0.0,
-            },
-            angular: msg::Vector3 {
-                x: 0.0,
-                y: 0.0,
-                z: omega,
-            },
-        };
-        messages.push((nanos(t), commands_channel, encode(&message)?));
+        messages.push((nanos(t), commands_channel, encode(&twist_of(v, omega))?));
     }
     for &(t, x, y, theta) in poses {
         let ns = nanos(t);
-        let half = 0.5 * theta;
-        let message = msg::PoseStamped {
-            header: msg::Header {
-                stamp: msg::Time {
-                    sec: (ns.div_euclid(1_000_000_000)) as i32,
-                    nanosec: ns.rem_euclid(1_000_000_000) as u32,
-                },
-                frame_id: "map".to_owned(),
-            },
-            pose: msg::Pose {
-                position: msg::Vector3 { x, y, z: 0.0 },
-                orientation: msg::Quaternion {
-                    x: 0.0,
-                    y: 0.0,
-                    z: half.sin(),
-                    w: half.cos(),
-                },
-            },
-        };
-        messages.push((ns, poses_channel, encode(&message)?));
+        messages.push((
+            ns,
+            poses_channel,
+            encode(&pose_stamped_of(ns, x, y, theta))?,
+        ));
     }
     messages.sort_by_key(|m| m.0);
     for (sequence, (ns, channel_id, data)) in messages.into_iter().enumerate() {
@@ -121,4 +94,43 @@ pub fn write_bag(
     }
     writer.finish().map_err(error)?;
     Ok(writer.into_inner().into_inner())
+}
+
+/// A command as a `Twist`: forward speed and turn rate.
+fn twist_of(v: f64, omega: f64) -> msg::Twist {
+    msg::Twist {
+        linear: msg::Vector3 {
+            x: v,
+            y: 0.0,
+            z: 0.0,
+        },
+        angular: msg::Vector3 {
+            x: 0.0,
+            y: 0.0,
+            z: omega,
+        },
+    }
+}
+
+/// A planar pose as a `PoseStamped` in frame `map`, stamped `ns`.
+fn pose_stamped_of(ns: i64, x: f64, y: f64, theta: f64) -> msg::PoseStamped {
+    let half = 0.5 * theta;
+    msg::PoseStamped {
+        header: msg::Header {
+            stamp: msg::Time {
+                sec: (ns.div_euclid(1_000_000_000)) as i32,
+                nanosec: ns.rem_euclid(1_000_000_000) as u32,
+            },
+            frame_id: "map".to_owned(),
+        },
+        pose: msg::Pose {
+            position: msg::Vector3 { x, y, z: 0.0 },
+            orientation: msg::Quaternion {
+                x: 0.0,
+                y: 0.0,
+                z: half.sin(),
+                w: half.cos(),
+            },
+        },
+    }
 }
