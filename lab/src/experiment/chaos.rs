@@ -447,6 +447,29 @@ impl Chaos {
     }
 }
 
+/// What a stopped swarm left behind: its processes, shared-memory files
+/// beyond the `shm_before` there were, and nodes and services on the bus
+/// (each printed).
+fn left_behind(name: &str, shm_before: usize) -> Result<[usize; 3]> {
+    let left: Vec<String> = swarm_nodes(name)?
+        .into_iter()
+        .map(|n| format!("node {} ({:?})", n.name, n.state))
+        .chain(
+            swarm_services(name)?
+                .into_iter()
+                .map(|s| format!("service {s}")),
+        )
+        .collect();
+    for what in &left {
+        eprintln!("chaos: left on the bus: {what}");
+    }
+    // Robots exit within the shutdown's grace; give the kernel a moment to tidy.
+    std::thread::sleep(Duration::from_millis(500));
+    let processes_left = processes_of(name);
+    let shm_left = shared_memory_files().saturating_sub(shm_before);
+    Ok([processes_left, shm_left, left.len()])
+}
+
 pub fn run(args: &ChaosArgs) -> Result<Report> {
     let name = swarm_name("chaos", args.seed as usize);
     let scratch = std::env::temp_dir().join(format!("shoal-chaos-{}", std::process::id()));
@@ -478,24 +501,7 @@ pub fn run(args: &ChaosArgs) -> Result<Report> {
     swarm.shutdown()?;
     // The launcher's own node and services go with it.
     drop(swarm);
-    let left: Vec<String> = swarm_nodes(&name)?
-        .into_iter()
-        .map(|n| format!("node {} ({:?})", n.name, n.state))
-        .chain(
-            swarm_services(&name)?
-                .into_iter()
-                .map(|s| format!("service {s}")),
-        )
-        .collect();
-    let nodes_left = left.len();
-    for what in &left {
-        eprintln!("chaos: left on the bus: {what}");
-    }
-    // Robots exit within the shutdown's grace; give the kernel a moment to tidy.
-    std::thread::sleep(Duration::from_millis(500));
-    let processes_left = processes_of(&name);
-    let shm_left = shared_memory_files().saturating_sub(shm_before);
-
+    let [processes_left, shm_left, nodes_left] = left_behind(&name, shm_before)?;
     let ticks = recorded_ticks(&dir, period_s)?;
     let recording_gap_s: Vec<f64> = recorder_kills
         .iter()
