@@ -5,7 +5,7 @@
 
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
-use rand_distr::{Distribution, Normal};
+use rand_distr::{Distribution, StandardNormal};
 use shoal_physics::{Actuators, CommandGrid, Pose, UnicycleModel, wrap_angle};
 
 use shoal_diagnose::recording::{Commands, Poses, Recording};
@@ -229,10 +229,68 @@ impl OperatorState {
     }
 }
 
+/// The speed and turn rate the body makes of the executed `(v, omega)`
+/// at run time `t`: white and coloured motion noise (`colour` holds each
+/// coloured term's state), scaled by the noise law and the model's
+/// multiplier.
+fn with_noise(
+    truth: &UnicycleModel,
+    settings: &Settings,
+    (ev, eomega, t): (f64, f64, f64),
+    colour: &mut [[f64; 2]],
+    rng: &mut StdRng,
+) -> (f64, f64) {
+    let unit = StandardNormal;
+    let m = truth.noise_multiplier(ev, t).sqrt();
+    let [along_law, turn_law] = settings.noise_law.factors(ev, eomega, settings);
+    let (mut coloured_v, mut coloured_omega) = (0.0, 0.0);
+    for (term, now) in settings.coloured.iter().zip(colour.iter_mut()) {
+        let draws: [f64; 2] = [unit.sample(rng), unit.sample(rng)];
+        *now = term.step(*now, BODY_DT, draws);
+        coloured_v += now[0];
+        coloured_omega += now[1];
+    }
+    let white_v: f64 = unit.sample(rng);
+    let noisy_v =
+        ev + m * along_law * (settings.along_noise * white_v / BODY_DT.sqrt() + coloured_v);
+    let white_omega: f64 = unit.sample(rng);
+    let noisy_omega = eomega
+        + m * turn_law * (settings.turn_noise * white_omega / BODY_DT.sqrt() + coloured_omega);
+    (noisy_v, noisy_omega)
+}
+
+/// Motion capture's observation of `pose` at `at` seconds: jittered stamp,
+/// noise, now and then a marker swap or a dropped frame.
+fn observe(pose: &Pose, at: f64, settings: &Settings, observed: &mut Poses, rng: &mut StdRng) {
+    let unit = StandardNormal;
+    let jitter: f64 = unit.sample(rng);
+    let stamp = at + settings.timestamp_jitter_s * jitter;
+    let (nx, ny): (f64, f64) = (unit.sample(rng), unit.sample(rng));
+    let (mut x, mut y) = (
+        pose.x + settings.observation_noise_m * nx,
+        pose.y + settings.observation_noise_m * ny,
+    );
+    if settings.outliers > 0.0 && rng.random_bool(settings.outliers) {
+        let (off, angle) = (rng.random_range(0.05..0.3), rng.random_range(-3.14..3.14));
+        x += off * f64::cos(angle);
+        y += off * f64::sin(angle);
+    }
+    let dropped = settings.dropout > 0.0 && rng.random_bool(settings.dropout);
+    // Jittered stamps may fall out of order; a real logger keeps order.
+    if !dropped && observed.t.last().is_none_or(|&last| stamp > last) {
+        let heading_noise: f64 = unit.sample(rng);
+        observed.push(
+            stamp,
+            x,
+            y,
+            pose.theta + settings.observation_noise_rad * heading_noise,
+        );
+    }
+}
+
 /// Drives `truth` for `settings.duration_s` and returns what was commanded and observed.
 pub fn generate(truth: &UnicycleModel, settings: &Settings) -> Recording {
     let mut rng = StdRng::seed_from_u64(settings.seed);
-    let unit = Normal::new(0.0, 1.0).expect("unit normal");
     let steps = (settings.duration_s / BODY_DT) as usize;
     let command_every = ((1.0 / settings.command_hz) / BODY_DT).round().max(1.0) as usize;
     let pose_every = 1.0 / settings.pose_hz;
@@ -271,47 +329,12 @@ pub fn generate(truth: &UnicycleModel, settings: &Settings) -> Recording {
         grid.v.push(v);
         grid.omega.push(omega);
         let (ev, eomega) = actuators.execute(truth, &grid, i);
-        let m = truth.noise_multiplier(ev, t).sqrt();
-        let [along_law, turn_law] = settings.noise_law.factors(ev, eomega, settings);
-        let (mut coloured_v, mut coloured_omega) = (0.0, 0.0);
-        for (term, now) in settings.coloured.iter().zip(colour.iter_mut()) {
-            *now = term.step(
-                *now,
-                BODY_DT,
-                [unit.sample(&mut rng), unit.sample(&mut rng)],
-            );
-            coloured_v += now[0];
-            coloured_omega += now[1];
-        }
-        let noisy_v = ev
-            + m * along_law
-                * (settings.along_noise * unit.sample(&mut rng) / BODY_DT.sqrt() + coloured_v);
-        let noisy_omega = eomega
-            + m * turn_law
-                * (settings.turn_noise * unit.sample(&mut rng) / BODY_DT.sqrt() + coloured_omega);
+        let (noisy_v, noisy_omega) =
+            with_noise(truth, settings, (ev, eomega, t), &mut colour, &mut rng);
         pose = truth.step(pose, noisy_v, noisy_omega, t, BODY_DT);
         plan = truth.step(plan, ev, eomega, t, BODY_DT);
         while next_observation <= t + BODY_DT {
-            let stamp = next_observation + settings.timestamp_jitter_s * unit.sample(&mut rng);
-            let (mut x, mut y) = (
-                pose.x + settings.observation_noise_m * unit.sample(&mut rng),
-                pose.y + settings.observation_noise_m * unit.sample(&mut rng),
-            );
-            if settings.outliers > 0.0 && rng.random_bool(settings.outliers) {
-                let (off, angle) = (rng.random_range(0.05..0.3), rng.random_range(-3.14..3.14));
-                x += off * f64::cos(angle);
-                y += off * f64::sin(angle);
-            }
-            let dropped = settings.dropout > 0.0 && rng.random_bool(settings.dropout);
-            // Jittered stamps may fall out of order; a real logger keeps order.
-            if !dropped && observed.t.last().is_none_or(|&last| stamp > last) {
-                observed.push(
-                    stamp,
-                    x,
-                    y,
-                    pose.theta + settings.observation_noise_rad * unit.sample(&mut rng),
-                );
-            }
+            observe(&pose, next_observation, settings, &mut observed, &mut rng);
             next_observation += pose_every;
         }
     }
