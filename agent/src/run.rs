@@ -42,13 +42,7 @@ pub fn run(options: AgentOptions) -> Result<()> {
     let period_s = scenario.timing.period_s;
     let stale_after = Duration::from_secs_f64(period_s * scenario.timing.stale_periods);
 
-    let mut last = member.standing(0, period_s);
-    ports.listen(&last, member.range.listen_radius(scenario.bus.listen_step));
-    if let Some(clock) = &ports.clock {
-        // Announce ourselves so the clock waits for us from the next tick on.
-        last = member.standing(clock.latest()?.map_or(0, |t| t.tick), period_s);
-        ports.say(&mut last)?;
-    }
+    let mut last = announce(&mut member, &mut ports, period_s, scenario.bus.listen_step)?;
     // In lockstep a robot's first tick only republishes where it stands: robots
     // that announced themselves before it subscribed were not heard, but every
     // robot hears everyone's first-tick pose, so all views agree from then on.
@@ -59,12 +53,9 @@ pub fn run(options: AgentOptions) -> Result<()> {
     // since the last sweep it took part in.
     let mut dead_noticed: Option<std::time::SystemTime> = None;
     while !ports.bus.termination_requested() {
-        let (tick, sim_time) = match &ports.clock {
-            Some(clock) => match clock.wait_after(last.tick, Duration::from_millis(100))? {
-                Some(t) => (t.tick, t.sim_time),
-                None => continue,
-            },
-            None => wait_for_next_period(meta.epoch_unix_ms, period_s, last.tick),
+        let Some((tick, sim_time)) = next_tick(&ports, meta.epoch_unix_ms, period_s, last.tick)?
+        else {
+            continue;
         };
         if !settled {
             settled = true;
@@ -110,6 +101,40 @@ pub fn run(options: AgentOptions) -> Result<()> {
         .context("noting the last pose on the way out")?;
     tracing::info!(id = options.id, tick = last.tick, "robot left the swarm");
     Ok(())
+}
+
+/// The robot's first pose, standing where it starts, and the cells it
+/// listens to; in lockstep it is said at once, so the clock waits for this
+/// robot from the next tick on.
+fn announce(
+    member: &mut Member,
+    ports: &mut Ports,
+    period_s: f64,
+    listen_step: f64,
+) -> Result<PoseSample> {
+    let mut last = member.standing(0, period_s);
+    ports.listen(&last, member.range.listen_radius(listen_step));
+    if let Some(clock) = &ports.clock {
+        last = member.standing(clock.latest()?.map_or(0, |t| t.tick), period_s);
+        ports.say(&mut last)?;
+    }
+    Ok(last)
+}
+
+/// The tick after `last_tick` and its time: the lockstep clock's (`None`
+/// if it did not advance within 100 ms), or the next period of real time.
+fn next_tick(
+    ports: &Ports,
+    epoch_unix_ms: u64,
+    period_s: f64,
+    last_tick: u64,
+) -> Result<Option<(u64, f64)>> {
+    Ok(match &ports.clock {
+        Some(clock) => clock
+            .wait_after(last_tick, Duration::from_millis(100))?
+            .map(|t| (t.tick, t.sim_time)),
+        None => Some(wait_for_next_period(epoch_unix_ms, period_s, last_tick)),
+    })
 }
 
 /// Whether a robot dropped as silent nearby (`died_nearby`, among
