@@ -306,6 +306,45 @@ fn clock_topic_map(clock: &[(i64, i64)], poses: &Times) -> Option<LogToClock> {
         })
 }
 
+/// What a fitted delay means when the commands carry no stamps.
+const UNKNOWN_COMMAND_TRANSPORT: &str = "a fitted delay is the robot's response less the \
+     commands' transport to the recorder (not known here: commands carry no stamps)";
+
+/// Unstamped commands by their log times, stamped poses by their stamps,
+/// which are on the log clock (`pose_offset` apart).
+fn poses_on_the_log_clock(pose_offset: i64) -> ClockChoice {
+    ClockChoice {
+        commands: Timing::LogTimes,
+        poses: Timing::HeaderStamps,
+        reason: format!(
+            "the commands carry no header stamps; the poses' stamps are on the bag's \
+             log clock (within {})",
+            seconds(pose_offset.abs())
+        ),
+        delay_note: format!(
+            "commands are timed on arrival at the recorder: {UNKNOWN_COMMAND_TRANSPORT}"
+        ),
+    }
+}
+
+/// Unstamped commands' log times mapped into simulation time through
+/// `/clock` (`map`), poses by their stamps on another clock.
+fn through_the_clock_topic(map: &LogToClock, other_clock: &str) -> ClockChoice {
+    ClockChoice {
+        commands: Timing::MappedLogTimes(Reference::ClockTopic),
+        poses: Timing::HeaderStamps,
+        reason: format!(
+            "{other_clock}; the commands' log times were mapped into simulation time \
+             through /clock (simulation ran at {:.2}x real time)",
+            map.rate
+        ),
+        delay_note: format!(
+            "{UNKNOWN_COMMAND_TRANSPORT}, within the mapping's {:.1} ms",
+            map.spread_ns as f64 * 1e-6
+        ),
+    }
+}
+
 /// Stamped poses, unstamped commands (a `Twist` has no header).
 fn unstamped_commands(
     poses: &Times,
@@ -314,25 +353,9 @@ fn unstamped_commands(
     preference: StampsPreference,
     log_both: impl Fn(String) -> (ClockChoice, Option<LogToClock>),
 ) -> Result<(ClockChoice, Option<LogToClock>), String> {
-    let unknown_transport = "a fitted delay is the robot's response less the commands' \
-                             transport to the recorder (not known here: commands carry no \
-                             stamps)";
+    let unknown_transport = UNKNOWN_COMMAND_TRANSPORT;
     if pose_offset.abs() <= SAME_CLOCK_NS {
-        return Ok((
-            ClockChoice {
-                commands: Timing::LogTimes,
-                poses: Timing::HeaderStamps,
-                reason: format!(
-                    "the commands carry no header stamps; the poses' stamps are on the bag's \
-                     log clock (within {})",
-                    seconds(pose_offset.abs())
-                ),
-                delay_note: format!(
-                    "commands are timed on arrival at the recorder: {unknown_transport}"
-                ),
-            },
-            None,
-        ));
+        return Ok((poses_on_the_log_clock(pose_offset), None));
     }
     let other_clock = format!(
         "the poses are stamped on another clock than the bag's log times ({} apart: \
@@ -340,20 +363,7 @@ fn unstamped_commands(
         seconds(pose_offset.abs())
     );
     if let Some(map) = clock_topic_map(clock, poses) {
-        let choice = ClockChoice {
-            commands: Timing::MappedLogTimes(Reference::ClockTopic),
-            poses: Timing::HeaderStamps,
-            reason: format!(
-                "{other_clock}; the commands' log times were mapped into simulation time \
-                 through /clock (simulation ran at {:.2}x real time)",
-                map.rate
-            ),
-            delay_note: format!(
-                "{unknown_transport}, within the mapping's {:.1} ms",
-                map.spread_ns as f64 * 1e-6
-            ),
-        };
-        return Ok((choice, Some(map)));
+        return Ok((through_the_clock_topic(&map, &other_clock), Some(map)));
     }
     let pairs: Vec<(i64, i64)> = poses
         .iter()
