@@ -61,6 +61,13 @@ impl SlamViews {
                 );
             }
         }
+        self.log_maps(rec)?;
+        self.log_models(rec)?;
+        Ok(())
+    }
+
+    /// Each followed robot's newest map.
+    fn log_maps(&mut self, rec: &RecordingStream) -> anyhow::Result<()> {
         let mut maps = Vec::new();
         self.maps.receive(|m| maps.push(m))?;
         for m in maps {
@@ -82,6 +89,11 @@ impl SlamViews {
                 .with_draw_order(-15.0),
             )?;
         }
+        Ok(())
+    }
+
+    /// Each model update, as six scalars at the tick of its robot's last particles.
+    fn log_models(&mut self, rec: &RecordingStream) -> anyhow::Result<()> {
         for (id, models) in &self.models {
             let mut updates = Vec::new();
             models.receive(|u| updates.push(u))?;
