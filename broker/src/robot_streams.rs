@@ -66,6 +66,11 @@ pub fn model_subscriber(bus: &Bus, id: u32) -> Result<Receiver<ModelUpdate>, Bus
     receiver(bus, names::model(&bus.swarm, id))
 }
 
+/// The name the recorder's progress reports go by (a lockstep clock paces to it).
+pub const RECORDER_PROGRESS: &str = "recorder";
+/// The name SLAM's progress reports go by.
+pub const SLAM_PROGRESS: &str = "slam";
+
 pub fn progress_publisher(bus: &Bus, helper: &str) -> Result<Sender<HelperProgress>, BusError> {
     sender(bus, names::progress(&bus.swarm, helper))
 }

@@ -268,6 +268,19 @@ pub(crate) fn robust_chi2(
 /// model, over which [`misspecification`] takes its derivatives.
 const SANDWICH_STEP: f64 = 0.1;
 
+/// The parameters of `effect` as fitted and as the effect that changes
+/// nothing (`None` for a kind without one): the change the Wald statistic
+/// is taken along.
+fn change_of(effect: &Effect) -> Option<(Vec<f64>, Vec<f64>)> {
+    let region = match effect {
+        Effect::SurfaceZone { region, .. } => *region,
+        _ => [0.0; 4],
+    };
+    let identity = Effect::identity(effect.kind(), region)?;
+    let values = |e: &Effect| e.params().iter().map(|(_, v)| *v).collect();
+    Some((values(effect), values(&identity)))
+}
+
 /// The robust Wald statistic of the candidate along its fitted change, and
 /// how the score's long-run variance was estimated: the squared distance
 /// from the plain model to the fit over its sandwich variance J / I^2, with
@@ -298,15 +311,9 @@ pub(crate) fn sandwich_wald(
     let Some(at) = with.iter().position(|e| e == candidate) else {
         return (f64::INFINITY, plain);
     };
-    let region = match candidate.effect {
-        Effect::SurfaceZone { region, .. } => region,
-        _ => [0.0; 4],
-    };
-    let Some(identity) = Effect::identity(candidate.effect.kind(), region) else {
+    let Some((fitted, identity)) = change_of(&candidate.effect) else {
         return (f64::INFINITY, plain);
     };
-    let fitted: Vec<f64> = candidate.effect.params().iter().map(|(_, v)| *v).collect();
-    let identity: Vec<f64> = identity.params().iter().map(|(_, v)| *v).collect();
     if fitted
         .iter()
         .zip(&identity)
@@ -350,10 +357,7 @@ pub(crate) fn sandwich_wald(
     // Correlation in time is the other statistic's to correct (the gains'
     // long-run factor); counted here too, a robot that stays in a patch
     // for a while would pay for it twice.
-    let long_run = LongRun {
-        factor: 1.0,
-        dof: segs.len() as f64,
-    };
+    let long_run = plain;
     let spread: f64 = scores.iter().map(|s| s * s).sum::<f64>();
     if !(curvature > 0.0) {
         return (0.0, long_run);

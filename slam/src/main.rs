@@ -202,7 +202,7 @@ fn run(args: Args) -> Result<()> {
         particles: robot_streams::slam_particles_publisher(&bus)?,
         maps: robot_streams::slam_map_publisher(&bus)?,
     };
-    let progress = robot_streams::progress_publisher(&bus, "slam")?;
+    let progress = robot_streams::progress_publisher(&bus, robot_streams::SLAM_PROGRESS)?;
     let setup = Setup::new(&args, &scenario, &initial);
     let mut followed = BTreeMap::new();
     for &id in args.follow.named() {

@@ -20,8 +20,9 @@ pub(crate) struct Pace {
 }
 
 /// The names the recorder's and SLAM's progress reports go by.
-pub(crate) const RECORDER_PACE: &str = "recorder";
-pub(crate) const SLAM_PACE: &str = "slam";
+pub(crate) use shoal_broker::robot_streams::{
+    RECORDER_PROGRESS as RECORDER_PACE, SLAM_PROGRESS as SLAM_PACE,
+};
 
 /// The name a helper's progress reports go by, which a lockstep clock paces to.
 pub(crate) fn pace_name(binary: &str) -> &str {

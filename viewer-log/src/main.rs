@@ -193,7 +193,10 @@ impl Session {
         Ok(Self {
             swarm: args.swarm.clone(),
             roster: shoal_broker::roster::reader(&bus)?,
-            progress: shoal_broker::robot_streams::progress_publisher(&bus, "recorder")?,
+            progress: shoal_broker::robot_streams::progress_publisher(
+                &bus,
+                shoal_broker::robot_streams::RECORDER_PROGRESS,
+            )?,
             slam_views: shoal_viewer_log::slam::SlamViews::new(&bus)?,
             recorder,
             check: SampleCheck::for_scenario(&scenario),
