@@ -8,7 +8,8 @@ use glam::DVec2;
 use shoal_broker::{
     EstimateSample, Health, MAX_BEAMS, MAX_NEIGHBOURS, ModelUpdate, PoseSample, ScanSample,
 };
-use shoal_physics::{Neighbour, Pose, Scenario};
+use shoal_physics::{Neighbour, Pose};
+use shoal_scenario::Scenario;
 
 use crate::robot::{Decision, Robot};
 use crate::sensing::SensingRange;

@@ -6,9 +6,10 @@ use rand::SeedableRng;
 use rand::rngs::StdRng;
 use shoal_physics::formation::{choose_neighbours, net_force};
 use shoal_physics::planner::plan_command;
-use shoal_physics::scenario::Behaviour;
 use shoal_physics::wander::{range_ahead, wander_command};
-use shoal_physics::{Body, Command, MotionModel, Neighbour, Pose, Scenario, StepOutcome};
+use shoal_physics::{Body, Command, MotionModel, Neighbour, Pose, StepOutcome};
+use shoal_scenario::Behaviour;
+use shoal_scenario::Scenario;
 
 /// Metres of desired motion per unit of net force.
 const STEP_PER_UNIT_FORCE: f64 = 0.1;

@@ -9,8 +9,9 @@ use shoal_broker::{
     Bus, BusLimits, CellExchange, ClockListener, EstimateSample, Health, ModelUpdate, PoseSample,
     Receiver, RosterPublisher, SampleCheck, ScanSample, Sender, names,
 };
-use shoal_physics::{Pose, Scenario};
+use shoal_physics::Pose;
 use shoal_runtime::SwarmRuntime;
+use shoal_scenario::Scenario;
 
 use crate::member::{Heard, Member};
 use crate::neighbours::NeighbourTable;

@@ -16,7 +16,7 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::ipc;
 use serde::{Deserialize, Serialize};
 use shoal_broker::{Bus, BusLimits, CellExchange, PoseSample, cell_at, names};
-use shoal_physics::Scenario;
+use shoal_scenario::Scenario;
 use shoal_swarm::RunningSwarm;
 use shoal_swarm::process::{ProcessUsage, usage};
 

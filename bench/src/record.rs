@@ -5,7 +5,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 use serde::Serialize;
-use shoal_physics::Scenario;
+use shoal_scenario::Scenario;
 use shoal_swarm::RunningSwarm;
 use shoal_swarm::process::{ProcessUsage, usage};
 

@@ -8,8 +8,9 @@ use std::time::Instant;
 use anyhow::Result;
 use glam::DVec2;
 use serde::Serialize;
+use shoal_physics::Pose;
 use shoal_physics::range::RangeSensor;
-use shoal_physics::{Pose, Scenario};
+use shoal_scenario::Scenario;
 
 #[derive(Debug, Serialize)]
 struct Row {

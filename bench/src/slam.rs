@@ -11,7 +11,8 @@ use rand::SeedableRng;
 use serde::Serialize;
 use shoal_physics::range::RangeSensor;
 use shoal_physics::wander::{range_ahead, wander_command};
-use shoal_physics::{Body, Command, MotionModel, Pose, Scenario};
+use shoal_physics::{Body, Command, MotionModel, Pose};
+use shoal_scenario::Scenario;
 use shoal_slam::filter::{FilterConfig, ParticleFilter, Proposal};
 
 #[derive(Debug, Serialize)]

@@ -53,7 +53,7 @@ impl Default for BusLimits {
 impl BusLimits {
     /// The limits a scenario's `[bus]` section sets; every process of a
     /// swarm opens its services with these.
-    pub fn of(bus: &shoal_physics::scenario::BusSection) -> Self {
+    pub fn of(bus: &shoal_scenario::BusSection) -> Self {
         Self {
             max_per_cell: bus.max_per_cell,
             max_listeners_per_cell: bus.max_listeners_per_cell,

@@ -377,7 +377,7 @@ const MAP_MARGIN_M: f64 = 1.0;
 
 impl SampleCheck {
     /// Poses more than [`MAP_MARGIN_M`] outside the scenario's arena are implausible.
-    pub fn for_scenario(scenario: &shoal_physics::Scenario) -> Self {
+    pub fn for_scenario(scenario: &shoal_scenario::Scenario) -> Self {
         Self::for_map(scenario.arena.width, scenario.arena.height, MAP_MARGIN_M)
     }
 

@@ -100,7 +100,7 @@ impl Target {
         use shoal_diagnose::input;
         match self {
             Target::Scenario => parse_mutated(rng, &seeds.scenario, |text, file| {
-                shoal_physics::Scenario::from_toml(text, file).map(|_| ())
+                shoal_scenario::Scenario::from_toml(text, file).map(|_| ())
             }),
             Target::MotionModel => parse_mutated(rng, &seeds.motion_model, |text, file| {
                 shoal_physics::MotionModel::from_toml(text, file).map(|_| ())
@@ -567,8 +567,8 @@ impl Seeds {
 }
 
 /// A scenario with a surface that changes in time.
-fn scenario_seed() -> shoal_physics::Scenario {
-    let mut scenario = shoal_physics::Scenario::default_arena();
+fn scenario_seed() -> shoal_scenario::Scenario {
+    let mut scenario = shoal_scenario::Scenario::default_arena();
     scenario.arena.surfaces.push(shoal_physics::Surface {
         name: "mud".into(),
         region: [1.0, 1.0, 3.0, 2.0],
@@ -758,7 +758,7 @@ mod tests {
     fn every_seed_is_a_valid_file() {
         let seeds = Seeds::new().expect("seeds");
         let file = Target::FILE;
-        shoal_physics::Scenario::from_toml(&seeds.scenario, file).expect("scenario");
+        shoal_scenario::Scenario::from_toml(&seeds.scenario, file).expect("scenario");
         shoal_physics::MotionModel::from_toml(&seeds.motion_model, file).expect("motion model");
         shoal_physics::UnicycleModel::from_toml(&seeds.effects_model, file).expect("effects");
         shoal_diagnose::input::commands_csv(&seeds.commands_csv, file).expect("commands");

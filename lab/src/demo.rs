@@ -13,7 +13,8 @@ use anyhow::{Context, Result, bail};
 use glam::DVec2;
 use serde::Serialize;
 use shoal_physics::metrics::{centroid, formation_metrics};
-use shoal_physics::{MotionModel, Pose, Scenario, Surface};
+use shoal_physics::{MotionModel, Pose, Surface};
+use shoal_scenario::Scenario;
 
 use shoal_slam::report::SlamReport;
 use shoal_swarm::RecordOptions;

@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
-use shoal_physics::Scenario;
+use shoal_scenario::Scenario;
 use shoal_slam::follow::Follow;
 
 use shoal_swarm::observer::Timeliness;

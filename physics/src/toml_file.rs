@@ -57,7 +57,7 @@ pub fn parse_toml<T: serde::de::DeserializeOwned>(
 }
 
 /// The line of the `index`-th `[[name]]` table in `text`.
-pub(crate) fn line_of_nth_table(text: &str, name: &str, index: usize) -> Option<usize> {
+pub fn line_of_nth_table(text: &str, name: &str, index: usize) -> Option<usize> {
     let header = format!("[[{name}]]");
     text.lines()
         .enumerate()
@@ -67,7 +67,7 @@ pub(crate) fn line_of_nth_table(text: &str, name: &str, index: usize) -> Option<
 }
 
 /// The line where `section.key` is written, for errors found after parsing.
-pub(crate) fn line_of_field(text: &str, field: &str) -> Option<usize> {
+pub fn line_of_field(text: &str, field: &str) -> Option<usize> {
     let (section, key) = match field.rsplit_once('.') {
         Some((section, key)) => (section, key),
         None => ("", field),

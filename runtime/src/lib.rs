@@ -11,7 +11,8 @@ pub mod report;
 
 use std::path::Path;
 
-use shoal_physics::{Scenario, scenario::ScenarioError};
+use shoal_scenario::ScenarioError;
+use shoal_scenario::Scenario;
 
 pub use folder::{HelperReport, ReportError, SwarmMeta, SwarmRuntime, Sweep};
 

@@ -209,7 +209,7 @@ impl Follower {
 mod tests {
     use super::*;
     use glam::DVec2;
-    use shoal_physics::Scenario;
+    use shoal_scenario::Scenario;
 
     fn follower() -> (Follower, Scenario) {
         let scenario = Scenario::default_arena();

@@ -139,7 +139,7 @@ struct Setup {
 }
 
 impl Setup {
-    fn new(args: &Args, scenario: &shoal_physics::Scenario, initial: &MotionModel) -> Self {
+    fn new(args: &Args, scenario: &shoal_scenario::Scenario, initial: &MotionModel) -> Self {
         Self {
             config: FilterConfig {
                 particles: args.particles.max(1),

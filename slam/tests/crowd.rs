@@ -5,7 +5,8 @@
 
 use glam::DVec2;
 use shoal_agent::robot::Robot;
-use shoal_physics::{MotionModel, Neighbour, Scenario};
+use shoal_physics::{MotionModel, Neighbour};
+use shoal_scenario::Scenario;
 use shoal_slam::filter::{Bodies, FilterConfig, Proposal};
 use shoal_slam::follower::{Follower, Scan};
 

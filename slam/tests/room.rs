@@ -2,7 +2,8 @@
 
 use rand::SeedableRng;
 use shoal_physics::range::RangeSensor;
-use shoal_physics::{Arena, Body, Command, MotionModel, Pose, Scenario};
+use shoal_physics::{Arena, Body, Command, MotionModel, Pose};
+use shoal_scenario::Scenario;
 use shoal_slam::filter::{FilterConfig, ParticleFilter};
 
 fn room() -> Arena {

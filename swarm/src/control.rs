@@ -10,8 +10,9 @@ const DOWN_GRACE: Duration = Duration::from_secs(8);
 use anyhow::{Context, Result, bail};
 use shoal_broker::liveness::{SwarmNode, SwarmNodeState, remove_dead_nodes, swarm_nodes};
 use shoal_link::report::LinkReport;
-use shoal_physics::{Pose, Scenario};
+use shoal_physics::Pose;
 use shoal_runtime::SwarmRuntime;
+use shoal_scenario::Scenario;
 
 use crate::process::{MAX_ROBOT_ID, Pinned, Tie, check_id_range, start_agent, stop_processes};
 use crate::shutdown::shutdown_grace;

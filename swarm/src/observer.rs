@@ -207,7 +207,7 @@ impl Observer {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use shoal_physics::Scenario;
+    use shoal_scenario::Scenario;
 
     #[test]
     fn timeliness_counts_missed_periods_and_neighbour_age_percentiles() {

@@ -10,8 +10,9 @@ use anyhow::{Context, Result, bail};
 use shoal_broker::liveness::{SwarmNodeState, remove_dead_nodes, swarm_nodes};
 use shoal_broker::{Bus, BusLimits, RosterReader, SampleCheck, names};
 use shoal_link::report::LinkReport;
-use shoal_physics::{Pose, Scenario};
+use shoal_physics::Pose;
 use shoal_runtime::{SwarmMeta, SwarmRuntime, pid_alive};
+use shoal_scenario::Scenario;
 
 use crate::clock::LockstepClock;
 use crate::deaths::{Children, Death};

@@ -1,6 +1,6 @@
 //! The scenario README shows is one the simulator accepts.
 
-use shoal_physics::Scenario;
+use shoal_scenario::Scenario;
 
 #[test]
 fn the_readme_scenario_example_parses() {

@@ -8,8 +8,8 @@ use std::path::Path;
 use glam::DVec2;
 use rerun::RecordingStream;
 use shoal_broker::{Health, PoseSample};
-use shoal_physics::Scenario;
 use shoal_physics::metrics::formation_metrics;
+use shoal_scenario::Scenario;
 
 use crate::presence::Presence;
 use crate::run_files::RunFiles;

@@ -16,7 +16,8 @@ use rand::{Rng, SeedableRng};
 use serde::Serialize;
 use shoal_broker::SwarmNodeState;
 use shoal_broker::liveness::{swarm_nodes, swarm_services};
-use shoal_physics::{Pose, Scenario};
+use shoal_physics::Pose;
+use shoal_scenario::Scenario;
 
 use super::swarm_name;
 use shoal_swarm::RunningSwarm;

@@ -2,7 +2,7 @@
 
 use anyhow::Result;
 use serde::Serialize;
-use shoal_physics::Scenario;
+use shoal_scenario::Scenario;
 
 use super::{mean, run_until_settled, swarm_name};
 use shoal_swarm::RunningSwarm;

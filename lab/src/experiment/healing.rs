@@ -3,8 +3,9 @@
 use anyhow::{Result, bail};
 use glam::DVec2;
 use serde::Serialize;
+use shoal_physics::Pose;
 use shoal_physics::metrics::centroid;
-use shoal_physics::{Pose, Scenario};
+use shoal_scenario::Scenario;
 
 use super::{run_until, run_until_settled, swarm_name};
 use shoal_swarm::RunningSwarm;

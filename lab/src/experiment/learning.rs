@@ -12,7 +12,8 @@ use shoal_broker::BusLimits;
 use shoal_broker::SlamMap;
 use shoal_broker::robot_streams;
 use shoal_physics::legged::Param;
-use shoal_physics::{Command, MotionModel, Pose, Scenario, Surface, wrap_angle};
+use shoal_physics::{Command, MotionModel, Pose, Surface, wrap_angle};
+use shoal_scenario::Scenario;
 use shoal_slam::metrics::{CoarseMap, map_error};
 
 use super::swarm_name;

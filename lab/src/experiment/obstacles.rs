@@ -3,7 +3,8 @@
 use anyhow::Result;
 use rand::{Rng, SeedableRng};
 use serde::Serialize;
-use shoal_physics::{Obstacle, Scenario};
+use shoal_physics::Obstacle;
+use shoal_scenario::Scenario;
 
 use super::{run_until_settled, swarm_name};
 use shoal_swarm::RunningSwarm;

@@ -4,7 +4,7 @@ use std::time::Instant;
 
 use anyhow::Result;
 use serde::Serialize;
-use shoal_physics::Scenario;
+use shoal_scenario::Scenario;
 
 use super::{run_until_settled, swarm_name};
 use shoal_swarm::RunningSwarm;

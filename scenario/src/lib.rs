@@ -4,13 +4,13 @@ use glam::DVec2;
 use rand::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};
 
-use crate::arena::{Arena, Obstacle, Surface, Wall};
-use crate::formation::FormationParams;
-use crate::legged::MotionModel;
-use crate::pose::Pose;
-use crate::range::RangeSensor;
-pub use crate::toml_file::ScenarioError;
-use crate::toml_file::{line_of_field, parse_toml};
+use shoal_physics::arena::{Arena, Obstacle, Surface, Wall};
+use shoal_physics::formation::FormationParams;
+use shoal_physics::legged::MotionModel;
+use shoal_physics::pose::Pose;
+use shoal_physics::range::RangeSensor;
+pub use shoal_physics::toml_file::ScenarioError;
+use shoal_physics::toml_file::{line_of_field, parse_toml};
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
