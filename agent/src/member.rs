@@ -5,6 +5,7 @@
 use std::collections::VecDeque;
 
 use glam::DVec2;
+use shoal_broker::BusSection;
 use shoal_broker::{
     EstimateSample, Health, MAX_BEAMS, MAX_NEIGHBOURS, ModelUpdate, PoseSample, ScanSample,
 };
@@ -46,6 +47,8 @@ pub struct Said {
 pub struct Member {
     pub robot: Robot,
     pub range: SensingRange,
+    /// How far one ring of listening reaches (the scenario's `[bus]`).
+    listen_step: f64,
     /// The robot's dead reckoning at each recent tick, to carry a late
     /// SLAM estimate forward.
     odometry_history: VecDeque<(u64, Pose)>,
@@ -56,10 +59,11 @@ pub struct Member {
 }
 
 impl Member {
-    pub fn new(id: u32, start: Pose, scenario: &Scenario, pid: u32) -> Self {
+    pub fn new(id: u32, start: Pose, scenario: &Scenario, bus: &BusSection, pid: u32) -> Self {
         Self {
             robot: Robot::new(id, start, scenario),
-            range: SensingRange::new(scenario.bus.max_ring),
+            range: SensingRange::new(bus.max_ring),
+            listen_step: bus.listen_step,
             odometry_history: VecDeque::with_capacity(BELIEF_HISTORY_TICKS + 1),
             pid,
             last_period: None,
@@ -130,7 +134,7 @@ impl Member {
     /// sample this robot published.
     pub fn period(&mut self, heard: &Heard, previous: &PoseSample, scenario: &Scenario) -> Said {
         let me = self.robot.body.pose.position();
-        let step = scenario.bus.listen_step;
+        let step = self.listen_step;
         let (sensed, died_nearby, oldest_s) = within(heard, me, self.range.sense_radius(step));
         if let Some(last) = self.last_period {
             let missed = heard.tick.saturating_sub(last + 1);
@@ -270,7 +274,7 @@ mod tests {
     fn a_period_answers_with_the_pose_scan_and_neighbours_it_acted_on() {
         let scenario = scenario();
         let start = Pose::new(5.0, 5.0, 0.0);
-        let mut member = Member::new(0, start, &scenario, 42);
+        let mut member = Member::new(0, start, &scenario, &BusSection::default(), 42);
         // Two robots closer than the formation's spacing: it moves away.
         let others = [
             PoseSample::standing(1, 7, 0, 5.3, 5.0, 0.0),
@@ -302,7 +306,13 @@ mod tests {
     #[test]
     fn a_period_says_how_late_it_ran_and_how_old_its_neighbours_were() {
         let scenario = scenario();
-        let mut member = Member::new(0, Pose::new(5.0, 5.0, 0.0), &scenario, 1);
+        let mut member = Member::new(
+            0,
+            Pose::new(5.0, 5.0, 0.0),
+            &scenario,
+            &BusSection::default(),
+            1,
+        );
         let mut fresh = PoseSample::standing(1, 2, 4, 5.6, 5.0, 0.0);
         fresh.sim_time = 0.8;
         let mut old = PoseSample::standing(2, 3, 3, 5.0, 5.6, 0.0);
@@ -328,7 +338,7 @@ mod tests {
     fn alone_it_says_so_and_a_silent_robot_nearby_is_suspected_dead() {
         let scenario = scenario();
         let start = Pose::new(5.0, 5.0, 0.0);
-        let mut member = Member::new(0, start, &scenario, 1);
+        let mut member = Member::new(0, start, &scenario, &BusSection::default(), 1);
         let near = PoseSample::standing(1, 2, 0, 5.5, 5.0, 0.0);
         let far = PoseSample::standing(2, 3, 0, 5.0 + 100.0, 5.0, 0.0);
         let previous = member.standing(0, scenario.timing.period_s);
@@ -346,7 +356,7 @@ mod tests {
     fn a_late_estimate_is_carried_forward_by_the_motion_since() {
         let scenario = scenario();
         let start = Pose::new(5.0, 5.0, 0.0);
-        let mut member = Member::new(0, start, &scenario, 1);
+        let mut member = Member::new(0, start, &scenario, &BusSection::default(), 1);
         let mut previous = member.standing(0, scenario.timing.period_s);
         for tick in 1..=5 {
             previous = member

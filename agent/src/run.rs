@@ -6,8 +6,8 @@ use anyhow::{Context, Result};
 use shoal_broker::liveness::sweep_dead_nodes;
 use shoal_broker::robot_streams;
 use shoal_broker::{
-    Bus, BusLimits, CellExchange, ClockListener, EstimateSample, Health, ModelUpdate, PoseSample,
-    Receiver, RosterPublisher, SampleCheck, ScanSample, Sender, names,
+    Bus, BusLimits, BusSection, CellExchange, ClockListener, EstimateSample, Health, ModelUpdate,
+    PoseSample, Receiver, RosterPublisher, SampleCheck, ScanSample, Sender, names,
 };
 use shoal_physics::Pose;
 use shoal_runtime::SwarmRuntime;
@@ -31,8 +31,9 @@ pub fn run(options: AgentOptions) -> Result<()> {
     let scenario = runtime.read_scenario()?;
     let meta = runtime.read_meta()?;
     let pid = std::process::id();
-    let mut member = Member::new(options.id, options.start, &scenario, pid);
-    let mut ports = Ports::open(&options, &scenario, meta.lockstep)?;
+    let bus: BusSection = scenario.section()?;
+    let mut member = Member::new(options.id, options.start, &scenario, &bus, pid);
+    let mut ports = Ports::open(&options, &scenario, &bus, meta.lockstep)?;
     tracing::info!(
         id = options.id,
         pid,
@@ -43,7 +44,7 @@ pub fn run(options: AgentOptions) -> Result<()> {
     let period_s = scenario.timing.period_s;
     let stale_after = Duration::from_secs_f64(period_s * scenario.timing.stale_periods);
 
-    let mut last = announce(&mut member, &mut ports, period_s, scenario.bus.listen_step)?;
+    let mut last = announce(&mut member, &mut ports, period_s, bus.listen_step)?;
     // In lockstep a robot's first tick only republishes where it stands: robots
     // that announced themselves before it subscribed were not heard, but every
     // robot hears everyone's first-tick pose, so all views agree from then on.
@@ -86,7 +87,7 @@ pub fn run(options: AgentOptions) -> Result<()> {
         ports.scans.publish(&said.scan)?;
         last = said.pose;
         ports.say(&mut last)?;
-        ports.listen(&last, member.range.listen_radius(scenario.bus.listen_step));
+        ports.listen(&last, member.range.listen_radius(bus.listen_step));
         if last_housekeeping.elapsed() >= HOUSEKEEPING_PERIOD {
             last_housekeeping = Instant::now();
             if let Err(e) = pose_note.note_if_moved([last.x, last.y, last.theta]) {
@@ -180,14 +181,19 @@ struct Ports {
 }
 
 impl Ports {
-    fn open(options: &AgentOptions, scenario: &Scenario, lockstep: bool) -> Result<Self> {
+    fn open(
+        options: &AgentOptions,
+        scenario: &Scenario,
+        section: &BusSection,
+        lockstep: bool,
+    ) -> Result<Self> {
         let bus = Bus::join(
             &options.swarm,
             &names::agent_node(&options.swarm, options.id),
-            BusLimits::of(&scenario.bus),
+            BusLimits::of(section),
         )?;
         Ok(Self {
-            cells: CellExchange::new(scenario.bus.cell_size),
+            cells: CellExchange::new(section.cell_size),
             roster: shoal_broker::roster::publisher(&bus)?,
             clock: lockstep.then(|| ClockListener::new(&bus)).transpose()?,
             scans: robot_streams::scan_publisher(&bus, options.id)?,

@@ -15,7 +15,7 @@ use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::ipc;
 use serde::{Deserialize, Serialize};
-use shoal_broker::{Bus, BusLimits, CellExchange, PoseSample, cell_at, names};
+use shoal_broker::{Bus, BusLimits, BusSection, CellExchange, PoseSample, cell_at, names};
 use shoal_scenario::Scenario;
 use shoal_swarm::RunningSwarm;
 use shoal_swarm::process::{ProcessUsage, usage};
@@ -276,7 +276,7 @@ pub fn probe(
         .enable_safe_overflow(true)
         .open_or_create()
         .map_err(|e| anyhow::anyhow!("probe raw service: {e:?}"))?;
-    let cell_size = Scenario::default_arena().bus.cell_size;
+    let cell_size = BusSection::default().cell_size;
     let raw_cell = CellExchange::cell_service(&bus, cell_at(cell_size, centre, centre))?;
     let mut cells = CellExchange::new(cell_size);
     let failed = |e: &dyn std::fmt::Debug| anyhow::anyhow!("probe port: {e:?}");
@@ -412,7 +412,7 @@ pub fn run(
     json: bool,
 ) -> Result<()> {
     let listeners_per_cell =
-        listeners_per_cell.unwrap_or(Scenario::default_arena().bus.max_listeners_per_cell);
+        listeners_per_cell.unwrap_or(BusSection::default().max_listeners_per_cell);
     let mut rows = Vec::new();
     for &agents in sizes {
         if agents < 2 {
@@ -422,13 +422,17 @@ pub fn run(
         let robots = agents - 2;
         let arena = |robots: usize| {
             let mut scenario = Scenario::open_arena(robots);
-            scenario.bus.max_listeners_per_cell = listeners_per_cell;
-            scenario
+            let bus = BusSection {
+                max_listeners_per_cell: listeners_per_cell,
+                ..BusSection::default()
+            };
+            scenario.set_section(&bus)?;
+            Ok::<_, anyhow::Error>(scenario)
         };
-        let scenario = arena(robots.max(1));
+        let scenario = arena(robots.max(1))?;
         let centre = scenario.arena.width / 2.0;
         let swarm = if robots > 0 {
-            Some(RunningSwarm::launch(&swarm_name, arena(robots), false)?)
+            Some(RunningSwarm::launch(&swarm_name, arena(robots)?, false)?)
         } else {
             None
         };

@@ -53,7 +53,7 @@ impl Default for BusLimits {
 impl BusLimits {
     /// The limits a scenario's `[bus]` section sets; every process of a
     /// swarm opens its services with these.
-    pub fn of(bus: &shoal_scenario::BusSection) -> Self {
+    pub fn of(bus: &BusSection) -> Self {
         Self {
             max_per_cell: bus.max_per_cell,
             max_listeners_per_cell: bus.max_listeners_per_cell,
@@ -63,6 +63,87 @@ impl BusLimits {
 
     pub fn cell_subscribers(&self) -> usize {
         self.max_listeners_per_cell + self.max_observers
+    }
+}
+
+/// The narrowest cell, metres.
+const MIN_CELL_M: f64 = 0.1;
+/// Each cell a robot listens to is a service it opens.
+const MAX_LISTENED_CELLS: f64 = 1024.0;
+const MAX_RING: usize = 16;
+const MAX_PER_CELL: usize = 1024;
+const MAX_LISTENERS_PER_CELL: usize = 16_384;
+
+/// The scenario's `[bus]` section: the cells robots publish and listen in,
+/// and how many may share one.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct BusSection {
+    /// Side of a spatial cell: a robot publishes into the cell it stands in
+    /// and listens to the cells near it, so its cost follows local density,
+    /// not swarm size. Smaller cells fit what it listens to closer to what it
+    /// senses (fewer robots heard for nothing) but cost more services, and
+    /// each service a robot listens to costs more than a robot it hears
+    /// (BENCHMARKS.md, build f467245: 1.75 m cells took more CPU and twice the
+    /// memory of 3.5 m ones).
+    pub cell_size: f64,
+    /// How far one ring of listening reaches, metres: a robot listens to
+    /// every cell within `ring * listen_step` of it and senses robots up to
+    /// a metre short of that.
+    pub listen_step: f64,
+    /// How many rings a robot widens its listening to when it sees fewer
+    /// robots than it tracks.
+    pub max_ring: u32,
+    /// The most robots that may publish in one cell at once.
+    pub max_per_cell: usize,
+    /// The most robots that may listen to one cell at once.
+    pub max_listeners_per_cell: usize,
+}
+
+impl Default for BusSection {
+    fn default() -> Self {
+        Self {
+            cell_size: 3.5,
+            listen_step: 3.5,
+            max_ring: 3,
+            max_per_cell: 24,
+            max_listeners_per_cell: 216,
+        }
+    }
+}
+
+impl shoal_scenario::Section for BusSection {
+    const NAME: &'static str = "bus";
+
+    /// The cells and their services: no robot may listen to more cells than
+    /// the bus can hold.
+    fn check(&self, check: &mut shoal_scenario::RangeCheck) {
+        let max_arena = shoal_scenario::MAX_ARENA_M;
+        check.number("cell_size", self.cell_size, MIN_CELL_M, true, max_arena);
+        check.number("listen_step", self.listen_step, MIN_CELL_M, true, max_arena);
+        check.count("max_ring", self.max_ring as usize, 0, MAX_RING);
+        let widest =
+            2.0 * f64::from(self.max_ring.max(1)) * self.listen_step / self.cell_size + 2.0;
+        if widest * widest > MAX_LISTENED_CELLS {
+            check.fail(
+                "cell_size",
+                format!(
+                    "{} m cells would have a robot listening to up to {:.0} cells at its widest \
+                 ({} rings of {} m); at most {MAX_LISTENED_CELLS} are allowed",
+                    self.cell_size,
+                    widest * widest,
+                    self.max_ring,
+                    self.listen_step
+                ),
+            );
+        }
+        check.count("max_per_cell", self.max_per_cell, 1, MAX_PER_CELL);
+        check.count(
+            "max_listeners_per_cell",
+            self.max_listeners_per_cell,
+            self.max_per_cell,
+            MAX_LISTENERS_PER_CELL,
+        );
     }
 }
 
@@ -340,5 +421,48 @@ mod tests {
             Some(true)
         );
         assert_eq!(in_memory(std::path::Path::new("/proc")), Some(false));
+    }
+}
+
+#[cfg(test)]
+mod section_tests {
+    use super::*;
+    use shoal_scenario::Scenario;
+
+    const BASE: &str = "[arena]\nwidth = 10.0\nheight = 10.0\n[agents]\ncount = 3\nstart_region = [1.0, 1.0, 9.0, 9.0]\n";
+
+    #[test]
+    fn the_bus_section_is_range_checked_naming_file_line_and_field() {
+        let cases = [
+            ("[bus]\ncell_size = 1e-9\n", "bus.cell_size", 8),
+            ("[bus]\nmax_per_cell = 0\n", "bus.max_per_cell", 8),
+            ("[bus]\nmax_ring = \"three\"\n", "bus.max_ring", 8),
+            ("[bus]\nlisten_distance = 3.0\n", "bus.listen_distance", 8),
+        ];
+        for (extra, field, line) in cases {
+            let text = format!("{BASE}{extra}");
+            let scenario =
+                Scenario::from_toml(&text, "s.toml").expect("the scenario's own sections are fine");
+            let error = scenario.section::<BusSection>().unwrap_err();
+            assert_eq!(error.file, "s.toml", "{error}");
+            assert_eq!(error.field.as_deref(), Some(field), "{error}");
+            assert_eq!(error.line, Some(line), "{error}");
+        }
+    }
+
+    #[test]
+    fn a_scenario_without_a_bus_section_has_the_default_one_and_a_set_one_round_trips() {
+        let mut scenario = Scenario::from_toml(BASE, "s.toml").expect("valid");
+        assert_eq!(scenario.section::<BusSection>(), Ok(BusSection::default()));
+        let bus = BusSection {
+            max_listeners_per_cell: 300,
+            ..BusSection::default()
+        };
+        scenario
+            .set_section(&bus)
+            .expect("a bus section is a scenario's");
+        let text = scenario.to_toml().expect("writes");
+        let read = Scenario::from_toml(&text, "again.toml").expect("reads back");
+        assert_eq!(read.section::<BusSection>(), Ok(bus));
     }
 }

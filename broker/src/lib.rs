@@ -15,7 +15,7 @@ pub mod robot_streams;
 pub mod roster;
 pub mod wire;
 
-pub use bus::{Bus, BusError, BusLimits};
+pub use bus::{Bus, BusError, BusLimits, BusSection};
 pub use cells::{CellExchange, CellKey, CellOccupancy, cell_at};
 pub use check::{Rejected, Rejection, SampleCheck, Wire};
 pub use clock::{ClockListener, ClockSource};

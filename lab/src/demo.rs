@@ -16,6 +16,7 @@ use shoal_physics::metrics::{centroid, formation_metrics};
 use shoal_physics::{MotionModel, Pose, Surface};
 use shoal_scenario::Scenario;
 
+use shoal_slam::follow::SlamSection;
 use shoal_slam::report::SlamReport;
 use shoal_swarm::RecordOptions;
 use shoal_swarm::RunningSwarm;
@@ -262,7 +263,7 @@ fn slam_progress(
 /// Starts the demo's swarm, its recorder, and SLAM following its robots
 /// from strides too short.
 fn launch(options: &DemoOptions, scenario: &Scenario) -> Result<RunningSwarm> {
-    let follow = &scenario.slam.follow;
+    let follow = scenario.section::<SlamSection>()?.follow;
     let mut swarm = RunningSwarm::launch(&options.swarm, scenario.clone(), false)?;
     swarm.record(&RecordOptions::file(&options.out, None))?;
     if !follow.is_empty() {
@@ -336,7 +337,7 @@ pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
             scenario.agents.count
         );
     }
-    let follow: Vec<u32> = scenario.slam.follow.clone();
+    let follow: Vec<u32> = scenario.section::<SlamSection>()?.follow;
     let spread = scenario.formation.spread;
     let mut swarm = launch(options, &scenario)?;
     let watched = watch(&mut swarm, &scenario, options.seconds, &follow)?;
@@ -602,7 +603,8 @@ mod tests {
     fn the_shipped_scenario_has_what_the_demo_shows() {
         let scenario = demo_scenario(None).expect("the demo's scenario parses");
         assert!(scenario.agents.count >= KILLED + 4);
-        assert_eq!(scenario.slam.follow.len(), 2);
+        let slam: SlamSection = scenario.section().expect("the demo's [slam] section");
+        assert_eq!(slam.follow.len(), 2);
         assert!(scenario.arena.surfaces.iter().any(Surface::changes_motion));
     }
 

@@ -8,7 +8,7 @@ use anyhow::{Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 use shoal_scenario::Scenario;
-use shoal_slam::follow::Follow;
+use shoal_slam::follow::{Follow, SlamSection};
 
 use shoal_swarm::observer::Timeliness;
 use shoal_swarm::{Launch, RecordOptions, RunningSwarm};
@@ -247,11 +247,13 @@ fn scenario_for(options: &UpOptions) -> Result<Scenario> {
         scenario.agents.seed = seed;
     }
     if let Some(Follow::Robots(ids)) = &options.slam {
+        let mut slam: SlamSection = scenario.section()?;
         for id in ids {
-            if !scenario.slam.follow.contains(id) {
-                scenario.slam.follow.push(*id);
+            if !slam.follow.contains(id) {
+                slam.follow.push(*id);
             }
         }
+        scenario.set_section(&slam)?;
     }
     Ok(scenario)
 }
@@ -342,7 +344,7 @@ pub fn up(options: UpOptions) -> Result<UpSummary> {
     warn_if_iceoryx_on_disk(scenario.agents.count);
     let follow = match &options.slam {
         Some(Follow::All) => Follow::All,
-        _ => Follow::Robots(scenario.slam.follow.clone()),
+        _ => Follow::Robots(scenario.section::<SlamSection>()?.follow),
     };
     let spread = scenario.formation.spread;
     let mut swarm = RunningSwarm::launch_with(&options.swarm, scenario, &options.launch)?;

@@ -8,7 +8,8 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result, anyhow, bail};
 use shoal_broker::roster::{self, RosterReaders};
 use shoal_broker::{
-    Bus, BusLimits, CellExchange, CellKey, PoseSample, RosterPublisher, SampleCheck, cell_at,
+    Bus, BusLimits, BusSection, CellExchange, CellKey, PoseSample, RosterPublisher, SampleCheck,
+    cell_at,
 };
 use shoal_link::interest::Interest;
 use shoal_link::keys;
@@ -63,6 +64,8 @@ struct Gateway {
     bus: Bus,
     runtime: SwarmRuntime,
     scenario: Scenario,
+    /// The scenario's `[bus]` section: the cells every host publishes in.
+    cells: BusSection,
     epoch_unix_ms: u64,
     session: zenoh::Session,
     roster: shoal_broker::RosterReader,
@@ -152,11 +155,12 @@ pub fn run(options: &Options) -> Result<()> {
         );
     }
     let scenario = runtime.read_scenario()?;
+    let cells: BusSection = scenario.section()?;
     let session = zenoh::open(zenoh_config(options)?)
         .wait()
         .map_err(zenoh_error("opening the Zenoh session"))?;
     let _token = claim_host(&session, &options.swarm, &host)?;
-    let bus = Bus::join_tool(&options.swarm, "link", BusLimits::of(&scenario.bus))?;
+    let bus = Bus::join_tool(&options.swarm, "link", BusLimits::of(&cells))?;
     let hosts_inbox = session
         .liveliness()
         .declare_subscriber(keys::all_hosts(&options.swarm))
@@ -173,11 +177,12 @@ pub fn run(options: &Options) -> Result<()> {
         bus,
         check: SampleCheck::for_scenario(&scenario),
         interest: Interest::new(
-            scenario.bus.cell_size,
-            f64::from(scenario.bus.max_ring) * scenario.bus.listen_step,
+            cells.cell_size,
+            f64::from(cells.max_ring) * cells.listen_step,
         ),
         stale_after: Duration::from_secs_f64(scenario.timing.observer_stale_s()),
         scenario,
+        cells,
         runtime,
         epoch_unix_ms: meta.epoch_unix_ms,
         session,
@@ -230,7 +235,7 @@ impl Gateway {
             self.local.insert(sample.agent_id, (sample, now));
             let key = keys::pose(
                 &self.swarm,
-                cell_at(self.scenario.bus.cell_size, sample.x, sample.y),
+                cell_at(self.cells.cell_size, sample.x, sample.y),
                 &self.host,
                 sample.agent_id,
             );
@@ -316,16 +321,14 @@ impl Gateway {
         // neighbour's process lives find this one, which lives as long as
         // the link carries the robot.
         sample.pid = std::process::id();
-        let wanted_here = self.cell_inboxes.contains_key(&cell_at(
-            self.scenario.bus.cell_size,
-            sample.x,
-            sample.y,
-        ));
+        let wanted_here =
+            self.cell_inboxes
+                .contains_key(&cell_at(self.cells.cell_size, sample.x, sample.y));
         let proxy = match self.proxies.entry(id) {
             std::collections::hash_map::Entry::Occupied(entry) => entry.into_mut(),
             std::collections::hash_map::Entry::Vacant(entry) => entry.insert(Proxy {
                 host: host.clone(),
-                cells: CellExchange::new(self.scenario.bus.cell_size),
+                cells: CellExchange::new(self.cells.cell_size),
                 roster: roster::publisher(&self.bus)?,
                 heard: Instant::now(),
             }),

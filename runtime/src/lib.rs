@@ -11,8 +11,8 @@ pub mod report;
 
 use std::path::Path;
 
-use shoal_scenario::ScenarioError;
 use shoal_scenario::Scenario;
+use shoal_scenario::ScenarioError;
 
 pub use folder::{HelperReport, ReportError, SwarmMeta, SwarmRuntime, Sweep};
 

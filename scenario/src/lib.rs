@@ -24,24 +24,22 @@ pub struct Scenario {
     pub formation: FormationParams,
     #[serde(default)]
     pub timing: TimingSection,
-    #[serde(default)]
-    pub bus: BusSection,
+    /// The bus's section, which the broker reads ([`Scenario::section`]).
+    #[serde(default, skip_serializing_if = "toml::Table::is_empty")]
+    bus: toml::Table,
     /// Every robot's range sensor.
     #[serde(default)]
     pub sensor: RangeSensor,
-    /// Robots a SLAM process follows when the swarm starts.
-    #[serde(default)]
-    pub slam: SlamSection,
+    /// SLAM's section (the robots it follows when the swarm starts), which
+    /// SLAM reads.
+    #[serde(default, skip_serializing_if = "toml::Table::is_empty")]
+    slam: toml::Table,
+    /// Where the scenario was read from, for errors in its sections.
+    #[serde(skip)]
+    source: Source,
     /// The body's true motion distributions; the robot's own (believed) model starts equal to them.
     #[serde(default = "MotionModel::legged_default")]
     pub motion: MotionModel,
-}
-
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct SlamSection {
-    /// Ids of the robots to follow; empty starts no SLAM process.
-    pub follow: Vec<u32>,
 }
 
 fn default_name() -> String {
@@ -111,39 +109,24 @@ impl Default for TimingSection {
     }
 }
 
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct BusSection {
-    /// Side of a spatial cell: a robot publishes into the cell it stands in
-    /// and listens to the cells near it, so its cost follows local density,
-    /// not swarm size. Smaller cells fit what it listens to closer to what it
-    /// senses (fewer robots heard for nothing) but cost more services, and
-    /// each service a robot listens to costs more than a robot it hears
-    /// (BENCHMARKS.md, build f467245: 1.75 m cells took more CPU and twice the
-    /// memory of 3.5 m ones).
-    pub cell_size: f64,
-    /// How far one ring of listening reaches, metres: a robot listens to
-    /// every cell within `ring * listen_step` of it and senses robots up to
-    /// a metre short of that.
-    pub listen_step: f64,
-    /// How many rings a robot widens its listening to when it sees fewer
-    /// robots than it tracks.
-    pub max_ring: u32,
-    /// The most robots that may publish in one cell at once.
-    pub max_per_cell: usize,
-    /// The most robots that may listen to one cell at once.
-    pub max_listeners_per_cell: usize,
+/// A section of the scenario that the crate it configures owns: its
+/// fields and defaults (serde), its name in the file, and its ranges.
+pub trait Section: Serialize + serde::de::DeserializeOwned {
+    /// The section's name in the scenario file, `bus` for `[bus]`.
+    const NAME: &'static str;
+    /// Checks the range of every field, naming fields within the section.
+    fn check(&self, check: &mut RangeCheck);
 }
 
-impl Default for BusSection {
-    fn default() -> Self {
-        Self {
-            cell_size: 3.5,
-            listen_step: 3.5,
-            max_ring: 3,
-            max_per_cell: 24,
-            max_listeners_per_cell: 216,
-        }
+/// The file a scenario was read from and its text, for the line of an
+/// error in a section read later. Where a scenario came from is not part
+/// of what it says, so any two are equal.
+#[derive(Clone, Debug, Default)]
+struct Source(Option<(String, String)>);
+
+impl PartialEq for Source {
+    fn eq(&self, _: &Self) -> bool {
+        true
     }
 }
 
@@ -268,9 +251,10 @@ impl Scenario {
             agents: AgentsSection::default(),
             formation: FormationParams::default(),
             timing: TimingSection::default(),
-            bus: BusSection::default(),
+            bus: toml::Table::new(),
             sensor: RangeSensor::default(),
-            slam: SlamSection::default(),
+            slam: toml::Table::new(),
+            source: Source::default(),
             motion: MotionModel::legged_default(),
         }
     }
@@ -283,11 +267,70 @@ impl Scenario {
             field,
             message,
         };
-        let scenario: Scenario = parse_toml(text, file)?;
+        let mut scenario: Scenario = parse_toml(text, file)?;
         scenario
             .validate()
             .map_err(|(field, message)| error(line_of_field(text, &field), Some(field), message))?;
+        scenario.source = Source(Some((file.to_owned(), text.to_owned())));
         Ok(scenario)
+    }
+
+    /// The section `S` as the scenario gives it (its defaults where it says
+    /// nothing), with the range of every field checked. Errors name the
+    /// file, line and field where the scenario was read from a file.
+    pub fn section<S: Section>(&self) -> Result<S, ScenarioError> {
+        let (file, text) = self.source.0.clone().unwrap_or_default();
+        let error = |field: String, message: String| ScenarioError {
+            file: if file.is_empty() {
+                "scenario".to_owned()
+            } else {
+                file.clone()
+            },
+            line: line_of_field(&text, &field),
+            field: Some(field),
+            message,
+        };
+        let raw = self.raw(S::NAME).cloned().unwrap_or_default();
+        let section: S =
+            serde_path_to_error::deserialize(toml::Value::Table(raw)).map_err(|e| {
+                let field = format!("{}.{}", S::NAME, e.path());
+                error(field, e.into_inner().to_string())
+            })?;
+        let mut check = RangeCheck {
+            section: S::NAME,
+            first: None,
+        };
+        section.check(&mut check);
+        match check.first {
+            Some((field, message)) => Err(error(field, message)),
+            None => Ok(section),
+        }
+    }
+
+    /// Sets the section `S` (a swarm's launcher adds the robots SLAM follows).
+    pub fn set_section<S: Section>(&mut self, section: &S) -> Result<(), ScenarioError> {
+        let error = |message: String| ScenarioError {
+            file: "scenario".to_owned(),
+            line: None,
+            field: Some(S::NAME.to_owned()),
+            message,
+        };
+        let table = toml::Table::try_from(section).map_err(|e| error(e.to_string()))?;
+        match S::NAME {
+            "bus" => self.bus = table,
+            "slam" => self.slam = table,
+            other => return Err(error(format!("a scenario has no section `{other}`"))),
+        }
+        Ok(())
+    }
+
+    /// The raw table of the section called `name`, if a scenario has one.
+    fn raw(&self, name: &str) -> Option<&toml::Table> {
+        match name {
+            "bus" => Some(&self.bus),
+            "slam" => Some(&self.slam),
+            _ => None,
+        }
     }
 
     /// The scenario as a scenario file. An error, never an empty file, if
@@ -305,9 +348,7 @@ impl Scenario {
         check_arena(&mut check, &self.arena);
         check_agents(&mut check, &self.agents, &self.arena);
         check_timing(&mut check, &self.timing);
-        check_bus(&mut check, &self.bus);
         check_sensor(&mut check, &self.sensor);
-        check.count("slam.follow", self.slam.follow.len(), 0, MAX_FOLLOWED);
         check_formation(&mut check, &self.formation);
         if let Some(error) = check.first {
             return Err(error);
@@ -366,7 +407,8 @@ const START_SPACING_OF_SPREAD: f64 = 1.3;
 /// Upper bounds on what a scenario may ask for. They are far beyond any
 /// swarm Shoal runs, and only there to refuse typos and overflow (a period of
 /// 1e300 s, a billion beams) with a clear message.
-const MAX_ARENA_M: f64 = 100_000.0;
+/// The largest arena side (and coordinate), metres.
+pub const MAX_ARENA_M: f64 = 100_000.0;
 const MAX_RADIUS_M: f64 = 10.0;
 const MAX_SURFACE_SCALE: f64 = 100.0;
 const MAX_SECONDS: f64 = 1.0e7;
@@ -374,16 +416,9 @@ const MAX_AGENTS: usize = 10_000;
 const MIN_PERIOD_S: f64 = 0.001;
 const MAX_PERIOD_S: f64 = 60.0;
 const MAX_STALE_PERIODS: f64 = 1000.0;
-const MIN_CELL_M: f64 = 0.1;
-/// Each cell a robot listens to is a service it opens.
-const MAX_LISTENED_CELLS: f64 = 1024.0;
-const MAX_RING: usize = 16;
-const MAX_PER_CELL: usize = 1024;
-const MAX_LISTENERS_PER_CELL: usize = 16_384;
 const MAX_BEAMS: usize = 4096;
 const MAX_SENSOR_RANGE_M: f64 = 1000.0;
 const MAX_SENSOR_NOISE: f64 = 10.0;
-const MAX_FOLLOWED: usize = 64;
 const MAX_NEIGHBOURS: usize = 16;
 const MAX_SPREAD_M: f64 = 1000.0;
 const MAX_GAIN: f64 = 1.0e6;
@@ -470,46 +505,6 @@ fn check_timing(check: &mut RangeCheck, timing: &TimingSection) {
     );
 }
 
-/// The cells and their services: no robot may listen to more cells than the bus can hold.
-fn check_bus(check: &mut RangeCheck, bus: &BusSection) {
-    check.number(
-        "bus.cell_size",
-        bus.cell_size,
-        MIN_CELL_M,
-        true,
-        MAX_ARENA_M,
-    );
-    check.number(
-        "bus.listen_step",
-        bus.listen_step,
-        MIN_CELL_M,
-        true,
-        MAX_ARENA_M,
-    );
-    check.count("bus.max_ring", bus.max_ring as usize, 0, MAX_RING);
-    let widest = 2.0 * f64::from(bus.max_ring.max(1)) * bus.listen_step / bus.cell_size + 2.0;
-    if widest * widest > MAX_LISTENED_CELLS {
-        check.fail(
-            "bus.cell_size",
-            format!(
-                "{} m cells would have a robot listening to up to {:.0} cells at its widest \
-                 ({} rings of {} m); at most {MAX_LISTENED_CELLS} are allowed",
-                bus.cell_size,
-                widest * widest,
-                bus.max_ring,
-                bus.listen_step
-            ),
-        );
-    }
-    check.count("bus.max_per_cell", bus.max_per_cell, 1, MAX_PER_CELL);
-    check.count(
-        "bus.max_listeners_per_cell",
-        bus.max_listeners_per_cell,
-        bus.max_per_cell,
-        MAX_LISTENERS_PER_CELL,
-    );
-}
-
 /// The range sensor.
 fn check_sensor(check: &mut RangeCheck, sensor: &RangeSensor) {
     check.count("sensor.beams", sensor.beams, 1, MAX_BEAMS);
@@ -569,22 +564,30 @@ fn check_formation(check: &mut RangeCheck, formation: &FormationParams) {
     );
 }
 
-/// Collects the first out-of-range field of a scenario.
+/// Collects the first out-of-range field of a scenario or of one section.
 #[derive(Default)]
-struct RangeCheck {
+pub struct RangeCheck {
+    /// The section checked, which prefixes its fields' names ("" for the
+    /// scenario's own checks, which name fields whole).
+    section: &'static str,
     first: Option<(String, String)>,
 }
 
 impl RangeCheck {
-    fn fail(&mut self, field: &str, message: String) {
+    pub fn fail(&mut self, field: &str, message: String) {
         if self.first.is_none() {
-            self.first = Some((field.to_owned(), message));
+            let field = if self.section.is_empty() {
+                field.to_owned()
+            } else {
+                format!("{}.{field}", self.section)
+            };
+            self.first = Some((field, message));
         }
     }
 
     /// `value` must be finite, above `low` (or equal to it when
     /// `low_allowed`) and at most `high`.
-    fn number(&mut self, field: &str, value: f64, low: f64, low_allowed: bool, high: f64) {
+    pub fn number(&mut self, field: &str, value: f64, low: f64, low_allowed: bool, high: f64) {
         let above = if low_allowed {
             value >= low
         } else {
@@ -596,13 +599,13 @@ impl RangeCheck {
         }
     }
 
-    fn count(&mut self, field: &str, value: usize, low: usize, high: usize) {
+    pub fn count(&mut self, field: &str, value: usize, low: usize, high: usize) {
         if !(low..=high).contains(&value) {
             self.fail(field, format!("{value} is outside {low}..={high}"));
         }
     }
 
-    fn point(&mut self, field: &str, point: [f64; 2]) {
+    pub fn point(&mut self, field: &str, point: [f64; 2]) {
         if point
             .iter()
             .any(|v| !v.is_finite() || v.abs() > MAX_ARENA_M)
@@ -615,7 +618,7 @@ impl RangeCheck {
     }
 
     /// `[xmin, ymin, xmax, ymax]` with finite corners, min below max.
-    fn region(&mut self, field: &str, region: [f64; 4]) {
+    pub fn region(&mut self, field: &str, region: [f64; 4]) {
         let [x0, y0, x1, y1] = region;
         let finite = region
             .iter()
@@ -692,8 +695,6 @@ mod tests {
                 "timing.stale_periods",
                 8,
             ),
-            ("[bus]\ncell_size = 1e-9\n", "bus.cell_size", 8),
-            ("[bus]\nmax_per_cell = 0\n", "bus.max_per_cell", 8),
             (
                 "[[arena.surfaces]]\nname = \"a\"\nregion = [0.0, 0.0, 1.0, 1.0]\n[[arena.surfaces]]\nname = \"b\"\nregion = [0.0, 0.0, 1.0, 1.0]\nturn_scale = nan\n",
                 "arena.surfaces[1].turn_scale",

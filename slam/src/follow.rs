@@ -82,3 +82,23 @@ mod tests {
         assert!(!Follow::Robots(vec![1]).includes(2));
     }
 }
+
+/// The most robots a scenario may name for SLAM to follow.
+const MAX_FOLLOWED: usize = 64;
+
+/// The scenario's `[slam]` section: the robots a SLAM process follows when
+/// the swarm starts.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SlamSection {
+    /// Ids of the robots to follow; empty starts no SLAM process.
+    pub follow: Vec<u32>,
+}
+
+impl shoal_scenario::Section for SlamSection {
+    const NAME: &'static str = "slam";
+
+    fn check(&self, check: &mut shoal_scenario::RangeCheck) {
+        check.count("follow", self.follow.len(), 0, MAX_FOLLOWED);
+    }
+}

@@ -8,11 +8,12 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::{Context, Result, bail};
 use shoal_broker::liveness::{SwarmNodeState, remove_dead_nodes, swarm_nodes};
-use shoal_broker::{Bus, BusLimits, RosterReader, SampleCheck, names};
+use shoal_broker::{Bus, BusLimits, BusSection, RosterReader, SampleCheck, names};
 use shoal_link::report::LinkReport;
 use shoal_physics::Pose;
 use shoal_runtime::{SwarmMeta, SwarmRuntime, pid_alive};
 use shoal_scenario::Scenario;
+use shoal_slam::follow::SlamSection;
 
 use crate::clock::LockstepClock;
 use crate::deaths::{Children, Death};
@@ -94,6 +95,10 @@ impl RunningSwarm {
             );
         }
         check_id_range(launch.first_id, scenario.agents.count)?;
+        // The sections other crates own are checked before anything starts,
+        // so a bad one is refused here, not by every robot on its way up.
+        let bus: BusSection = scenario.section()?;
+        let _: SlamSection = scenario.section()?;
         // Two launchers of one swarm started together would both pass the
         // check below; the lock makes the second one fail.
         let launch_lock = SwarmRuntime::locate(name)
@@ -102,7 +107,7 @@ impl RunningSwarm {
         refuse_a_running_swarm(name)?;
         let runtime = create_folder(name, &scenario, launch.lockstep)?;
         let (bus, roster) =
-            shoal_broker::roster::join_reader(name, LAUNCHER_ROLE, BusLimits::of(&scenario.bus))?;
+            shoal_broker::roster::join_reader(name, LAUNCHER_ROLE, BusLimits::of(&bus))?;
         let clock = if launch.lockstep {
             Some(LockstepClock::new(&bus, scenario.timing.period_s)?)
         } else {

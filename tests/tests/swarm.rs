@@ -309,7 +309,7 @@ fn malformed_bus_samples_are_rejected_and_counted() {
         target["x"].as_f64().expect("x"),
         target["y"].as_f64().expect("y"),
     );
-    let mut cells = CellExchange::new(shoal_scenario::Scenario::default_arena().bus.cell_size);
+    let mut cells = CellExchange::new(shoal_broker::BusSection::default().cell_size);
     let mut bad = PoseSample::standing(999, std::process::id(), u64::MAX / 2, x, y, f64::NAN);
     for round in 0..20 {
         bad.x = if round % 2 == 0 { x } else { 1e9 };
