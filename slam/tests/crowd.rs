@@ -101,9 +101,9 @@ fn in_a_crowd_a_filter_started_with_short_strides_holds_the_robot_and_learns_its
     let short = truth.scaled(0.75, 1.0, 1.0);
     let (wrong, right) = (short.full_stride(), truth.full_stride());
     // Three seeds of the filter; `--nocapture` prints what EXPERIMENTS.md
-    // section 10 reports: 0.23, 0.32, 0.18 m at the end today; 0.6-1.2 m
-    // while a beam ending on unseen ground scored as half a hit, 13 m and
-    // more before the likelihood was tempered and explorers discounted.
+    // ("SLAM accuracy: a crowd, a lone robot on an unseen room, the demo")
+    // reports. A beam ending on unseen ground once scored as half a hit and
+    // left the robot 0.6-1.2 m off; an untempered likelihood, 13 m and more.
     // The robot walks onto the sand from step 50, where its true strides
     // are 0.6 of the carpet's: the "truth" below is the carpet's.
     for seed in 0..3 {

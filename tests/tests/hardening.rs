@@ -331,7 +331,7 @@ fn an_absurd_robot_id_is_refused_at_once() {
     assert!(started.elapsed() < Duration::from_secs(5));
 }
 
-/// Issue 9, item 6: forged clock ticks and model updates on the real bus
+/// Forged clock ticks and model updates on the real bus
 /// are rejected and counted; the swarm keeps stepping and no robot's pose
 /// goes to infinity.
 #[test]
@@ -432,7 +432,7 @@ fn forged_clock_ticks_and_model_updates_are_rejected_and_the_swarm_keeps_steppin
     assert!(exit.success(), "{said}");
 }
 
-/// Issue 9, the chaos figure in small: kills, freezes and recorder crashes
+/// The chaos experiment (EXPERIMENTS.md, "Chaos") in small: kills, freezes and recorder crashes
 /// on a real-time swarm leave no dead node, no crash, no lost second of
 /// recording and nothing behind; the recordings open in the Rerun reader.
 #[test]
