@@ -177,8 +177,9 @@ impl Selection<'_> {
         &self.prepared.segments
     }
 
-    /// The best few candidates, by their fit on the screen (each already
-    /// fitted there, in `screened`), that lower its plain BIC. Ranking only:
+    /// The best few candidates of different kinds, by their fit on the
+    /// screen (each already fitted there, in `screened`), that lower its
+    /// plain BIC. Ranking only:
     /// the decision is made on all segments with calibrated gains.
     fn ranked(
         &self,
@@ -197,6 +198,15 @@ impl Selection<'_> {
             .filter(|(g, _)| *g < 0.0)
             .collect();
         ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
+        // The best of each kind: variants of one kind (over the whole run,
+        // over located spans) would otherwise fill every place, and a kind
+        // ranked below them (a rarely visited zone) would never be tested.
+        let mut kinds: Vec<&'static str> = Vec::new();
+        ranked.retain(|(_, c)| {
+            let new_kind = !kinds.contains(&c.effect.kind());
+            kinds.push(c.effect.kind());
+            new_kind
+        });
         ranked.truncate(self.options.confirm);
         ranked.into_iter().map(|(_, c)| c).collect()
     }
@@ -252,27 +262,42 @@ impl Selection<'_> {
             .map(|f| (judge(&f.effects[0]), f.effects[0].clone()))
             .collect();
         judged.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let Some((delta_bic, chosen)) = judged.first().cloned() else {
+        // The best-ranked candidate that passes the entry test. Each kind is
+        // tested at the level corrected for all the library's kinds, so one
+        // that ranks first and fails does not keep the next from its test (a
+        // rarely visited zone that explains more than a turn gain, but fails,
+        // left the turn gain's failure to end the diagnosis).
+        let mut passing = None;
+        for (index, (delta_bic, candidate)) in judged.iter().enumerate() {
+            let long_runs = if index == 0 {
+                long_runs
+            } else {
+                factors_with(grid, segs, base, candidate)
+            };
+            let test = self.entry_of(base, candidate, (*delta_bic, long_runs));
+            tracing::debug!(
+                kind = candidate.effect.kind(),
+                rank = index,
+                delta_bic,
+                passed = test.passed(),
+                "round: candidate"
+            );
+            if test.passed() {
+                passing = Some((index, *delta_bic, candidate.clone(), test, long_runs));
+                break;
+            }
+        }
+        let Some((index, delta_bic, chosen, test, long_runs)) = passing else {
             return Round::Done;
         };
         // Explanations within 2 of BIC are not worth more than a bare
-        // mention apart (Kass and Raftery): one finding, with alternatives.
-        let mut tied: Vec<(f64, ScopedEffect)> = judged[1..]
+        // mention apart (Kass and Raftery): one finding, with alternatives
+        // among those ranked after it (those before it failed their test).
+        let mut tied: Vec<(f64, ScopedEffect)> = judged[index + 1..]
             .iter()
             .filter(|(g, c)| *g < delta_bic + 2.0 && c.effect.kind() != chosen.effect.kind())
             .cloned()
             .collect();
-        let test = self.entry_of(base, &chosen, (delta_bic, long_runs));
-        tracing::debug!(
-            kind = chosen.effect.kind(),
-            delta_bic,
-            passed = test.passed(),
-            tied = ?tied.iter().map(|(_, c)| c.effect.kind()).collect::<Vec<_>>(),
-            "round: best candidate"
-        );
-        if !test.passed() {
-            return Round::Done;
-        }
         let (scoped, delta_bic) = self.scoped(base, chosen.clone(), delta_bic, &judge, &mut tied);
         let test = if scoped == chosen {
             test
