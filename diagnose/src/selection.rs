@@ -179,8 +179,8 @@ impl Selection<'_> {
 
     /// The best few candidates of different kinds, by their fit on the
     /// screen (each already fitted there, in `screened`), that lower its
-    /// plain BIC. Ranking only:
-    /// the decision is made on all segments with calibrated gains.
+    /// plain BIC. Ranking only: the decision is made on all segments with
+    /// calibrated gains.
     fn ranked(
         &self,
         screened: &[Fitted],
