@@ -71,6 +71,12 @@ impl Member {
         }
     }
 
+    /// How far this robot listens now: its current rings of the scenario's
+    /// listening step.
+    pub fn listen_radius(&self) -> f64 {
+        self.range.listen_radius(self.listen_step)
+    }
+
     /// The pose sample of a robot standing at its start, before any period.
     pub fn standing(&self, tick: u64, period_s: f64) -> PoseSample {
         let pose = self.robot.body.pose;

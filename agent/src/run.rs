@@ -44,7 +44,7 @@ pub fn run(options: AgentOptions) -> Result<()> {
     let period_s = scenario.timing.period_s;
     let stale_after = Duration::from_secs_f64(period_s * scenario.timing.stale_periods);
 
-    let mut last = announce(&mut member, &mut ports, period_s, bus.listen_step)?;
+    let mut last = announce(&mut member, &mut ports, period_s)?;
     // In lockstep a robot's first tick only republishes where it stands: robots
     // that announced themselves before it subscribed were not heard, but every
     // robot hears everyone's first-tick pose, so all views agree from then on.
@@ -87,7 +87,7 @@ pub fn run(options: AgentOptions) -> Result<()> {
         ports.scans.publish(&said.scan)?;
         last = said.pose;
         ports.say(&mut last)?;
-        ports.listen(&last, member.range.listen_radius(bus.listen_step));
+        ports.listen(&last, member.listen_radius());
         if last_housekeeping.elapsed() >= HOUSEKEEPING_PERIOD {
             last_housekeeping = Instant::now();
             if let Err(e) = pose_note.note_if_moved([last.x, last.y, last.theta]) {
@@ -108,14 +108,9 @@ pub fn run(options: AgentOptions) -> Result<()> {
 /// The robot's first pose, standing where it starts, and the cells it
 /// listens to; in lockstep it is said at once, so the clock waits for this
 /// robot from the next tick on.
-fn announce(
-    member: &mut Member,
-    ports: &mut Ports,
-    period_s: f64,
-    listen_step: f64,
-) -> Result<PoseSample> {
+fn announce(member: &mut Member, ports: &mut Ports, period_s: f64) -> Result<PoseSample> {
     let mut last = member.standing(0, period_s);
-    ports.listen(&last, member.range.listen_radius(listen_step));
+    ports.listen(&last, member.listen_radius());
     if let Some(clock) = &ports.clock {
         last = member.standing(clock.latest()?.map_or(0, |t| t.tick), period_s);
         ports.say(&mut last)?;

@@ -353,7 +353,6 @@ fn unstamped_commands(
     preference: StampsPreference,
     log_both: impl Fn(String) -> (ClockChoice, Option<LogToClock>),
 ) -> Result<(ClockChoice, Option<LogToClock>), String> {
-    let unknown_transport = UNKNOWN_COMMAND_TRANSPORT;
     if pose_offset.abs() <= SAME_CLOCK_NS {
         return Ok((poses_on_the_log_clock(pose_offset), None));
     }
@@ -386,7 +385,7 @@ fn unstamped_commands(
                     map.rate
                 ),
                 delay_note: format!(
-                    "{unknown_transport}, and the poses' transport, within the mapping's {:.1} ms",
+                    "{UNKNOWN_COMMAND_TRANSPORT}, and the poses' transport, within the mapping's {:.1} ms",
                     map.spread_ns as f64 * 1e-6
                 ),
             };

@@ -207,21 +207,19 @@ fn group_tests(
     tests
 }
 
-/// Group `g` with its significant neighbours of the same family (adjacent
+/// Group `g`, whose strongest significant test is `strongest` (component,
+/// p, z), with its significant neighbours of the same family (adjacent
 /// time blocks or floor cells), which form one span or region: their
-/// segments, their region, and the strongest test among them as
-/// (component, p, z). Marks each neighbour taken.
+/// segments, their region, and the strongest test among them. Marks each
+/// neighbour taken.
 fn with_neighbours(
     groups: &[Group],
     best: &[Option<(usize, f64, f64)>],
-    g: usize,
+    (g, mut strongest): (usize, (usize, f64, f64)),
     taken: &mut [bool],
 ) -> (Vec<usize>, Option<[f64; 4]>, (usize, f64, f64)) {
     let mut members = groups[g].members.clone();
     let mut region = groups[g].region;
-    let Some(mut strongest) = best[g] else {
-        return (members, region, (0, 1.0, 0.0));
-    };
     if !matches!(groups[g].family, "time" | "place") {
         return (members, region, strongest);
     }
@@ -289,12 +287,13 @@ pub fn locate(
     let mut found = Vec::new();
     let mut taken = vec![false; groups.len()];
     for g in 0..groups.len() {
-        if best[g].is_none() || taken[g] {
+        let Some(test) = best[g] else { continue };
+        if taken[g] {
             continue;
         }
         taken[g] = true;
         let (members, region, (component, p_min, z_best)) =
-            with_neighbours(&groups, &best, g, &mut taken);
+            with_neighbours(&groups, &best, (g, test), &mut taken);
         let t_start = members
             .iter()
             .map(|&i| segments[i].t_start)

@@ -5,7 +5,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::Result;
 use shoal_broker::HelperProgress;
-use shoal_broker::robot_streams;
+use shoal_broker::robot_streams::{self, RECORDER_PROGRESS, SLAM_PROGRESS};
 
 use crate::process::{RECORDER_BINARY, SLAM_BINARY};
 
@@ -19,16 +19,11 @@ pub(crate) struct Pace {
     tick: Option<u64>,
 }
 
-/// The names the recorder's and SLAM's progress reports go by.
-pub(crate) use shoal_broker::robot_streams::{
-    RECORDER_PROGRESS as RECORDER_PACE, SLAM_PROGRESS as SLAM_PACE,
-};
-
 /// The name a helper's progress reports go by, which a lockstep clock paces to.
 pub(crate) fn pace_name(binary: &str) -> &str {
     match binary {
-        RECORDER_BINARY => RECORDER_PACE,
-        SLAM_BINARY => SLAM_PACE,
+        RECORDER_BINARY => RECORDER_PROGRESS,
+        SLAM_BINARY => SLAM_PROGRESS,
         other => other,
     }
 }

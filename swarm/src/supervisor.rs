@@ -19,9 +19,10 @@ use crate::clock::LockstepClock;
 use crate::deaths::{Children, Death};
 use crate::helpers::{Helpers, LinkOptions, RecordOptions};
 use crate::observer::Observer;
-use crate::pacing::{Pace, RECORDER_LAG_TICKS, RECORDER_PACE, SLAM_LAG_TICKS, SLAM_PACE};
+use crate::pacing::{Pace, RECORDER_LAG_TICKS, SLAM_LAG_TICKS};
 use crate::process::{LINK_BINARY, Pinned, Tie, check_id_range, start_agent};
 use crate::sweeper::Sweeper;
+use shoal_broker::robot_streams::{RECORDER_PROGRESS, SLAM_PROGRESS};
 
 /// The launcher's tool role on the bus (`shoal/<swarm>/launcher`): how a
 /// running swarm's launcher is told from a passing `shoal status`.
@@ -247,7 +248,7 @@ impl RunningSwarm {
 
     /// Starts the recorder process: into a file, a live viewer, or both.
     pub fn record(&mut self, to: &RecordOptions) -> Result<()> {
-        self.pace_to(RECORDER_PACE, RECORDER_LAG_TICKS)?;
+        self.pace_to(RECORDER_PROGRESS, RECORDER_LAG_TICKS)?;
         let tie = self.tie();
         self.helpers
             .start_recorder(&self.runtime, tie, &self.name, to)
@@ -260,7 +261,7 @@ impl RunningSwarm {
         follow: &shoal_slam::follow::Follow,
         options: &[String],
     ) -> Result<()> {
-        self.pace_to(SLAM_PACE, SLAM_LAG_TICKS)?;
+        self.pace_to(SLAM_PROGRESS, SLAM_LAG_TICKS)?;
         let tie = self.tie();
         self.helpers
             .start_slam(&self.runtime, tie, &self.name, follow, options)
@@ -292,7 +293,7 @@ impl RunningSwarm {
     /// Kills the recorder as a crash would (SIGKILL); not reported as a death.
     pub fn kill_recorder(&mut self) -> Result<()> {
         self.helpers.kill_recorder(&self.name)?;
-        self.paces.retain(|p| p.helper != RECORDER_PACE);
+        self.paces.retain(|p| p.helper != RECORDER_PROGRESS);
         Ok(())
     }
 
