@@ -260,10 +260,9 @@ fn slam_progress(
     }
 }
 
-/// Starts the demo's swarm, its recorder, and SLAM following its robots
-/// from strides too short.
-fn launch(options: &DemoOptions, scenario: &Scenario) -> Result<RunningSwarm> {
-    let follow = scenario.section::<SlamSection>()?.follow;
+/// Starts the demo's swarm, its recorder, and SLAM following robots
+/// `follow` from strides too short.
+fn launch(options: &DemoOptions, scenario: &Scenario, follow: &[u32]) -> Result<RunningSwarm> {
     let mut swarm = RunningSwarm::launch(&options.swarm, scenario.clone(), false)?;
     swarm.record(&RecordOptions::file(&options.out, None))?;
     if !follow.is_empty() {
@@ -272,7 +271,7 @@ fn launch(options: &DemoOptions, scenario: &Scenario) -> Result<RunningSwarm> {
         std::fs::write(&model_path, toml::to_string(&wrong)?)
             .with_context(|| format!("writing {}", model_path.display()))?;
         swarm.follow_with_slam(
-            &shoal_slam::follow::Follow::Robots(follow.clone()),
+            &shoal_slam::follow::Follow::Robots(follow.to_vec()),
             &["--initial-model".into(), model_path.display().to_string()],
         )?;
     }
@@ -339,7 +338,7 @@ pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
     }
     let follow: Vec<u32> = scenario.section::<SlamSection>()?.follow;
     let spread = scenario.formation.spread;
-    let mut swarm = launch(options, &scenario)?;
+    let mut swarm = launch(options, &scenario, &follow)?;
     let watched = watch(&mut swarm, &scenario, options.seconds, &follow)?;
     let mut summary = DemoSummary {
         recording: options.out.clone(),
