@@ -28,6 +28,12 @@ fn effects_text(d: &Diagnosis) -> Vec<String> {
             e.test.p_adjusted,
             e.delta_bic
         ));
+        if let Some(check) = &e.feedback_free {
+            line(format!(
+                "    and where no command answered the noise (held out on {:.2} s segments): {:+.1} nats, z {:.1}",
+                check.horizon_s, check.gain, check.z
+            ));
+        }
         // An effect the data cannot tell from another is one finding with
         // both fits, never a choice made silently.
         for a in &e.alternatives {
@@ -103,7 +109,7 @@ pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
     for text in effects_text(d) {
         line(text);
     }
-    for text in transfer_text(d) {
+    for text in transfer_text(d).into_iter().chain(feedback_text(d)) {
         line(text);
     }
     line(format!(
@@ -204,6 +210,23 @@ fn clock_text(notes: &InputNotes) -> Option<String> {
         clock.reason,
         capitalised(&clock.delay)
     ))
+}
+
+/// What was dropped as a controller's feedback rather than physics.
+fn feedback_text(d: &Diagnosis) -> Vec<String> {
+    d.not_feedback_free
+        .iter()
+        .map(|n| {
+            format!(
+                "  dropped, a controller steering on the pose can make it: {} (it predicts no better where no command answered the noise: held out on {:.2} s segments {:+.1} nats, z {:.2}, {:.2} needed)",
+                n.sentence.trim_end_matches('.'),
+                n.check.horizon_s,
+                n.check.gain,
+                n.check.z,
+                shoal_diagnose::feedback::MIN_Z
+            )
+        })
+        .collect()
 }
 
 /// What did not transfer between the held-out stretches, and how each

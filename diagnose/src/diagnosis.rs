@@ -13,6 +13,7 @@ use serde::Serialize;
 use shoal_physics::{CommandGrid, Effect, ScopedEffect, UnicycleModel};
 
 use crate::covariates::{self, Covariate};
+use crate::feedback::{self, FeedbackFree, NotFeedbackFree};
 pub use crate::entry::EntryTest;
 use crate::fit::fit;
 use crate::heldout::{BlockReport, block_reports, heldout, transferable};
@@ -52,6 +53,9 @@ pub struct FoundEffect {
     pub alternatives: Vec<Alternative>,
     /// Held-out (time-blocked) gain in log-likelihood from adding it.
     pub heldout_gain: f64,
+    /// How it predicts where no command answered the noise it is scored
+    /// on (`feedback`); none for an effect on the noise alone.
+    pub feedback_free: Option<FeedbackFree>,
     #[serde(skip)]
     pub scoped: ScopedEffect,
 }
@@ -84,6 +88,10 @@ pub struct Diagnosis {
     /// a held-out block worse than the model diagnosed: physics of one
     /// stretch that does not transfer to another, dropped.
     pub not_transferring: Vec<NotTransferring>,
+    /// Effects selected on the whole run that predict no better where no
+    /// command answered the noise (`feedback`): what a controller steering
+    /// on the pose makes of motion noise, dropped.
+    pub not_feedback_free: Vec<NotFeedbackFree>,
     /// Each held-out block (a recording, or a stretch of one) and how well
     /// the model diagnosed and the fitted one predicted it.
     pub blocks: Vec<BlockReport>,
@@ -103,6 +111,48 @@ pub struct Diagnosis {
 
 /// How many of the residuals' strongest covariates a diagnosis lists.
 const COVARIATES_REPORTED: usize = 5;
+
+/// The found effects the feedback stage confirms (`feedback::check_each`),
+/// refitted together if any was dropped, with their evidence carrying the
+/// check; and the dropped ones.
+fn feedback_checked(
+    recording: &Recording,
+    prepared: &Prepared,
+    fixed: &[ScopedEffect],
+    found: Vec<ScopedEffect>,
+    evidence: Vec<Evidence>,
+    options: &Options,
+) -> (Vec<ScopedEffect>, Vec<Evidence>, Vec<NotFeedbackFree>) {
+    if found.is_empty() {
+        return (found, evidence, Vec::new());
+    }
+    let checks = feedback::check_each(recording, options, fixed, &found);
+    let (refitted, kept, dropped) =
+        feedback::without_unconfirmed(prepared, fixed, &found, &checks, options);
+    let at = OperatingPoint::of(&prepared.segments);
+    let duration = recording.duration();
+    let not_feedback_free = dropped
+        .iter()
+        .filter_map(|&k| {
+            Some(NotFeedbackFree {
+                kind: found[k].effect.kind(),
+                params: found[k].effect.params().into_iter().collect(),
+                sentence: at.sentence(&found[k].effect, duration),
+                check: checks[k]?,
+            })
+        })
+        .collect();
+    let mut evidence: Vec<Option<Evidence>> = evidence.into_iter().map(Some).collect();
+    let kept_evidence = kept
+        .iter()
+        .filter_map(|&k| {
+            let mut e = evidence[k].take()?;
+            e.feedback_free = checks[k];
+            Some(e)
+        })
+        .collect();
+    (refitted, kept_evidence, not_feedback_free)
+}
 
 /// An effect dropped because it does not transfer between blocks.
 #[derive(Clone, Debug, Serialize)]
@@ -201,6 +251,7 @@ fn describe(
         indistinguishable_from: evidence.alternatives.iter().map(|a| a.kind).collect(),
         alternatives: evidence.alternatives,
         heldout_gain: evidence.heldout_gain,
+        feedback_free: evidence.feedback_free,
         scoped: scoped.clone(),
     }
 }
@@ -250,6 +301,8 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
     let fixed = &selection.fixed;
     let (found, evidence, not_transferring) =
         transferring(&prepared, fixed, found, evidence, duration, options);
+    let (found, evidence, not_feedback_free) =
+        feedback_checked(recording, &prepared, fixed, found, evidence, options);
 
     let stderr = if found.is_empty() {
         Vec::new()
@@ -286,6 +339,7 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
         glitches: prepared.glitches.clone(),
         rejected_heldout,
         not_transferring,
+        not_feedback_free,
         blocks: block_reports(&prepared, &baseline_blocks, &improved_blocks),
         baseline,
         improved,

@@ -6,6 +6,7 @@ pub mod candidates;
 pub mod covariates;
 pub mod diagnosis;
 pub mod entry;
+pub mod feedback;
 pub mod fit;
 pub mod glitches;
 pub mod heldout;

@@ -24,6 +24,9 @@ pub(crate) struct Evidence {
     pub(crate) test: EntryTest,
     pub(crate) heldout_gain: f64,
     pub(crate) alternatives: Vec<Alternative>,
+    /// How it predicts where no command answered the noise (set by the
+    /// feedback stage; none for noise effects).
+    pub(crate) feedback_free: Option<crate::feedback::FeedbackFree>,
 }
 
 /// A fitted parameter this close to an edge of its physical range (as a
@@ -499,6 +502,7 @@ pub(crate) fn select(selection: &Selection, located: &[Located], at: OperatingPo
             };
             out.found.push(chosen);
             out.evidence.push(Evidence {
+                feedback_free: None,
                 delta_bic,
                 test,
                 heldout_gain: gain_heldout,
@@ -633,6 +637,7 @@ impl Selection<'_> {
         out.found = joint;
         out.found.push(candidate);
         out.evidence.push(Evidence {
+            feedback_free: None,
             delta_bic,
             test,
             heldout_gain,
