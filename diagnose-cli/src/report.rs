@@ -29,9 +29,17 @@ fn effects_text(d: &Diagnosis) -> Vec<String> {
             e.delta_bic
         ));
         if let Some(check) = &e.feedback_free {
+            let size = if check.z < shoal_diagnose::feedback::MIN_Z {
+                format!(
+                    "; not confirmed there, but it moves the prediction by {:.1} noise standard deviations, more than a controller's answer to the noise can",
+                    check.size_in_noise
+                )
+            } else {
+                String::new()
+            };
             line(format!(
-                "    and where no command answered the noise (held out on {:.2} s segments): {:+.1} nats, z {:.1}",
-                check.horizon_s, check.gain, check.z
+                "    where no command answered the noise (held out on {:.2} s segments): {:+.1} nats, z {:.1} (a real effect of its size: about {:+.1}){size}",
+                check.horizon_s, check.gain, check.z, check.expected_gain
             ));
         }
         // An effect the data cannot tell from another is one finding with
@@ -218,12 +226,9 @@ fn feedback_text(d: &Diagnosis) -> Vec<String> {
         .iter()
         .map(|n| {
             format!(
-                "  dropped, a controller steering on the pose can make it: {} (it predicts no better where no command answered the noise: held out on {:.2} s segments {:+.1} nats, z {:.2}, {:.2} needed)",
+                "  dropped, a controller steering on the pose can make it: {} ({})",
                 n.sentence.trim_end_matches('.'),
-                n.check.horizon_s,
-                n.check.gain,
-                n.check.z,
-                shoal_diagnose::feedback::MIN_Z
+                n.check.why_unconfirmed()
             )
         })
         .collect()

@@ -126,7 +126,7 @@ fn feedback_checked(
     if found.is_empty() {
         return (found, evidence, Vec::new());
     }
-    let checks = feedback::check_each(recording, options, fixed, &found);
+    let checks = feedback::check_each(recording, prepared, options, fixed, &found);
     let (refitted, kept, dropped) =
         feedback::without_unconfirmed(prepared, fixed, &found, &checks, options);
     let at = OperatingPoint::of(&prepared.segments);

@@ -22,7 +22,7 @@ use shoal_physics::{ScopedEffect, UnicycleModel};
 
 use crate::fit::fit;
 use crate::heldout::on_folds;
-use crate::likelihood::{estimate_noise, long_run_factor, residuals, segment_nll};
+use crate::likelihood::{estimate_noise, long_run_factor, residuals, segment_nll, standardised};
 use crate::prepared::{Options, Prepared, prepare};
 use crate::recording::Recording;
 use crate::segments::Segment;
@@ -31,6 +31,10 @@ use crate::segments::Segment;
 /// 5% test. An effect already passed its entry test on the long horizon; this
 /// asks only that its gain there is not the controller's.
 pub const MIN_Z: f64 = 1.645;
+
+/// The largest effect, in the noise's standard deviations, that a fit can
+/// make of noise: all of it (a correlation of 1 with the commands).
+pub const MAX_FEEDBACK_SIZE: f64 = 1.0;
 
 /// How an effect predicts at the feedback-free horizon.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -42,11 +46,44 @@ pub struct FeedbackFree {
     /// The gain over its standard error (segment gains' spread, inflated by
     /// their correlation in time).
     pub z: f64,
+    /// The gain a real effect of the fitted size would show there: below a
+    /// few nats the short horizon cannot tell it from the controller's
+    /// answer either way.
+    pub expected_gain: f64,
+    /// How far the gain falls short of that, over the same standard error:
+    /// far below zero, the short horizon contradicts the effect.
+    pub z_against_expected: f64,
+    /// How far the effect moves the long horizon's predictions, in the
+    /// noise's standard deviations (root mean square over segments and
+    /// components). A fit of noise onto anything the commands carry explains
+    /// at most the noise's own variance, so a controller's answer to the
+    /// noise makes only effects smaller than this bound.
+    pub size_in_noise: f64,
 }
 
 impl FeedbackFree {
+    /// Confirmed where no command answered the noise, or too large for any
+    /// controller's answer to the noise.
     pub fn confirmed(&self) -> bool {
-        self.z >= MIN_Z
+        self.z >= MIN_Z || self.beyond_feedback()
+    }
+
+    /// Larger than any effect a controller's answer to the noise can make.
+    pub fn beyond_feedback(&self) -> bool {
+        self.size_in_noise >= MAX_FEEDBACK_SIZE
+    }
+
+    /// Why an unconfirmed effect was dropped, in words.
+    pub fn why_unconfirmed(&self) -> String {
+        let what = if self.z_against_expected <= -MIN_Z {
+            "contradicts it"
+        } else {
+            "is too short to tell it from the controller's answer"
+        };
+        format!(
+            "held out on {:.2} s segments, where no command answered the noise, it gains {:+.1} nats (z {:.2}, {:.2} needed) where a real effect of its size would gain about {:+.1}: that horizon {what}",
+            self.horizon_s, self.gain, self.z, MIN_Z, self.expected_gain
+        )
     }
 }
 
@@ -64,6 +101,7 @@ pub struct NotFeedbackFree {
 /// feedback-free horizon beside the others; noise effects get `None`.
 pub(crate) fn check_each(
     recording: &Recording,
+    prepared: &Prepared,
     options: &Options,
     fixed: &[ScopedEffect],
     found: &[ScopedEffect],
@@ -82,7 +120,7 @@ pub(crate) fn check_each(
     (0..found.len())
         .map(|k| {
             let check = (!found[k].effect.only_noise())
-                .then(|| feedback_free_gain(&short, horizon_s, fixed, found, k));
+                .then(|| feedback_free_gain(prepared, &short, horizon_s, fixed, found, k));
             tracing::debug!(effect = ?found[k].effect, ?check, "feedback-free check");
             check
         })
@@ -143,61 +181,110 @@ pub fn prepare_feedback_free(recording: &Recording, options: &Options) -> Prepar
 }
 
 /// How `found[k]` predicts the short-horizon run `short`, against the model
-/// of `fixed` and the other effects of `found`.
+/// of `fixed` and the other effects of `found`, and how large it is against
+/// the noise of the long-horizon run `long`.
 pub fn feedback_free_gain(
+    long: &Prepared,
     short: &Prepared,
     horizon_s: f64,
     fixed: &[ScopedEffect],
     found: &[ScopedEffect],
     k: usize,
 ) -> FeedbackFree {
-    let with: Vec<ScopedEffect> = fixed.iter().chain(found).cloned().collect();
-    let without: Vec<ScopedEffect> = fixed
-        .iter()
-        .chain(found.iter().enumerate().filter(|(i, _)| *i != k).map(|(_, e)| e))
-        .cloned()
-        .collect();
-    let per_block: Vec<Vec<f64>> = on_folds(short, |train, test| {
-        let nll_without = heldout_segment_nll(short, train, test, without.clone());
-        let nll_with = heldout_segment_nll(short, train, test, with.clone());
-        nll_without.iter().zip(&nll_with).map(|(a, b)| a - b).collect()
-    });
-    let gains: Vec<f64> = per_block.into_iter().flatten().collect();
+    let with = UnicycleModel::with_effects(fixed.iter().chain(found).cloned().collect());
+    let without = UnicycleModel::with_effects(
+        fixed
+            .iter()
+            .chain(found.iter().enumerate().filter(|(i, _)| *i != k).map(|(_, e)| e))
+            .cloned()
+            .collect(),
+    );
+    let per_block: Vec<BlockGains> =
+        on_folds(short, |train, test| block_gains(short, train, test, &with, &without));
+    let expected_gain = per_block.iter().map(|b| b.expected).sum();
+    let gains: Vec<f64> = per_block.into_iter().flat_map(|b| b.gains).collect();
+    let gain: f64 = gains.iter().sum();
+    let sd = sd_of_sum(&short.segments, &gains);
+    let z = |x: f64| if sd > 0.0 { x / sd } else { 0.0 };
     FeedbackFree {
         horizon_s,
-        gain: gains.iter().sum(),
-        z: z_of_sum(&short.segments, &gains),
+        gain,
+        z: z(gain),
+        expected_gain,
+        z_against_expected: z(gain - expected_gain),
+        size_in_noise: size_in_noise(long, &with, &without),
     }
 }
 
-/// Each test segment's negative log-likelihood under `effects`, with the
-/// noise estimated on `train`.
-fn heldout_segment_nll(
+/// How far `with` moves the prediction of `long`'s segments from `without`'s,
+/// in the noise's standard deviations (the root mean square of the
+/// standardised difference, per component, with `with`'s noise).
+fn size_in_noise(long: &Prepared, with: &UnicycleModel, without: &UnicycleModel) -> f64 {
+    let segs = &long.segments;
+    if segs.is_empty() {
+        return 0.0;
+    }
+    let r_with = residuals(with, &long.grid, segs);
+    let noise = estimate_noise(with, segs, &r_with);
+    let a = standardised(with, &noise, segs, &r_with);
+    let b = standardised(with, &noise, segs, &residuals(without, &long.grid, segs));
+    let squares: f64 = a
+        .iter()
+        .zip(&b)
+        .map(|(a, b)| (0..3).map(|c| (a[c] - b[c]).powi(2)).sum::<f64>())
+        .sum();
+    (squares / (3 * segs.len()) as f64).sqrt()
+}
+
+/// One held-out block at the short horizon.
+struct BlockGains {
+    /// Each test segment's log-likelihood gain of `with` over `without`.
+    gains: Vec<f64>,
+    /// What the gain would be on average were `with` the truth: half the
+    /// squared standardised difference of the two predictions, summed (the
+    /// Kullback-Leibler divergence of the two models' predictive densities).
+    expected: f64,
+}
+
+/// [`BlockGains`] of `test`, each model's noise estimated on `train`.
+fn block_gains(
     prepared: &Prepared,
     train: &[Segment],
     test: &[Segment],
-    effects: Vec<ScopedEffect>,
-) -> Vec<f64> {
-    let model = UnicycleModel::with_effects(effects);
-    let noise = estimate_noise(&model, train, &residuals(&model, &prepared.grid, train));
-    segment_nll(&model, &noise, test, &residuals(&model, &prepared.grid, test))
+    with: &UnicycleModel,
+    without: &UnicycleModel,
+) -> BlockGains {
+    let grid = &prepared.grid;
+    let heldout = |model: &UnicycleModel| {
+        let noise = estimate_noise(model, train, &residuals(model, grid, train));
+        let r = residuals(model, grid, test);
+        (noise, segment_nll(model, &noise, test, &r), r)
+    };
+    let (noise, nll_with, r_with) = heldout(with);
+    let (_, nll_without, r_without) = heldout(without);
+    let a = standardised(with, &noise, test, &r_with);
+    let b = standardised(with, &noise, test, &r_without);
+    BlockGains {
+        gains: nll_without.iter().zip(&nll_with).map(|(a, b)| a - b).collect(),
+        expected: a
+            .iter()
+            .zip(&b)
+            .map(|(a, b)| (0..3).map(|c| 0.5 * (a[c] - b[c]).powi(2)).sum::<f64>())
+            .sum(),
+    }
 }
 
-/// The sum of `gains` over its standard error: their spread about their mean,
-/// inflated by their correlation in time (a HAC variance).
-fn z_of_sum(segments: &[Segment], gains: &[f64]) -> f64 {
+/// The standard error of the sum of `gains`: their spread about their mean,
+/// inflated by their correlation in time (a HAC variance); 0 when flat.
+fn sd_of_sum(segments: &[Segment], gains: &[f64]) -> f64 {
     let n = gains.len();
     if n < 2 {
         return 0.0;
     }
-    let sum: f64 = gains.iter().sum();
-    let mean = sum / n as f64;
+    let mean = gains.iter().sum::<f64>() / n as f64;
     let variance = gains.iter().map(|g| (g - mean).powi(2)).sum::<f64>() / (n - 1) as f64;
-    if variance <= 0.0 {
-        return 0.0;
-    }
     let factor = long_run_factor(segments, gains).factor;
-    sum / (n as f64 * variance * factor).sqrt()
+    (n as f64 * variance * factor).sqrt()
 }
 
 #[cfg(test)]
