@@ -3,8 +3,9 @@
 //! held-out, time-blocked folds better), and measure the fit before and after.
 //! The stages live in their own modules: `candidates` (what a round tries),
 //! `zones` (surface zones' edges), `entry` (the entry test), `selection`
-//! (the rounds, pruning) and `heldout` (folds, blocks and transfer), and
-//! what they share in `prepared` (options, the prepared run); this one runs
+//! (the rounds, pruning), `heldout` (folds, blocks and transfer) and
+//! `feedback` (each effect held out where no command answered the noise),
+//! and what they share in `prepared` (options, the prepared run); this one runs
 //! them in order and states the findings.
 
 use std::collections::BTreeMap;

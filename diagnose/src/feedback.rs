@@ -7,13 +7,22 @@
 //! so the commands correlate with the residual the model must explain, and
 //! an effect that damps the model's response to command changes (a play, a
 //! lag, a delay) explains part of the noise: the closed-loop identification
-//! bias of the direct method. It is free of that bias only where each
-//! segment's commands were chosen before its noise (Ljung, System
-//! Identification, 13.4): a horizon shorter than the commands' period. At
+//! bias of the direct method. Closed-loop identification is free of it
+//! where the loop holds a delay: here, where each segment's commands were
+//! chosen before its noise, a horizon shorter than the commands' period. At
 //! such a horizon the pose noise hides a weak effect's fit, but not a held
 //! effect's prediction: the effect keeps the parameters fitted at the long
 //! horizon and is only scored at the short one, each held-out block with the
 //! noise estimated on the others, as the held-out stage scores.
+//!
+//! Two bounds keep the check honest. A fit of noise onto anything the
+//! commands carry explains at most the noise's own variance, so an effect
+//! that moves the long horizon's predictions by more than the noise's
+//! spread is beyond any controller's answer and is kept even where the
+//! short horizon cannot confirm it (a legged body's gait is no unicycle
+//! within a tenth of a second). And the check reports the gain a real
+//! effect of the fitted size would show at the short horizon, so a reader
+//! sees whether that horizon contradicts the effect or is too short to say.
 
 use std::collections::BTreeMap;
 
@@ -154,7 +163,7 @@ pub(crate) fn without_unconfirmed(
 
 /// The longest horizon, in whole grid steps, of at most half the commands'
 /// usual period (their median interval), so that at least half the segments
-/// see no new command and none sees more than one; one grid step when
+/// see no new command; one grid step when
 /// commands come faster than that. A command that does arrive within a
 /// segment answers only the noise of the part before it, which shrinks with
 /// the horizon.
@@ -168,16 +177,6 @@ pub fn feedback_free_horizon(recording: &Recording, grid_dt: f64) -> f64 {
     let period = gaps[gaps.len() / 2];
     let steps = (0.5 * period / grid_dt + 1e-9).floor().max(1.0);
     steps * grid_dt
-}
-
-/// The run prepared at the feedback-free horizon, with the same held-out
-/// blocks' count as `options` asks.
-pub fn prepare_feedback_free(recording: &Recording, options: &Options) -> Prepared {
-    let short = Options {
-        horizon_s: feedback_free_horizon(recording, options.grid_dt),
-        ..options.clone()
-    };
-    prepare(recording, &short)
 }
 
 /// How `found[k]` predicts the short-horizon run `short`, against the model
@@ -300,6 +299,26 @@ mod tests {
             commands.omega.push(0.0);
         }
         Recording::from_absolute(commands, Poses::default())
+    }
+
+    fn check(z: f64, size_in_noise: f64) -> FeedbackFree {
+        FeedbackFree {
+            horizon_s: 0.02,
+            gain: z * 3.0,
+            z,
+            expected_gain: 3.5,
+            z_against_expected: (z * 3.0 - 3.5) / 3.0,
+            size_in_noise,
+        }
+    }
+
+    #[test]
+    fn an_effect_stays_if_confirmed_or_larger_than_any_answer_to_the_noise() {
+        assert!(check(2.0, 0.1).confirmed());
+        assert!(!check(0.3, 0.1).confirmed());
+        assert!(check(0.3, 1.4).confirmed(), "larger than the noise");
+        assert!(check(0.3, 0.1).why_unconfirmed().contains("too short to tell"));
+        assert!(check(-1.0, 0.1).why_unconfirmed().contains("contradicts"));
     }
 
     #[test]

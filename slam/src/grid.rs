@@ -96,22 +96,38 @@ impl TiledGrid {
         };
         let local = (p - self.origin) / self.cell_size;
         let reach = tolerance.reach;
+        let (x0, x1) = (cx.saturating_sub(reach), (cx + reach).min(self.width - 1));
         let mut best = 0.0f32;
         for y in cy.saturating_sub(reach)..=(cy + reach).min(self.height - 1) {
             let dy = local.y - (y as f64 + 0.5);
-            for x in cx.saturating_sub(reach)..=(cx + reach).min(self.width - 1) {
-                let odds = self.log_odds((x, y));
-                // Only cells more likely occupied than not count; skipping
-                // the rest keeps this cheap.
-                if odds > 0.0 {
-                    let dx = local.x - (x as f64 + 0.5);
-                    let weight = tolerance.weight(dx * dx + dy * dy);
-                    // An occupancy is at most 1: a cell whose weight alone
-                    // does not beat the best needs no exp.
-                    if weight > best {
-                        best = best.max(weight / (1.0 + (-odds).exp()));
+            let dy2 = dy * dy;
+            // Weights fall with distance: a row whose offset alone cannot
+            // beat the best holds nothing better.
+            if tolerance.weight(dy2) <= best {
+                continue;
+            }
+            // The row's cells, a tile's run at a time (the window spans at
+            // most two tiles a row): one tile lookup per run, not per cell.
+            let (tile_row, row_start) = ((y / TILE) * self.tiles_x, (y % TILE) * TILE);
+            let mut x = x0;
+            while x <= x1 {
+                let run_end = x1.min((x / TILE + 1) * TILE - 1);
+                let tile = &self.tiles[tile_row + x / TILE];
+                let cells = &tile[row_start + x % TILE..=row_start + run_end % TILE];
+                for (i, &odds) in cells.iter().enumerate() {
+                    // Only cells more likely occupied than not count;
+                    // skipping the rest keeps this cheap.
+                    if odds > 0.0 {
+                        let dx = local.x - ((x + i) as f64 + 0.5);
+                        let weight = tolerance.weight(dx * dx + dy2);
+                        // An occupancy is at most 1: a cell whose weight
+                        // alone does not beat the best needs no exp.
+                        if weight > best {
+                            best = best.max(weight / (1.0 + (-odds).exp()));
+                        }
                     }
                 }
+                x = run_end + 1;
             }
         }
         best
@@ -219,6 +235,50 @@ mod tests {
         assert!(at(3.0, 1.0) > 50, "the hit is occupied");
         assert!(at(1.5, 1.0) < 50, "the beam's path is free");
         assert_eq!(at(1.5, 0.1), 255, "never observed");
+    }
+
+    /// The window's best weighted occupancy, cell by cell: what
+    /// `occupancy_within`'s tile runs and row skipping must equal.
+    fn occupancy_within_cell_by_cell(grid: &TiledGrid, p: DVec2, tolerance: &Tolerance) -> f32 {
+        let Some((cx, cy)) = grid.cell_of(p) else {
+            return 0.0;
+        };
+        let local = (p - grid.origin) / grid.cell_size;
+        let reach = tolerance.reach;
+        let mut best = 0.0f32;
+        for y in cy.saturating_sub(reach)..=(cy + reach).min(grid.height - 1) {
+            for x in cx.saturating_sub(reach)..=(cx + reach).min(grid.width - 1) {
+                let (dx, dy) = (local.x - (x as f64 + 0.5), local.y - (y as f64 + 0.5));
+                let weight = tolerance.weight(dx * dx + dy * dy);
+                if grid.log_odds((x, y)) > 0.0 {
+                    best = best.max(weight * grid.occupancy((x, y)));
+                }
+            }
+        }
+        best
+    }
+
+    #[test]
+    fn the_window_scan_equals_scoring_cell_by_cell_across_tile_edges() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+        let mut grid = TiledGrid::new(3.0, 2.0, 0.05);
+        for _ in 0..300 {
+            let from = DVec2::new(rng.random_range(0.0..3.0), rng.random_range(0.0..2.0));
+            let to = DVec2::new(rng.random_range(0.0..3.0), rng.random_range(0.0..2.0));
+            grid.integrate_beam(from, to, rng.random_bool(0.7));
+        }
+        for sigma in [0.03, 0.1, 0.3] {
+            let tolerance = Tolerance::new(sigma, 0.05);
+            for _ in 0..3000 {
+                let p = DVec2::new(rng.random_range(-0.1..3.1), rng.random_range(-0.1..2.1));
+                let (fast, slow) = (
+                    grid.occupancy_within(p, &tolerance),
+                    occupancy_within_cell_by_cell(&grid, p, &tolerance),
+                );
+                assert!((fast - slow).abs() < 1e-6, "{p}: {fast} against {slow}");
+            }
+        }
     }
 
     #[test]
