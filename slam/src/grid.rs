@@ -95,39 +95,30 @@ impl TiledGrid {
             return 0.0;
         };
         let local = (p - self.origin) / self.cell_size;
-        let reach = tolerance.reach;
-        let (x0, x1) = (cx.saturating_sub(reach), (cx + reach).min(self.width - 1));
         let mut best = 0.0f32;
-        for y in cy.saturating_sub(reach)..=(cy + reach).min(self.height - 1) {
-            let dy = local.y - (y as f64 + 0.5);
-            let dy2 = dy * dy;
-            // Weights fall with distance: a row whose offset alone cannot
-            // beat the best holds nothing better.
-            if tolerance.weight(dy2) <= best {
+        // Nearest cells first: once no cell left can weigh more than the
+        // best found (a wall at the beam's end usually settles it within
+        // the first ring), the rest of the window holds nothing better.
+        for &(i, j, bound) in &tolerance.by_distance {
+            if bound <= best {
+                break;
+            }
+            let (Some(x), Some(y)) = (cx.checked_add_signed(i), cy.checked_add_signed(j)) else {
+                continue;
+            };
+            if x >= self.width || y >= self.height {
                 continue;
             }
-            // The row's cells, a tile's run at a time (the window spans at
-            // most two tiles a row): one tile lookup per run, not per cell.
-            let (tile_row, row_start) = ((y / TILE) * self.tiles_x, (y % TILE) * TILE);
-            let mut x = x0;
-            while x <= x1 {
-                let run_end = x1.min((x / TILE + 1) * TILE - 1);
-                let tile = &self.tiles[tile_row + x / TILE];
-                let cells = &tile[row_start + x % TILE..=row_start + run_end % TILE];
-                for (i, &odds) in cells.iter().enumerate() {
-                    // Only cells more likely occupied than not count;
-                    // skipping the rest keeps this cheap.
-                    if odds > 0.0 {
-                        let dx = local.x - ((x + i) as f64 + 0.5);
-                        let weight = tolerance.weight(dx * dx + dy2);
-                        // An occupancy is at most 1: a cell whose weight
-                        // alone does not beat the best needs no exp.
-                        if weight > best {
-                            best = best.max(weight / (1.0 + (-odds).exp()));
-                        }
-                    }
+            let odds = self.log_odds((x, y));
+            // Only cells more likely occupied than not count.
+            if odds > 0.0 {
+                let (dx, dy) = (local.x - (x as f64 + 0.5), local.y - (y as f64 + 0.5));
+                let weight = tolerance.weight(dx * dx + dy * dy);
+                // An occupancy is at most 1: a cell whose weight alone
+                // does not beat the best needs no exp.
+                if weight > best {
+                    best = best.max(weight / (1.0 + (-odds).exp()));
                 }
-                x = run_end + 1;
             }
         }
         best
@@ -320,6 +311,9 @@ pub struct Tolerance {
     reach: usize,
     /// Weight by squared distance in cells, in steps of 1 / [`Self::STEPS`].
     weights: Vec<f32>,
+    /// The window's cell offsets, nearest first, each with the most any
+    /// point of the centre cell can weigh it (its nearest edge's distance).
+    by_distance: Vec<(isize, isize, f32)>,
 }
 
 impl Tolerance {
@@ -343,7 +337,24 @@ impl Tolerance {
                 (-0.5 * squared / (sigma_cells * sigma_cells)).exp() as f32
             })
             .collect();
-        Self { reach, weights }
+        let mut tolerance = Self {
+            reach,
+            weights,
+            by_distance: Vec::new(),
+        };
+        let r = reach as isize;
+        let nearest = |k: isize| (k.abs() as f64 - 0.5).max(0.0);
+        let mut by_distance: Vec<(isize, isize, f32)> = (-r..=r)
+            .flat_map(|j| (-r..=r).map(move |i| (i, j)))
+            .map(|(i, j)| {
+                let squared = nearest(i).powi(2) + nearest(j).powi(2);
+                (i, j, tolerance.weight(squared))
+            })
+            .collect();
+        // Heaviest bound first; ties keep their order.
+        by_distance.sort_by(|a, b| b.2.total_cmp(&a.2));
+        tolerance.by_distance = by_distance;
+        tolerance
     }
 
     /// The weight at `squared` cells squared from the beam's end.
