@@ -18,6 +18,9 @@ use shoal_physics::{Mixture2, Pose};
 
 use crate::grid::{TiledGrid, Tolerance};
 
+/// Beams whose likelihoods are multiplied before one logarithm is taken.
+const BEAMS_PER_LOG: usize = 200;
+
 /// The returned beams of one scan as each particle scores them: where each
 /// ends in the robot's frame, and how far off an obstacle it may end.
 pub struct ScoredBeams {
@@ -39,14 +42,28 @@ impl ScoredBeams {
     /// the open (a person, a robot, a reflection).
     pub fn log_likelihood(&self, map: &TiledGrid, pose: &Pose) -> f64 {
         let (origin, heading) = (pose.position(), DVec2::from_angle(pose.theta));
-        self.local_ends
+        let likelihoods = self
+            .local_ends
             .iter()
             .zip(&self.tolerances)
             .map(|(local, tolerance)| {
                 let end = origin + heading.rotate(*local);
-                f64::from(0.05 + 0.9 * map.occupancy_within(end, tolerance)).ln()
-            })
-            .sum()
+                f64::from(0.05 + 0.9 * map.occupancy_within(end, tolerance))
+            });
+        // The logarithm of products of up to BEAMS_PER_LOG beams, each at
+        // least 0.05 (0.05^200 is still a normal f64): one `ln` per chunk
+        // instead of one per beam, which was a tenth of the filter's time.
+        let mut sum = 0.0;
+        let (mut product, mut count) = (1.0, 0);
+        for likelihood in likelihoods {
+            product *= likelihood;
+            count += 1;
+            if count == BEAMS_PER_LOG {
+                sum += product.ln();
+                (product, count) = (1.0, 0);
+            }
+        }
+        sum + product.ln()
     }
 }
 
@@ -280,6 +297,32 @@ mod tests {
                 tolerances,
             },
         )
+    }
+
+    #[test]
+    fn a_scans_log_likelihood_is_the_sum_of_its_beams_logs_past_a_chunk() {
+        let at = Pose::new(1.7, 2.4, 0.3);
+        let (map, one) = room_and_scan(at);
+        // Five scans' beams at once: more than one chunk of BEAMS_PER_LOG,
+        // off the pose so some beams end in the open.
+        let beams = ScoredBeams {
+            local_ends: one.local_ends.repeat(5),
+            tolerances: (0..5).flat_map(|_| one.tolerances.iter().cloned()).collect(),
+        };
+        assert!(beams.len() > BEAMS_PER_LOG);
+        let off = at.advanced(0.04, 0.02, 0.03);
+        let (origin, heading) = (off.position(), DVec2::from_angle(off.theta));
+        let by_beam: f64 = beams
+            .local_ends
+            .iter()
+            .zip(&beams.tolerances)
+            .map(|(l, t)| {
+                let end = origin + heading.rotate(*l);
+                f64::from(0.05 + 0.9 * map.occupancy_within(end, t)).ln()
+            })
+            .sum();
+        let chunked = beams.log_likelihood(&map, &off);
+        assert!((chunked - by_beam).abs() < 1e-9 * by_beam.abs(), "{chunked} against {by_beam}");
     }
 
     #[test]
