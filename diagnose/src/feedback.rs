@@ -118,11 +118,12 @@ pub(crate) fn check_each(
     if found.iter().all(|e| e.effect.only_noise()) {
         return vec![None; found.len()];
     }
-    let horizon_s = feedback_free_horizon(recording, options.grid_dt);
+    let (horizon_s, grid_dt) = feedback_free_horizon(recording, options.grid_dt);
     let short = prepare(
         recording,
         &Options {
             horizon_s,
+            grid_dt,
             ..options.clone()
         },
     );
@@ -161,22 +162,35 @@ pub(crate) fn without_unconfirmed(
     (refitted.effects, kept, dropped)
 }
 
-/// The longest horizon, in whole grid steps, of at most half the commands'
-/// usual period (their median interval), so that at least half the segments
-/// see no new command; one grid step when
-/// commands come faster than that. A command that does arrive within a
-/// segment answers only the noise of the part before it, which shrinks with
-/// the horizon.
-pub fn feedback_free_horizon(recording: &Recording, grid_dt: f64) -> f64 {
+/// The finest grid the check traces on.
+const MIN_GRID_DT: f64 = 0.005;
+
+/// The commands' usual period: the median interval between them.
+fn command_period(recording: &Recording) -> Option<f64> {
     let t = &recording.commands.t;
     let mut gaps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).filter(|g| *g > 0.0).collect();
     if gaps.is_empty() {
-        return grid_dt;
+        return None;
     }
     gaps.sort_by(f64::total_cmp);
-    let period = gaps[gaps.len() / 2];
-    let steps = (0.5 * period / grid_dt + 1e-9).floor().max(1.0);
-    steps * grid_dt
+    Some(gaps[gaps.len() / 2])
+}
+
+/// The feedback-free horizon and the command grid's step for it: one
+/// command period, on a grid that divides it (no coarser than `grid_dt`),
+/// so that the grid (which starts at the first command) cuts segments from
+/// one command to the next and each replays one command, chosen before the
+/// segment's noise. It is the longest segment free of the feedback, and
+/// the longest keeps most power: a drift's evidence grows with it.
+pub fn feedback_free_horizon(recording: &Recording, grid_dt: f64) -> (f64, f64) {
+    let Some(period) = command_period(recording) else {
+        return (grid_dt, grid_dt);
+    };
+    // Commands faster than this would make the grid, and the segments, too
+    // many to trace: the horizon then holds a few commands.
+    let period = period.max(MIN_GRID_DT);
+    let steps = (period / grid_dt - 1e-9).ceil().max(1.0);
+    (period, period / steps)
 }
 
 /// How `found[k]` predicts the short-horizon run `short`, against the model
@@ -322,11 +336,17 @@ mod tests {
     }
 
     #[test]
-    fn the_horizon_is_at_most_half_the_commands_period_in_whole_grid_steps() {
-        assert!((feedback_free_horizon(&commands_every(0.05, 100), 0.02) - 0.02).abs() < 1e-12);
-        assert!((feedback_free_horizon(&commands_every(0.1, 100), 0.02) - 0.04).abs() < 1e-12);
-        assert!((feedback_free_horizon(&commands_every(0.2, 100), 0.02) - 0.1).abs() < 1e-12);
-        // Commands faster than two grid steps: one step.
-        assert!((feedback_free_horizon(&commands_every(0.01, 100), 0.02) - 0.02).abs() < 1e-12);
+    fn the_horizon_is_one_command_period_on_a_grid_that_divides_it() {
+        let close = |(h, dt): (f64, f64), want: (f64, f64)| {
+            (h - want.0).abs() < 1e-12 && (dt - want.1).abs() < 1e-12
+        };
+        let at = |period| feedback_free_horizon(&commands_every(period, 100), 0.02);
+        assert!(close(at(0.05), (0.05, 0.05 / 3.0)), "{:?}", at(0.05));
+        assert!(close(at(0.1), (0.1, 0.02)), "{:?}", at(0.1));
+        assert!(close(at(0.04), (0.04, 0.02)), "{:?}", at(0.04));
+        // Commands faster than the grid: one period, on a grid as fine.
+        assert!(close(at(0.01), (0.01, 0.01)), "{:?}", at(0.01));
+        // Faster still: the finest grid, a few commands a segment.
+        assert!(close(at(0.001), (0.005, 0.005)), "{:?}", at(0.001));
     }
 }

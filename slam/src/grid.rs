@@ -235,7 +235,12 @@ mod tests {
             return 0.0;
         };
         let local = (p - grid.origin) / grid.cell_size;
-        let reach = tolerance.reach;
+        let reach = tolerance
+            .by_distance
+            .iter()
+            .map(|&(i, _, _)| i.unsigned_abs())
+            .max()
+            .unwrap_or(0);
         let mut best = 0.0f32;
         for y in cy.saturating_sub(reach)..=(cy + reach).min(grid.height - 1) {
             for x in cx.saturating_sub(reach)..=(cx + reach).min(grid.width - 1) {
@@ -308,7 +313,6 @@ mod tests {
 /// computed once per beam rather than once per particle.
 #[derive(Clone, Debug)]
 pub struct Tolerance {
-    reach: usize,
     /// Weight by squared distance in cells, in steps of 1 / [`Self::STEPS`].
     weights: Vec<f32>,
     /// The window's cell offsets, nearest first, each with the most any
@@ -338,7 +342,6 @@ impl Tolerance {
             })
             .collect();
         let mut tolerance = Self {
-            reach,
             weights,
             by_distance: Vec::new(),
         };
