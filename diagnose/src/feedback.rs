@@ -8,12 +8,12 @@
 //! an effect that damps the model's response to command changes (a play, a
 //! lag, a delay) explains part of the noise: the closed-loop identification
 //! bias of the direct method. Closed-loop identification is free of it
-//! where the loop holds a delay: here, where each segment's commands were
-//! chosen before its noise, a horizon shorter than the commands' period. At
-//! such a horizon the pose noise hides a weak effect's fit, but not a held
-//! effect's prediction: the effect keeps the parameters fitted at the long
-//! horizon and is only scored at the short one, each held-out block with the
-//! noise estimated on the others, as the held-out stage scores.
+//! where the loop holds a delay: here, on segments cut at the commands, one
+//! command period long, each replaying one command chosen before its noise.
+//! At such a horizon the pose noise hides a weak effect's fit, but not a
+//! held effect's prediction: the effect keeps the parameters fitted at the
+//! long horizon and is only scored at the short one, each held-out block
+//! with the noise estimated on the others, as the held-out stage scores.
 //!
 //! Two bounds keep the check honest. A fit of noise onto anything the
 //! commands carry explains at most the noise's own variance, so an effect
