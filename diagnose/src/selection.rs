@@ -265,31 +265,7 @@ impl Selection<'_> {
             .map(|f| (judge(&f.effects[0]), f.effects[0].clone()))
             .collect();
         judged.sort_by(|a, b| a.0.total_cmp(&b.0));
-        // The best-ranked candidate that passes the entry test. Each kind is
-        // tested at the level corrected for all the library's kinds, so one
-        // that ranks first and fails does not keep the next from its test (a
-        // rarely visited zone that explains more than a turn gain, but fails,
-        // left the turn gain's failure to end the diagnosis).
-        let mut passing = None;
-        for (index, (delta_bic, candidate)) in judged.iter().enumerate() {
-            let long_runs = if index == 0 {
-                long_runs
-            } else {
-                factors_with(grid, segs, base, candidate)
-            };
-            let test = self.entry_of(base, candidate, (*delta_bic, long_runs));
-            tracing::debug!(
-                kind = candidate.effect.kind(),
-                rank = index,
-                delta_bic,
-                passed = test.passed(),
-                "round: candidate"
-            );
-            if test.passed() {
-                passing = Some((index, *delta_bic, candidate.clone(), test, long_runs));
-                break;
-            }
-        }
+        let passing = self.first_passing(base, &judged, long_runs);
         let Some((index, delta_bic, chosen, test, long_runs)) = passing else {
             return Round::Done;
         };
@@ -331,6 +307,41 @@ impl Selection<'_> {
             tied,
             remaining,
         }
+    }
+
+    /// The best-ranked of `judged` (gain, candidate) that passes the entry
+    /// test, with its index, gain, test and long-run factors (the first
+    /// candidate's are `first_long_runs`). Each kind is tested at the level
+    /// corrected for all the library's kinds, so one that ranks first and
+    /// fails does not keep the next from its test (a rarely visited zone
+    /// that explains more than a turn gain, but fails, left the turn gain's
+    /// failure to end the diagnosis).
+    fn first_passing(
+        &self,
+        base: &[ScopedEffect],
+        judged: &[(f64, ScopedEffect)],
+        first_long_runs: [LongRun; 3],
+    ) -> Option<(usize, f64, ScopedEffect, EntryTest, [LongRun; 3])> {
+        let (grid, segs) = (self.grid(), self.segs());
+        for (index, (delta_bic, candidate)) in judged.iter().enumerate() {
+            let long_runs = if index == 0 {
+                first_long_runs
+            } else {
+                factors_with(grid, segs, base, candidate)
+            };
+            let test = self.entry_of(base, candidate, (*delta_bic, long_runs));
+            tracing::debug!(
+                kind = candidate.effect.kind(),
+                rank = index,
+                delta_bic,
+                passed = test.passed(),
+                "round: candidate"
+            );
+            if test.passed() {
+                return Some((index, *delta_bic, candidate.clone(), test, long_runs));
+            }
+        }
+        None
     }
 
     /// An effect may act in part of the run only. Trying that is not left
