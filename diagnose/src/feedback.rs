@@ -30,7 +30,7 @@ use serde::Serialize;
 use shoal_physics::{ScopedEffect, UnicycleModel};
 
 use crate::fit::fit;
-use crate::heldout::on_folds;
+use crate::heldout::{on_folds, refit_on};
 use crate::likelihood::{estimate_noise, long_run_factor, residuals, segment_nll, standardised};
 use crate::prepared::{Options, Prepared, prepare};
 use crate::recording::Recording;
@@ -130,7 +130,9 @@ pub(crate) fn check_each(
     (0..found.len())
         .map(|k| {
             let check = (!found[k].effect.only_noise())
-                .then(|| feedback_free_gain(prepared, &short, horizon_s, fixed, found, k));
+                .then(|| {
+                    feedback_free_gain(prepared, &short, horizon_s, (fixed, found, k), options)
+                });
             tracing::debug!(effect = ?found[k].effect, ?check, "feedback-free check");
             check
         })
@@ -200,25 +202,55 @@ pub fn feedback_free_gain(
     long: &Prepared,
     short: &Prepared,
     horizon_s: f64,
-    fixed: &[ScopedEffect],
-    found: &[ScopedEffect],
-    k: usize,
+    (fixed, found, k): (&[ScopedEffect], &[ScopedEffect], usize),
+    options: &Options,
 ) -> FeedbackFree {
-    let with = UnicycleModel::with_effects(fixed.iter().chain(found).cloned().collect());
-    let without = UnicycleModel::with_effects(
-        fixed
+    let others: Vec<ScopedEffect> = found
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| *i != k)
+        .map(|(_, e)| e.clone())
+        .collect();
+    // Each block is held out from the parameters too: the effects that move
+    // the prediction are refitted on the long segments outside it, so that
+    // one fitted to a stretch of noise (a scope, a slow drift) gains nothing
+    // for having seen it. Effects on the noise alone weigh the segments of
+    // both models alike, as fitted on the whole run: refitted beside each,
+    // they would take up what the other model lacks and weigh the two
+    // differently.
+    let (noise_effects, moving): (Vec<ScopedEffect>, Vec<ScopedEffect>) =
+        found.iter().cloned().partition(|e| e.effect.only_noise());
+    let moving_others: Vec<ScopedEffect> =
+        others.iter().filter(|e| !e.effect.only_noise()).cloned().collect();
+    let held: Vec<ScopedEffect> = fixed.iter().chain(&noise_effects).cloned().collect();
+    let per_block: Vec<BlockGains> = on_folds(short, |train, test| {
+        let (from, to) = (
+            test.first().map_or(0.0, |s| s.t_start),
+            test.last().map_or(0.0, |s| s.t_end),
+        );
+        let long_train: Vec<Segment> = long
+            .segments
             .iter()
-            .chain(found.iter().enumerate().filter(|(i, _)| *i != k).map(|(_, e)| e))
+            .filter(|s| s.t_end <= from || s.t_start >= to)
             .cloned()
-            .collect(),
-    );
-    let per_block: Vec<BlockGains> =
-        on_folds(short, |train, test| block_gains(short, train, test, &with, &without));
+            .collect();
+        let with = UnicycleModel::with_effects(refit_on(long, &long_train, &held, &moving, options));
+        let without = UnicycleModel::with_effects(refit_on(
+            long,
+            &long_train,
+            &held,
+            &moving_others,
+            options,
+        ));
+        block_gains(short, train, test, &with, &without)
+    });
     let expected_gain = per_block.iter().map(|b| b.expected).sum();
     let gains: Vec<f64> = per_block.into_iter().flat_map(|b| b.gains).collect();
     let gain: f64 = gains.iter().sum();
     let sd = sd_of_sum(&short.segments, &gains);
     let z = |x: f64| if sd > 0.0 { x / sd } else { 0.0 };
+    let with = UnicycleModel::with_effects(fixed.iter().chain(found).cloned().collect());
+    let without = UnicycleModel::with_effects(fixed.iter().chain(&others).cloned().collect());
     FeedbackFree {
         horizon_s,
         gain,
