@@ -128,8 +128,19 @@ fn feedback_checked(
         return (found, evidence, Vec::new());
     }
     let checks = feedback::check_each(recording, prepared, options, fixed, &found);
-    let (refitted, kept, dropped) =
-        feedback::without_unconfirmed(prepared, fixed, &found, &checks, options);
+    let (kept, dropped): (Vec<usize>, Vec<usize>) =
+        (0..found.len()).partition(|&k| checks[k].is_none_or(|c| c.confirmed()));
+    if dropped.is_empty() {
+        let evidence = evidence
+            .into_iter()
+            .zip(&checks)
+            .map(|(e, check)| Evidence {
+                feedback_free: *check,
+                ..e
+            })
+            .collect();
+        return (found, evidence, Vec::new());
+    }
     let at = OperatingPoint::of(&prepared.segments);
     let duration = recording.duration();
     let not_feedback_free = dropped
@@ -143,15 +154,11 @@ fn feedback_checked(
             })
         })
         .collect();
-    let mut evidence: Vec<Option<Evidence>> = evidence.into_iter().map(Some).collect();
-    let kept_evidence = kept
-        .iter()
-        .filter_map(|&k| {
-            let mut e = evidence[k].take()?;
-            e.feedback_free = checks[k];
-            Some(e)
-        })
-        .collect();
+    let (refitted, mut kept_evidence) =
+        kept_refitted(prepared, fixed, &found, evidence, &kept, options);
+    for (e, &k) in kept_evidence.iter_mut().zip(&kept) {
+        e.feedback_free = checks[k];
+    }
     (refitted, kept_evidence, not_feedback_free)
 }
 
@@ -195,6 +202,20 @@ fn transferring(
             block_t_end: prepared.segments[block.end - 1].t_end,
         })
         .collect();
+    let (refitted, kept_evidence) = kept_refitted(prepared, fixed, &found, evidence, &kept, options);
+    (refitted, kept_evidence, not_transferring)
+}
+
+/// The effects of `found` at `kept`, refitted together on every segment,
+/// and their evidence: what a stage that dropped some hands on.
+fn kept_refitted(
+    prepared: &Prepared,
+    fixed: &[ScopedEffect],
+    found: &[ScopedEffect],
+    evidence: Vec<Evidence>,
+    kept: &[usize],
+    options: &Options,
+) -> (Vec<ScopedEffect>, Vec<Evidence>) {
     let mut evidence: Vec<Option<Evidence>> = evidence.into_iter().map(Some).collect();
     let kept_effects: Vec<ScopedEffect> = kept.iter().map(|&k| found[k].clone()).collect();
     let kept_evidence: Vec<Evidence> = kept.iter().filter_map(|&k| evidence[k].take()).collect();
@@ -210,7 +231,7 @@ fn transferring(
         )
         .effects
     };
-    (refitted, kept_evidence, not_transferring)
+    (refitted, kept_evidence)
 }
 
 fn describe(

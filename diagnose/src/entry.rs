@@ -62,14 +62,8 @@ pub fn strength_of_truth(
             let base: Vec<ScopedEffect> = model
                 .effects
                 .iter()
-                .chain(
-                    truth
-                        .iter()
-                        .enumerate()
-                        .filter(|(i, _)| *i != k)
-                        .map(|(_, e)| e),
-                )
                 .cloned()
+                .chain(crate::fit::all_but(truth, k))
                 .collect();
             let candidate = &truth[k];
             let long_runs = factors_with(grid, segs, &base, candidate);

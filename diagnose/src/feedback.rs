@@ -29,7 +29,7 @@ use std::collections::BTreeMap;
 use serde::Serialize;
 use shoal_physics::{ScopedEffect, UnicycleModel};
 
-use crate::fit::fit;
+use crate::fit::all_but;
 use crate::heldout::{on_folds, refit_on};
 use crate::likelihood::{estimate_noise, long_run_factor, residuals, segment_nll, standardised};
 use crate::prepared::{Options, Prepared, prepare};
@@ -139,31 +139,6 @@ pub(crate) fn check_each(
         .collect()
 }
 
-/// `found` without the effects `checks` does not confirm, refitted together
-/// if any was dropped, each kept one's index into `found`, and the dropped.
-pub(crate) fn without_unconfirmed(
-    prepared: &Prepared,
-    fixed: &[ScopedEffect],
-    found: &[ScopedEffect],
-    checks: &[Option<FeedbackFree>],
-    options: &Options,
-) -> (Vec<ScopedEffect>, Vec<usize>, Vec<usize>) {
-    let (kept, dropped): (Vec<usize>, Vec<usize>) =
-        (0..found.len()).partition(|&k| checks[k].is_none_or(|c| c.confirmed()));
-    let kept_effects: Vec<ScopedEffect> = kept.iter().map(|&k| found[k].clone()).collect();
-    if dropped.is_empty() || kept_effects.is_empty() {
-        return (kept_effects, kept, dropped);
-    }
-    let refitted = fit(
-        &prepared.grid,
-        &prepared.segments,
-        fixed,
-        &kept_effects,
-        options.max_iters,
-    );
-    (refitted.effects, kept, dropped)
-}
-
 /// The finest grid the check traces on.
 const MIN_GRID_DT: f64 = 0.005;
 
@@ -205,12 +180,7 @@ pub fn feedback_free_gain(
     (fixed, found, k): (&[ScopedEffect], &[ScopedEffect], usize),
     options: &Options,
 ) -> FeedbackFree {
-    let others: Vec<ScopedEffect> = found
-        .iter()
-        .enumerate()
-        .filter(|(i, _)| *i != k)
-        .map(|(_, e)| e.clone())
-        .collect();
+    let others = all_but(found, k);
     // Each block is held out from the parameters too: the effects that move
     // the prediction are refitted on the long segments outside it, so that
     // one fitted to a stretch of noise (a scope, a slow drift) gains nothing

@@ -19,6 +19,16 @@ pub struct Fitted {
     pub iterations: u64,
 }
 
+/// `effects` without the one at `k`: the model an effect is judged against.
+pub(crate) fn all_but(effects: &[ScopedEffect], k: usize) -> Vec<ScopedEffect> {
+    effects
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| *i != k)
+        .map(|(_, e)| e.clone())
+        .collect()
+}
+
 /// The simplex step of a parameter: the scale on which it matters.
 pub fn step_of(effect: &Effect, name: &str) -> f64 {
     match (effect, name) {

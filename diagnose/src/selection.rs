@@ -10,7 +10,7 @@ use crate::entry::{
     EntryTest, calibrated_gain, calibrated_gain_of_move, components_of, entry_test_of_move,
     factors_of, factors_with,
 };
-use crate::fit::{Fitted, fit, nll_of};
+use crate::fit::{Fitted, all_but, fit, nll_of};
 use crate::heldout::{CONTRADICTION_NATS, heldout_gain, heldout_gain_of_joint, must_transfer};
 use crate::likelihood::LongRun;
 use crate::locate::Located;
@@ -406,12 +406,7 @@ impl Selection<'_> {
         *found = fit(grid, segs, fixed, found, options.max_iters * 2).effects;
         let mut k = 0;
         while found.len() >= 2 && k < found.len() {
-            let others: Vec<ScopedEffect> = found
-                .iter()
-                .enumerate()
-                .filter(|(j, _)| *j != k)
-                .map(|(_, e)| e.clone())
-                .collect();
+            let others = all_but(found, k);
             let refit = fit(grid, segs, fixed, &others, options.max_iters);
             let rest: Vec<ScopedEffect> =
                 fixed.iter().cloned().chain(refit.effects.clone()).collect();
