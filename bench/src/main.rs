@@ -61,6 +61,14 @@ enum Commands {
         particles: Vec<usize>,
         #[arg(long, default_value_t = 100)]
         steps: usize,
+        /// A scenario whose arena and range sensor the robot walks with
+        /// (e.g. scenarios/demo.toml); default: the SLAM tests' 3 x 4 m room
+        /// and a 4 m sensor of 180 beams.
+        #[arg(long)]
+        scenario: Option<std::path::PathBuf>,
+        /// Which proposals: motion, matched, or both.
+        #[arg(long, value_delimiter = ',', default_value = "motion,matched")]
+        proposal: Vec<slam::ProposalArg>,
         #[arg(long)]
         json: bool,
     },
@@ -124,8 +132,10 @@ fn main() -> Result<()> {
         Commands::Slam {
             particles,
             steps,
+            scenario,
+            proposal,
             json,
-        } => slam::run(&particles, steps, json),
+        } => slam::run(&particles, steps, (scenario.as_deref(), &proposal), json),
         Commands::Scan {
             robots,
             repeats,

@@ -1,9 +1,10 @@
 //! SLAM's cost: steps and particle-beam evaluations per second for a robot
-//! walking the SLAM tests' room, by proposal (the motion model's, and the
+//! walking the SLAM tests' room (or a scenario's arena), by proposal (the motion model's, and the
 //! scan-matched one), particle count and threads (one, and every core),
 //! against the motion model's proposal with 100 particles on one thread as
 //! the baseline.
 
+use std::path::Path;
 use std::time::Instant;
 
 use anyhow::Result;
@@ -21,6 +22,8 @@ struct Row {
     particles: usize,
     threads: usize,
     beams: usize,
+    /// Scored beams per pose, on average (every second beam that returned).
+    scored_beams: f64,
     /// Poses each particle scored per step, on average: one for the
     /// motion model's proposal, the matcher's search and the proposal's
     /// probes for the scan-matched one.
@@ -42,24 +45,58 @@ struct Report {
     rows: Vec<Row>,
 }
 
+/// Where the robot walks and what it senses.
+struct World {
+    arena: shoal_physics::arena::Arena,
+    sensor: RangeSensor,
+    start: Pose,
+}
+
+impl World {
+    /// The SLAM tests' room with a sensor of 180 beams, or `scenario`'s
+    /// arena and sensor from the middle of its start region.
+    fn new(scenario: Option<&Path>) -> Result<Self> {
+        Ok(match scenario {
+            None => Self {
+                arena: Scenario::room().arena,
+                sensor: RangeSensor {
+                    beams: 180,
+                    ..RangeSensor::default()
+                },
+                start: Pose::new(1.5, 0.6, std::f64::consts::FRAC_PI_2),
+            },
+            Some(path) => {
+                let scenario = shoal_runtime::read_scenario(path)?;
+                let [x0, y0, x1, y1] = scenario.agents.start_region;
+                Self {
+                    arena: scenario.arena,
+                    sensor: scenario.sensor,
+                    start: Pose::new((x0 + x1) / 2.0, (y0 + y1) / 2.0, 0.0),
+                }
+            }
+        })
+    }
+}
+
 /// What following a wandering robot cost per step.
 struct Cost {
     seconds: f64,
     /// Particle-beam evaluations (poses scored times beams each).
     evaluations: f64,
     poses_per_particle: f64,
+    scored_beams: f64,
 }
 
 /// [`Cost`] of a filter with `particles` and `proposal` following a
 /// wandering robot for `steps` steps.
-fn cost_per_step(proposal: Proposal, particles: usize, steps: usize) -> Cost {
-    let arena = Scenario::room().arena;
-    let sensor = RangeSensor {
-        beams: 180,
-        ..RangeSensor::default()
-    };
+fn cost_per_step(world: &World, proposal: Proposal, particles: usize, steps: usize) -> Cost {
+    let World {
+        arena,
+        sensor,
+        start,
+    } = world;
+    let (sensor, start) = (sensor.clone(), *start);
     let model = MotionModel::legged_default();
-    let start = Pose::new(1.5, 0.6, std::f64::consts::FRAC_PI_2);
     let mut body = Body {
         pose: start,
         radius: 0.15,
@@ -77,7 +114,7 @@ fn cost_per_step(proposal: Proposal, particles: usize, steps: usize) -> Cost {
     let mut ranges = sensor.read(&arena, &body.pose, &[], 0.15, &mut rng);
     filter.observe_start(&ranges);
     let mut command = Command::Stand;
-    let (mut elapsed, mut evaluations, mut poses) = (0.0, 0.0, 0.0);
+    let (mut elapsed, mut evaluations, mut poses, mut scored) = (0.0, 0.0, 0.0, 0.0);
     for step in 0..steps {
         command = wander_command(step as u64 + 1, range_ahead(&ranges, &sensor), command);
         let outcome = body.step(command, &arena, &[], &mut rng);
@@ -87,37 +124,61 @@ fn cost_per_step(proposal: Proposal, particles: usize, steps: usize) -> Cost {
         elapsed += started.elapsed().as_secs_f64();
         evaluations += (report.poses_scored * report.scored_beams) as f64;
         poses += report.poses_scored as f64 / particles as f64;
+        scored += report.scored_beams as f64;
     }
     let steps = steps.max(1) as f64;
     Cost {
         seconds: elapsed / steps,
         evaluations: evaluations / steps,
         poses_per_particle: poses / steps,
+        scored_beams: scored / steps,
     }
 }
 
 /// [`cost_per_step`] with the filter's particles shared over `threads`.
-fn cost_on(threads: usize, proposal: Proposal, particles: usize, steps: usize) -> Result<Cost> {
+fn cost_on(
+    world: &World,
+    threads: usize,
+    (proposal, particles): (Proposal, usize),
+    steps: usize,
+) -> Result<Cost> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()?;
-    Ok(pool.install(|| cost_per_step(proposal, particles, steps)))
+    Ok(pool.install(|| cost_per_step(world, proposal, particles, steps)))
 }
 
-pub fn run(particles: &[usize], steps: usize, json: bool) -> Result<()> {
-    let baseline = cost_on(1, Proposal::Motion, 100, steps)?.seconds;
+/// A proposal as the command line names it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ProposalArg {
+    Motion,
+    Matched,
+}
+
+pub fn run(
+    particles: &[usize],
+    steps: usize,
+    (scenario, proposals): (Option<&Path>, &[ProposalArg]),
+    json: bool,
+) -> Result<()> {
+    let world = World::new(scenario)?;
+    let baseline = cost_on(&world, 1, (Proposal::Motion, 100), steps)?.seconds;
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let mut rows = Vec::new();
-    for proposal in [Proposal::Motion, Proposal::ScanMatched] {
+    for proposal in proposals.iter().map(|p| match p {
+        ProposalArg::Motion => Proposal::Motion,
+        ProposalArg::Matched => Proposal::ScanMatched,
+    }) {
         for &n in particles {
             for threads in [1, cores] {
-                let cost = cost_on(threads, proposal, n, steps)?;
+                let cost = cost_on(&world, threads, (proposal, n), steps)?;
                 let evals = cost.evaluations / cost.seconds;
                 rows.push(Row {
                     proposal: format!("{proposal:?}"),
                     particles: n,
                     threads,
-                    beams: 180,
+                    beams: world.sensor.beams,
+                    scored_beams: cost.scored_beams,
                     poses_scored_per_particle: cost.poses_per_particle,
                     steps_per_s: 1.0 / cost.seconds,
                     particle_beam_evals_per_s: evals,

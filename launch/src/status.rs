@@ -249,8 +249,13 @@ pub fn print_table(out: &mut dyn Write, report: &StatusReport) -> io::Result<()>
                     (Some(rate), Some(behind)) => format!(" ({rate:.1}/s, {behind:.1} s behind)"),
                     _ => String::new(),
                 };
+                let missed = if f.scans_missed > 0 {
+                    format!(", {} scans missed", f.scans_missed)
+                } else {
+                    String::new()
+                };
                 format!(
-                    "{} steps{keeping_up}, model moved {:.2}{}",
+                    "{} steps{keeping_up}{missed}, model moved {:.2}{}",
                     f.steps,
                     f.model_distance,
                     if f.paused { ", paused" } else { "" }

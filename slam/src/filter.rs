@@ -71,17 +71,35 @@ pub enum Proposal {
 /// step falls back to the motion model's proposal.
 const MIN_MATCHED_BEAMS: usize = 8;
 
+/// The scan matcher's search scores every this many of the scored beams.
+const MATCH_BEAM_STRIDE: usize = 2;
+
 /// One particle's drawn step, before the proposal places it.
 struct Drawn {
+    /// The particle it was drawn from.
+    particle: usize,
     motion: [f64; 3],
     pose: Pose,
     explorer: bool,
 }
 
+/// The learner judges at least this many drawn motions a step. A filter
+/// of fewer particles (the scan-matched proposal needs 50) draws the rest
+/// from its particles in turn and scores each once against that
+/// particle's map, a pose each where the matcher scores 60-70: with only
+/// 50 draws, 10 of them explorers, a crowd's sparse scans left the
+/// learned stride where it started.
+const MIN_LEARNING_DRAWS: usize = 250;
+
 impl Default for FilterConfig {
     fn default() -> Self {
         Self {
-            particles: 500,
+            // GMapping's improved proposal with 50 particles: as accurate
+            // as 500 drawn from the motion model on a lone robot and in the
+            // demo's crowd, at a third of the cost in the demo's arena,
+            // which is what lets one SLAM process follow all 20 of its
+            // robots on two cores (EXPERIMENTS.md 8b, BENCHMARKS.md 4).
+            particles: 50,
             score_stride: 2,
             map_stride: 2,
             cell_size: 0.05,
@@ -89,7 +107,7 @@ impl Default for FilterConfig {
             window: 8,
             explore: 0.2,
             sensor: RangeSensor::default(),
-            proposal: Proposal::Motion,
+            proposal: Proposal::ScanMatched,
         }
     }
 }
@@ -201,7 +219,13 @@ impl ParticleFilter {
     /// translation if `bumped`), then its sensor read `ranges`.
     pub fn step(&mut self, command: Command, bumped: bool, ranges: &[f64]) -> StepReport {
         let n = self.particles.len();
-        let drawn = self.draw_motions(command, bumped);
+        let draws = if self.config.learning {
+            n.max(MIN_LEARNING_DRAWS)
+        } else {
+            n
+        };
+        // The first n draws are the particles' own (draw k is particle k's).
+        let drawn = self.draw_motions(command, bumped, draws);
         let (beams, information) = scored_beams(ranges, &self.config);
         // The learner judges each motion drawn from the model (and each
         // explorer's) by the whole scan at the pose it leads to. It never
@@ -209,14 +233,13 @@ impl ParticleFilter {
         // correction is the scan's knowledge, not the motion's, and learned
         // from it the model would learn the map's pull instead of the robot.
         let at_drawn: Vec<f64> = if self.steps == 0 {
-            vec![0.0; n]
+            vec![0.0; draws]
         } else {
-            // Each particle scores the scan against its own map: the
-            // filter's main cost, shared out over the cores.
-            self.particles
+            // Each draw is scored against its particle's own map, shared
+            // out over the cores.
+            drawn
                 .par_iter()
-                .zip(&drawn)
-                .map(|(p, d)| beams.log_likelihood(&p.map, &d.pose))
+                .map(|d| beams.log_likelihood(&self.particles[d.particle].map, &d.pose))
                 .collect()
         };
         if self.config.learning && self.steps > 0 {
@@ -226,9 +249,10 @@ impl ParticleFilter {
             && self.steps > 0
             && !bumped
             && beams.len() >= MIN_MATCHED_BEAMS;
-        let mut poses_scored = if self.steps == 0 { 0 } else { n };
+        let mut poses_scored = if self.steps == 0 { 0 } else { draws };
+        let (drawn, at_drawn) = (&drawn[..n], &at_drawn[..n]);
         let log_weights = if matched {
-            let (log_weights, scored) = self.propose_by_matching(command, &beams, &drawn);
+            let (log_weights, scored) = self.propose_by_matching(command, &beams, drawn);
             poses_scored += scored;
             log_weights
         } else {
@@ -237,8 +261,8 @@ impl ParticleFilter {
             // BEAM_TEMPERING); an explorer counts a tenth (EXPLORER_WEIGHT).
             self.particles
                 .iter_mut()
-                .zip(&drawn)
-                .zip(&at_drawn)
+                .zip(drawn)
+                .zip(at_drawn)
                 .map(|((p, d), l)| {
                     p.pose = d.pose;
                     l * BEAM_TEMPERING
@@ -272,25 +296,26 @@ impl ParticleFilter {
         }
     }
 
-    /// One motion per particle drawn from the model, some scaled at random
-    /// (explorers) while learning.
-    fn draw_motions(&mut self, command: Command, bumped: bool) -> Vec<Drawn> {
-        let n = self.particles.len();
+    /// `count` motions drawn from the model, from the particles in turn
+    /// (draw k from particle k mod n), some scaled at random (explorers)
+    /// while learning.
+    fn draw_motions(&mut self, command: Command, bumped: bool, count: usize) -> Vec<Drawn> {
         // Exploring serves the learner; without learning the model is taken as is.
         let explore = if self.config.learning {
             self.config.explore
         } else {
             0.0
         };
-        let explorers = (explore * n as f64).round() as usize;
-        let mut drawn = Vec::with_capacity(n);
-        for (i, particle) in self.particles.iter().enumerate() {
+        let explorers = (explore * count as f64).round() as usize;
+        let mut drawn = Vec::with_capacity(count);
+        let from = self.particles.iter().enumerate().cycle().take(count);
+        for (k, (i, particle)) in from.enumerate() {
             let mut motion = self.model.sample(command, &mut self.rng);
             // Some particles try the command carrying farther or less far than
             // the model says: when the model is wrong (a new surface, another
             // robot), they keep the truth within reach, and their qualities
             // show the learner where it lies.
-            let explorer = i % n.max(1).div_ceil(explorers.max(1)) == 0 && explorers > 0;
+            let explorer = k % count.max(1).div_ceil(explorers.max(1)) == 0 && explorers > 0;
             if explorer {
                 let scale = self.rng.random_range(EXPLORE_SCALE.0..EXPLORE_SCALE.1);
                 motion.along *= scale;
@@ -305,6 +330,7 @@ impl ParticleFilter {
                     .advanced(motion.along, motion.across, motion.turn)
             };
             drawn.push(Drawn {
+                particle: i,
                 motion: [motion.along, motion.across, motion.turn],
                 pose,
                 explorer,
@@ -367,6 +393,12 @@ impl ParticleFilter {
         let seeds: Vec<u64> = (0..self.particles.len())
             .map(|_| self.rng.random())
             .collect();
+        // The search climbs on every other beam, counted twice: it only has
+        // to find the peak, which half the beams place as well, at half
+        // the cost of its 50-70 poses; the proposal around the peak, which
+        // sets the particle's pose and weight, is scored with every beam.
+        let search_beams = beams.every(MATCH_BEAM_STRIDE);
+        let search_scale = beams.len() as f64 / search_beams.len().max(1) as f64;
         let proposed: Vec<(f64, usize)> = self
             .particles
             .par_iter_mut()
@@ -378,7 +410,10 @@ impl ParticleFilter {
                 // Each particle matches from its own draw: a model that is
                 // still wrong puts its mean beyond the matcher's reach, and
                 // the draws (the explorers' above all) keep the truth within it.
-                let posterior = |pose: &Pose| score(pose) + prior.log_density(&from, pose);
+                let posterior = |pose: &Pose| {
+                    search_scale * BEAM_TEMPERING * search_beams.log_likelihood(&p.map, pose)
+                        + prior.log_density(&from, pose)
+                };
                 let (matched, _, scored) = match_scan(&posterior, d.pose);
                 let mut rng = StdRng::seed_from_u64(seed);
                 let proposed = improved_proposal(&score, &prior, &from, matched, &mut rng);

@@ -51,6 +51,10 @@ pub struct Follower {
     steps: u64,
     /// The tick of the newest scan the filter stepped (or started on).
     stepped_tick: Option<u64>,
+    /// Ticks the robot was announced on whose scans the filter never
+    /// stepped: lost on the bus (a follower too slow for its buffer), so
+    /// their motion is missing from the filter.
+    scans_missed: u64,
 }
 
 impl Follower {
@@ -74,6 +78,7 @@ impl Follower {
             waiting: Vec::new(),
             steps: 0,
             stepped_tick: None,
+            scans_missed: 0,
         }
     }
 
@@ -83,6 +88,12 @@ impl Follower {
 
     pub fn steps(&self) -> u64 {
         self.steps
+    }
+
+    /// Scans of ticks the robot was announced on that never reached the
+    /// filter (see the field).
+    pub fn scans_missed(&self) -> u64 {
+        self.scans_missed
     }
 
     /// How many ticks the filter trails the newest pose the roster
@@ -155,6 +166,12 @@ impl Follower {
             let Some(command) = scan.command else {
                 continue;
             };
+            if let Some(previous) = self.stepped_tick {
+                self.scans_missed += self
+                    .announced
+                    .range(previous + 1..scan.tick)
+                    .count() as u64;
+            }
             let report = filter.step(command, scan.bumped, &scan.ranges);
             self.steps += 1;
             self.stepped_tick = Some(scan.tick);

@@ -35,7 +35,8 @@ struct Args {
     /// swarm, those that join later included).
     #[arg(long, required = true)]
     follow: Follow,
-    #[arg(long, default_value_t = 500)]
+    /// Particles per followed robot (default: the filter's, 50).
+    #[arg(long, default_value_t = FilterConfig::default().particles)]
     particles: usize,
     /// The learning window k (5..=10).
     #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u64).range(5..=10))]
@@ -48,11 +49,12 @@ struct Args {
     /// Occupancy grid cell size, metres.
     #[arg(long, default_value_t = 0.05)]
     grid: f64,
-    /// Where particles go each step: `motion` (drawn from the motion model,
-    /// weighted by the scan) or `matched` (GMapping's improved proposal:
-    /// scan-matched, then drawn around the match; more accurate with fewer
-    /// particles, each dearer: EXPERIMENTS.md, "SLAM").
-    #[arg(long, value_enum, default_value_t = ProposalArg::Motion)]
+    /// Where particles go each step: `matched` (GMapping's improved
+    /// proposal: scan-matched, then drawn around the match; the default) or
+    /// `motion` (drawn from the motion model, weighted by the scan; needs
+    /// about ten times the particles for the same accuracy: EXPERIMENTS.md,
+    /// "SLAM").
+    #[arg(long, value_enum, default_value_t = ProposalArg::Matched)]
     proposal: ProposalArg,
 }
 
@@ -82,6 +84,8 @@ struct Followed {
     estimates: Sender<EstimateSample>,
     models: Sender<ModelUpdate>,
     last_scan: Option<std::time::Instant>,
+    /// Scans received and not yet stepped, oldest first.
+    pending: std::collections::VecDeque<Scan>,
     /// Steps when the last report was written, for the step rate.
     steps_reported: u64,
 }
@@ -173,6 +177,7 @@ impl Setup {
             estimates: robot_streams::estimate_publisher(bus, id)?,
             models: robot_streams::model_publisher(bus, id)?,
             last_scan: None,
+            pending: std::collections::VecDeque::new(),
             steps_reported: 0,
         })
     }
@@ -296,9 +301,13 @@ fn done_up_to(followed: &BTreeMap<u32, Followed>, newest_roster: u64) -> u64 {
         .unwrap_or(newest_roster)
 }
 
-/// Steps every followed robot's filter on the scans it sent and publishes
-/// each step: the views, the estimate and the model. False when no robot
-/// sent a scan.
+/// Takes every followed robot's new scans, then steps each robot's filter
+/// on its oldest waiting scan and publishes the step: the views, the
+/// estimate and the model. One scan per robot per call, so a SLAM process
+/// that falls behind falls behind on every robot alike, and reads the
+/// roster and its scans between steps (stepping one robot's whole backlog
+/// at a time left the others' scans to overflow their buffers, lost). False
+/// when no robot had a scan to step.
 fn step_followed(
     followed: &mut BTreeMap<u32, Followed>,
     bodies: &Bodies,
@@ -309,17 +318,25 @@ fn step_followed(
         let mut samples = Vec::new();
         robot.scans.receive(|scan| samples.push(scan))?;
         if !samples.is_empty() {
-            stepped = true;
             robot.last_scan = Some(std::time::Instant::now());
         }
-        let scans = samples.iter().map(scan_of).collect();
+        robot.pending.extend(samples.iter().map(scan_of));
+        // A SLAM process that cannot keep up for long drops its oldest
+        // scans rather than its memory; the follower counts them missed.
+        while robot.pending.len() > MAX_PENDING_SCANS {
+            robot.pending.pop_front();
+        }
+        let Some(scan) = robot.pending.pop_front() else {
+            continue;
+        };
+        stepped = true;
         let Followed {
             follower,
             estimates,
             models,
             ..
         } = robot;
-        follower.on_scans(scans, bodies, |step| {
+        follower.on_scans(vec![scan], bodies, |step| {
             views.publish(id, &step)?;
             estimates.publish(&estimate_of(id, &step))?;
             for param in Param::ALL {
@@ -354,6 +371,9 @@ fn write_report(runtime: &SwarmRuntime, report: &SlamReport, failing: &mut bool)
         Ok(()) => *failing = false,
     }
 }
+
+/// Scans a followed robot may have waiting: 13 s at 5 Hz.
+const MAX_PENDING_SCANS: usize = 64;
 
 /// How often `shoal status` learns what SLAM knows.
 const REPORT_EVERY: Duration = Duration::from_secs(1);
@@ -393,6 +413,7 @@ fn report(
                         .follower
                         .ticks_behind()
                         .map(|ticks| ticks as f64 * period_s),
+                    scans_missed: robot.follower.scans_missed(),
                 }
             })
             .collect(),

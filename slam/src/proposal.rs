@@ -37,6 +37,15 @@ impl ScoredBeams {
         self.local_ends.is_empty()
     }
 
+    /// Every `stride`-th of these beams.
+    pub fn every(&self, stride: usize) -> Self {
+        let stride = stride.max(1);
+        Self {
+            local_ends: self.local_ends.iter().copied().step_by(stride).collect(),
+            tolerances: self.tolerances.iter().cloned().step_by(stride).collect(),
+        }
+    }
+
     /// The scan's log-likelihood from `pose` in `map`: each beam as likely
     /// as an obstacle lies near its end, with a floor for beams that end in
     /// the open (a person, a robot, a reflection).

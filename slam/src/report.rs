@@ -34,6 +34,10 @@ pub struct FollowedReport {
     /// not yet stepped.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub behind_s: Option<f64>,
+    /// Scans of ticks the robot was seen on that the filter never stepped
+    /// (lost on the bus while it fell behind): their motion is missing.
+    #[serde(default)]
+    pub scans_missed: u64,
 }
 
 impl HelperReport for SlamReport {
