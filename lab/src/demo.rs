@@ -16,7 +16,7 @@ use shoal_physics::metrics::{centroid, formation_metrics};
 use shoal_physics::{MotionModel, Pose, Surface};
 use shoal_scenario::Scenario;
 
-use shoal_slam::follow::SlamSection;
+use shoal_slam::follow::{Follow, SlamSection};
 use shoal_slam::report::SlamReport;
 use shoal_swarm::RecordOptions;
 use shoal_swarm::RunningSwarm;
@@ -262,7 +262,7 @@ fn slam_progress(
 
 /// Starts the demo's swarm, its recorder, and SLAM following robots
 /// `follow` from strides too short.
-fn launch(options: &DemoOptions, scenario: &Scenario, follow: &[u32]) -> Result<RunningSwarm> {
+fn launch(options: &DemoOptions, scenario: &Scenario, follow: &Follow) -> Result<RunningSwarm> {
     let mut swarm = RunningSwarm::launch(&options.swarm, scenario.clone(), false)?;
     swarm.record(&RecordOptions::file(&options.out, None))?;
     if !follow.is_empty() {
@@ -271,16 +271,19 @@ fn launch(options: &DemoOptions, scenario: &Scenario, follow: &[u32]) -> Result<
         std::fs::write(&model_path, toml::to_string(&wrong)?)
             .with_context(|| format!("writing {}", model_path.display()))?;
         swarm.follow_with_slam(
-            &shoal_slam::follow::Follow::Robots(follow.to_vec()),
+            follow,
             &["--initial-model".into(), model_path.display().to_string()],
         )?;
     }
+    let followed = match follow {
+        Follow::All => "every robot".to_owned(),
+        Follow::Robots(ids) => format!("robots {ids:?}"),
+    };
     eprintln!(
-        "shoal demo: {} robots forming in real time for {:.0} s, recorded into {}; a SLAM process follows robots {:?} from strides {:.0}% too short",
+        "shoal demo: {} robots forming in real time for {:.0} s, recorded into {}; a SLAM process follows {followed} from strides {:.0}% too short",
         scenario.agents.count,
         options.seconds,
         options.out.display(),
-        follow,
         STRIDE_ERROR * 100.0
     );
     Ok(swarm)
@@ -311,8 +314,14 @@ fn carry_out(swarm: &mut RunningSwarm, now: f64, act: Act) -> Result<()> {
 }
 
 /// (now, robot, position error) of each followed robot SLAM's report has
-/// an estimate of.
-fn slam_errors_now(swarm: &RunningSwarm, now: f64) -> Result<Vec<(f64, u32, f64)>> {
+/// an estimate of, against where the robot stood at the estimate's tick
+/// (from `truth`): the report is up to a second old when read, and a robot
+/// walks 0.3 m in that second.
+fn slam_errors_now(
+    swarm: &RunningSwarm,
+    now: f64,
+    truth: &TruthByTick,
+) -> Result<Vec<(f64, u32, f64)>> {
     Ok(swarm
         .runtime
         .read_report::<SlamReport>()?
@@ -320,10 +329,33 @@ fn slam_errors_now(swarm: &RunningSwarm, now: f64) -> Result<Vec<(f64, u32, f64)
         .flat_map(|r| r.followed)
         .filter_map(|followed| {
             let [x, y, _] = followed.estimate?;
-            let truth = swarm.observer.get(followed.id)?;
-            Some((now, followed.id, (x - truth.x).hypot(y - truth.y)))
+            let stood = truth.at(followed.id, followed.estimate_tick?)?;
+            Some((now, followed.id, (x - stood.x).hypot(y - stood.y)))
         })
         .collect())
+}
+
+/// Where each robot stood at each of the last [`TRUTH_TICKS`] ticks.
+#[derive(Default)]
+struct TruthByTick {
+    by_robot: BTreeMap<u32, BTreeMap<u64, DVec2>>,
+}
+
+/// Ticks of true positions kept: 20 s at 5 Hz, far more than SLAM trails.
+const TRUTH_TICKS: usize = 100;
+
+impl TruthByTick {
+    fn saw(&mut self, id: u32, tick: u64, at: DVec2) {
+        let ticks = self.by_robot.entry(id).or_default();
+        ticks.insert(tick, at);
+        while ticks.len() > TRUTH_TICKS {
+            ticks.pop_first();
+        }
+    }
+
+    fn at(&self, id: u32, tick: u64) -> Option<DVec2> {
+        self.by_robot.get(&id)?.get(&tick).copied()
+    }
 }
 
 pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
@@ -336,10 +368,15 @@ pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
             scenario.agents.count
         );
     }
-    let follow: Vec<u32> = scenario.section::<SlamSection>()?.follow;
+    let follow = scenario.section::<SlamSection>()?.follow;
     let spread = scenario.formation.spread;
     let mut swarm = launch(options, &scenario, &follow)?;
-    let watched = watch(&mut swarm, &scenario, options.seconds, &follow)?;
+    let watched = watch(&mut swarm, &scenario, options.seconds, follow.named())?;
+    // Every robot SLAM follows, for the summary: with `all`, the swarm's.
+    let follow: Vec<u32> = match &follow {
+        Follow::All => (0..scenario.agents.count as u32).collect(),
+        Follow::Robots(ids) => ids.clone(),
+    };
     let mut summary = DemoSummary {
         recording: options.out.clone(),
         killed: watched.healing.killed(),
@@ -394,6 +431,7 @@ struct Watched {
     on_floor: BTreeMap<u32, f64>,
     /// (sim time, robot, position error) of the followed robots.
     slam_errors: Vec<(f64, u32, f64)>,
+    truth: TruthByTick,
 }
 
 /// Runs the swarm for `seconds`: kills and restarts robots as `Healing`
@@ -410,6 +448,7 @@ fn watch(
         healing: Healing::new(KILL_AT * seconds, spread, follow.to_vec()),
         on_floor: BTreeMap::new(),
         slam_errors: Vec::new(),
+        truth: TruthByTick::default(),
     };
     let mut last_tick = 0;
     let mut last_line = std::time::Instant::now();
@@ -427,6 +466,9 @@ fn watch(
         if swarm.observer.newest_tick != last_tick {
             last_tick = swarm.observer.newest_tick;
             for s in swarm.observer.samples() {
+                watched
+                    .truth
+                    .saw(s.agent_id, s.tick, DVec2::new(s.x, s.y));
                 let moved = s.vx.hypot(s.vy) > 0.01;
                 if moved && unknown_floor_at(scenario, DVec2::new(s.x, s.y), s.sim_time) {
                     *watched.on_floor.entry(s.agent_id).or_default() += scenario.timing.period_s;
@@ -436,7 +478,8 @@ fn watch(
         // SLAM's estimates reach the launcher through its report (once a second).
         if last_slam_read.elapsed() >= Duration::from_secs(1) {
             last_slam_read = std::time::Instant::now();
-            watched.slam_errors.extend(slam_errors_now(swarm, now)?);
+            let errors = slam_errors_now(swarm, now, &watched.truth)?;
+            watched.slam_errors.extend(errors);
         }
         let robots: Vec<(u32, Pose)> = swarm
             .observer
@@ -519,6 +562,57 @@ fn diagnose_robot(recording: &Path, robot: u32) -> Result<String> {
     })
 }
 
+/// Followed robots up to this many get a line each; more, one line for all.
+const SLAM_LINES: usize = 4;
+
+/// One followed robot's line: its error early and late, its stride.
+fn print_slam_robot(out: &mut dyn Write, s: &SlamProgress) -> io::Result<()> {
+    writeln!(
+        out,
+        "  SLAM robot {}: position error {:.0} mm in the first {SLAM_WINDOW_S:.0} s -> {:.0} mm in the last, learning from strides {:.0}% too short{}",
+        s.robot,
+        s.early_error_m * 1e3,
+        s.late_error_m * 1e3,
+        STRIDE_ERROR * 100.0,
+        s.stride_learned_m
+            .map(|learned| format!(
+                ": a full stride {:.0} mm at the start, {learned_mm:.0} mm learned, {:.0} mm true on its floor",
+                s.stride_start_m * 1e3,
+                s.stride_true_m * 1e3,
+                learned_mm = learned * 1e3
+            ))
+            .unwrap_or_default()
+    )
+}
+
+/// Every followed robot in one line: the mean error early and late, the
+/// worst robot late, and how far the learned strides are from the truth.
+fn print_slam_overall(out: &mut dyn Write, slam: &[SlamProgress]) -> io::Result<()> {
+    let n = slam.len().max(1) as f64;
+    let mean = |f: fn(&SlamProgress) -> f64| slam.iter().map(f).sum::<f64>() / n;
+    let worst = slam
+        .iter()
+        .max_by(|a, b| a.late_error_m.total_cmp(&b.late_error_m));
+    let stride_errors: Vec<f64> = slam
+        .iter()
+        .filter_map(|s| Some((s.stride_learned_m? - s.stride_true_m).abs() / s.stride_true_m))
+        .collect();
+    let start_error = mean(|s| (s.stride_start_m - s.stride_true_m).abs() / s.stride_true_m);
+    writeln!(
+        out,
+        "  SLAM, {} robots followed: mean position error {:.0} mm in the first {SLAM_WINDOW_S:.0} s -> {:.0} mm in the last{}; a full stride {:.0}% off the truth on each robot's floor at the start, {:.0}% off as learned (mean over {} robots; `--json` has each)",
+        slam.len(),
+        mean(|s| s.early_error_m) * 1e3,
+        mean(|s| s.late_error_m) * 1e3,
+        worst
+            .map(|w| format!(" (worst: robot {}, {:.0} mm)", w.robot, w.late_error_m * 1e3))
+            .unwrap_or_default(),
+        start_error * 100.0,
+        stride_errors.iter().sum::<f64>() / stride_errors.len().max(1) as f64 * 100.0,
+        stride_errors.len()
+    )
+}
+
 /// What a person reads at the end.
 pub fn print(out: &mut dyn Write, summary: &DemoSummary, scenario: &Scenario) -> io::Result<()> {
     let spread = scenario.formation.spread;
@@ -537,23 +631,12 @@ pub fn print(out: &mut dyn Write, summary: &DemoSummary, scenario: &Scenario) ->
         seconds(summary.hole_closed_s),
         seconds(summary.whole_again_s)
     )?;
-    for s in &summary.slam {
-        writeln!(
-        out,
-            "  SLAM robot {}: position error {:.0} mm in the first {SLAM_WINDOW_S:.0} s -> {:.0} mm in the last, learning from strides {:.0}% too short{}",
-            s.robot,
-            s.early_error_m * 1e3,
-            s.late_error_m * 1e3,
-            STRIDE_ERROR * 100.0,
-            s.stride_learned_m
-                .map(|learned| format!(
-                    ": a full stride {:.0} mm at the start, {learned_mm:.0} mm learned, {:.0} mm true on its floor",
-                    s.stride_start_m * 1e3,
-                    s.stride_true_m * 1e3,
-                    learned_mm = learned * 1e3
-                ))
-                .unwrap_or_default()
-        )?;
+    if summary.slam.len() > SLAM_LINES {
+        print_slam_overall(out, &summary.slam)?;
+    } else {
+        for s in &summary.slam {
+            print_slam_robot(out, s)?;
+        }
     }
     let floors: Vec<String> = scenario
         .arena
@@ -603,7 +686,7 @@ mod tests {
         let scenario = demo_scenario(None).expect("the demo's scenario parses");
         assert!(scenario.agents.count >= KILLED + 4);
         let slam: SlamSection = scenario.section().expect("the demo's [slam] section");
-        assert_eq!(slam.follow.len(), 2);
+        assert_eq!(slam.follow, Follow::All);
         assert!(scenario.arena.surfaces.iter().any(Surface::changes_motion));
     }
 

@@ -246,13 +246,19 @@ fn scenario_for(options: &UpOptions) -> Result<Scenario> {
     if let Some(seed) = options.seed {
         scenario.agents.seed = seed;
     }
-    if let Some(Follow::Robots(ids)) = &options.slam {
+    if let Some(asked) = &options.slam {
         let mut slam: SlamSection = scenario.section()?;
-        for id in ids {
-            if !slam.follow.contains(id) {
-                slam.follow.push(*id);
+        slam.follow = match (slam.follow, asked) {
+            (Follow::All, _) | (_, Follow::All) => Follow::All,
+            (Follow::Robots(mut ids), Follow::Robots(more)) => {
+                for id in more {
+                    if !ids.contains(id) {
+                        ids.push(*id);
+                    }
+                }
+                Follow::Robots(ids)
             }
-        }
+        };
         scenario.set_section(&slam)?;
     }
     Ok(scenario)
@@ -342,10 +348,7 @@ pub fn up(options: UpOptions) -> Result<UpSummary> {
     }
     let scenario = scenario_for(&options)?;
     warn_if_iceoryx_on_disk(scenario.agents.count);
-    let follow = match &options.slam {
-        Some(Follow::All) => Follow::All,
-        _ => Follow::Robots(scenario.section::<SlamSection>()?.follow),
-    };
+    let follow = scenario.section::<SlamSection>()?.follow;
     let spread = scenario.formation.spread;
     let mut swarm = RunningSwarm::launch_with(&options.swarm, scenario, &options.launch)?;
     let robots = swarm.scenario.agents.count;

@@ -4,12 +4,51 @@
 use std::fmt;
 use std::str::FromStr;
 
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(try_from = "FollowInToml", into = "FollowInToml")]
 pub enum Follow {
     /// Every robot the roster shows, followed from the first pose it reports.
     All,
     /// These robots' ids.
     Robots(Vec<u32>),
+}
+
+impl Default for Follow {
+    /// No robot: no SLAM process.
+    fn default() -> Self {
+        Follow::Robots(Vec::new())
+    }
+}
+
+/// [`Follow`] as a scenario writes it: `follow = "all"` or `follow = [0, 3]`.
+#[derive(serde::Serialize, serde::Deserialize)]
+#[serde(untagged)]
+enum FollowInToml {
+    Word(String),
+    Ids(Vec<u32>),
+}
+
+impl TryFrom<FollowInToml> for Follow {
+    type Error = String;
+
+    fn try_from(value: FollowInToml) -> Result<Self, Self::Error> {
+        match value {
+            FollowInToml::Ids(ids) => Ok(Follow::Robots(ids)),
+            FollowInToml::Word(word) if word == "all" => Ok(Follow::All),
+            FollowInToml::Word(word) => Err(format!(
+                "`{word}` is neither \"all\" nor a list of robot ids such as [0, 3]"
+            )),
+        }
+    }
+}
+
+impl From<Follow> for FollowInToml {
+    fn from(follow: Follow) -> Self {
+        match follow {
+            Follow::All => FollowInToml::Word("all".into()),
+            Follow::Robots(ids) => FollowInToml::Ids(ids),
+        }
+    }
 }
 
 impl Follow {
@@ -81,6 +120,18 @@ mod tests {
         assert!(Follow::All.includes(77));
         assert!(!Follow::Robots(vec![1]).includes(2));
     }
+
+    #[test]
+    fn a_scenario_names_all_or_a_list_and_anything_else_is_refused() {
+        let read = |text: &str| toml::from_str::<SlamSection>(text).map(|s| s.follow);
+        assert_eq!(read("follow = \"all\""), Ok(Follow::All));
+        assert_eq!(read("follow = [0, 3]"), Ok(Follow::Robots(vec![0, 3])));
+        assert_eq!(read(""), Ok(Follow::default()));
+        let error = read("follow = \"some\"").expect_err("not a word it knows");
+        assert!(error.to_string().contains("`some` is neither"), "{error}");
+        let written = toml::to_string(&SlamSection { follow: Follow::All }).expect("writes");
+        assert_eq!(read(&written), Ok(Follow::All));
+    }
 }
 
 /// The most robots a scenario may name for SLAM to follow.
@@ -91,14 +142,15 @@ const MAX_FOLLOWED: usize = 64;
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SlamSection {
-    /// Ids of the robots to follow; empty starts no SLAM process.
-    pub follow: Vec<u32>,
+    /// `"all"` (every robot, those that join later included), or the ids
+    /// of the robots to follow; none starts no SLAM process.
+    pub follow: Follow,
 }
 
 impl shoal_scenario::Section for SlamSection {
     const NAME: &'static str = "slam";
 
     fn check(&self, check: &mut shoal_scenario::RangeCheck) {
-        check.count("follow", self.follow.len(), 0, MAX_FOLLOWED);
+        check.count("follow", self.follow.named().len(), 0, MAX_FOLLOWED);
     }
 }

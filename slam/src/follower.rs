@@ -96,6 +96,12 @@ impl Follower {
         self.scans_missed
     }
 
+    /// The tick of the newest scan the filter stepped: the tick its
+    /// estimate is of.
+    pub fn stepped_tick(&self) -> Option<u64> {
+        self.stepped_tick
+    }
+
     /// How many ticks the filter trails the newest pose the roster
     /// announced for its robot: what it still has to step to be current.
     pub fn ticks_behind(&self) -> Option<u64> {

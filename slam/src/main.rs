@@ -407,6 +407,7 @@ fn report(
                         let p = f.estimate();
                         [p.x, p.y, p.theta]
                     }),
+                    estimate_tick: filter.and(robot.follower.stepped_tick()),
                     stride_m: filter.map(|f| f.model().full_stride()),
                     steps_per_s: filter.map(|_| rate),
                     behind_s: robot

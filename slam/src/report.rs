@@ -22,6 +22,10 @@ pub struct FollowedReport {
     /// The filter's pose estimate, once it has started.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub estimate: Option<[f64; 3]>,
+    /// The tick the estimate is of (its newest stepped scan's): a reader
+    /// holds it against where the robot stood then, not now.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub estimate_tick: Option<u64>,
     /// How far the learned model says a full stride (`walk(3)`) carries,
     /// metres: the scalar a reader can hold against the truth.
     #[serde(default, skip_serializing_if = "Option::is_none")]
