@@ -24,9 +24,10 @@ struct Row {
     beams: usize,
     /// Scored beams per pose, on average (every second beam that returned).
     scored_beams: f64,
-    /// Poses each particle scored per step, on average: one for the
-    /// motion model's proposal, the matcher's search and the proposal's
-    /// probes for the scan-matched one.
+    /// Poses scored per particle and step, on average: the learner's draws
+    /// (at least 250 a step over all particles, one per particle beyond
+    /// that), and for the scan-matched proposal the matcher's search (on
+    /// half the beams) and the proposal's probes.
     poses_scored_per_particle: f64,
     steps_per_s: f64,
     particle_beam_evals_per_s: f64,
@@ -122,7 +123,7 @@ fn cost_per_step(world: &World, proposal: Proposal, particles: usize, steps: usi
         let started = Instant::now();
         let report = filter.step(command, outcome.bumped, &ranges);
         elapsed += started.elapsed().as_secs_f64();
-        evaluations += (report.poses_scored * report.scored_beams) as f64;
+        evaluations += report.beam_evaluations as f64;
         poses += report.poses_scored as f64 / particles as f64;
         scored += report.scored_beams as f64;
     }

@@ -78,6 +78,10 @@ pub struct SlamProgress {
     pub stride_start_m: f64,
     pub stride_learned_m: Option<f64>,
     pub stride_true_m: f64,
+    /// The most the filter trailed its robot (read once a second), and
+    /// the robot's scans it never stepped: whether SLAM kept up.
+    pub most_behind_s: f64,
+    pub scans_missed: u64,
 }
 
 #[derive(Debug, Serialize)]
@@ -257,6 +261,8 @@ fn slam_progress(
         stride_start_m: short_strides(truth, STRIDE_ERROR).full_stride(),
         stride_learned_m: followed.and_then(|f| f.stride_m),
         stride_true_m: truth.full_stride() * floor,
+        most_behind_s: 0.0,
+        scans_missed: followed.map_or(0, |f| f.scans_missed),
     }
 }
 
@@ -318,21 +324,19 @@ fn carry_out(swarm: &mut RunningSwarm, now: f64, act: Act) -> Result<()> {
 /// (from `truth`): the report is up to a second old when read, and a robot
 /// walks 0.3 m in that second.
 fn slam_errors_now(
-    swarm: &RunningSwarm,
+    report: &SlamReport,
     now: f64,
     truth: &TruthByTick,
-) -> Result<Vec<(f64, u32, f64)>> {
-    Ok(swarm
-        .runtime
-        .read_report::<SlamReport>()?
-        .into_iter()
-        .flat_map(|r| r.followed)
+) -> Vec<(f64, u32, f64)> {
+    report
+        .followed
+        .iter()
         .filter_map(|followed| {
             let [x, y, _] = followed.estimate?;
             let stood = truth.at(followed.id, followed.estimate_tick?)?;
             Some((now, followed.id, (x - stood.x).hypot(y - stood.y)))
         })
-        .collect())
+        .collect()
 }
 
 /// Where each robot stood at each of the last [`TRUTH_TICKS`] ticks.
@@ -398,14 +402,16 @@ pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
                 .as_ref()
                 .and_then(|r| r.followed.iter().find(|f| f.id == *id));
             let floor = floor_scale.get(id).copied().unwrap_or(1.0);
-            slam_progress(
+            let mut progress = slam_progress(
                 *id,
                 followed,
                 &watched.slam_errors,
                 end,
                 &scenario.motion,
                 floor,
-            )
+            );
+            progress.most_behind_s = watched.most_behind_s.get(id).copied().unwrap_or(0.0);
+            progress
         })
         .collect();
     let mut walkers: Vec<(u32, f64)> = watched
@@ -432,6 +438,8 @@ struct Watched {
     /// (sim time, robot, position error) of the followed robots.
     slam_errors: Vec<(f64, u32, f64)>,
     truth: TruthByTick,
+    /// The most each followed robot's filter trailed it, seconds.
+    most_behind_s: BTreeMap<u32, f64>,
 }
 
 /// Runs the swarm for `seconds`: kills and restarts robots as `Healing`
@@ -449,6 +457,7 @@ fn watch(
         on_floor: BTreeMap::new(),
         slam_errors: Vec::new(),
         truth: TruthByTick::default(),
+        most_behind_s: BTreeMap::new(),
     };
     let mut last_tick = 0;
     let mut last_line = std::time::Instant::now();
@@ -478,8 +487,14 @@ fn watch(
         // SLAM's estimates reach the launcher through its report (once a second).
         if last_slam_read.elapsed() >= Duration::from_secs(1) {
             last_slam_read = std::time::Instant::now();
-            let errors = slam_errors_now(swarm, now, &watched.truth)?;
-            watched.slam_errors.extend(errors);
+            if let Some(report) = swarm.runtime.read_report::<SlamReport>()? {
+                let errors = slam_errors_now(&report, now, &watched.truth);
+                watched.slam_errors.extend(errors);
+                for followed in &report.followed {
+                    let most = watched.most_behind_s.entry(followed.id).or_default();
+                    *most = most.max(followed.behind_s.unwrap_or(0.0));
+                }
+            }
         }
         let robots: Vec<(u32, Pose)> = swarm
             .observer
@@ -598,6 +613,13 @@ fn print_slam_overall(out: &mut dyn Write, slam: &[SlamProgress]) -> io::Result<
         .filter_map(|s| Some((s.stride_learned_m? - s.stride_true_m).abs() / s.stride_true_m))
         .collect();
     let start_error = mean(|s| (s.stride_start_m - s.stride_true_m).abs() / s.stride_true_m);
+    writeln!(
+        out,
+        "  SLAM followed {} robots at once: each filter at most {:.1} s behind its robot, {} scans missed in all",
+        slam.len(),
+        slam.iter().map(|s| s.most_behind_s).fold(0.0, f64::max),
+        slam.iter().map(|s| s.scans_missed).sum::<u64>()
+    )?;
     writeln!(
         out,
         "  SLAM, {} robots followed: mean position error {:.0} mm in the first {SLAM_WINDOW_S:.0} s -> {:.0} mm in the last{}; a full stride {:.0}% off the truth on each robot's floor at the start, {:.0}% off as learned (mean over {} robots; `--json` has each)",

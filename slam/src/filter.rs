@@ -74,6 +74,15 @@ const MIN_MATCHED_BEAMS: usize = 8;
 /// The scan matcher's search scores every this many of the scored beams.
 const MATCH_BEAM_STRIDE: usize = 2;
 
+/// What the improved proposal did in one step.
+struct Matching {
+    /// Each particle's log weight update.
+    log_weights: Vec<f64>,
+    /// Poses scored: the matcher's search and the proposal's probes.
+    poses_scored: usize,
+    beam_evaluations: usize,
+}
+
 /// One particle's drawn step, before the proposal places it.
 struct Drawn {
     /// The particle it was drawn from.
@@ -133,6 +142,10 @@ pub struct StepReport {
     /// Poses scored against a map this step, over all particles: the
     /// filter's work, each pose costing one evaluation per scored beam.
     pub poses_scored: usize,
+    /// Beams scored over all those poses: the filter's work in
+    /// particle-beam evaluations (the matcher's search scores half the
+    /// beams of each of its poses).
+    pub beam_evaluations: usize,
     /// Beams each scored pose was scored with.
     pub scored_beams: usize,
 }
@@ -250,11 +263,13 @@ impl ParticleFilter {
             && !bumped
             && beams.len() >= MIN_MATCHED_BEAMS;
         let mut poses_scored = if self.steps == 0 { 0 } else { draws };
+        let mut beam_evaluations = poses_scored * beams.len();
         let (drawn, at_drawn) = (&drawn[..n], &at_drawn[..n]);
         let log_weights = if matched {
-            let (log_weights, scored) = self.propose_by_matching(command, &beams, drawn);
-            poses_scored += scored;
-            log_weights
+            let matching = self.propose_by_matching(command, &beams, drawn);
+            poses_scored += matching.poses_scored;
+            beam_evaluations += matching.beam_evaluations;
+            matching.log_weights
         } else {
             // The motion model's proposal: each particle goes where its
             // draw took it, weighted by the scan there, tempered (see
@@ -292,6 +307,7 @@ impl ParticleFilter {
             resampled,
             matched,
             poses_scored,
+            beam_evaluations,
             scored_beams: beams.len(),
         }
     }
@@ -379,14 +395,13 @@ impl ParticleFilter {
 
     /// Moves every particle by the improved proposal (see
     /// [`crate::proposal`]): matched from where its drawn step took it,
-    /// drawn around the match. Returns each particle's log weight update,
-    /// and how many poses were scored.
+    /// drawn around the match.
     fn propose_by_matching(
         &mut self,
         command: Command,
         beams: &ScoredBeams,
         drawn: &[Drawn],
-    ) -> (Vec<f64>, usize) {
+    ) -> Matching {
         let prior = MotionPrior {
             model: self.model.command(command),
         };
@@ -418,11 +433,16 @@ impl ParticleFilter {
                 let mut rng = StdRng::seed_from_u64(seed);
                 let proposed = improved_proposal(&score, &prior, &from, matched, &mut rng);
                 p.pose = proposed.pose;
-                (proposed.log_weight, scored + PROPOSAL_POSES_SCORED)
+                (proposed.log_weight, scored)
             })
             .collect();
-        let scored = proposed.iter().map(|(_, s)| s).sum();
-        (proposed.into_iter().map(|(w, _)| w).collect(), scored)
+        let searched: usize = proposed.iter().map(|(_, s)| s).sum();
+        let probed = PROPOSAL_POSES_SCORED * proposed.len();
+        Matching {
+            log_weights: proposed.into_iter().map(|(w, _)| w).collect(),
+            poses_scored: searched + probed,
+            beam_evaluations: searched * search_beams.len() + probed * beams.len(),
+        }
     }
 
     /// Multiplies the particles' weights by `exp(log_weights)` and
@@ -497,20 +517,29 @@ pub fn mask_bodies(
     }
 }
 
-/// Where the swarm's robots stand, for [`mask_bodies`]. A robot silent for
-/// longer than `gone_after_ticks` has died or left: its body is forgotten,
-/// or it would hide that spot of the map for ever.
+/// Where the swarm's robots stood, tick by tick, for [`mask_bodies`]: a
+/// scan is masked with the robots where they stood at its tick. A SLAM
+/// process a second or two behind its robots (20 followed beside the
+/// swarm on two cores) masked with where they stood then, half a metre on:
+/// robots went into the map as walls and walls were masked as robots. A
+/// robot silent for longer than `gone_after_ticks` has died or left: its
+/// body is forgotten, or it would hide that spot of the map for ever.
 #[derive(Debug)]
 pub struct Bodies {
-    last_seen: std::collections::BTreeMap<u32, (DVec2, u64)>,
+    /// Per robot, where it stood at each of its last [`BODY_TICKS`] ticks.
+    seen: std::collections::BTreeMap<u32, std::collections::BTreeMap<u64, DVec2>>,
     newest_tick: u64,
     gone_after_ticks: u64,
 }
 
+/// Ticks of each robot's positions kept: 13 s at 5 Hz, more than a SLAM
+/// process trails its robots before it drops their scans.
+const BODY_TICKS: usize = 64;
+
 impl Bodies {
     pub fn new(gone_after_ticks: u64) -> Self {
         Self {
-            last_seen: Default::default(),
+            seen: Default::default(),
             newest_tick: 0,
             gone_after_ticks,
         }
@@ -518,22 +547,36 @@ impl Bodies {
 
     pub fn saw(&mut self, id: u32, at: DVec2, tick: u64) {
         self.newest_tick = self.newest_tick.max(tick);
-        self.last_seen.insert(id, (at, tick));
+        let ticks = self.seen.entry(id).or_default();
+        ticks.insert(tick, at);
+        while ticks.len() > BODY_TICKS {
+            ticks.pop_first();
+        }
     }
 
     /// Forgets the robots that fell silent.
     pub fn forget_gone(&mut self) {
         let (newest, after) = (self.newest_tick, self.gone_after_ticks);
-        self.last_seen
-            .retain(|_, (_, tick)| *tick + after >= newest);
+        self.seen.retain(|_, ticks| {
+            ticks
+                .last_key_value()
+                .is_some_and(|(tick, _)| *tick + after >= newest)
+        });
     }
 
-    /// Every robot's body but `id`'s.
-    pub fn others(&self, id: u32) -> impl Iterator<Item = DVec2> + '_ {
-        self.last_seen
+    /// Every robot's body but `id`'s where it stood at `tick`: its newest
+    /// position at or before `tick`, or its oldest kept if all are newer.
+    pub fn others_at(&self, id: u32, tick: u64) -> impl Iterator<Item = DVec2> + '_ {
+        self.seen
             .iter()
             .filter(move |(other, _)| **other != id)
-            .map(|(_, (at, _))| *at)
+            .filter_map(move |(_, ticks)| {
+                ticks
+                    .range(..=tick)
+                    .next_back()
+                    .or_else(|| ticks.first_key_value())
+                    .map(|(_, at)| *at)
+            })
     }
 }
 
@@ -618,10 +661,22 @@ mod tests {
         bodies.saw(2, DVec2::new(2.0, 2.5), 14);
         bodies.forget_gone();
         assert_eq!(
-            bodies.others(9).collect::<Vec<_>>(),
+            bodies.others_at(9, 14).collect::<Vec<_>>(),
             vec![DVec2::new(2.0, 2.5)]
         );
-        assert_eq!(bodies.others(2).count(), 0);
+        assert_eq!(bodies.others_at(2, 14).count(), 0);
+    }
+
+    #[test]
+    fn a_scan_is_masked_with_the_robots_where_they_stood_at_its_tick() {
+        let mut bodies = Bodies::new(100);
+        for tick in 10..20 {
+            bodies.saw(1, DVec2::new(tick as f64, 0.0), tick);
+        }
+        let at = |tick| bodies.others_at(0, tick).collect::<Vec<_>>();
+        assert_eq!(at(12), vec![DVec2::new(12.0, 0.0)]);
+        assert_eq!(at(30), vec![DVec2::new(19.0, 0.0)], "the newest before");
+        assert_eq!(at(3), vec![DVec2::new(10.0, 0.0)], "the oldest kept");
     }
 
     #[test]

@@ -167,7 +167,7 @@ impl Follower {
                 &mut scan.ranges,
                 &seen_from,
                 &self.config.sensor,
-                bodies.others(self.id),
+                bodies.others_at(self.id, scan.tick),
             );
             let Some(command) = scan.command else {
                 continue;
@@ -211,7 +211,7 @@ impl Follower {
             &mut ranges,
             &start,
             &self.config.sensor,
-            bodies.others(self.id),
+            bodies.others_at(self.id, scans[first].tick),
         );
         let mut filter = ParticleFilter::new(
             start,

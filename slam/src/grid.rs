@@ -14,14 +14,7 @@ const MISS: f32 = -0.4;
 /// Log-odds are clamped so a cell can change its mind.
 const CLAMP: f32 = 6.0;
 
-/// A tile's cells, and how many of them are more likely occupied than
-/// not: a beam whose window lies in tiles with none scores nothing, known
-/// without reading a cell.
-#[derive(Clone, Debug)]
-struct Tile {
-    cells: [f32; TILE * TILE],
-    occupied: u16,
-}
+type Tile = [f32; TILE * TILE];
 
 #[derive(Clone, Debug)]
 pub struct TiledGrid {
@@ -46,10 +39,7 @@ impl TiledGrid {
         let height = ((max.y - min.y) / cell_size).ceil().max(1.0) as usize;
         let tiles_x = width.div_ceil(TILE);
         let tiles_y = height.div_ceil(TILE);
-        let blank = Arc::new(Tile {
-            cells: [0.0; TILE * TILE],
-            occupied: 0,
-        });
+        let blank = Arc::new([0.0; TILE * TILE]);
         Self {
             origin: min,
             cell_size,
@@ -79,7 +69,7 @@ impl TiledGrid {
 
     pub fn log_odds(&self, cell: (usize, usize)) -> f32 {
         let (tile, offset) = self.index(cell);
-        self.tiles[tile].cells[offset]
+        self.tiles[tile][offset]
     }
 
     /// Probability that the cell is occupied.
@@ -104,9 +94,6 @@ impl TiledGrid {
         let Some((cx, cy)) = self.cell_of(p) else {
             return 0.0;
         };
-        if self.nothing_occupied_around((cx, cy), tolerance.reach) {
-            return 0.0;
-        }
         let local = (p - self.origin) / self.cell_size;
         let mut best = 0.0f32;
         // Nearest cells first: once no cell left can weigh more than the
@@ -137,18 +124,6 @@ impl TiledGrid {
         best
     }
 
-    /// Whether every tile within `reach` cells of `cell` holds no cell more
-    /// likely occupied than not. A beam ending in space no wall was seen in
-    /// (unseen ground, or far from the map's walls) then scores nothing
-    /// without its window being read, which was most of the filter's time
-    /// where beams reach 10 m into an open arena (BENCHMARKS.md, "SLAM").
-    fn nothing_occupied_around(&self, (cx, cy): (usize, usize), reach: usize) -> bool {
-        let tiles_y = self.tiles.len() / self.tiles_x.max(1);
-        let (tx0, tx1) = (cx.saturating_sub(reach) / TILE, ((cx + reach) / TILE).min(self.tiles_x - 1));
-        let (ty0, ty1) = (cy.saturating_sub(reach) / TILE, ((cy + reach) / TILE).min(tiles_y - 1));
-        (ty0..=ty1).all(|ty| (tx0..=tx1).all(|tx| self.tiles[ty * self.tiles_x + tx].occupied == 0))
-    }
-
     /// Marks the cells from `from` towards `to` free, and the last one
     /// occupied when the beam hit something.
     pub fn integrate_beam(&mut self, from: DVec2, to: DVec2, hit: bool) {
@@ -171,17 +146,10 @@ impl TiledGrid {
             if writable.as_ref().is_none_or(|(t, _)| *t != tile) {
                 writable = Some((tile, Arc::make_mut(&mut self.tiles[tile])));
             }
-            if let Some((_, tile)) = writable.as_mut() {
+            if let Some((_, cells)) = writable.as_mut() {
                 let offset = (cy % TILE) * TILE + cx % TILE;
                 let delta = if last && hit { HIT } else { MISS };
-                let before = tile.cells[offset];
-                let after = (before + delta).clamp(-CLAMP, CLAMP);
-                tile.cells[offset] = after;
-                match (before > 0.0, after > 0.0) {
-                    (false, true) => tile.occupied += 1,
-                    (true, false) => tile.occupied -= 1,
-                    _ => {}
-                }
+                cells[offset] = (cells[offset] + delta).clamp(-CLAMP, CLAMP);
             }
             if last {
                 break;
@@ -347,8 +315,6 @@ mod tests {
 pub struct Tolerance {
     /// Weight by squared distance in cells, in steps of 1 / [`Self::STEPS`].
     weights: Vec<f32>,
-    /// Cells the window reaches out from its centre, each way.
-    reach: usize,
     /// The window's cell offsets, nearest first, each with the most any
     /// point of the centre cell can weigh it (its nearest edge's distance).
     by_distance: Vec<(isize, isize, f32)>,
@@ -377,7 +343,6 @@ impl Tolerance {
             .collect();
         let mut tolerance = Self {
             weights,
-            reach,
             by_distance: Vec::new(),
         };
         let r = reach as isize;
