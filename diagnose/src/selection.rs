@@ -433,6 +433,18 @@ impl Selection<'_> {
     }
 }
 
+/// A completion's candidate fitted beside the named effects, and its entry.
+struct Completion {
+    /// The named effects as refitted beside it.
+    joint: Vec<ScopedEffect>,
+    candidate: ScopedEffect,
+    delta_bic: f64,
+    test: EntryTest,
+    /// Everything the prediction holds with it: the fixed effects, `joint`
+    /// and the candidate.
+    with: Vec<ScopedEffect>,
+}
+
 /// What forward selection concluded.
 #[derive(Default)]
 pub(crate) struct Selected {
@@ -584,7 +596,7 @@ impl Selection<'_> {
         at: OperatingPoint,
         tried: &mut Vec<&'static str>,
     ) -> bool {
-        let (grid, segs, options, fixed) = (self.grid(), self.segs(), self.options, &self.fixed);
+        let (grid, segs) = (self.grid(), self.segs());
         if out.found.is_empty() || segs.len() < 20 {
             return false;
         }
@@ -592,47 +604,45 @@ impl Selection<'_> {
             return false;
         };
         tried.push(best.effect.kind());
-        let together = |c: &ScopedEffect| -> Vec<ScopedEffect> {
-            out.found.iter().cloned().chain([c.clone()]).collect()
-        };
-        let without: Vec<ScopedEffect> = fixed.iter().chain(&out.found).cloned().collect();
-        let mut joint = fit(grid, segs, fixed, &together(&best), options.max_iters).effects;
-        let Some(candidate) = joint.pop() else {
+        let Some(whole) = self.completion_entry(&out.found, &best) else {
             return false;
         };
-        let with: Vec<ScopedEffect> = fixed
-            .iter()
-            .chain(&joint)
-            .chain([&candidate])
-            .cloned()
-            .collect();
-        let refitted: Vec<ScopedEffect> = fixed.iter().chain(&joint).cloned().collect();
-        let long_runs = factors_with(grid, segs, &refitted, &candidate);
-        let factors = long_runs.map(|l| l.factor);
-        let without_nll = components_of(grid, segs, &without);
-        let delta_bic =
-            calibrated_gain_of_move(grid, segs, without_nll, &with, &candidate, factors);
-        let test = self.entry_through_lens((&without, &with), &candidate, (delta_bic, long_runs));
-        tracing::debug!(
-            kind = candidate.effect.kind(),
+        // As in a round, the effect may act in part of the run only (a
+        // turn bias in the first third, fitted to the whole run, was
+        // contradicted by the blocks after it and never named): the part
+        // is tried on the screen and kept if it gains
+        // `min_scope_bic_gain` over the whole run on every segment.
+        let refitted: Vec<ScopedEffect> = self.fixed.iter().chain(&whole.joint).cloned().collect();
+        let narrower = narrower_scope(
+            grid,
+            &self.screen,
+            &refitted,
+            &whole.candidate,
+            self.duration,
+            self.options,
+        )
+        .and_then(|scoped| self.completion_entry(&out.found, &scoped))
+        .filter(|part| part.delta_bic < whole.delta_bic - self.options.min_scope_bic_gain);
+        let Completion {
+            joint,
+            candidate,
             delta_bic,
-            passed = test.passed(),
-            on_bound = on_bound(&candidate).is_some(),
-            "completion: best beside the named"
-        );
-        if !test.passed() || on_bound(&candidate).is_some() {
-            return false;
-        }
-        let through: Vec<ScopedEffect> = fixed
+            test,
+            with,
+        } = narrower.unwrap_or(whole);
+        let through: Vec<ScopedEffect> = self
+            .fixed
             .iter()
             .cloned()
             .chain(self.lens_of(&with, &candidate))
             .collect();
-        let gains = heldout_gain_of_joint(self.prepared, &through, &out.found, &candidate, options);
+        let gains =
+            heldout_gain_of_joint(self.prepared, &through, &out.found, &candidate, self.options);
         let worst = gains.iter().copied().fold(f64::INFINITY, f64::min);
         let heldout_gain: f64 = gains.iter().sum();
         tracing::debug!(
             kind = candidate.effect.kind(),
+            during = ?candidate.during,
             ?gains,
             "completion: held out"
         );
@@ -651,5 +661,51 @@ impl Selection<'_> {
         });
         self.refit_and_prune(&mut out.found, &mut out.evidence);
         true
+    }
+
+    /// `candidate` fitted beside the named `found` (all free), and its
+    /// entry test against `found` as they were; None if it fails the test
+    /// or lies on a bound of its parameters.
+    fn completion_entry(
+        &self,
+        found: &[ScopedEffect],
+        candidate: &ScopedEffect,
+    ) -> Option<Completion> {
+        let (grid, segs, options, fixed) = (self.grid(), self.segs(), self.options, &self.fixed);
+        let together: Vec<ScopedEffect> = found.iter().cloned().chain([candidate.clone()]).collect();
+        let without: Vec<ScopedEffect> = fixed.iter().chain(found).cloned().collect();
+        let mut joint = fit(grid, segs, fixed, &together, options.max_iters).effects;
+        let candidate = joint.pop()?;
+        let with: Vec<ScopedEffect> = fixed
+            .iter()
+            .chain(&joint)
+            .chain([&candidate])
+            .cloned()
+            .collect();
+        let refitted: Vec<ScopedEffect> = fixed.iter().chain(&joint).cloned().collect();
+        let long_runs = factors_with(grid, segs, &refitted, &candidate);
+        let factors = long_runs.map(|l| l.factor);
+        let without_nll = components_of(grid, segs, &without);
+        let delta_bic =
+            calibrated_gain_of_move(grid, segs, without_nll, &with, &candidate, factors);
+        let test = self.entry_through_lens((&without, &with), &candidate, (delta_bic, long_runs));
+        tracing::debug!(
+            kind = candidate.effect.kind(),
+            during = ?candidate.during,
+            delta_bic,
+            passed = test.passed(),
+            on_bound = on_bound(&candidate).is_some(),
+            "completion: best beside the named"
+        );
+        if !test.passed() || on_bound(&candidate).is_some() {
+            return None;
+        }
+        Some(Completion {
+            joint,
+            candidate,
+            delta_bic,
+            test,
+            with,
+        })
     }
 }
