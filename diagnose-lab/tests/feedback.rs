@@ -40,7 +40,11 @@ fn a_play_made_by_the_controllers_feedback_is_dropped_and_a_real_one_kept() {
         .expect("the play is reported as dropped, with its check");
     assert!(dropped.check.z < MIN_Z, "{:?}", dropped.check);
     // One period of the follower's 20 Hz commands.
-    assert!((dropped.check.horizon_s - 0.05).abs() < 1e-9, "{:?}", dropped.check);
+    assert!(
+        (dropped.check.horizon_s - 0.05).abs() < 1e-9,
+        "{:?}",
+        dropped.check
+    );
 
     // A true play of 0.06 rad/s, same robot and controller: kept, and
     // confirmed far beyond the bar.

@@ -14,8 +14,8 @@ use serde::Serialize;
 use shoal_physics::{CommandGrid, Effect, ScopedEffect, UnicycleModel};
 
 use crate::covariates::{self, Covariate};
-use crate::feedback::{self, FeedbackFree, NotFeedbackFree};
 pub use crate::entry::EntryTest;
+use crate::feedback::{self, FeedbackFree, NotFeedbackFree};
 use crate::fit::fit;
 use crate::heldout::{BlockReport, block_reports, heldout, transferable};
 use crate::likelihood::{estimate_noise, long_run_factors_of_noise, residuals, standardised};
@@ -202,7 +202,8 @@ fn transferring(
             block_t_end: prepared.segments[block.end - 1].t_end,
         })
         .collect();
-    let (refitted, kept_evidence) = kept_refitted(prepared, fixed, &found, evidence, &kept, options);
+    let (refitted, kept_evidence) =
+        kept_refitted(prepared, fixed, &found, evidence, &kept, options);
     (refitted, kept_evidence, not_transferring)
 }
 

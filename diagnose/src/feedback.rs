@@ -129,10 +129,9 @@ pub(crate) fn check_each(
     );
     (0..found.len())
         .map(|k| {
-            let check = (!found[k].effect.only_noise())
-                .then(|| {
-                    feedback_free_gain(prepared, &short, horizon_s, (fixed, found, k), options)
-                });
+            let check = (!found[k].effect.only_noise()).then(|| {
+                feedback_free_gain(prepared, &short, horizon_s, (fixed, found, k), options)
+            });
             tracing::debug!(effect = ?found[k].effect, ?check, "feedback-free check");
             check
         })
@@ -145,7 +144,11 @@ const MIN_GRID_DT: f64 = 0.005;
 /// The commands' usual period: the median interval between them.
 fn command_period(recording: &Recording) -> Option<f64> {
     let t = &recording.commands.t;
-    let mut gaps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).filter(|g| *g > 0.0).collect();
+    let mut gaps: Vec<f64> = t
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .filter(|g| *g > 0.0)
+        .collect();
     if gaps.is_empty() {
         return None;
     }
@@ -190,8 +193,11 @@ pub fn feedback_free_gain(
     // differently.
     let (noise_effects, moving): (Vec<ScopedEffect>, Vec<ScopedEffect>) =
         found.iter().cloned().partition(|e| e.effect.only_noise());
-    let moving_others: Vec<ScopedEffect> =
-        others.iter().filter(|e| !e.effect.only_noise()).cloned().collect();
+    let moving_others: Vec<ScopedEffect> = others
+        .iter()
+        .filter(|e| !e.effect.only_noise())
+        .cloned()
+        .collect();
     let held: Vec<ScopedEffect> = fixed.iter().chain(&noise_effects).cloned().collect();
     let per_block: Vec<BlockGains> = on_folds(short, |train, test| {
         let (from, to) = (
@@ -204,7 +210,8 @@ pub fn feedback_free_gain(
             .filter(|s| s.t_end <= from || s.t_start >= to)
             .cloned()
             .collect();
-        let with = UnicycleModel::with_effects(refit_on(long, &long_train, &held, &moving, options));
+        let with =
+            UnicycleModel::with_effects(refit_on(long, &long_train, &held, &moving, options));
         let without = UnicycleModel::with_effects(refit_on(
             long,
             &long_train,
@@ -280,7 +287,11 @@ fn block_gains(
     let a = standardised(with, &noise, test, &r_with);
     let b = standardised(with, &noise, test, &r_without);
     BlockGains {
-        gains: nll_without.iter().zip(&nll_with).map(|(a, b)| a - b).collect(),
+        gains: nll_without
+            .iter()
+            .zip(&nll_with)
+            .map(|(a, b)| a - b)
+            .collect(),
         expected: a
             .iter()
             .zip(&b)
@@ -333,7 +344,11 @@ mod tests {
         assert!(check(2.0, 0.1).confirmed());
         assert!(!check(0.3, 0.1).confirmed());
         assert!(check(0.3, 1.4).confirmed(), "larger than the noise");
-        assert!(check(0.3, 0.1).why_unconfirmed().contains("too short to tell"));
+        assert!(
+            check(0.3, 0.1)
+                .why_unconfirmed()
+                .contains("too short to tell")
+        );
         assert!(check(-1.0, 0.1).why_unconfirmed().contains("contradicts"));
     }
 

@@ -636,8 +636,13 @@ impl Selection<'_> {
             .cloned()
             .chain(self.lens_of(&with, &candidate))
             .collect();
-        let gains =
-            heldout_gain_of_joint(self.prepared, &through, &out.found, &candidate, self.options);
+        let gains = heldout_gain_of_joint(
+            self.prepared,
+            &through,
+            &out.found,
+            &candidate,
+            self.options,
+        );
         let worst = gains.iter().copied().fold(f64::INFINITY, f64::min);
         let heldout_gain: f64 = gains.iter().sum();
         tracing::debug!(
@@ -672,7 +677,8 @@ impl Selection<'_> {
         candidate: &ScopedEffect,
     ) -> Option<Completion> {
         let (grid, segs, options, fixed) = (self.grid(), self.segs(), self.options, &self.fixed);
-        let together: Vec<ScopedEffect> = found.iter().cloned().chain([candidate.clone()]).collect();
+        let together: Vec<ScopedEffect> =
+            found.iter().cloned().chain([candidate.clone()]).collect();
         let without: Vec<ScopedEffect> = fixed.iter().chain(found).cloned().collect();
         let mut joint = fit(grid, segs, fixed, &together, options.max_iters).effects;
         let candidate = joint.pop()?;

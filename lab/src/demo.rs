@@ -323,11 +323,7 @@ fn carry_out(swarm: &mut RunningSwarm, now: f64, act: Act) -> Result<()> {
 /// an estimate of, against where the robot stood at the estimate's tick
 /// (from `truth`): the report is up to a second old when read, and a robot
 /// walks 0.3 m in that second.
-fn slam_errors_now(
-    report: &SlamReport,
-    now: f64,
-    truth: &TruthByTick,
-) -> Vec<(f64, u32, f64)> {
+fn slam_errors_now(report: &SlamReport, now: f64, truth: &TruthByTick) -> Vec<(f64, u32, f64)> {
     report
         .followed
         .iter()
@@ -475,9 +471,7 @@ fn watch(
         if swarm.observer.newest_tick != last_tick {
             last_tick = swarm.observer.newest_tick;
             for s in swarm.observer.samples() {
-                watched
-                    .truth
-                    .saw(s.agent_id, s.tick, DVec2::new(s.x, s.y));
+                watched.truth.saw(s.agent_id, s.tick, DVec2::new(s.x, s.y));
                 let moved = s.vx.hypot(s.vy) > 0.01;
                 if moved && unknown_floor_at(scenario, DVec2::new(s.x, s.y), s.sim_time) {
                     *watched.on_floor.entry(s.agent_id).or_default() += scenario.timing.period_s;
@@ -627,7 +621,11 @@ fn print_slam_overall(out: &mut dyn Write, slam: &[SlamProgress]) -> io::Result<
         mean(|s| s.early_error_m) * 1e3,
         mean(|s| s.late_error_m) * 1e3,
         worst
-            .map(|w| format!(" (worst: robot {}, {:.0} mm)", w.robot, w.late_error_m * 1e3))
+            .map(|w| format!(
+                " (worst: robot {}, {:.0} mm)",
+                w.robot,
+                w.late_error_m * 1e3
+            ))
             .unwrap_or_default(),
         start_error * 100.0,
         stride_errors.iter().sum::<f64>() / stride_errors.len().max(1) as f64 * 100.0,

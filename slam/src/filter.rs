@@ -232,11 +232,7 @@ impl ParticleFilter {
     /// translation if `bumped`), then its sensor read `ranges`.
     pub fn step(&mut self, command: Command, bumped: bool, ranges: &[f64]) -> StepReport {
         let n = self.particles.len();
-        let draws = if self.config.learning {
-            n.max(MIN_LEARNING_DRAWS)
-        } else {
-            n
-        };
+        let draws = self.draws();
         // The first n draws are the particles' own (draw k is particle k's).
         let drawn = self.draw_motions(command, bumped, draws);
         let (beams, information) = scored_beams(ranges, &self.config);
@@ -309,6 +305,17 @@ impl ParticleFilter {
             poses_scored,
             beam_evaluations,
             scored_beams: beams.len(),
+        }
+    }
+
+    /// How many motions a step draws: one per particle, and while learning
+    /// at least [`MIN_LEARNING_DRAWS`].
+    fn draws(&self) -> usize {
+        let n = self.particles.len();
+        if self.config.learning {
+            n.max(MIN_LEARNING_DRAWS)
+        } else {
+            n
         }
     }
 

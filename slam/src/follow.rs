@@ -129,7 +129,10 @@ mod tests {
         assert_eq!(read(""), Ok(Follow::default()));
         let error = read("follow = \"some\"").expect_err("not a word it knows");
         assert!(error.to_string().contains("`some` is neither"), "{error}");
-        let written = toml::to_string(&SlamSection { follow: Follow::All }).expect("writes");
+        let written = toml::to_string(&SlamSection {
+            follow: Follow::All,
+        })
+        .expect("writes");
         assert_eq!(read(&written), Ok(Follow::All));
     }
 }

@@ -173,10 +173,7 @@ impl Follower {
                 continue;
             };
             if let Some(previous) = self.stepped_tick {
-                self.scans_missed += self
-                    .announced
-                    .range(previous + 1..scan.tick)
-                    .count() as u64;
+                self.scans_missed += self.announced.range(previous + 1..scan.tick).count() as u64;
             }
             let report = filter.step(command, scan.bumped, &scan.ranges);
             self.steps += 1;

@@ -290,13 +290,20 @@ fn hear_roster(
 
 /// The tick SLAM is done up to, which a lockstep launcher paces its clock
 /// to so no scan is dropped: the oldest tick of the followed robots still
-/// stepping; a robot that is gone (two ticks behind the swarm) is not
-/// waited for.
+/// stepping, short of any scan still waiting to be stepped; a robot that
+/// is gone (announced two ticks behind the swarm) is not waited for.
 fn done_up_to(followed: &BTreeMap<u32, Followed>, newest_roster: u64) -> u64 {
     followed
         .values()
-        .filter_map(|robot| robot.follower.newest_announced())
-        .filter(|&t| t + 2 >= newest_roster)
+        .filter_map(|robot| {
+            let announced = robot.follower.newest_announced()?;
+            let waiting = robot
+                .pending
+                .front()
+                .map(|scan| scan.tick.saturating_sub(1));
+            (announced + 2 >= newest_roster)
+                .then(|| waiting.map_or(announced, |w| w.min(announced)))
+        })
         .min()
         .unwrap_or(newest_roster)
 }

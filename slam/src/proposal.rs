@@ -316,7 +316,9 @@ mod tests {
         // off the pose so some beams end in the open.
         let beams = ScoredBeams {
             local_ends: one.local_ends.repeat(5),
-            tolerances: (0..5).flat_map(|_| one.tolerances.iter().cloned()).collect(),
+            tolerances: (0..5)
+                .flat_map(|_| one.tolerances.iter().cloned())
+                .collect(),
         };
         assert!(beams.len() > BEAMS_PER_LOG);
         let off = at.advanced(0.04, 0.02, 0.03);
@@ -331,7 +333,10 @@ mod tests {
             })
             .sum();
         let chunked = beams.log_likelihood(&map, &off);
-        assert!((chunked - by_beam).abs() < 1e-9 * by_beam.abs(), "{chunked} against {by_beam}");
+        assert!(
+            (chunked - by_beam).abs() < 1e-9 * by_beam.abs(),
+            "{chunked} against {by_beam}"
+        );
     }
 
     #[test]

@@ -148,10 +148,7 @@ fn run_once(
     swarm.follow_with_slam(
         &shoal_slam::follow::Follow::Robots(vec![0]),
         &[
-            // The thesis's filter, whose particle counts this experiment
-            // sweeps: drawn from the motion model (the scan-matched
-            // proposal, SLAM's default, places particles by the scan and
-            // needs far fewer: EXPERIMENTS.md 8b).
+            // The thesis's filter, whose particle counts this sweeps.
             "--proposal".into(),
             "motion".into(),
             "--particles".into(),
