@@ -140,7 +140,7 @@ pub struct StepReport {
     /// Whether the scan placed the particles (the improved proposal).
     pub matched: bool,
     /// Poses scored against a map this step, over all particles: the
-    /// filter's work, each pose costing one evaluation per scored beam.
+    /// learner's draws, and the matcher's search and the proposal's probes.
     pub poses_scored: usize,
     /// Beams scored over all those poses: the filter's work in
     /// particle-beam evaluations (the matcher's search scores half the
