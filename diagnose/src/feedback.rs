@@ -30,8 +30,8 @@ use serde::Serialize;
 use shoal_physics::{ScopedEffect, UnicycleModel};
 
 use crate::fit::all_but;
-use crate::heldout::{on_folds, refit_on};
-use crate::likelihood::{estimate_noise, long_run_factor, residuals, segment_nll, standardised};
+use crate::heldout::{on_folds, predict_block, refit_on};
+use crate::likelihood::{estimate_noise, long_run_factor, residuals, standardised};
 use crate::prepared::{Options, Prepared, prepare};
 use crate::recording::Recording;
 use crate::segments::Segment;
@@ -276,20 +276,16 @@ fn block_gains(
     with: &UnicycleModel,
     without: &UnicycleModel,
 ) -> BlockGains {
-    let grid = &prepared.grid;
-    let heldout = |model: &UnicycleModel| {
-        let noise = estimate_noise(model, train, &residuals(model, grid, train));
-        let r = residuals(model, grid, test);
-        (noise, segment_nll(model, &noise, test, &r), r)
-    };
-    let (noise, nll_with, r_with) = heldout(with);
-    let (_, nll_without, r_without) = heldout(without);
-    let a = standardised(with, &noise, test, &r_with);
-    let b = standardised(with, &noise, test, &r_without);
+    let with_block = predict_block(&prepared.grid, train, test, with);
+    let without_block = predict_block(&prepared.grid, train, test, without);
+    let noise = &with_block.noise;
+    let a = standardised(with, noise, test, &with_block.residuals);
+    let b = standardised(with, noise, test, &without_block.residuals);
     BlockGains {
-        gains: nll_without
+        gains: without_block
+            .nll
             .iter()
-            .zip(&nll_with)
+            .zip(&with_block.nll)
             .map(|(a, b)| a - b)
             .collect(),
         expected: a

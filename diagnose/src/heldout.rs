@@ -7,10 +7,10 @@
 //! predict no block worse than the model it started from.
 
 use serde::Serialize;
-use shoal_physics::{ScopedEffect, UnicycleModel};
+use shoal_physics::{CommandGrid, ScopedEffect, UnicycleModel};
 
 use crate::fit::fit;
-use crate::likelihood::{Residual, estimate_noise, residuals, rmse, segment_nll};
+use crate::likelihood::{Noise, Residual, estimate_noise, residuals, rmse, segment_nll};
 use crate::prepared::{Heldout, Options, Prepared, joined};
 use crate::segments::{Segment, subsample};
 
@@ -72,9 +72,33 @@ pub(crate) fn predict_heldout(
     effects: Vec<ScopedEffect>,
 ) -> (f64, Vec<Residual>) {
     let model = UnicycleModel::with_effects(effects);
-    let noise = estimate_noise(&model, train, &residuals(&model, &prepared.grid, train));
-    let r = residuals(&model, &prepared.grid, test);
-    (segment_nll(&model, &noise, test, &r).iter().sum(), r)
+    let block = predict_block(&prepared.grid, train, test, &model);
+    (block.nll.iter().sum(), block.residuals)
+}
+
+/// How a model predicts a held-out block.
+pub(crate) struct BlockPrediction {
+    /// The noise, estimated on the training segments.
+    pub(crate) noise: Noise,
+    /// Each test segment's negative log-likelihood under that noise.
+    pub(crate) nll: Vec<f64>,
+    pub(crate) residuals: Vec<Residual>,
+}
+
+/// How `model` predicts `test`, with the noise estimated on `train`.
+pub(crate) fn predict_block(
+    grid: &CommandGrid,
+    train: &[Segment],
+    test: &[Segment],
+    model: &UnicycleModel,
+) -> BlockPrediction {
+    let noise = estimate_noise(model, train, &residuals(model, grid, train));
+    let r = residuals(model, grid, test);
+    BlockPrediction {
+        nll: segment_nll(model, &noise, test, &r),
+        noise,
+        residuals: r,
+    }
 }
 
 /// One held-out block: where it lies and how well each model predicted it.

@@ -376,7 +376,7 @@ impl Selection<'_> {
             (fitted, gain)
         };
         let (scoped_fit, scoped_gain) = confirm(&scoped);
-        if scoped_gain >= delta_bic - options.min_scope_bic_gain {
+        if !self.part_beats_whole(scoped_gain, delta_bic) {
             return (chosen, delta_bic);
         }
         if let Some(zone) = zone_of_span(segs, &scoped_fit)
@@ -391,6 +391,13 @@ impl Selection<'_> {
             }
         }
         (scoped_fit, scoped_gain)
+    }
+
+    /// Whether an effect over part of the run, gaining `part` (ΔBIC, lower
+    /// is better), beats it over the whole run, gaining `whole`, by enough
+    /// (`min_scope_bic_gain`) to say it acts only there.
+    fn part_beats_whole(&self, part: f64, whole: f64) -> bool {
+        part < whole - self.options.min_scope_bic_gain
     }
 
     /// Refits `found` together, then drops any effect the others, refitted,
@@ -610,8 +617,8 @@ impl Selection<'_> {
         // As in a round, the effect may act in part of the run only (a
         // turn bias in the first third, fitted to the whole run, was
         // contradicted by the blocks after it and never named): the part
-        // is tried on the screen and kept if it gains
-        // `min_scope_bic_gain` over the whole run on every segment.
+        // is tried on the screen and kept if it beats the whole run on
+        // every segment (`part_beats_whole`).
         let refitted: Vec<ScopedEffect> = self.fixed.iter().chain(&whole.joint).cloned().collect();
         let narrower = narrower_scope(
             grid,
@@ -622,7 +629,7 @@ impl Selection<'_> {
             self.options,
         )
         .and_then(|scoped| self.completion_entry(&out.found, &scoped))
-        .filter(|part| part.delta_bic < whole.delta_bic - self.options.min_scope_bic_gain);
+        .filter(|part| self.part_beats_whole(part.delta_bic, whole.delta_bic));
         let Completion {
             joint,
             candidate,

@@ -16,6 +16,7 @@ use shoal_physics::metrics::{centroid, formation_metrics};
 use shoal_physics::{MotionModel, Pose, Surface};
 use shoal_scenario::Scenario;
 
+use shoal_slam::filter::PositionsByTick;
 use shoal_slam::follow::{Follow, SlamSection};
 use shoal_slam::report::SlamReport;
 use shoal_swarm::RecordOptions;
@@ -323,7 +324,7 @@ fn carry_out(swarm: &mut RunningSwarm, now: f64, act: Act) -> Result<()> {
 /// an estimate of, against where the robot stood at the estimate's tick
 /// (from `truth`): the report is up to a second old when read, and a robot
 /// walks 0.3 m in that second.
-fn slam_errors_now(report: &SlamReport, now: f64, truth: &TruthByTick) -> Vec<(f64, u32, f64)> {
+fn slam_errors_now(report: &SlamReport, now: f64, truth: &PositionsByTick) -> Vec<(f64, u32, f64)> {
     report
         .followed
         .iter()
@@ -335,28 +336,8 @@ fn slam_errors_now(report: &SlamReport, now: f64, truth: &TruthByTick) -> Vec<(f
         .collect()
 }
 
-/// Where each robot stood at each of the last [`TRUTH_TICKS`] ticks.
-#[derive(Default)]
-struct TruthByTick {
-    by_robot: BTreeMap<u32, BTreeMap<u64, DVec2>>,
-}
-
-/// Ticks of true positions kept: 20 s at 5 Hz, far more than SLAM trails.
+/// True positions kept per robot: 20 s at 5 Hz, far more than SLAM trails.
 const TRUTH_TICKS: usize = 100;
-
-impl TruthByTick {
-    fn saw(&mut self, id: u32, tick: u64, at: DVec2) {
-        let ticks = self.by_robot.entry(id).or_default();
-        ticks.insert(tick, at);
-        while ticks.len() > TRUTH_TICKS {
-            ticks.pop_first();
-        }
-    }
-
-    fn at(&self, id: u32, tick: u64) -> Option<DVec2> {
-        self.by_robot.get(&id)?.get(&tick).copied()
-    }
-}
 
 pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
     let scenario = demo_scenario(options.scenario.as_deref())?;
@@ -372,11 +353,8 @@ pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
     let spread = scenario.formation.spread;
     let mut swarm = launch(options, &scenario, &follow)?;
     let watched = watch(&mut swarm, &scenario, options.seconds, follow.named())?;
-    // Every robot SLAM follows, for the summary: with `all`, the swarm's.
-    let follow: Vec<u32> = match &follow {
-        Follow::All => (0..scenario.agents.count as u32).collect(),
-        Follow::Robots(ids) => ids.clone(),
-    };
+    // Every robot SLAM follows, for the summary.
+    let follow = follow.ids_among(scenario.agents.count);
     let mut summary = DemoSummary {
         recording: options.out.clone(),
         killed: watched.healing.killed(),
@@ -433,7 +411,8 @@ struct Watched {
     on_floor: BTreeMap<u32, f64>,
     /// (sim time, robot, position error) of the followed robots.
     slam_errors: Vec<(f64, u32, f64)>,
-    truth: TruthByTick,
+    /// Where each robot stood at each recent tick.
+    truth: PositionsByTick,
     /// The most each followed robot's filter trailed it, seconds.
     most_behind_s: BTreeMap<u32, f64>,
 }
@@ -452,7 +431,7 @@ fn watch(
         healing: Healing::new(KILL_AT * seconds, spread, follow.to_vec()),
         on_floor: BTreeMap::new(),
         slam_errors: Vec::new(),
-        truth: TruthByTick::default(),
+        truth: PositionsByTick::new(TRUTH_TICKS),
         most_behind_s: BTreeMap::new(),
     };
     let mut last_tick = 0;

@@ -248,17 +248,7 @@ fn scenario_for(options: &UpOptions) -> Result<Scenario> {
     }
     if let Some(asked) = &options.slam {
         let mut slam: SlamSection = scenario.section()?;
-        slam.follow = match (slam.follow, asked) {
-            (Follow::All, _) | (_, Follow::All) => Follow::All,
-            (Follow::Robots(mut ids), Follow::Robots(more)) => {
-                for id in more {
-                    if !ids.contains(id) {
-                        ids.push(*id);
-                    }
-                }
-                Follow::Robots(ids)
-            }
-        };
+        slam.follow = slam.follow.and(asked);
         scenario.set_section(&slam)?;
     }
     Ok(scenario)

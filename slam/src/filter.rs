@@ -1,6 +1,8 @@
 //! Particle-filter SLAM over pose and occupancy grid (DP-SLAM style, with
 //! copy-on-write maps), learning the motion model from the particles as it goes.
 
+use std::collections::BTreeMap;
+
 use glam::DVec2;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
@@ -533,8 +535,7 @@ pub fn mask_bodies(
 /// body is forgotten, or it would hide that spot of the map for ever.
 #[derive(Debug)]
 pub struct Bodies {
-    /// Per robot, where it stood at each of its last [`BODY_TICKS`] ticks.
-    seen: std::collections::BTreeMap<u32, std::collections::BTreeMap<u64, DVec2>>,
+    positions: PositionsByTick,
     newest_tick: u64,
     gone_after_ticks: u64,
 }
@@ -546,7 +547,7 @@ const BODY_TICKS: usize = 64;
 impl Bodies {
     pub fn new(gone_after_ticks: u64) -> Self {
         Self {
-            seen: Default::default(),
+            positions: PositionsByTick::new(BODY_TICKS),
             newest_tick: 0,
             gone_after_ticks,
         }
@@ -554,36 +555,77 @@ impl Bodies {
 
     pub fn saw(&mut self, id: u32, at: DVec2, tick: u64) {
         self.newest_tick = self.newest_tick.max(tick);
-        let ticks = self.seen.entry(id).or_default();
-        ticks.insert(tick, at);
-        while ticks.len() > BODY_TICKS {
-            ticks.pop_first();
-        }
+        self.positions.saw(id, tick, at);
     }
 
     /// Forgets the robots that fell silent.
     pub fn forget_gone(&mut self) {
-        let (newest, after) = (self.newest_tick, self.gone_after_ticks);
-        self.seen.retain(|_, ticks| {
-            ticks
-                .last_key_value()
-                .is_some_and(|(tick, _)| *tick + after >= newest)
-        });
+        let since = self.newest_tick.saturating_sub(self.gone_after_ticks);
+        self.positions.keep_seen_since(since);
     }
 
     /// Every robot's body but `id`'s where it stood at `tick`: its newest
     /// position at or before `tick`, or its oldest kept if all are newer.
     pub fn others_at(&self, id: u32, tick: u64) -> impl Iterator<Item = DVec2> + '_ {
-        self.seen
-            .iter()
-            .filter(move |(other, _)| **other != id)
-            .filter_map(move |(_, ticks)| {
-                ticks
-                    .range(..=tick)
-                    .next_back()
-                    .or_else(|| ticks.first_key_value())
-                    .map(|(_, at)| *at)
-            })
+        self.positions
+            .robots()
+            .filter(move |other| *other != id)
+            .filter_map(move |other| self.positions.near(other, tick))
+    }
+}
+
+/// Where each robot stood at each of its last few ticks: what SLAM masks
+/// a scan with, and what a reader holds an estimate of a past tick against.
+#[derive(Debug, Default)]
+pub struct PositionsByTick {
+    by_robot: BTreeMap<u32, BTreeMap<u64, DVec2>>,
+    /// Ticks kept per robot, the newest.
+    keep: usize,
+}
+
+impl PositionsByTick {
+    pub fn new(keep: usize) -> Self {
+        Self {
+            by_robot: BTreeMap::new(),
+            keep,
+        }
+    }
+
+    pub fn saw(&mut self, id: u32, tick: u64, at: DVec2) {
+        let ticks = self.by_robot.entry(id).or_default();
+        ticks.insert(tick, at);
+        while ticks.len() > self.keep {
+            ticks.pop_first();
+        }
+    }
+
+    /// Where robot `id` stood at `tick` exactly, if that tick is kept.
+    pub fn at(&self, id: u32, tick: u64) -> Option<DVec2> {
+        self.by_robot.get(&id)?.get(&tick).copied()
+    }
+
+    /// Where robot `id` stood at `tick`: its newest position at or before
+    /// it, or its oldest kept if all are newer.
+    pub fn near(&self, id: u32, tick: u64) -> Option<DVec2> {
+        let ticks = self.by_robot.get(&id)?;
+        ticks
+            .range(..=tick)
+            .next_back()
+            .or_else(|| ticks.first_key_value())
+            .map(|(_, at)| *at)
+    }
+
+    pub fn robots(&self) -> impl Iterator<Item = u32> + '_ {
+        self.by_robot.keys().copied()
+    }
+
+    /// Forgets the robots last seen before `tick`.
+    pub fn keep_seen_since(&mut self, tick: u64) {
+        self.by_robot.retain(|_, ticks| {
+            ticks
+                .last_key_value()
+                .is_some_and(|(newest, _)| *newest >= tick)
+        });
     }
 }
 

@@ -72,6 +72,30 @@ impl Follow {
     pub fn is_empty(&self) -> bool {
         matches!(self, Follow::Robots(ids) if ids.is_empty())
     }
+
+    /// Every robot either follows: `all` if either is, else both lists,
+    /// each id once, in the order first named.
+    pub fn and(self, other: &Follow) -> Follow {
+        match (self, other) {
+            (Follow::All, _) | (_, Follow::All) => Follow::All,
+            (Follow::Robots(mut ids), Follow::Robots(more)) => {
+                for id in more {
+                    if !ids.contains(id) {
+                        ids.push(*id);
+                    }
+                }
+                Follow::Robots(ids)
+            }
+        }
+    }
+
+    /// The ids followed in a swarm of `count` robots numbered from 0.
+    pub fn ids_among(&self, count: usize) -> Vec<u32> {
+        match self {
+            Follow::All => (0..count as u32).collect(),
+            Follow::Robots(ids) => ids.clone(),
+        }
+    }
 }
 
 impl FromStr for Follow {
@@ -119,6 +143,19 @@ mod tests {
         assert!("0,x".parse::<Follow>().is_err());
         assert!(Follow::All.includes(77));
         assert!(!Follow::Robots(vec![1]).includes(2));
+    }
+
+    #[test]
+    fn two_choices_of_robots_join_and_all_takes_in_any() {
+        let some = Follow::Robots(vec![0, 3]);
+        assert_eq!(
+            some.clone().and(&Follow::Robots(vec![3, 5])),
+            Follow::Robots(vec![0, 3, 5])
+        );
+        assert_eq!(some.clone().and(&Follow::All), Follow::All);
+        assert_eq!(Follow::All.and(&some), Follow::All);
+        assert_eq!(some.ids_among(20), vec![0, 3]);
+        assert_eq!(Follow::All.ids_among(3), vec![0, 1, 2]);
     }
 
     #[test]

@@ -174,3 +174,38 @@ fn the_scan_matched_proposal_against_the_motion_models_in_a_crowd() {
         }
     }
 }
+
+/// EXPERIMENTS.md 8b's ten-seed figures: the default filter (50
+/// scan-matched particles) against 500 drawn from the motion model, from
+/// the demo's short strides, on seeds 0-9 and 10-19: `cargo test --release
+/// -p shoal-slam --test crowd -- --ignored --nocapture ten_seeds`.
+#[test]
+#[ignore = "an experiment: two minutes of filtering"]
+fn ten_seeds_of_the_default_against_500_drawn_from_the_model() {
+    let short = demo().motion.scaled(0.75, 1.0, 1.0);
+    for config in [
+        FilterConfig::default(),
+        FilterConfig {
+            particles: 500,
+            proposal: Proposal::Motion,
+            ..FilterConfig::default()
+        },
+    ] {
+        for first in [0, 10] {
+            let ends: Vec<f64> = (first..first + 10)
+                .map(|seed| {
+                    let followed = follow_in_crowd_with(20, 150, &short, seed, config.clone());
+                    followed.errors.last().copied().unwrap_or(f64::NAN)
+                })
+                .collect();
+            eprintln!(
+                "{:?}, {} particles, seeds {first}-{}: error after 150 steps mean {:.3} m, worst {:.3} m",
+                config.proposal,
+                config.particles,
+                first + 9,
+                ends.iter().sum::<f64>() / ends.len() as f64,
+                ends.iter().copied().fold(0.0, f64::max)
+            );
+        }
+    }
+}

@@ -36,23 +36,36 @@ struct Run {
     learned: MotionModel,
 }
 
+/// The robot's true model: strides 25% longer and turns 30% larger than
+/// the legged default the filter starts from.
+fn true_model() -> MotionModel {
+    MotionModel::legged_default().scaled(1.25, 1.25, 1.3)
+}
+
 fn wander(proposal: Proposal, particles: usize, seed: u64, steps: usize) -> Run {
-    let arena = l_shaped_room();
-    let sensor = RangeSensor::default();
-    let start = Pose::new(1.0, 1.0, 0.3);
-    let model = MotionModel::legged_default();
-    let truth = model.scaled(1.25, 1.25, 1.3);
-    let mut body = Body {
-        pose: start,
-        radius: 0.15,
-        model: truth,
-        sim_time: 0.0,
-    };
     let config = FilterConfig {
         particles,
         proposal,
-        sensor: sensor.clone(),
         ..FilterConfig::default()
+    };
+    wander_from(MotionModel::legged_default(), config, seed, steps)
+}
+
+/// [`wander`] with the filter started from `model` and set up as `config`
+/// (its sensor: the room's).
+fn wander_from(model: MotionModel, config: FilterConfig, seed: u64, steps: usize) -> Run {
+    let arena = l_shaped_room();
+    let sensor = RangeSensor::default();
+    let start = Pose::new(1.0, 1.0, 0.3);
+    let mut body = Body {
+        pose: start,
+        radius: 0.15,
+        model: true_model(),
+        sim_time: 0.0,
+    };
+    let config = FilterConfig {
+        sensor: sensor.clone(),
+        ..config
     };
     let mut filter = ParticleFilter::new(start, model, config, arena.width, arena.height, seed);
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed + 100);
@@ -80,7 +93,7 @@ fn rmse(errors: &[f64]) -> f64 {
 /// Prints `run` as EXPERIMENTS.md reports it; returns the position RMSE
 /// over the last 24 s.
 fn report(label: &str, run: &Run) -> f64 {
-    let truth = MotionModel::legged_default().scaled(1.25, 1.25, 1.3);
+    let truth = true_model();
     let (all, late) = (
         rmse(&run.errors),
         rmse(&run.errors[run.errors.len() * 4 / 5..]),
@@ -136,5 +149,64 @@ fn the_scan_matched_proposal_against_the_motion_models() {
             );
             report(&label, &run);
         }
+    }
+}
+
+/// EXPERIMENTS.md 8b's six-seed figures: the default filter (50 scan-matched
+/// particles) against 500 drawn from the model, and learning against the
+/// model held fixed, from the wrong model and from the true one: `cargo
+/// test --release -p shoal-slam --test unseen -- --ignored --nocapture
+/// six_seeds`.
+#[test]
+#[ignore = "an experiment: two minutes of filtering"]
+fn six_seeds_of_each_filter_learning_and_fixed() {
+    let defaults = FilterConfig::default();
+    let runs = [
+        (
+            "default, learning, wrong model",
+            defaults.clone(),
+            MotionModel::legged_default(),
+        ),
+        (
+            "default, fixed, wrong model",
+            FilterConfig {
+                learning: false,
+                ..defaults.clone()
+            },
+            MotionModel::legged_default(),
+        ),
+        (
+            "default, learning, true model",
+            defaults.clone(),
+            true_model(),
+        ),
+        (
+            "default, fixed, true model",
+            FilterConfig {
+                learning: false,
+                ..defaults.clone()
+            },
+            true_model(),
+        ),
+        (
+            "500 drawn from the model, learning, wrong model",
+            FilterConfig {
+                particles: 500,
+                proposal: Proposal::Motion,
+                ..defaults
+            },
+            MotionModel::legged_default(),
+        ),
+    ];
+    for (label, config, model) in runs {
+        let rmses: Vec<f64> = (0..6)
+            .map(|seed| rmse(&wander_from(model.clone(), config.clone(), seed, 600).errors))
+            .collect();
+        eprintln!(
+            "{label}: position rmse over 2 minutes, seeds 0-5: mean {:.3} m, worst {:.3} m, each {:.3?}",
+            rmses.iter().sum::<f64>() / rmses.len() as f64,
+            rmses.iter().copied().fold(0.0, f64::max),
+            rmses
+        );
     }
 }
