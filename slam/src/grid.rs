@@ -11,6 +11,16 @@ const TILE: usize = 16;
 /// Log-odds added to a cell a beam ended in, and to one it passed through.
 const HIT: f32 = 0.9;
 const MISS: f32 = -0.4;
+/// A beam that hit something frees no cell this near its end (in metres,
+/// each way): the inverse sensor model's obstacle thickness (Thrun, Burgard
+/// and Fox, Probabilistic Robotics, table 9.2). A beam that meets a wall at
+/// a grazing angle runs along the wall's own cells for several cells before
+/// it ends; freeing them all, every such beam eroded walls that steeper
+/// beams had drawn, more on the side the robot saw them at a slant, and the
+/// scan was matched off them: the crowd's followed robot ended 0.25 m off
+/// (seeds 0-19) where it now ends 0.13 m, and a lone robot with its true
+/// model was 5 cm off from its first steps. 0.1-0.25 m measured alike.
+const FREE_STOP_M: f64 = 0.15;
 /// Log-odds are clamped so a cell can change its mind.
 const CLAMP: f32 = 6.0;
 
@@ -132,6 +142,7 @@ impl TiledGrid {
         };
         let (mut x, mut y) = (start.0 as i64, start.1 as i64);
         let (x1, y1) = (end.0 as i64, end.1 as i64);
+        let stop = (FREE_STOP_M / self.cell_size).round() as i64;
         let (dx, dy) = ((x1 - x).abs(), -(y1 - y).abs());
         let (sx, sy) = (if x < x1 { 1 } else { -1 }, if y < y1 { 1 } else { -1 });
         let mut error = dx + dy;
@@ -148,7 +159,14 @@ impl TiledGrid {
             }
             if let Some((_, cells)) = writable.as_mut() {
                 let offset = (cy % TILE) * TILE + cx % TILE;
-                let delta = if last && hit { HIT } else { MISS };
+                let delta = if last && hit {
+                    HIT
+                } else if hit && (x - x1).abs().max((y - y1).abs()) <= stop {
+                    // Where a wall may be: neither free nor hit.
+                    0.0
+                } else {
+                    MISS
+                };
                 cells[offset] = (cells[offset] + delta).clamp(-CLAMP, CLAMP);
             }
             if last {
@@ -290,6 +308,29 @@ mod tests {
                 < 1e-6,
             "untouched"
         );
+    }
+
+    #[test]
+    fn a_beam_grazing_a_wall_does_not_erase_it_near_its_end() {
+        let mut grid = TiledGrid::new(2.0, 1.0, 0.05);
+        let wall = DVec2::new(1.01, 0.52);
+        // Seen head on once: one hit.
+        grid.integrate_beam(DVec2::new(1.01, 0.1), wall, true);
+        let cell = grid.cell_of(wall).expect("in map");
+        assert!(grid.occupancy(cell) > 0.6);
+        // Three beams that run along the wall's row for its last ten cells
+        // and end two cells past it: each would have freed it.
+        for _ in 0..3 {
+            grid.integrate_beam(DVec2::new(0.21, 0.46), DVec2::new(1.11, 0.52), true);
+        }
+        assert!(
+            grid.occupancy(cell) > 0.6,
+            "the wall's cell, {} cells from the grazing beams' end, stays occupied",
+            grid.cell_of(DVec2::new(1.11, 0.52)).expect("in map").0 - cell.0
+        );
+        // Farther back along the beam, cells are freed as before.
+        let behind = grid.cell_of(DVec2::new(0.4, 0.47)).expect("in map");
+        assert!(grid.occupancy(behind) < 0.3);
     }
 
     #[test]
