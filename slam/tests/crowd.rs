@@ -124,9 +124,12 @@ fn in_a_crowd_a_filter_started_with_short_strides_holds_the_robot_and_learns_its
         eprintln!(
             "seed {seed}: last {last:.2} m, worst of the last 50 steps {worst_late:.2} m; full stride {wrong:.3} -> {on_carpet:.3} m after 50 steps (carpet {right:.3}) -> {at_end:.3} m at the end (sand {sand:.3})"
         );
+        // Issue 30's bar: within 0.2 m at the end. Measured 0.11, 0.01,
+        // 0.11 m (worst of the last 50 steps 0.17, 0.05, 0.12 m); 0.25,
+        // 0.20, 0.31 m while beams grazing a wall still erased it.
         assert!(
-            worst_late < 0.6,
-            "seed {seed}: last 50 steps: worst position error {worst_late:.2} m"
+            last < 0.2 && worst_late < 0.3,
+            "seed {seed}: position error {last:.2} m at the end, worst {worst_late:.2} m over the last 50 steps"
         );
         assert!(
             (on_carpet - right).abs() < (wrong - right).abs(),

@@ -118,11 +118,12 @@ fn a_lone_robot_with_a_wrong_model_is_held_on_a_room_slam_never_saw() {
             &wander(defaults.proposal, defaults.particles, seed, 600),
         );
         // With the defaults (the scan-matched proposal, 50 particles)
-        // measured 0.06-0.09 m; 0.09-0.12 m with 500 particles drawn from
-        // the motion model; 0.26 m before a beam ending in unmapped space
-        // stopped scoring as half a hit (grid::occupancy_within).
+        // measured 0.063, 0.059, 0.038 m (0.043, 0.047, 0.036 m over the
+        // whole run); 0.118, 0.092, 0.059 m while beams grazing a wall
+        // still erased it (grid::FREE_STOP_M); 0.26 m before a beam ending
+        // in unmapped space stopped scoring as half a hit.
         assert!(
-            late < 0.15,
+            late < 0.1,
             "seed {seed}: last 24 s: position rmse {late:.3} m"
         );
     }
