@@ -135,7 +135,8 @@ impl TiledGrid {
     }
 
     /// Marks the cells from `from` towards `to` free, and the last one
-    /// occupied when the beam hit something.
+    /// occupied when the beam hit something; a beam that hit frees none
+    /// within [`FREE_STOP_M`] of its end.
     pub fn integrate_beam(&mut self, from: DVec2, to: DVec2, hit: bool) {
         let (Some(start), Some(end)) = (self.cell_of(from), self.cell_of(to)) else {
             return;
