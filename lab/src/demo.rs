@@ -69,8 +69,10 @@ pub struct DemoSummary {
 #[derive(Debug, Default, Serialize)]
 pub struct SlamProgress {
     pub robot: u32,
-    pub early_error_m: f64,
-    pub late_error_m: f64,
+    /// None where SLAM gave no estimate in the window (a robot followed
+    /// only late, or killed through it): an empty window is no error of 0.
+    pub early_error_m: Option<f64>,
+    pub late_error_m: Option<f64>,
     /// How far the learned model moved from where SLAM started (in starting
     /// standard deviations).
     pub model_distance: Option<f64>,
@@ -252,7 +254,7 @@ fn slam_progress(
             .filter(|(t, r, _)| *r == id && *t >= from && *t <= to)
             .map(|(_, _, e)| *e)
             .collect();
-        within.iter().sum::<f64>() / within.len().max(1) as f64
+        (!within.is_empty()).then(|| within.iter().sum::<f64>() / within.len() as f64)
     };
     SlamProgress {
         robot: id,
@@ -557,10 +559,10 @@ const SLAM_LINES: usize = 4;
 fn print_slam_robot(out: &mut dyn Write, s: &SlamProgress) -> io::Result<()> {
     writeln!(
         out,
-        "  SLAM robot {}: position error {:.0} mm in the first {SLAM_WINDOW_S:.0} s -> {:.0} mm in the last, learning from strides {:.0}% too short{}",
+        "  SLAM robot {}: position error {} in the first {SLAM_WINDOW_S:.0} s -> {} in the last, learning from strides {:.0}% too short{}",
         s.robot,
-        s.early_error_m * 1e3,
-        s.late_error_m * 1e3,
+        in_mm(s.early_error_m),
+        in_mm(s.late_error_m),
         STRIDE_ERROR * 100.0,
         s.stride_learned_m
             .map(|learned| format!(
@@ -573,6 +575,20 @@ fn print_slam_robot(out: &mut dyn Write, s: &SlamProgress) -> io::Result<()> {
     )
 }
 
+/// An error in millimetres, or that there was no estimate to take it of.
+fn in_mm(error_m: Option<f64>) -> String {
+    error_m.map_or_else(
+        || "no estimate".to_string(),
+        |e| format!("{:.0} mm", e * 1e3),
+    )
+}
+
+/// The mean of the values there are; None if there are none.
+fn mean_of(values: impl Iterator<Item = Option<f64>>) -> Option<f64> {
+    let values: Vec<f64> = values.flatten().collect();
+    (!values.is_empty()).then(|| values.iter().sum::<f64>() / values.len() as f64)
+}
+
 /// Every followed robot in one line: the mean error early and late, the
 /// worst robot late, and how far the learned strides are from the truth.
 fn print_slam_overall(out: &mut dyn Write, slam: &[SlamProgress]) -> io::Result<()> {
@@ -580,7 +596,8 @@ fn print_slam_overall(out: &mut dyn Write, slam: &[SlamProgress]) -> io::Result<
     let mean = |f: fn(&SlamProgress) -> f64| slam.iter().map(f).sum::<f64>() / n;
     let worst = slam
         .iter()
-        .max_by(|a, b| a.late_error_m.total_cmp(&b.late_error_m));
+        .filter_map(|s| Some((s, s.late_error_m?)))
+        .max_by(|a, b| a.1.total_cmp(&b.1));
     let stride_errors: Vec<f64> = slam
         .iter()
         .filter_map(|s| Some((s.stride_learned_m? - s.stride_true_m).abs() / s.stride_true_m))
@@ -595,16 +612,12 @@ fn print_slam_overall(out: &mut dyn Write, slam: &[SlamProgress]) -> io::Result<
     )?;
     writeln!(
         out,
-        "  SLAM, {} robots followed: mean position error {:.0} mm in the first {SLAM_WINDOW_S:.0} s -> {:.0} mm in the last{}; a full stride {:.0}% off the truth on each robot's floor at the start, {:.0}% off as learned (mean over {} robots; `--json` has each)",
+        "  SLAM, {} robots followed: mean position error {} in the first {SLAM_WINDOW_S:.0} s -> {} in the last{}; a full stride {:.0}% off the truth on each robot's floor at the start, {:.0}% off as learned (mean over {} robots; `--json` has each)",
         slam.len(),
-        mean(|s| s.early_error_m) * 1e3,
-        mean(|s| s.late_error_m) * 1e3,
+        in_mm(mean_of(slam.iter().map(|s| s.early_error_m))),
+        in_mm(mean_of(slam.iter().map(|s| s.late_error_m))),
         worst
-            .map(|w| format!(
-                " (worst: robot {}, {:.0} mm)",
-                w.robot,
-                w.late_error_m * 1e3
-            ))
+            .map(|(w, late)| format!(" (worst: robot {}, {:.0} mm)", w.robot, late * 1e3))
             .unwrap_or_default(),
         start_error * 100.0,
         stride_errors.iter().sum::<f64>() / stride_errors.len().max(1) as f64 * 100.0,
@@ -679,6 +692,37 @@ pub fn print(out: &mut dyn Write, summary: &DemoSummary, scenario: &Scenario) ->
 mod tests {
     use super::*;
     use shoal_physics::Command;
+
+    #[test]
+    fn a_window_without_an_estimate_is_said_as_such_not_as_no_error() {
+        let followed = SlamProgress {
+            robot: 3,
+            early_error_m: None,
+            late_error_m: Some(0.2),
+            ..SlamProgress::default()
+        };
+        let mut one = Vec::new();
+        print_slam_robot(&mut one, &followed).expect("writes to memory");
+        let one = String::from_utf8(one).expect("utf-8");
+        assert!(
+            one.contains("no estimate in the first") && one.contains("200 mm in the last"),
+            "{one}"
+        );
+        let other = SlamProgress {
+            robot: 4,
+            early_error_m: Some(0.1),
+            late_error_m: None,
+            ..SlamProgress::default()
+        };
+        let mut all = Vec::new();
+        print_slam_overall(&mut all, &[followed, other]).expect("writes to memory");
+        let all = String::from_utf8(all).expect("utf-8");
+        assert!(
+            all.contains("100 mm in the first")
+                && all.contains("200 mm in the last (worst: robot 3"),
+            "the means are over the windows with an estimate: {all}"
+        );
+    }
 
     #[test]
     fn the_shipped_scenario_has_what_the_demo_shows() {
