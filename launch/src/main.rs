@@ -244,9 +244,10 @@ struct UpArgs {
     #[arg(long, requires = "link")]
     listen: Vec<String>,
     /// Start a SLAM process following these robots, e.g. 0,3, or `all`
-    /// (every robot, those that join later included).
+    /// (every robot, those that join later included), beside those the
+    /// scenario's `[slam]` names; `none` starts no SLAM process at all.
     #[arg(long)]
-    slam: Option<shoal_slam::follow::Follow>,
+    slam: Option<up::SlamAsked>,
 }
 
 /// Becomes the sibling binary (exec): one process, so the pid the user sees

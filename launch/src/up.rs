@@ -24,8 +24,43 @@ pub struct UpOptions {
     pub json: bool,
     pub record: RecordOptions,
     /// Robots a SLAM process follows (added to the scenario's `[slam]
-    /// follow`), or all of them.
-    pub slam: Option<Follow>,
+    /// follow`), all of them, or none whatever the scenario says.
+    pub slam: Option<SlamAsked>,
+}
+
+/// What `shoal up --slam` asks for.
+#[derive(Clone, Debug, PartialEq)]
+pub enum SlamAsked {
+    /// These robots followed too, beside the scenario's.
+    Follow(Follow),
+    /// No SLAM process, whatever the scenario's `[slam]` says: the swarm
+    /// alone, with SLAM started beside it by hand (`shoal slam`), as a
+    /// benchmark of SLAM against a live swarm runs it.
+    None,
+}
+
+impl SlamAsked {
+    /// Whom SLAM follows, the scenario asking for `scenario`'s robots.
+    pub fn applied_to(&self, scenario: Follow) -> Follow {
+        match self {
+            SlamAsked::Follow(more) => scenario.and(more),
+            SlamAsked::None => Follow::default(),
+        }
+    }
+}
+
+impl std::str::FromStr for SlamAsked {
+    type Err = String;
+
+    /// `none`, `all`, or robot ids separated by commas (`0,3`).
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        if text.trim() == "none" {
+            return Ok(SlamAsked::None);
+        }
+        text.parse::<Follow>()
+            .map(SlamAsked::Follow)
+            .map_err(|e| format!("{e}, or `none`"))
+    }
 }
 
 /// Fails before anything starts when `--viewer` cannot work: the Rerun
@@ -248,7 +283,7 @@ fn scenario_for(options: &UpOptions) -> Result<Scenario> {
     }
     if let Some(asked) = &options.slam {
         let mut slam: SlamSection = scenario.section()?;
-        slam.follow = slam.follow.and(asked);
+        slam.follow = asked.applied_to(slam.follow);
         scenario.set_section(&slam)?;
     }
     Ok(scenario)
@@ -400,4 +435,22 @@ pub fn up(options: UpOptions) -> Result<UpSummary> {
     }
     status.finish();
     stop(swarm, &options, converged_since)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn slam_none_starts_no_slam_whatever_the_scenario_asks_and_ids_add_to_it() {
+        let none: SlamAsked = "none".parse().expect("a word it knows");
+        assert!(none.applied_to(Follow::All).is_empty());
+        let some: SlamAsked = "0,3".parse().expect("ids");
+        assert_eq!(
+            some.applied_to(Follow::Robots(vec![3, 5])),
+            Follow::Robots(vec![3, 5, 0])
+        );
+        let wrong = "nobody".parse::<SlamAsked>().expect_err("not a choice");
+        assert!(wrong.contains("`none`"), "{wrong}");
+    }
 }
