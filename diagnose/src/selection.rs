@@ -394,12 +394,15 @@ impl Selection<'_> {
     }
 
     /// `whole` over the part of the run it acts in (`narrower_scope`),
-    /// fitted on every segment, if it passes the entry test there and holds
-    /// out: with its gain, test and held-out gain.
+    /// fitted on every segment, if that part leaves out most of the held-out
+    /// block that contradicted `whole` (`contradicting`, an index into the
+    /// blocks), passes the entry test there and holds out: with its gain,
+    /// test and held-out gain.
     fn part_instead(
         &self,
         base: &[ScopedEffect],
         whole: &ScopedEffect,
+        contradicting: usize,
     ) -> Option<(ScopedEffect, f64, EntryTest, f64)> {
         let (grid, segs, options) = (self.grid(), self.segs(), self.options);
         let part = narrower_scope(grid, &self.screen, base, whole, self.duration, options)?;
@@ -416,6 +419,19 @@ impl Selection<'_> {
         let [from, to] = part.during?;
         let block_s = self.duration / self.prepared.blocks.len().max(1) as f64;
         if self.duration - (to - from) < block_s {
+            return None;
+        }
+        // And the block that said no must be the part it leaves out: a
+        // part that still holds most of it answers a different story (a
+        // speed scale contradicted in its third block, named from 0 s to
+        // 405 s, was a stretch of coloured noise cut off elsewhere).
+        let block = self.prepared.blocks.get(contradicting)?;
+        let (block_from, block_to) = (
+            segs.get(block.start)?.t_start,
+            segs.get(block.end.checked_sub(1)?)?.t_end,
+        );
+        let inside = (to.min(block_to) - from.max(block_from)).max(0.0);
+        if inside > 0.5 * (block_to - block_from) {
             return None;
         }
         let long_runs = factors_with(grid, segs, base, &part);
@@ -519,7 +535,12 @@ fn holds_out(
 ) -> Result<f64, HeldOutRejection> {
     let gains = selection.heldout_through_lens(base, chosen);
     let gain_heldout: f64 = gains.iter().sum();
-    let worst = gains.iter().copied().fold(f64::INFINITY, f64::min);
+    let (worst_block, worst) = gains
+        .iter()
+        .copied()
+        .enumerate()
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .unwrap_or((0, f64::INFINITY));
     let contradicted = must_transfer(chosen) && worst < -CONTRADICTION_NATS;
     tracing::debug!(
         kind = chosen.effect.kind(),
@@ -529,7 +550,7 @@ fn holds_out(
         "round: held out"
     );
     if contradicted {
-        Err(HeldOutRejection::Contradicted)
+        Err(HeldOutRejection::Contradicted { block: worst_block })
     } else if gain_heldout > 0.0 {
         Ok(gain_heldout)
     } else {
@@ -540,8 +561,9 @@ fn holds_out(
 /// Why an effect did not hold out.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum HeldOutRejection {
-    /// A held-out block predicted worse with it (`CONTRADICTION_NATS`).
-    Contradicted,
+    /// A held-out block (the worst, an index into `Prepared::blocks`)
+    /// predicted worse with it (`CONTRADICTION_NATS`).
+    Contradicted { block: usize },
     /// No better in the held-out blocks together.
     NoGain,
 }
@@ -596,8 +618,8 @@ pub(crate) fn select(selection: &Selection, located: &[Located], at: OperatingPo
                 // and the held-out check again, without the margin a
                 // part needs to beat the whole on BIC alone: the
                 // held-out blocks already said the whole is wrong.
-                Err(HeldOutRejection::Contradicted) => {
-                    match selection.part_instead(&base, &chosen) {
+                Err(HeldOutRejection::Contradicted { block }) => {
+                    match selection.part_instead(&base, &chosen, block) {
                         Some(part) => part,
                         None => {
                             out.rejected_heldout.push(chosen.effect.kind());
