@@ -393,66 +393,6 @@ impl Selection<'_> {
         (scoped_fit, scoped_gain)
     }
 
-    /// `whole` over the part of the run it acts in (`narrower_scope`),
-    /// fitted on every segment, if that part leaves out most of the held-out
-    /// block that contradicted `whole` (`contradicting`, an index into the
-    /// blocks), passes the entry test there and holds out: with its gain,
-    /// test and held-out gain.
-    fn part_instead(
-        &self,
-        base: &[ScopedEffect],
-        whole: &ScopedEffect,
-        contradicting: usize,
-    ) -> Option<(ScopedEffect, f64, EntryTest, f64)> {
-        let (grid, segs, options) = (self.grid(), self.segs(), self.options);
-        let part = narrower_scope(grid, &self.screen, base, whole, self.duration, options)?;
-        let part = fit(grid, segs, base, &[part], options.max_iters / 2)
-            .effects
-            .pop()?;
-        if on_bound(&part).is_some() {
-            return None;
-        }
-        // The story is that a held-out block lies where the effect does not
-        // act: a part that leaves out less than a block's time is the whole
-        // run with a stretch of noise cut off, and would be said as a change
-        // that never happened ("only from 0 s to 570 s").
-        let [from, to] = part.during?;
-        let block_s = self.duration / self.prepared.blocks.len().max(1) as f64;
-        if self.duration - (to - from) < block_s {
-            return None;
-        }
-        // And the block that said no must be the part it leaves out: a
-        // part that still holds most of it answers a different story (a
-        // speed scale contradicted in its third block, named from 0 s to
-        // 405 s, was a stretch of coloured noise cut off elsewhere).
-        let block = self.prepared.blocks.get(contradicting)?;
-        let (block_from, block_to) = (
-            segs.get(block.start)?.t_start,
-            segs.get(block.end.checked_sub(1)?)?.t_end,
-        );
-        let inside = (to.min(block_to) - from.max(block_from)).max(0.0);
-        if inside > 0.5 * (block_to - block_from) {
-            return None;
-        }
-        let long_runs = factors_with(grid, segs, base, &part);
-        let factors = long_runs.map(|l| l.factor);
-        let base_nll = components_of(grid, segs, base);
-        let delta_bic = calibrated_gain(grid, segs, base_nll, base, &part, factors);
-        let test = self.entry_of(base, &part, (delta_bic, long_runs));
-        tracing::debug!(
-            kind = part.effect.kind(),
-            during = ?part.during,
-            delta_bic,
-            passed = test.passed(),
-            "round: contradicted over the whole run, tried over part of it"
-        );
-        if !test.passed() {
-            return None;
-        }
-        let gain = holds_out(self, base, &part).ok()?;
-        Some((part, delta_bic, test, gain))
-    }
-
     /// Whether an effect over part of the run, gaining `part` (ΔBIC, lower
     /// is better), beats it over the whole run, gaining `whole`, by enough
     /// (`min_scope_bic_gain`) to say it acts only there.
@@ -528,44 +468,18 @@ pub(crate) struct Selected {
 /// must predict the held-out blocks better in all, and, if it is physics
 /// of the body (`heldout::must_transfer`), no block may contradict it
 /// (`heldout::CONTRADICTION_NATS`).
-fn holds_out(
-    selection: &Selection,
-    base: &[ScopedEffect],
-    chosen: &ScopedEffect,
-) -> Result<f64, HeldOutRejection> {
+fn holds_out(selection: &Selection, base: &[ScopedEffect], chosen: &ScopedEffect) -> Option<f64> {
     let gains = selection.heldout_through_lens(base, chosen);
     let gain_heldout: f64 = gains.iter().sum();
-    let (worst_block, worst) = gains
-        .iter()
-        .copied()
-        .enumerate()
-        .min_by(|a, b| a.1.total_cmp(&b.1))
-        .unwrap_or((0, f64::INFINITY));
+    let worst = gains.iter().copied().fold(f64::INFINITY, f64::min);
     let contradicted = must_transfer(chosen) && worst < -CONTRADICTION_NATS;
     tracing::debug!(
         kind = chosen.effect.kind(),
-        during = ?chosen.during,
         ?gains,
         contradicted,
         "round: held out"
     );
-    if contradicted {
-        Err(HeldOutRejection::Contradicted { block: worst_block })
-    } else if gain_heldout > 0.0 {
-        Ok(gain_heldout)
-    } else {
-        Err(HeldOutRejection::NoGain)
-    }
-}
-
-/// Why an effect did not hold out.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum HeldOutRejection {
-    /// A held-out block (the worst, an index into `Prepared::blocks`)
-    /// predicted worse with it (`CONTRADICTION_NATS`).
-    Contradicted { block: usize },
-    /// No better in the held-out blocks together.
-    NoGain,
+    (gain_heldout > 0.0 && !contradicted).then_some(gain_heldout)
 }
 
 pub(crate) fn select(selection: &Selection, located: &[Located], at: OperatingPoint) -> Selected {
@@ -607,30 +521,9 @@ pub(crate) fn select(selection: &Selection, located: &[Located], at: OperatingPo
                 });
                 continue;
             }
-            let (chosen, delta_bic, test, gain_heldout) = match holds_out(selection, &base, &chosen)
-            {
-                Ok(gain) => (chosen, delta_bic, test, gain),
-                // A block that contradicts an effect fitted over the
-                // whole run may be the part of the run it does not act
-                // in: a drift that starts half way is fitted at half
-                // its size everywhere, and the first half's blocks say
-                // no. Over the part it acts in, it faces the entry test
-                // and the held-out check again, without the margin a
-                // part needs to beat the whole on BIC alone: the
-                // held-out blocks already said the whole is wrong.
-                Err(HeldOutRejection::Contradicted { block }) => {
-                    match selection.part_instead(&base, &chosen, block) {
-                        Some(part) => part,
-                        None => {
-                            out.rejected_heldout.push(chosen.effect.kind());
-                            continue;
-                        }
-                    }
-                }
-                Err(HeldOutRejection::NoGain) => {
-                    out.rejected_heldout.push(chosen.effect.kind());
-                    continue;
-                }
+            let Some(gain_heldout) = holds_out(selection, &base, &chosen) else {
+                out.rejected_heldout.push(chosen.effect.kind());
+                continue;
             };
             out.found.push(chosen);
             out.evidence.push(Evidence {
