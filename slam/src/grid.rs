@@ -19,7 +19,8 @@ const MISS: f32 = -0.4;
 /// beams had drawn, more on the side the robot saw them at a slant, and the
 /// scan was matched off them: the crowd's followed robot ended 0.25 m off
 /// (seeds 0-19) where it now ends 0.13 m, and a lone robot with its true
-/// model was 5 cm off from its first steps. 0.1-0.25 m measured alike.
+/// model was 5 cm off from its first steps. 0.1-0.25 m did alike
+/// (EXPERIMENTS.md 8b says on which runs).
 const FREE_STOP_M: f64 = 0.15;
 /// Log-odds are clamped so a cell can change its mind.
 const CLAMP: f32 = 6.0;
