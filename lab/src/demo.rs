@@ -249,12 +249,12 @@ fn slam_progress(
     floor: f64,
 ) -> SlamProgress {
     let mean_error = |from: f64, to: f64| {
-        let within: Vec<f64> = errors
-            .iter()
-            .filter(|(t, r, _)| *r == id && *t >= from && *t <= to)
-            .map(|(_, _, e)| *e)
-            .collect();
-        (!within.is_empty()).then(|| within.iter().sum::<f64>() / within.len() as f64)
+        mean_of(
+            errors
+                .iter()
+                .filter(|(t, r, _)| *r == id && *t >= from && *t <= to)
+                .map(|(_, _, e)| *e),
+        )
     };
     SlamProgress {
         robot: id,
@@ -583,10 +583,10 @@ fn in_mm(error_m: Option<f64>) -> String {
     )
 }
 
-/// The mean of the values there are; None if there are none.
-fn mean_of(values: impl Iterator<Item = Option<f64>>) -> Option<f64> {
-    let values: Vec<f64> = values.flatten().collect();
-    (!values.is_empty()).then(|| values.iter().sum::<f64>() / values.len() as f64)
+/// The mean of `values`; None if there are none.
+fn mean_of(values: impl Iterator<Item = f64>) -> Option<f64> {
+    let (sum, count) = values.fold((0.0, 0usize), |(sum, count), v| (sum + v, count + 1));
+    (count > 0).then(|| sum / count as f64)
 }
 
 /// Every followed robot in one line: the mean error early and late, the
@@ -614,8 +614,8 @@ fn print_slam_overall(out: &mut dyn Write, slam: &[SlamProgress]) -> io::Result<
         out,
         "  SLAM, {} robots followed: mean position error {} in the first {SLAM_WINDOW_S:.0} s -> {} in the last{}; a full stride {:.0}% off the truth on each robot's floor at the start, {:.0}% off as learned (mean over {} robots; `--json` has each)",
         slam.len(),
-        in_mm(mean_of(slam.iter().map(|s| s.early_error_m))),
-        in_mm(mean_of(slam.iter().map(|s| s.late_error_m))),
+        in_mm(mean_of(slam.iter().filter_map(|s| s.early_error_m))),
+        in_mm(mean_of(slam.iter().filter_map(|s| s.late_error_m))),
         worst
             .map(|(w, late)| format!(" (worst: robot {}, {:.0} mm)", w.robot, late * 1e3))
             .unwrap_or_default(),

@@ -225,9 +225,43 @@ impl Follower {
     }
 }
 
+/// The tick a SLAM process is done up to, which a lockstep launcher paces
+/// its clock to so no scan is dropped, from each followed robot's newest
+/// announced tick and the tick of its oldest scan still waiting to be
+/// stepped: the oldest tick of the robots still stepping, short of any
+/// waiting scan; a robot that is gone (announced two ticks behind the
+/// swarm's `newest_roster`) is not waited for.
+pub fn done_up_to(
+    robots: impl Iterator<Item = (Option<u64>, Option<u64>)>,
+    newest_roster: u64,
+) -> u64 {
+    robots
+        .filter_map(|(announced, oldest_waiting)| {
+            let announced = announced?;
+            let done = oldest_waiting.map_or(announced, |w| w.saturating_sub(1).min(announced));
+            (announced + 2 >= newest_roster).then_some(done)
+        })
+        .min()
+        .unwrap_or(newest_roster)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn slam_is_done_short_of_its_oldest_waiting_scan_and_waits_for_no_gone_robot() {
+        // Robot a announced tick 10 with a scan of tick 8 still waiting;
+        // robot b announced 10 with none; robot c fell silent at tick 5.
+        let robots = [(Some(10), Some(8)), (Some(10), None), (Some(5), None)];
+        assert_eq!(done_up_to(robots.into_iter(), 10), 7);
+        assert_eq!(done_up_to([(Some(10), None)].into_iter(), 11), 10);
+        assert_eq!(
+            done_up_to([(None, None)].into_iter(), 11),
+            11,
+            "nothing to wait for"
+        );
+    }
     use glam::DVec2;
     use shoal_scenario::Scenario;
 

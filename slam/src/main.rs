@@ -288,24 +288,18 @@ fn hear_roster(
     Ok(newest)
 }
 
-/// The tick SLAM is done up to, which a lockstep launcher paces its clock
-/// to so no scan is dropped: the oldest tick of the followed robots still
-/// stepping, short of any scan still waiting to be stepped; a robot that
-/// is gone (announced two ticks behind the swarm) is not waited for.
+/// The tick SLAM is done up to (`follower::done_up_to`) over the robots
+/// it follows.
 fn done_up_to(followed: &BTreeMap<u32, Followed>, newest_roster: u64) -> u64 {
-    followed
-        .values()
-        .filter_map(|robot| {
-            let announced = robot.follower.newest_announced()?;
-            let waiting = robot
-                .pending
-                .front()
-                .map(|scan| scan.tick.saturating_sub(1));
-            (announced + 2 >= newest_roster)
-                .then(|| waiting.map_or(announced, |w| w.min(announced)))
-        })
-        .min()
-        .unwrap_or(newest_roster)
+    shoal_slam::follower::done_up_to(
+        followed.values().map(|robot| {
+            (
+                robot.follower.newest_announced(),
+                robot.pending.front().map(|scan| scan.tick),
+            )
+        }),
+        newest_roster,
+    )
 }
 
 /// Takes every followed robot's new scans, then steps each robot's filter
