@@ -592,8 +592,6 @@ fn mean_of(values: impl Iterator<Item = f64>) -> Option<f64> {
 /// Every followed robot in one line: the mean error early and late, the
 /// worst robot late, and how far the learned strides are from the truth.
 fn print_slam_overall(out: &mut dyn Write, slam: &[SlamProgress]) -> io::Result<()> {
-    let n = slam.len().max(1) as f64;
-    let mean = |f: fn(&SlamProgress) -> f64| slam.iter().map(f).sum::<f64>() / n;
     let worst = slam
         .iter()
         .filter_map(|s| Some((s, s.late_error_m?)))
@@ -602,7 +600,11 @@ fn print_slam_overall(out: &mut dyn Write, slam: &[SlamProgress]) -> io::Result<
         .iter()
         .filter_map(|s| Some((s.stride_learned_m? - s.stride_true_m).abs() / s.stride_true_m))
         .collect();
-    let start_error = mean(|s| (s.stride_start_m - s.stride_true_m).abs() / s.stride_true_m);
+    let start_error = mean_of(
+        slam.iter()
+            .map(|s| (s.stride_start_m - s.stride_true_m).abs() / s.stride_true_m),
+    )
+    .unwrap_or(0.0);
     writeln!(
         out,
         "  SLAM followed {} robots at once: each filter at most {:.1} s behind its robot, {} scans missed in all",
@@ -620,7 +622,7 @@ fn print_slam_overall(out: &mut dyn Write, slam: &[SlamProgress]) -> io::Result<
             .map(|(w, late)| format!(" (worst: robot {}, {:.0} mm)", w.robot, late * 1e3))
             .unwrap_or_default(),
         start_error * 100.0,
-        stride_errors.iter().sum::<f64>() / stride_errors.len().max(1) as f64 * 100.0,
+        mean_of(stride_errors.iter().copied()).unwrap_or(0.0) * 100.0,
         stride_errors.len()
     )
 }
