@@ -230,6 +230,20 @@ impl ParticleFilter {
         self.steps += 1;
     }
 
+    /// Maps a scan another robot took from a pose known in this filter's
+    /// frame (its first, where the roster announced it) into every
+    /// particle's map: walls this robot has not seen yet are then known
+    /// when it does.
+    pub fn observe_from(&mut self, pose: Pose, ranges: &[f64]) {
+        let beams = mapped_beams(ranges, &self.config);
+        self.particles.par_iter_mut().for_each(|p| {
+            let own = p.pose;
+            p.pose = pose;
+            integrate(p, &beams);
+            p.pose = own;
+        });
+    }
+
     /// One step: the robot executed `command` (a wall or robot stopped its
     /// translation if `bumped`), then its sensor read `ranges`.
     pub fn step(&mut self, command: Command, bumped: bool, ranges: &[f64]) -> StepReport {

@@ -20,7 +20,7 @@ use shoal_physics::{Command, MotionModel, Pose};
 use shoal_runtime::SwarmRuntime;
 use shoal_slam::filter::{Bodies, FilterConfig, Proposal};
 use shoal_slam::follow::Follow;
-use shoal_slam::follower::{Follower, Scan, Stepped};
+use shoal_slam::follower::{FirstLooks, Follower, Scan, Stepped};
 use shoal_slam::report::{FollowedReport, SlamReport};
 
 #[derive(Parser)]
@@ -221,6 +221,7 @@ fn run(args: Args) -> Result<()> {
     // on one: robots move, so they do not belong in the map. A robot silent
     // for longer than the swarm's staleness is gone, and so is its body.
     let mut bodies = Bodies::new((scenario.timing.stale_periods.ceil() as u64).max(1) + 1);
+    let mut first_looks = FirstLooks::default();
     while !bus.termination_requested() {
         newest_roster = newest_roster.max(hear_roster(
             &roster,
@@ -229,7 +230,7 @@ fn run(args: Args) -> Result<()> {
             (&setup, &bus, &args.follow),
         )?);
         bodies.forget_gone();
-        let idle = !step_followed(&mut followed, &bodies, &views)?;
+        let idle = !step_followed(&mut followed, &bodies, &mut first_looks, &views)?;
         progress.publish(&HelperProgress {
             tick: done_up_to(&followed, newest_roster),
         })?;
@@ -307,11 +308,13 @@ fn done_up_to(followed: &BTreeMap<u32, Followed>, newest_roster: u64) -> u64 {
 /// estimate and the model. One scan per robot per call, so a SLAM process
 /// that falls behind falls behind on every robot alike, and reads the
 /// roster and its scans between steps (stepping one robot's whole backlog
-/// at a time left the others' scans to overflow their buffers, lost). False
-/// when no robot had a scan to step.
+/// at a time left the others' scans to overflow their buffers, lost). Each
+/// filter shares its robot's first scan with the others and maps theirs.
+/// False when no robot had a scan to step.
 fn step_followed(
     followed: &mut BTreeMap<u32, Followed>,
     bodies: &Bodies,
+    first_looks: &mut FirstLooks,
     views: &Views,
 ) -> Result<bool> {
     let mut stepped = false;
@@ -352,6 +355,7 @@ fn step_followed(
             }
             Ok::<(), anyhow::Error>(())
         })?;
+        follower.share_looks(first_looks);
     }
     Ok(stepped)
 }
