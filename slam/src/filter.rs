@@ -765,7 +765,11 @@ mod tests {
         }
         let at = |tick| bodies.others_at(0, tick).collect::<Vec<_>>();
         let x = |x| DVec2::new(x, 0.0);
-        assert_eq!(at(12), vec![[x(11.0), x(12.0)]], "from the tick before to the tick");
+        assert_eq!(
+            at(12),
+            vec![[x(11.0), x(12.0)]],
+            "from the tick before to the tick"
+        );
         assert_eq!(at(30), vec![[x(19.0), x(19.0)]], "the newest before");
         assert_eq!(at(3), vec![[x(10.0), x(10.0)]], "the oldest kept");
     }
@@ -784,7 +788,12 @@ mod tests {
             [DVec2::new(2.1, 0.0), DVec2::new(2.1, 0.6)],
             [DVec2::new(-0.5, -1.0), DVec2::new(0.5, -1.0)],
         ];
-        mask_bodies(&mut ranges, &Pose::new(0.0, 0.0, 0.0), &sensor, swept.into_iter());
+        mask_bodies(
+            &mut ranges,
+            &Pose::new(0.0, 0.0, 0.0),
+            &sensor,
+            swept.into_iter(),
+        );
         assert!(ranges[1].is_nan(), "where it stood the tick before");
         assert!(ranges[0].is_nan(), "between where it stood and stands");
         assert_eq!(ranges[2], 3.0, "a beam ending far from both");
