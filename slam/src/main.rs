@@ -340,6 +340,9 @@ fn step_followed(
             models,
             ..
         } = robot;
+        // Before the step too: a filter maps the looks cheaply while its
+        // particles still share the start's map.
+        follower.share_looks(first_looks);
         follower.on_scans(vec![scan], bodies, |step| {
             views.publish(id, &step)?;
             estimates.publish(&estimate_of(id, &step))?;
