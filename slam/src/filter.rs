@@ -568,7 +568,8 @@ fn distance_to_segment(point: DVec2, from: DVec2, to: DVec2) -> f64 {
 }
 
 /// Where the swarm's robots stood, tick by tick, for [`mask_bodies`]: a
-/// scan is masked with the robots where they stood at its tick. A SLAM
+/// scan is masked with the robots where they stood at its tick and the
+/// tick before ([`Bodies::others_at`] says why). A SLAM
 /// process a second or two behind its robots (20 followed beside the
 /// swarm on two cores) masked with where they stood then, half a metre on:
 /// robots went into the map as walls and walls were masked as robots. A
@@ -614,7 +615,7 @@ impl Bodies {
     /// Masked only at `tick`, a neighbour a stride on from where the scan saw
     /// it went into the map as a wall; the map moved with the crowd and held
     /// robots metres off (a crowd of 20 followed offline, mean error over
-    /// the last 10 s 1.27 m against 0.44 m masked where the scan saw them).
+    /// the last 10 s 1.27 m against 0.43 m masked where the scan saw them).
     pub fn others_at(&self, id: u32, tick: u64) -> impl Iterator<Item = [DVec2; 2]> + '_ {
         self.positions
             .robots()

@@ -402,22 +402,22 @@ mod tests {
             let map = &follower.filter().expect("started").particles[0].map;
             map.occupancy(map.cell_of(at).expect("inside the map"))
         };
+        let start = |follower: &mut Follower, beams: usize, looks: &mut FirstLooks| {
+            follower
+                .on_scans(vec![scan(0, beams)], &bodies, |_| Ok::<(), ()>(()))
+                .unwrap();
+            follower.share_looks(looks);
+        };
         // Robot 4's filter has not started when robot 3 shares its look:
         // it maps the look when it starts.
         let (follower, beams) = &mut robots[0];
-        follower
-            .on_scans(vec![scan(0, *beams)], &bodies, |_| Ok::<(), ()>(()))
-            .unwrap();
-        follower.share_looks(&mut looks);
+        start(follower, *beams, &mut looks);
         assert!(occupied(follower, east) > 0.6, "its own look");
         assert!(occupied(follower, west) <= 0.5, "unseen yet");
         robots[1].0.share_looks(&mut looks);
         assert!(robots[1].0.filter().is_none());
         let (follower, beams) = &mut robots[1];
-        follower
-            .on_scans(vec![scan(0, *beams)], &bodies, |_| Ok::<(), ()>(()))
-            .unwrap();
-        follower.share_looks(&mut looks);
+        start(follower, *beams, &mut looks);
         assert!(occupied(follower, west) > 0.6, "its own look");
         assert!(occupied(follower, east) > 0.6, "robot 3's look, held");
         // Robot 3 maps robot 4's look the next time it shares.

@@ -65,25 +65,21 @@ fn follow_in_crowd(
     seed: u64,
     judged: Judged,
 ) -> Followed {
-    follow_in_crowd_with(count, steps, model, seed, FilterConfig::default(), judged)
+    follow_in_crowd_with(
+        count,
+        steps,
+        model,
+        seed,
+        FilterConfig::default(),
+        judged,
+        true,
+    )
 }
 
-/// [`follow_in_crowd`] with the filters' `config` (its sensor: the demo's).
+/// [`follow_in_crowd`] with the filters' `config` (its sensor: the demo's),
+/// the robots' first scans shared between the filters or not (`share`).
 /// Robot `i`'s filter draws from `seed + i`.
 fn follow_in_crowd_with(
-    count: usize,
-    steps: usize,
-    model: &MotionModel,
-    seed: u64,
-    config: FilterConfig,
-    judged: Judged,
-) -> Followed {
-    follow_in_crowd_sharing(count, steps, model, seed, config, judged, true)
-}
-
-/// [`follow_in_crowd_with`], the robots' first scans shared between the
-/// filters or not (`share`).
-fn follow_in_crowd_sharing(
     count: usize,
     steps: usize,
     model: &MotionModel,
@@ -244,8 +240,15 @@ fn the_scan_matched_proposal_against_the_motion_models_in_a_crowd() {
                         proposal,
                         ..FilterConfig::default()
                     };
-                    let followed =
-                        follow_in_crowd_with(20, 150, &model, seed, config, Judged::RobotZero);
+                    let followed = follow_in_crowd_with(
+                        20,
+                        150,
+                        &model,
+                        seed,
+                        config,
+                        Judged::RobotZero,
+                        true,
+                    );
                     format!("{:.2}", followed.error_at_end())
                 })
                 .collect();
@@ -277,8 +280,16 @@ fn ten_seeds_of_the_default_against_500_drawn_from_the_model() {
         for first in [0, 10] {
             let ends: Vec<f64> = (first..first + 10)
                 .map(|seed| {
-                    follow_in_crowd_with(20, 150, &short, seed, config.clone(), Judged::RobotZero)
-                        .error_at_end()
+                    follow_in_crowd_with(
+                        20,
+                        150,
+                        &short,
+                        seed,
+                        config.clone(),
+                        Judged::RobotZero,
+                        true,
+                    )
+                    .error_at_end()
                 })
                 .collect();
             eprintln!(
@@ -303,7 +314,7 @@ fn the_demo_offline_with_and_without_the_first_scans_shared() {
     let short = demo().motion.scaled(0.75, 1.0, 1.0);
     for share in [false, true] {
         for seed in [0, 100] {
-            let followed = follow_in_crowd_sharing(
+            let followed = follow_in_crowd_with(
                 20,
                 450,
                 &short,
