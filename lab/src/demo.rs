@@ -22,6 +22,8 @@ use shoal_slam::report::SlamReport;
 use shoal_swarm::RecordOptions;
 use shoal_swarm::RunningSwarm;
 
+use crate::mean_of;
+
 /// The SLAM process starts from strides this much too short.
 const STRIDE_ERROR: f64 = 0.25;
 /// How many robots are killed, and when (share of the run), and for how long.
@@ -581,12 +583,6 @@ fn in_mm(error_m: Option<f64>) -> String {
         || "no estimate".to_string(),
         |e| format!("{:.0} mm", e * 1e3),
     )
-}
-
-/// The mean of `values`; None if there are none.
-fn mean_of(values: impl Iterator<Item = f64>) -> Option<f64> {
-    let (sum, count) = values.fold((0.0, 0usize), |(sum, count), v| (sum + v, count + 1));
-    (count > 0).then(|| sum / count as f64)
 }
 
 /// Every followed robot in one line: the mean error early and late, the

@@ -4,3 +4,9 @@
 
 pub mod demo;
 pub mod experiment;
+
+/// The mean of `values`; None if there are none.
+pub(crate) fn mean_of(values: impl Iterator<Item = f64>) -> Option<f64> {
+    let (sum, count) = values.fold((0.0, 0usize), |(sum, count), v| (sum + v, count + 1));
+    (count > 0).then(|| sum / count as f64)
+}

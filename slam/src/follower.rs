@@ -77,8 +77,6 @@ pub struct Follower {
     /// stepped: lost on the bus (a follower too slow for its buffer), so
     /// their motion is missing from the filter.
     scans_missed: u64,
-    /// This robot's first scan, masked, until it is shared.
-    own_look: Option<Look>,
     /// How many of the shared first looks the filter has mapped.
     looks_mapped: usize,
 }
@@ -105,7 +103,6 @@ impl Follower {
             steps: 0,
             stepped_tick: None,
             scans_missed: 0,
-            own_look: None,
             looks_mapped: 0,
         }
     }
@@ -151,31 +148,17 @@ impl Follower {
         }
     }
 
-    /// Shares this robot's first scan once the filter has started on it,
-    /// and maps the other robots' first scans that came since into its
-    /// filter (held until it starts).
-    pub fn share_looks(&mut self, looks: &mut FirstLooks) {
-        if let Some(own) = self.own_look.take() {
-            looks.looks.push(own);
-        }
-        let Some(filter) = &mut self.filter else {
-            return;
-        };
-        for look in &looks.looks[self.looks_mapped..] {
-            if look.robot != self.id {
-                filter.observe_from(look.pose, &look.ranges);
-            }
-        }
-        self.looks_mapped = looks.looks.len();
-    }
-
     /// Steps the filter through newly arrived `scans`, in order, calling
     /// `stepped` after each step (the filter as it is then). Beams that end
-    /// on one of `bodies` are dropped.
+    /// on one of `bodies` are dropped. The filter shares its robot's first
+    /// scan in `looks` when it starts, and maps the other robots' first
+    /// looks that came since before it steps (`looks`: the same for every
+    /// call, and for every robot the process follows).
     pub fn on_scans<E>(
         &mut self,
         scans: Vec<Scan>,
         bodies: &Bodies,
+        looks: &mut FirstLooks,
         mut stepped: impl FnMut(Stepped<'_>) -> Result<(), E>,
     ) -> Result<(), E> {
         let mut scans = std::mem::take(&mut self.waiting)
@@ -183,7 +166,7 @@ impl Follower {
             .chain(scans)
             .collect::<Vec<_>>();
         if self.filter.is_none() {
-            match self.start(&scans, bodies) {
+            match self.start(&scans, bodies, looks) {
                 Some(first) => {
                     scans.drain(..=first);
                 }
@@ -195,6 +178,7 @@ impl Follower {
                 }
             }
         }
+        self.map_new_looks(looks);
         for mut scan in scans {
             let Some(filter) = &mut self.filter else {
                 break;
@@ -242,7 +226,7 @@ impl Follower {
     /// the newest pose and stepping the first scan's command turned a
     /// formation robot, whose first command is a turn in place, by that
     /// turn twice: SLAM then ran 90 degrees off.)
-    fn start(&mut self, scans: &[Scan], bodies: &Bodies) -> Option<usize> {
+    fn start(&mut self, scans: &[Scan], bodies: &Bodies, looks: &mut FirstLooks) -> Option<usize> {
         let first = scans
             .iter()
             .rposition(|s| self.announced.contains_key(&s.tick))?;
@@ -266,13 +250,28 @@ impl Follower {
         );
         filter.observe_start(&ranges);
         self.filter = Some(filter);
-        self.own_look = Some(Look {
+        looks.looks.push(Look {
             robot: self.id,
             pose: start,
             ranges,
         });
         self.stepped_tick = Some(scans[first].tick);
         Some(first)
+    }
+
+    /// Maps the other robots' first looks shared since the last call into
+    /// the filter. Before its first step the filter's particles still share
+    /// one map, and each look is mapped once.
+    fn map_new_looks(&mut self, looks: &FirstLooks) {
+        let Some(filter) = &mut self.filter else {
+            return;
+        };
+        for look in looks.looks.get(self.looks_mapped..).unwrap_or_default() {
+            if look.robot != self.id {
+                filter.observe_from(look.pose, &look.ranges);
+            }
+        }
+        self.looks_mapped = looks.looks.len();
     }
 }
 
@@ -355,13 +354,23 @@ mod tests {
             Ok(())
         };
         follower
-            .on_scans(vec![scan(1, beams), scan(2, beams)], &bodies, &mut on_step)
+            .on_scans(
+                vec![scan(1, beams), scan(2, beams)],
+                &bodies,
+                &mut FirstLooks::default(),
+                &mut on_step,
+            )
             .unwrap();
         assert!(follower.filter().is_none(), "no pose announced yet");
         let start = Pose::new(4.0, 3.0, 0.5);
         follower.announced(2, start);
         follower
-            .on_scans(vec![scan(3, beams)], &bodies, &mut on_step)
+            .on_scans(
+                vec![scan(3, beams)],
+                &bodies,
+                &mut FirstLooks::default(),
+                &mut on_step,
+            )
             .unwrap();
         let filter = follower.filter().expect("started at tick 2's pose");
         assert!(filter.estimate().position().distance(DVec2::new(4.0, 3.0)) < 0.05);
@@ -379,9 +388,12 @@ mod tests {
         let mut bad = scan(1, scenario.sensor.beams);
         bad.command = None;
         follower
-            .on_scans(vec![scan(0, scenario.sensor.beams), bad], &bodies, |_| {
-                Err("no step expected")
-            })
+            .on_scans(
+                vec![scan(0, scenario.sensor.beams), bad],
+                &bodies,
+                &mut FirstLooks::default(),
+                |_| Err("no step expected"),
+            )
             .unwrap();
         assert_eq!(follower.steps(), 0);
     }
@@ -402,26 +414,25 @@ mod tests {
             let map = &follower.filter().expect("started").particles[0].map;
             map.occupancy(map.cell_of(at).expect("inside the map"))
         };
-        let start = |follower: &mut Follower, beams: usize, looks: &mut FirstLooks| {
+        let scans_of = |follower: &mut Follower, scan: Scan, looks: &mut FirstLooks| {
             follower
-                .on_scans(vec![scan(0, beams)], &bodies, |_| Ok::<(), ()>(()))
+                .on_scans(vec![scan], &bodies, looks, |_| Ok::<(), ()>(()))
                 .unwrap();
-            follower.share_looks(looks);
         };
         // Robot 4's filter has not started when robot 3 shares its look:
         // it maps the look when it starts.
         let (follower, beams) = &mut robots[0];
-        start(follower, *beams, &mut looks);
+        scans_of(follower, scan(0, *beams), &mut looks);
         assert!(occupied(follower, east) > 0.6, "its own look");
         assert!(occupied(follower, west) <= 0.5, "unseen yet");
-        robots[1].0.share_looks(&mut looks);
-        assert!(robots[1].0.filter().is_none());
         let (follower, beams) = &mut robots[1];
-        start(follower, *beams, &mut looks);
+        scans_of(follower, scan(0, *beams), &mut looks);
         assert!(occupied(follower, west) > 0.6, "its own look");
         assert!(occupied(follower, east) > 0.6, "robot 3's look, held");
-        // Robot 3 maps robot 4's look the next time it shares.
-        robots[0].0.share_looks(&mut looks);
+        // Robot 3 maps robot 4's look before its next step.
+        let (follower, beams) = &mut robots[0];
+        scans_of(follower, scan(1, *beams), &mut looks);
+        assert_eq!(follower.steps(), 1);
         assert!(occupied(&robots[0].0, west) > 0.6, "robot 4's look");
     }
 }

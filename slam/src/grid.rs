@@ -17,10 +17,10 @@ const MISS: f32 = -0.4;
 /// a grazing angle runs along the wall's own cells for several cells before
 /// it ends; freeing them all, every such beam eroded walls that steeper
 /// beams had drawn, more on the side the robot saw them at a slant, and the
-/// scan was matched off them: the crowd's followed robot ended 0.25 m off
-/// (seeds 0-19) where it now ends 0.13 m, and a lone robot with its true
-/// model was 5 cm off from its first steps. 0.1-0.25 m did alike
-/// (EXPERIMENTS.md 8b says on which runs).
+/// scan was matched off them: when the stop came (3df61ae), the crowd's
+/// robot 0 ended 0.25 m off (seeds 0-19) where it then ended 0.13 m, and a
+/// lone robot with its true model had been 5 cm off from its first steps.
+/// 0.1-0.25 m did alike (EXPERIMENTS.md 8b says on which runs).
 const FREE_STOP_M: f64 = 0.15;
 /// Log-odds are clamped so a cell can change its mind.
 const CLAMP: f32 = 6.0;

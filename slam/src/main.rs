@@ -340,10 +340,7 @@ fn step_followed(
             models,
             ..
         } = robot;
-        // Before the step too: a filter maps the looks cheaply while its
-        // particles still share the start's map.
-        follower.share_looks(first_looks);
-        follower.on_scans(vec![scan], bodies, |step| {
+        follower.on_scans(vec![scan], bodies, first_looks, |step| {
             views.publish(id, &step)?;
             estimates.publish(&estimate_of(id, &step))?;
             for param in Param::ALL {
@@ -358,7 +355,6 @@ fn step_followed(
             }
             Ok::<(), anyhow::Error>(())
         })?;
-        follower.share_looks(first_looks);
     }
     Ok(stepped)
 }

@@ -4,7 +4,8 @@ use anyhow::Result;
 use serde::Serialize;
 use shoal_scenario::Scenario;
 
-use super::{mean, run_until_settled, swarm_name};
+use super::{run_until_settled, swarm_name};
+use crate::mean_of;
 use shoal_swarm::RunningSwarm;
 
 #[derive(Debug, Serialize)]
@@ -55,14 +56,13 @@ pub fn run(agents: usize, seeds: u64, max_s: f64) -> Result<Report> {
                 fill_empty_sectors: fill,
                 agents,
                 seeds: outcomes.len(),
-                components: mean(outcomes.iter().map(|o| o.metrics.components as f64)),
-                spacing_ratio: mean(outcomes.iter().map(|o| o.metrics.spacing_ratio)),
-                spacing_cv: mean(outcomes.iter().map(|o| o.metrics.spacing_cv)),
-                converge_s: if converged.is_empty() {
-                    None
-                } else {
-                    Some(mean(converged.iter().copied()))
-                },
+                components: mean_of(outcomes.iter().map(|o| o.metrics.components as f64))
+                    .unwrap_or(f64::NAN),
+                spacing_ratio: mean_of(outcomes.iter().map(|o| o.metrics.spacing_ratio))
+                    .unwrap_or(f64::NAN),
+                spacing_cv: mean_of(outcomes.iter().map(|o| o.metrics.spacing_cv))
+                    .unwrap_or(f64::NAN),
+                converge_s: mean_of(converged.iter().copied()),
                 converged_runs: converged.len(),
             };
             eprintln!(

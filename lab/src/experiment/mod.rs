@@ -70,12 +70,3 @@ pub fn run_until(
 pub fn swarm_name(experiment: &str, index: usize) -> String {
     format!("x{}-{experiment}-{index}", std::process::id())
 }
-
-fn mean(values: impl Iterator<Item = f64>) -> f64 {
-    let values: Vec<f64> = values.collect();
-    if values.is_empty() {
-        f64::NAN
-    } else {
-        values.iter().sum::<f64>() / values.len() as f64
-    }
-}
