@@ -24,8 +24,11 @@ pub struct Covariate {
     pub significance: f64,
 }
 
+/// A quantity of segment `i`.
+type OfSegment = fn(&[Segment], usize) -> f64;
+
 /// The quantities residuals are correlated with, by name.
-const COVARIATES: [(&str, fn(&[Segment], usize) -> f64); 9] = [
+const COVARIATES: [(&str, OfSegment); 9] = [
     ("commanded speed", |s, i| s[i].speed),
     ("commanded turn rate", |s, i| s[i].turn),
     ("size of the turn rate", |s, i| s[i].turn.abs()),

@@ -353,7 +353,7 @@ pub(crate) fn sandwich_wald(
     // for a while would pay for it twice.
     let long_run = plain;
     let spread: f64 = scores.iter().map(|s| s * s).sum::<f64>();
-    if !(curvature > 0.0) {
+    if curvature.is_nan() || curvature <= 0.0 {
         return (0.0, long_run);
     }
     // The Wald statistic of the step from the plain model (share 0) to the

@@ -207,6 +207,9 @@ fn group_tests(
     tests
 }
 
+/// A group's strongest test: its residual component, p and z.
+type Strongest = (usize, f64, f64);
+
 /// Group `g`, whose strongest significant test is `strongest` (component,
 /// p, z), with its significant neighbours of the same family (adjacent
 /// time blocks or floor cells), which form one span or region: their
@@ -214,10 +217,10 @@ fn group_tests(
 /// neighbour taken.
 fn with_neighbours(
     groups: &[Group],
-    best: &[Option<(usize, f64, f64)>],
-    (g, mut strongest): (usize, (usize, f64, f64)),
+    best: &[Option<Strongest>],
+    (g, mut strongest): (usize, Strongest),
     taken: &mut [bool],
-) -> (Vec<usize>, Option<[f64; 4]>, (usize, f64, f64)) {
+) -> (Vec<usize>, Option<[f64; 4]>, Strongest) {
     let mut members = groups[g].members.clone();
     let mut region = groups[g].region;
     if !matches!(groups[g].family, "time" | "place") {

@@ -150,8 +150,8 @@ impl Poses {
         let limit = (THRESHOLD * scale).max(FLOOR_M);
         let mut kept = Poses::default();
         let mut dropped = 0;
-        for i in 0..n {
-            if distances[i] > limit {
+        for (i, &distance) in distances.iter().enumerate() {
+            if distance > limit {
                 dropped += 1;
             } else {
                 kept.push(self.t[i], self.x[i], self.y[i], self.theta[i]);

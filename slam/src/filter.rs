@@ -406,7 +406,8 @@ impl ParticleFilter {
             .fold(f64::NEG_INFINITY, f64::max);
         let weights: Vec<f64> = log_likelihoods.iter().map(|l| (l - best).exp()).collect();
         let total: f64 = weights.iter().sum();
-        if !(total > 0.0) {
+        // NaN (every likelihood -inf) learns nothing, as a zero total does.
+        if total.is_nan() || total <= 0.0 {
             return;
         }
         for (k, param) in Param::ALL.iter().enumerate() {

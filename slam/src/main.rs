@@ -279,11 +279,10 @@ fn hear_roster(
         bodies.saw(s.agent_id, glam::DVec2::new(s.x, s.y), s.tick);
     })?;
     for (id, tick, pose) in joined {
-        if !followed.contains_key(&id) {
-            let mut robot = setup.follow(bus, id)?;
+        if let std::collections::btree_map::Entry::Vacant(place) = followed.entry(id) {
+            let robot = place.insert(setup.follow(bus, id)?);
             robot.follower.announced(tick, pose);
             tracing::info!(robot = id, "SLAM follows a robot that joined");
-            followed.insert(id, robot);
         }
     }
     Ok(newest)
