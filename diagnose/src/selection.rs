@@ -211,6 +211,10 @@ impl Selection<'_> {
             new_kind
         });
         ranked.truncate(self.options.confirm);
+        tracing::debug!(
+            ranked = ?ranked.iter().map(|(g, c)| (c.effect.kind(), *g)).collect::<Vec<_>>(),
+            "round: best of each kind on the screen (ΔBIC)"
+        );
         ranked.into_iter().map(|(_, c)| c).collect()
     }
 
