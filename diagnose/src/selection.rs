@@ -662,7 +662,10 @@ impl Selection<'_> {
             ?gains,
             "completion: held out"
         );
-        if heldout_gain.is_nan() || heldout_gain <= 0.0 || (must_transfer(&candidate) && worst < -CONTRADICTION_NATS) {
+        if heldout_gain.is_nan()
+            || heldout_gain <= 0.0
+            || (must_transfer(&candidate) && worst < -CONTRADICTION_NATS)
+        {
             out.rejected_heldout.push(candidate.effect.kind());
             return false;
         }
