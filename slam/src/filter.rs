@@ -243,9 +243,14 @@ impl ParticleFilter {
             p.pose = own;
         };
         if self.steps <= 1 {
-            // Before the first motion every particle holds the start's map:
-            // mapped once and shared, a twentieth of the work of the
-            // crowd's first looks.
+            // Before the first motion every particle holds the start's map
+            // (`observe_start` handed them one): mapped once and shared, a
+            // twentieth of the work of the crowd's first looks.
+            debug_assert!(
+                self.particles
+                    .iter()
+                    .all(|p| { p.map.shared_tiles(&self.particles[0].map) == p.map.tile_count() })
+            );
             seer(&mut self.particles[0]);
             let map = self.particles[0].map.clone();
             for p in &mut self.particles[1..] {

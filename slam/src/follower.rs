@@ -298,6 +298,8 @@ pub fn done_up_to(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::DVec2;
+    use shoal_scenario::Scenario;
 
     #[test]
     fn slam_is_done_short_of_its_oldest_waiting_scan_and_waits_for_no_gone_robot() {
@@ -312,8 +314,6 @@ mod tests {
             "nothing to wait for"
         );
     }
-    use glam::DVec2;
-    use shoal_scenario::Scenario;
 
     fn follower() -> (Follower, Scenario) {
         follower_of(3)

@@ -33,18 +33,38 @@ struct Followed {
     beam_evaluations: usize,
 }
 
+/// The mean of `values` (NaN if there are none).
+fn mean(values: &[f64]) -> f64 {
+    values.iter().sum::<f64>() / values.len() as f64
+}
+
+/// The last `steps` of `series`.
+fn last(series: &[f64], steps: usize) -> &[f64] {
+    &series[series.len().saturating_sub(steps)..]
+}
+
 impl Followed {
     /// The mean over the judged robots of `of` each robot's series.
     fn mean(series: &[Vec<f64>], of: impl Fn(&[f64]) -> f64) -> f64 {
         series.iter().map(|s| of(s)).sum::<f64>() / series.len() as f64
     }
 
+    /// Mean position error over the first `steps` steps, over the robots.
+    fn error_over_first(&self, steps: usize) -> f64 {
+        Self::mean(&self.errors, |e| mean(&e[..steps.min(e.len())]))
+    }
+
     /// Mean position error over the last `steps` steps, over the robots.
     fn error_over_last(&self, steps: usize) -> f64 {
-        Self::mean(&self.errors, |e| {
-            let tail = &e[e.len().saturating_sub(steps)..];
-            tail.iter().sum::<f64>() / tail.len() as f64
-        })
+        Self::mean(&self.errors, |e| mean(last(e, steps)))
+    }
+
+    /// The worst robot's mean position error over the last `steps` steps.
+    fn worst_over_last(&self, steps: usize) -> f64 {
+        self.errors
+            .iter()
+            .map(|e| mean(last(e, steps)))
+            .fold(0.0, f64::max)
     }
 
     fn error_at_end(&self) -> f64 {
@@ -56,41 +76,46 @@ impl Followed {
     }
 }
 
-/// Walks `count` robots of the demo for `steps` periods while filters
-/// follow them from `model` as `shoal-slam` does (the same [`Follower`]):
-/// each started at the announced pose of its first scan, mapping the other
-/// robots' first scans, beams that end on other robots masked.
-fn follow_in_crowd(
-    count: usize,
+/// One run of the crowd: the demo's robots walked for `steps` periods.
+struct Crowd {
     steps: usize,
-    model: &MotionModel,
+    /// Robot `i`'s filter draws from `seed + i`.
     seed: u64,
-    judged: Judged,
-) -> Followed {
-    follow_in_crowd_with(
-        count,
-        steps,
-        model,
-        seed,
-        FilterConfig::default(),
-        judged,
-        true,
-    )
-}
-
-/// [`follow_in_crowd`] with the filters' `config` (its sensor: the demo's),
-/// the robots' first scans shared between the filters or not (`share`).
-/// Robot `i`'s filter draws from `seed + i`.
-fn follow_in_crowd_with(
-    count: usize,
-    steps: usize,
-    model: &MotionModel,
-    seed: u64,
+    /// The filters' setup (their sensor: the demo's).
     config: FilterConfig,
     judged: Judged,
+    /// Whether the filters share their robots' first scans, as
+    /// `shoal-slam` does; not sharing, each keeps its own robot's look.
     share: bool,
-) -> Followed {
+}
+
+impl Crowd {
+    /// `steps` periods on `seed`, the filters as `shoal-slam` runs them.
+    fn new(steps: usize, seed: u64, judged: Judged) -> Self {
+        Self {
+            steps,
+            seed,
+            config: FilterConfig::default(),
+            judged,
+            share: true,
+        }
+    }
+}
+
+/// Walks the demo's robots through `crowd` while filters follow them from
+/// `model` as `shoal-slam` does (the same [`Follower`]): each started at
+/// the announced pose of its first scan, mapping the other robots' first
+/// scans, beams that end on other robots masked.
+fn follow_in_crowd(model: &MotionModel, crowd: Crowd) -> Followed {
+    let Crowd {
+        steps,
+        seed,
+        config,
+        judged,
+        share,
+    } = crowd;
     let scenario = demo();
+    let count = scenario.agents.count;
     let starts = scenario.start_poses(0, count);
     let mut robots: Vec<Robot> = starts
         .iter()
@@ -194,7 +219,7 @@ fn in_a_crowd_filters_started_with_short_strides_hold_every_robot_and_learn_its_
     // steps, and must then move towards the sand's.
     let sand = right * 0.6;
     for seed in 0..3 {
-        let followed = follow_in_crowd(20, 150, &short, seed, Judged::Every);
+        let followed = follow_in_crowd(&short, Crowd::new(150, seed, Judged::Every));
         let (late, last) = (followed.error_over_last(50), followed.error_at_end());
         let (on_carpet, at_end) = (followed.stride_after(49), followed.stride_after(149));
         eprintln!(
@@ -244,14 +269,12 @@ fn the_scan_matched_proposal_against_the_motion_models_in_a_crowd() {
                         proposal,
                         ..FilterConfig::default()
                     };
-                    let followed = follow_in_crowd_with(
-                        20,
-                        150,
+                    let followed = follow_in_crowd(
                         &model,
-                        seed,
-                        config,
-                        Judged::RobotZero,
-                        true,
+                        Crowd {
+                            config,
+                            ..Crowd::new(150, seed, Judged::RobotZero)
+                        },
                     );
                     format!("{:.2}", followed.error_at_end())
                 })
@@ -284,14 +307,12 @@ fn ten_seeds_of_the_default_against_500_drawn_from_the_model() {
         for first in [0, 10] {
             let ends: Vec<f64> = (first..first + 10)
                 .map(|seed| {
-                    follow_in_crowd_with(
-                        20,
-                        150,
+                    follow_in_crowd(
                         &short,
-                        seed,
-                        config.clone(),
-                        Judged::RobotZero,
-                        true,
+                        Crowd {
+                            config: config.clone(),
+                            ..Crowd::new(150, seed, Judged::RobotZero)
+                        },
                     )
                     .error_at_end()
                 })
@@ -319,14 +340,12 @@ fn the_demo_offline_with_and_without_the_first_scans_shared() {
     for share in [false, true] {
         for seed in [0, 100] {
             let started = std::time::Instant::now();
-            let followed = follow_in_crowd_with(
-                20,
-                450,
+            let followed = follow_in_crowd(
                 &short,
-                seed,
-                FilterConfig::default(),
-                Judged::Every,
-                share,
+                Crowd {
+                    share,
+                    ..Crowd::new(450, seed, Judged::Every)
+                },
             );
             // Its cost beside its accuracy (BENCHMARKS.md 4): the work,
             // and the time on this machine's cores.
@@ -337,13 +356,9 @@ fn the_demo_offline_with_and_without_the_first_scans_shared() {
             );
             eprintln!(
                 "first scans shared: {share}, seed {seed}: mean over 20 robots, first 10 s {:.3} m, last 10 s {:.3} m, worst robot over the last 10 s {:.3} m",
-                Followed::mean(&followed.errors, |e| e[..50].iter().sum::<f64>() / 50.0),
+                followed.error_over_first(50),
                 followed.error_over_last(50),
-                followed
-                    .errors
-                    .iter()
-                    .map(|e| e[e.len() - 50..].iter().sum::<f64>() / 50.0)
-                    .fold(0.0, f64::max),
+                followed.worst_over_last(50),
             );
         }
     }
