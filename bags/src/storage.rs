@@ -96,15 +96,16 @@ impl Bag {
         }
     }
 
-    /// Every topic with its type and message count, by name.
+    /// Every topic with its type and message count, by name. No message's
+    /// data is read: a bag of camera images lists as fast as one of poses.
     pub fn topics(&self) -> Result<Vec<Topic>, BagError> {
         let mut found: BTreeMap<String, Topic> = BTreeMap::new();
-        self.each_message(None, |m| {
+        self.each_stored(Wanted::Headers, |m| {
             found
-                .entry(m.topic.clone())
+                .entry(m.topic.to_owned())
                 .or_insert_with(|| Topic {
-                    name: m.topic.clone(),
-                    message_type: m.message_type.clone(),
+                    name: m.topic.to_owned(),
+                    message_type: m.message_type.to_owned(),
                     messages: 0,
                 })
                 .messages += 1;
@@ -114,59 +115,155 @@ impl Bag {
     }
 
     /// The messages of `topics` (all when `None`), file after file, each
-    /// message decompressed if rosbag2 compressed it.
+    /// message decompressed if rosbag2 compressed it. Only these topics'
+    /// messages are held: a bag of many gigabytes of images is read a
+    /// chunk (MCAP) or a row (sqlite3) at a time.
     pub fn messages(&self, topics: Option<&[&str]>) -> Result<Vec<RawMessage>, BagError> {
         let mut out = Vec::new();
-        self.each_message(topics, |m| {
-            out.push(m);
+        self.each_stored(Wanted::Messages(topics), |m| {
+            let data = if m.data.starts_with(&ZSTD_MAGIC) {
+                zstd::decode_all(m.data).map_err(|e| {
+                    BagError::new(
+                        m.file,
+                        format!(
+                            "topic {}: a compressed message does not decompress: {e}",
+                            m.topic
+                        ),
+                    )
+                })?
+            } else {
+                m.data.to_vec()
+            };
+            out.push(RawMessage {
+                topic: m.topic.to_owned(),
+                message_type: m.message_type.to_owned(),
+                encoding: m.encoding.to_owned(),
+                log_time_ns: m.log_time_ns,
+                data,
+            });
             Ok(())
         })?;
         Ok(out)
     }
 
-    fn each_message(
+    fn each_stored(
         &self,
-        topics: Option<&[&str]>,
-        mut take: impl FnMut(RawMessage) -> Result<(), BagError>,
+        wanted: Wanted,
+        mut take: impl FnMut(Stored) -> Result<(), BagError>,
     ) -> Result<(), BagError> {
         for source in &self.files {
-            let (file, bytes) = match source {
-                Source::File(path) => (path.as_path(), read_file(path)?),
-                Source::Memory(bytes) => (
-                    self.path.as_path(),
-                    decompressed(bytes.clone(), &self.path)?,
-                ),
-            };
-            let mut take_one = |mut m: RawMessage| {
-                if topics.is_none_or(|t| t.contains(&m.topic.as_str())) {
-                    if m.data.starts_with(&ZSTD_MAGIC) {
-                        m.data = zstd::decode_all(m.data.as_slice()).map_err(|e| {
-                            BagError::new(
-                                file,
-                                format!(
-                                    "topic {}: a compressed message does not decompress: {e}",
-                                    m.topic
-                                ),
-                            )
-                        })?;
-                    }
-                    take(m)?;
+            match source {
+                Source::File(path) => each_in_file(path, wanted, &mut take)?,
+                Source::Memory(bytes) => {
+                    let bytes = decompressed(bytes.clone(), &self.path)?;
+                    each_in_bytes(&bytes, &self.path, wanted, &mut take)?;
                 }
-                Ok(())
-            };
-            if bytes.starts_with(mcap::MAGIC) {
-                mcap_messages(&bytes, file, &mut take_one)?;
-            } else if bytes.starts_with(SQLITE_MAGIC) {
-                sqlite_messages(&bytes, file, &mut take_one)?;
-            } else {
-                return Err(BagError::new(
-                    file,
-                    "is neither an MCAP nor a sqlite3 (.db3) ROS 2 bag".to_owned(),
-                ));
             }
         }
         Ok(())
     }
+}
+
+/// What one pass over a bag reads.
+#[derive(Clone, Copy, Debug)]
+enum Wanted<'a> {
+    /// Every message's topic, type and time, its data left unread (a
+    /// listing).
+    Headers,
+    /// The whole messages of these topics (all when `None`).
+    Messages(Option<&'a [&'a str]>),
+}
+
+impl Wanted<'_> {
+    fn topic(&self, topic: &str) -> bool {
+        match self {
+            Wanted::Headers | Wanted::Messages(None) => true,
+            Wanted::Messages(Some(topics)) => topics.contains(&topic),
+        }
+    }
+}
+
+/// One message as a reader holds it: borrowed from the chunk or row being
+/// read, and empty data for [`Wanted::Headers`].
+struct Stored<'a> {
+    file: &'a Path,
+    topic: &'a str,
+    message_type: &'a str,
+    encoding: &'a str,
+    log_time_ns: i64,
+    data: &'a [u8],
+}
+
+type Take<'t> = dyn FnMut(Stored) -> Result<(), BagError> + 't;
+
+/// The messages of one bag file, read where it lies: an MCAP file streamed
+/// (one chunk in memory at a time), an sqlite3 file queried in place. A
+/// file rosbag2 compressed whole is decompressed first: an MCAP as a
+/// stream, an sqlite3 file (which SQLite must read at random) into memory.
+fn each_in_file(file: &Path, wanted: Wanted, take: &mut Take) -> Result<(), BagError> {
+    let open = || {
+        std::fs::File::open(file).map_err(|e| BagError::new(file, format!("cannot read it: {e}")))
+    };
+    let magic = first_bytes(open()?, file)?;
+    if magic.starts_with(&ZSTD_MAGIC) {
+        let decoder = zstd::Decoder::new(open()?)
+            .map_err(|e| BagError::new(file, format!("does not decompress (zstd): {e}")))?;
+        let inner = first_bytes(
+            zstd::Decoder::new(open()?)
+                .map_err(|e| BagError::new(file, format!("does not decompress (zstd): {e}")))?,
+            file,
+        )?;
+        if inner.starts_with(mcap::MAGIC) {
+            return mcap_messages(decoder, file, wanted, take);
+        }
+        return each_in_bytes(&read_file(file)?, file, wanted, take);
+    }
+    if magic.starts_with(mcap::MAGIC) {
+        return mcap_messages(std::io::BufReader::new(open()?), file, wanted, take);
+    }
+    if magic.starts_with(SQLITE_MAGIC) {
+        return match sqlite_in_place(file) {
+            Some(db) => sqlite_messages(&db, file, wanted, take),
+            None => each_in_bytes(&read_file(file)?, file, wanted, take),
+        };
+    }
+    Err(not_a_bag(file))
+}
+
+/// A bag file's bytes already in memory (decompressed).
+fn each_in_bytes(
+    bytes: &[u8],
+    file: &Path,
+    wanted: Wanted,
+    take: &mut Take,
+) -> Result<(), BagError> {
+    if bytes.starts_with(mcap::MAGIC) {
+        mcap_messages(bytes, file, wanted, take)
+    } else if bytes.starts_with(SQLITE_MAGIC) {
+        sqlite_messages(&sqlite_in_memory(bytes, file)?, file, wanted, take)
+    } else {
+        Err(not_a_bag(file))
+    }
+}
+
+fn not_a_bag(file: &Path) -> BagError {
+    BagError::new(
+        file,
+        "is neither an MCAP nor a sqlite3 (.db3) ROS 2 bag".to_owned(),
+    )
+}
+
+/// The first bytes of `reader`, enough to tell the file's kind (fewer if
+/// the file is shorter).
+fn first_bytes(mut reader: impl std::io::Read, file: &Path) -> Result<Vec<u8>, BagError> {
+    use std::io::Read;
+    let mut magic = Vec::with_capacity(SQLITE_MAGIC.len());
+    reader
+        .by_ref()
+        .take(SQLITE_MAGIC.len() as u64)
+        .read_to_end(&mut magic)
+        .map_err(|e| BagError::new(file, format!("cannot read it: {e}")))?;
+    Ok(magic)
 }
 
 /// A bag file's bytes, decompressed if rosbag2 compressed the whole file.
@@ -269,76 +366,187 @@ fn natural_key(path: &Path) -> (String, u64) {
     )
 }
 
+/// An MCAP stream, record by record: MCAP's own sans-io reader holds one
+/// chunk at a time (decompressed), so memory does not grow with the file.
 fn mcap_messages(
-    bytes: &[u8],
+    mut reader: impl std::io::Read,
     file: &Path,
-    take: &mut dyn FnMut(RawMessage) -> Result<(), BagError>,
+    wanted: Wanted,
+    take: &mut Take,
 ) -> Result<(), BagError> {
-    let stream = mcap::MessageStream::new(bytes)
-        .map_err(|e| BagError::new(file, format!("is not a readable MCAP file: {e}")))?;
-    for message in stream {
-        let message = message
-            .map_err(|e| BagError::new(file, format!("the bag is damaged or cut short: {e}")))?;
-        let log_time_ns = i64::try_from(message.log_time).map_err(|_| {
-            BagError::new(
-                file,
-                format!(
-                    "topic {}: log time {} ns is past the year 2262",
-                    message.channel.topic, message.log_time
-                ),
-            )
-        })?;
-        take(RawMessage {
-            topic: message.channel.topic.clone(),
-            message_type: message
-                .channel
-                .schema
-                .as_ref()
-                .map_or_else(|| "(no schema)".to_owned(), |s| s.name.clone()),
-            encoding: message.channel.message_encoding.clone(),
-            log_time_ns,
-            data: message.data.into_owned(),
-        })?;
+    use mcap::records::Record;
+    use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader};
+    let damaged = |e: &dyn std::fmt::Display| {
+        BagError::new(file, format!("the bag is damaged or cut short: {e}"))
+    };
+    // Schema names by id; channels by id with their topic, type, encoding.
+    let mut schemas: BTreeMap<u16, String> = BTreeMap::new();
+    let mut channels: BTreeMap<u16, (String, String, String)> = BTreeMap::new();
+    let mut stream = LinearReader::new();
+    while let Some(event) = stream.next_event() {
+        match event.map_err(|e| damaged(&e))? {
+            LinearReadEvent::ReadRequest(need) => {
+                let read = reader
+                    .read(stream.insert(need))
+                    .map_err(|e| BagError::new(file, format!("cannot read it: {e}")))?;
+                stream.notify_read(read);
+            }
+            LinearReadEvent::Record { opcode, data } => {
+                match mcap::parse_record(opcode, data).map_err(|e| damaged(&e))? {
+                    Record::Schema { header, .. } => {
+                        schemas.insert(header.id, header.name);
+                    }
+                    Record::Channel(channel) => {
+                        let message_type = schemas
+                            .get(&channel.schema_id)
+                            .cloned()
+                            .unwrap_or_else(|| "(no schema)".to_owned());
+                        channels.insert(
+                            channel.id,
+                            (channel.topic, message_type, channel.message_encoding),
+                        );
+                    }
+                    Record::Message { header, data } => {
+                        let Some((topic, message_type, encoding)) =
+                            channels.get(&header.channel_id)
+                        else {
+                            return Err(damaged(&format!(
+                                "a message of channel {} before the channel was described",
+                                header.channel_id
+                            )));
+                        };
+                        if !wanted.topic(topic) {
+                            continue;
+                        }
+                        let log_time_ns = i64::try_from(header.log_time).map_err(|_| {
+                            BagError::new(
+                                file,
+                                format!(
+                                    "topic {topic}: log time {} ns is past the year 2262",
+                                    header.log_time
+                                ),
+                            )
+                        })?;
+                        take(Stored {
+                            file,
+                            topic,
+                            message_type,
+                            encoding,
+                            log_time_ns,
+                            data: if matches!(wanted, Wanted::Headers) {
+                                &[]
+                            } else {
+                                &data
+                            },
+                        })?;
+                    }
+                    _ => {}
+                }
+            }
+        }
     }
     Ok(())
+}
+
+/// An sqlite3 bag file opened where it lies, read-only and as immutable:
+/// SQLite then takes no lock and writes nothing beside it (no `-shm`, no
+/// journal), so a bag on a read-only disk, or one another process holds,
+/// reads alike. `None` for a path SQLite cannot be given as a URI (not
+/// UTF-8), which is then read into memory instead.
+fn sqlite_in_place(file: &Path) -> Option<rusqlite::Connection> {
+    let path = file.to_str()?;
+    // A URI's path is percent-decoded and ends at `?` or `#`.
+    let mut escaped = String::with_capacity(path.len());
+    for c in path.chars() {
+        match c {
+            '%' | '?' | '#' => escaped.push_str(&format!("%{:02X}", c as u32)),
+            c => escaped.push(c),
+        }
+    }
+    use rusqlite::OpenFlags;
+    rusqlite::Connection::open_with_flags(
+        format!("file:{escaped}?immutable=1"),
+        OpenFlags::SQLITE_OPEN_READ_ONLY
+            | OpenFlags::SQLITE_OPEN_URI
+            | OpenFlags::SQLITE_OPEN_NO_MUTEX,
+    )
+    .ok()
+}
+
+/// An sqlite3 bag held in memory (a decompressed file, a fuzzer's bytes).
+fn sqlite_in_memory(bytes: &[u8], file: &Path) -> Result<rusqlite::Connection, BagError> {
+    let sql_error =
+        |e: rusqlite::Error| BagError::new(file, format!("cannot read the sqlite3 bag: {e}"));
+    let mut db = rusqlite::Connection::open_in_memory().map_err(sql_error)?;
+    let bytes = without_wal_mode(bytes);
+    db.deserialize_read_exact(rusqlite::MAIN_DB, bytes.as_ref(), bytes.len(), true)
+        .map_err(sql_error)?;
+    Ok(db)
 }
 
 /// A rosbag2 sqlite3 file: `topics(id, name, type, serialization_format,
 /// ...)` and `messages(id, topic_id, timestamp, data)`, the same in every
 /// ROS 2 release from Foxy on; the message definitions, which Iron added,
 /// are not needed (the types read here are decoded by their known layouts).
+/// Only the wanted topics' rows are read, and a listing reads no data: a
+/// message's data are pages of their own that SQLite then never loads.
 fn sqlite_messages(
-    bytes: &[u8],
+    db: &rusqlite::Connection,
     file: &Path,
-    take: &mut dyn FnMut(RawMessage) -> Result<(), BagError>,
+    wanted: Wanted,
+    take: &mut Take,
 ) -> Result<(), BagError> {
     let sql_error =
         |e: rusqlite::Error| BagError::new(file, format!("cannot read the sqlite3 bag: {e}"));
-    // Read from the bytes already in memory: the file is opened by no one
-    // else and may sit on a read-only disk, or have been decompressed.
-    let mut db = rusqlite::Connection::open_in_memory().map_err(sql_error)?;
-    let bytes = without_wal_mode(bytes);
-    db.deserialize_read_exact(rusqlite::MAIN_DB, bytes.as_ref(), bytes.len(), true)
-        .map_err(sql_error)?;
+    let (data, only) = match wanted {
+        Wanted::Headers => ("NULL", None),
+        Wanted::Messages(topics) => ("messages.data", topics),
+    };
+    let filter = match only {
+        Some(topics) => format!(
+            "WHERE topics.name IN ({})",
+            vec!["?"; topics.len()].join(", ")
+        ),
+        None => String::new(),
+    };
     let mut query = db
-        .prepare(
-            "SELECT topics.name, topics.type, topics.serialization_format, messages.timestamp, messages.data \
-             FROM messages JOIN topics ON messages.topic_id = topics.id ORDER BY messages.timestamp, messages.id",
-        )
+        .prepare(&format!(
+            "SELECT topics.name, topics.type, topics.serialization_format, messages.timestamp, {data} \
+             FROM messages JOIN topics ON messages.topic_id = topics.id {filter} \
+             ORDER BY messages.timestamp, messages.id"
+        ))
         .map_err(|e| {
             BagError::new(
                 file,
                 format!("is a sqlite3 file without rosbag2's topics and messages tables: {e}"),
             )
         })?;
-    let mut rows = query.query([]).map_err(sql_error)?;
+    let mut rows = query
+        .query(rusqlite::params_from_iter(only.unwrap_or_default()))
+        .map_err(sql_error)?;
     while let Some(row) = rows.next().map_err(sql_error)? {
-        take(RawMessage {
-            topic: row.get(0).map_err(sql_error)?,
-            message_type: row.get(1).map_err(sql_error)?,
-            encoding: row.get(2).map_err(sql_error)?,
+        let text = |k: usize| {
+            row.get_ref(k)
+                .and_then(|v| Ok(v.as_str()?))
+                .map_err(sql_error)
+        };
+        let bytes = match row.get_ref(4).map_err(sql_error)? {
+            rusqlite::types::ValueRef::Blob(b) => b,
+            rusqlite::types::ValueRef::Null => &[],
+            other => {
+                return Err(BagError::new(
+                    file,
+                    format!("a message's data is {:?}, not a blob", other.data_type()),
+                ));
+            }
+        };
+        take(Stored {
+            file,
+            topic: text(0)?,
+            message_type: text(1)?,
+            encoding: text(2)?,
             log_time_ns: row.get(3).map_err(sql_error)?,
-            data: row.get(4).map_err(sql_error)?,
+            data: bytes,
         })?;
     }
     Ok(())

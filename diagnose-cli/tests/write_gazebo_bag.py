@@ -21,6 +21,9 @@ few milliseconds after it was made. OPTIONS, any of:
                          (geometry_msgs/msg/TransformStamped) stamped by a
                          robot clock 2.5 s ahead of the recorder's; with
                          vicon there is no simulation and no /clock
+  camera=no|yes          also /camera/image_raw (sensor_msgs/msg/Image,
+                         640 x 480 rgb8, 15 Hz): 0.9 MB a message, as a
+                         robot's bag is mostly images
 """
 
 import csv
@@ -85,6 +88,7 @@ def main(run_dir, out_dir, *options):
         return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 
     messages = []  # (log_ns, topic, message)
+    types = {}
     for r in rows(f"{run_dir}/commands.csv"):
         msg = Twist(linear=Vector3(x=r["v"], y=0.0, z=0.0), angular=Vector3(x=0.0, y=0.0, z=r["omega"]))
         messages.append((wall_ns(r["t"]) + COMMAND_TRANSPORT_NS, "/cmd_vel", msg))
@@ -123,9 +127,21 @@ def main(run_dir, out_dir, *options):
         while t <= end + 0.5:
             messages.append((wall_ns(t) + 1_000_000, "/clock", Clock(clock=stamp(sim_ns(t)))))
             t += 0.01
+    if opts.get("camera", "no") == "yes":
+        Image = typestore.types["sensor_msgs/msg/Image"]
+        # One frame's bytes, shared by every message: noise, so a
+        # compressed bag stays as large.
+        frame = np.frombuffer(np.random.default_rng(0).bytes(640 * 480 * 3), dtype=np.uint8)
+        t = 0.0
+        while t <= end:
+            header = Header(stamp=stamp(sim_ns(t)), frame_id="camera")
+            image = Image(header=header, height=480, width=640, encoding="rgb8", is_bigendian=0, step=1920, data=frame)
+            messages.append((wall_ns(t) + 3_000_000, "/camera/image_raw", image))
+            t += 1 / 15
+        types["/camera/image_raw"] = Image.__msgtype__
     messages.sort(key=lambda m: m[0])
 
-    types = {"/cmd_vel": Twist.__msgtype__, poses_topic: pose_type.__msgtype__, "/clock": Clock.__msgtype__}
+    types.update({"/cmd_vel": Twist.__msgtype__, poses_topic: pose_type.__msgtype__, "/clock": Clock.__msgtype__})
     out = Path(out_dir)
     if out.exists():
         shutil.rmtree(out)
