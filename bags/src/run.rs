@@ -30,6 +30,9 @@ pub struct BagRun {
     /// The chosen clock's time of the first command, in seconds.
     pub t_origin: f64,
     pub clock: ClockChoice,
+    /// Files of the bag that end in the middle of a record, said as
+    /// sentences; their messages before the cut were read.
+    pub cut_short: Vec<String>,
 }
 
 /// Reads the selected topics of `bag` (and its `/clock`, if it has one).
@@ -43,7 +46,8 @@ pub fn read_run(
     let mut poses: Vec<Stamped<(f64, f64, f64)>> = Vec::new();
     let mut clock: Vec<(i64, i64)> = Vec::new();
     let mut seen = [0_u64; 2];
-    for message in bag.messages(Some(&wanted))? {
+    let read = bag.messages(Some(&wanted))?;
+    for message in read.read {
         let RawMessage {
             topic,
             message_type,
@@ -107,6 +111,7 @@ pub fn read_run(
             .collect(),
         t_origin: origin_ns as f64 / 1e9,
         clock: choice,
+        cut_short: read.cut_short,
     })
 }
 

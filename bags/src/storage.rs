@@ -32,6 +32,15 @@ pub struct Topic {
     pub messages: u64,
 }
 
+/// What a pass over a bag read: its result, and for each file that ends
+/// in the middle of a record (a recorder killed before it closed the
+/// file), a sentence saying so; what came before was read.
+#[derive(Clone, Debug)]
+pub struct Read<T> {
+    pub read: T,
+    pub cut_short: Vec<String>,
+}
+
 /// The files of a bag, in the order they were recorded.
 #[derive(Clone, Debug)]
 pub struct Bag {
@@ -98,9 +107,9 @@ impl Bag {
 
     /// Every topic with its type and message count, by name. No message's
     /// data is read: a bag of camera images lists as fast as one of poses.
-    pub fn topics(&self) -> Result<Vec<Topic>, BagError> {
+    pub fn topics(&self) -> Result<Read<Vec<Topic>>, BagError> {
         let mut found: BTreeMap<String, Topic> = BTreeMap::new();
-        self.each_stored(Wanted::Headers, |m| {
+        let cut_short = self.each_stored(Wanted::Headers, |m| {
             found
                 .entry(m.topic.to_owned())
                 .or_insert_with(|| Topic {
@@ -111,16 +120,19 @@ impl Bag {
                 .messages += 1;
             Ok(())
         })?;
-        Ok(found.into_values().collect())
+        Ok(Read {
+            read: found.into_values().collect(),
+            cut_short,
+        })
     }
 
     /// The messages of `topics` (all when `None`), file after file, each
     /// message decompressed if rosbag2 compressed it. Only these topics'
     /// messages are held: a bag of many gigabytes of images is read a
     /// chunk (MCAP) or a row (sqlite3) at a time.
-    pub fn messages(&self, topics: Option<&[&str]>) -> Result<Vec<RawMessage>, BagError> {
+    pub fn messages(&self, topics: Option<&[&str]>) -> Result<Read<Vec<RawMessage>>, BagError> {
         let mut out = Vec::new();
-        self.each_stored(Wanted::Messages(topics), |m| {
+        let cut_short = self.each_stored(Wanted::Messages(topics), |m| {
             let data = if m.data.starts_with(&ZSTD_MAGIC) {
                 zstd::decode_all(m.data).map_err(|e| {
                     BagError::new(
@@ -143,24 +155,31 @@ impl Bag {
             });
             Ok(())
         })?;
-        Ok(out)
+        Ok(Read {
+            read: out,
+            cut_short,
+        })
     }
 
+    /// Calls `take` with each wanted message, file after file; returns what
+    /// [`Read::cut_short`] says.
     fn each_stored(
         &self,
         wanted: Wanted,
         mut take: impl FnMut(Stored) -> Result<(), BagError>,
-    ) -> Result<(), BagError> {
+    ) -> Result<Vec<String>, BagError> {
+        let mut cut_short = Vec::new();
         for source in &self.files {
-            match source {
+            let ended = match source {
                 Source::File(path) => each_in_file(path, wanted, &mut take)?,
                 Source::Memory(bytes) => {
                     let bytes = decompressed(bytes.clone(), &self.path)?;
-                    each_in_bytes(&bytes, &self.path, wanted, &mut take)?;
+                    each_in_bytes(&bytes, &self.path, wanted, &mut take)?
                 }
-            }
+            };
+            cut_short.extend(ended);
         }
-        Ok(())
+        Ok(cut_short)
     }
 }
 
@@ -196,11 +215,15 @@ struct Stored<'a> {
 
 type Take<'t> = dyn FnMut(Stored) -> Result<(), BagError> + 't;
 
+/// How a file's messages ended: `Some` sentence when the file was cut short
+/// after some of them.
+type Ended = Result<Option<String>, BagError>;
+
 /// The messages of one bag file, read where it lies: an MCAP file streamed
 /// (one chunk in memory at a time), an sqlite3 file queried in place. A
 /// file rosbag2 compressed whole is decompressed first: an MCAP as a
 /// stream, an sqlite3 file (which SQLite must read at random) into memory.
-fn each_in_file(file: &Path, wanted: Wanted, take: &mut Take) -> Result<(), BagError> {
+fn each_in_file(file: &Path, wanted: Wanted, take: &mut Take) -> Ended {
     let open = || {
         std::fs::File::open(file).map_err(|e| BagError::new(file, format!("cannot read it: {e}")))
     };
@@ -223,7 +246,7 @@ fn each_in_file(file: &Path, wanted: Wanted, take: &mut Take) -> Result<(), BagE
     }
     if magic.starts_with(SQLITE_MAGIC) {
         return match sqlite_in_place(file) {
-            Some(db) => sqlite_messages(&db, file, wanted, take),
+            Some(db) => sqlite_messages(&db, file, wanted, take).map(|()| None),
             None => each_in_bytes(&read_file(file)?, file, wanted, take),
         };
     }
@@ -231,16 +254,11 @@ fn each_in_file(file: &Path, wanted: Wanted, take: &mut Take) -> Result<(), BagE
 }
 
 /// A bag file's bytes already in memory (decompressed).
-fn each_in_bytes(
-    bytes: &[u8],
-    file: &Path,
-    wanted: Wanted,
-    take: &mut Take,
-) -> Result<(), BagError> {
+fn each_in_bytes(bytes: &[u8], file: &Path, wanted: Wanted, take: &mut Take) -> Ended {
     if bytes.starts_with(mcap::MAGIC) {
         mcap_messages(bytes, file, wanted, take)
     } else if bytes.starts_with(SQLITE_MAGIC) {
-        sqlite_messages(&sqlite_in_memory(bytes, file)?, file, wanted, take)
+        sqlite_messages(&sqlite_in_memory(bytes, file)?, file, wanted, take).map(|()| None)
     } else {
         Err(not_a_bag(file))
     }
@@ -368,12 +386,16 @@ fn natural_key(path: &Path) -> (String, u64) {
 
 /// An MCAP stream, record by record: MCAP's own sans-io reader holds one
 /// chunk at a time (decompressed), so memory does not grow with the file.
+/// A file that ends in the middle of a record after some messages is what
+/// a recorder killed before it wrote its summary leaves: every message
+/// before the cut is whole (MCAP writes chunks whole), so they are read
+/// and the cut is said.
 fn mcap_messages(
     mut reader: impl std::io::Read,
     file: &Path,
     wanted: Wanted,
     take: &mut Take,
-) -> Result<(), BagError> {
+) -> Ended {
     use mcap::records::Record;
     use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader};
     let damaged = |e: &dyn std::fmt::Display| {
@@ -383,8 +405,19 @@ fn mcap_messages(
     let mut schemas: BTreeMap<u16, String> = BTreeMap::new();
     let mut channels: BTreeMap<u16, (String, String, String)> = BTreeMap::new();
     let mut stream = LinearReader::new();
+    let mut messages = 0_u64;
     while let Some(event) = stream.next_event() {
-        match event.map_err(|e| damaged(&e))? {
+        let event = match event {
+            Err(mcap::McapError::UnexpectedEof) if messages > 0 => {
+                return Ok(Some(format!(
+                    "{} ends in the middle of a record after {messages} messages (was its recorder killed?); \
+                     reading the messages before the cut",
+                    file.display()
+                )));
+            }
+            other => other.map_err(|e| damaged(&e))?,
+        };
+        match event {
             LinearReadEvent::ReadRequest(need) => {
                 let read = reader
                     .read(stream.insert(need))
@@ -407,6 +440,7 @@ fn mcap_messages(
                         );
                     }
                     Record::Message { header, data } => {
+                        messages += 1;
                         let Some((topic, message_type, encoding)) =
                             channels.get(&header.channel_id)
                         else {
@@ -445,7 +479,7 @@ fn mcap_messages(
             }
         }
     }
-    Ok(())
+    Ok(None)
 }
 
 /// An sqlite3 bag file opened where it lies, read-only and as immutable:
@@ -496,8 +530,17 @@ fn sqlite_messages(
     wanted: Wanted,
     take: &mut Take,
 ) -> Result<(), BagError> {
-    let sql_error =
-        |e: rusqlite::Error| BagError::new(file, format!("cannot read the sqlite3 bag: {e}"));
+    let sql_error = |e: rusqlite::Error| {
+        let damaged = e.sqlite_error_code() == Some(rusqlite::ErrorCode::DatabaseCorrupt);
+        BagError::new(
+            file,
+            if damaged {
+                format!("the sqlite3 bag is damaged or cut short: {e}")
+            } else {
+                format!("cannot read the sqlite3 bag: {e}")
+            },
+        )
+    };
     let (data, only) = match wanted {
         Wanted::Headers => ("NULL", None),
         Wanted::Messages(topics) => ("messages.data", topics),
@@ -515,11 +558,12 @@ fn sqlite_messages(
              FROM messages JOIN topics ON messages.topic_id = topics.id {filter} \
              ORDER BY messages.timestamp, messages.id"
         ))
-        .map_err(|e| {
-            BagError::new(
+        .map_err(|e| match e.sqlite_error_code() {
+            Some(rusqlite::ErrorCode::DatabaseCorrupt) => sql_error(e),
+            _ => BagError::new(
                 file,
                 format!("is a sqlite3 file without rosbag2's topics and messages tables: {e}"),
-            )
+            ),
         })?;
     let mut rows = query
         .query(rusqlite::params_from_iter(only.unwrap_or_default()))

@@ -95,7 +95,8 @@ fn load_rrd(path: &Path, robot: Option<u32>) -> Result<Recording> {
 /// A ROS 2 bag: its topics listed, or the chosen ones read on one clock.
 fn load_bag(path: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
     let bag = Bag::open(path)?;
-    let topics = bag.topics()?;
+    let listed = bag.topics()?;
+    let topics = listed.read;
     let of = |types: &[&str]| -> Vec<String> {
         topics
             .iter()
@@ -117,6 +118,9 @@ fn load_bag(path: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
                     t.name, t.message_type, t.messages
                 ));
             }
+            for note in &listed.cut_short {
+                listing.push_str(&format!("  ({note})\n"));
+            }
             bail!(
                 "{listing}choose the commands with --commands-topic (Twist or TwistStamped: {}) and the poses with --poses-topic \
                  (PoseStamped, TransformStamped, PoseWithCovarianceStamped, Odometry, or TFMessage with --frame CHILD: {})",
@@ -137,6 +141,11 @@ fn load_bag(path: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
         },
         args.stamps.into(),
     )?;
+    // As a recording cut short is read: said once, on stderr, beside the
+    // diagnosis of what came before.
+    for note in &run.cut_short {
+        eprintln!("shoal diagnose: {note}");
+    }
     let mut commands = shoal_diagnose::recording::Commands::default();
     for &(t, v, omega) in &run.commands {
         commands.hold(t, v, omega);

@@ -433,8 +433,10 @@ fn bad_bags_are_refused_naming_the_file_topic_and_message() {
     let (_, dir) = diagnose_generated("badbag", "", &[]);
     let bag = write_bag(&dir, "tf");
     let bytes = std::fs::read(&bag).expect("read bag");
+    // Cut before its first message: nothing to read (a bag cut later is
+    // read up to the cut, `an_mcap_bag_cut_short_is_...`).
     let cut = dir.join("cut.mcap");
-    std::fs::write(&cut, &bytes[..bytes.len() / 2]).expect("write");
+    std::fs::write(&cut, &bytes[..64]).expect("write");
     let csv = dir.join("commands.csv");
     let topics = [
         "--commands-topic",
@@ -624,6 +626,56 @@ fn gazebo_bags_in_sqlite3_mcap_split_and_compressed_are_diagnosed_on_one_clock()
     let output = diagnose_gazebo(&dir.join("db3"), &["--stamps", "log"]);
     let d: Value = serde_json::from_slice(&output.stdout).expect("JSON");
     assert_eq!(d["input"]["clock"]["poses"], "the bag's log times", "{d}");
+}
+
+/// An MCAP bag whose recorder was killed before it closed the file: the
+/// file ends in the middle of a record and has no summary. What came before
+/// the cut is diagnosed (the latency still named), and the cut is said,
+/// in the diagnosis and in the topic listing.
+#[test]
+fn an_mcap_bag_cut_short_is_diagnosed_from_what_came_before_and_says_so() {
+    let case = case_named(&Generator::bench(), "latency", DURATION_S).expect("latency case");
+    let (_, dir) = diagnose_generated("killed", &truth_toml(&case), &[]);
+    let bag = write_gazebo_bag(&dir, "whole", &["storage=mcap"]);
+    let file = std::fs::read_dir(&bag)
+        .expect("bag folder")
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .find(|p| p.extension().is_some_and(|e| e == "mcap"))
+        .expect("an .mcap file in the bag");
+    let bytes = std::fs::read(&file).expect("read the bag");
+    // Cut where a recorder killed two thirds into the run would have.
+    let cut = dir.join("killed.mcap");
+    std::fs::write(&cut, &bytes[..bytes.len() * 2 / 3]).expect("write the cut bag");
+    let output = diagnose_gazebo(&cut, &[]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("killed.mcap ends in the middle of a record after"),
+        "{stderr}"
+    );
+    let d: Value = serde_json::from_slice(&output.stdout).expect("JSON");
+    assert_eq!(
+        kinds(&d).first().map(String::as_str),
+        Some("latency"),
+        "{d}"
+    );
+    let listing = Command::new(binary())
+        .arg(&cut)
+        .output()
+        .expect("run shoal-diagnose");
+    let listed = String::from_utf8_lossy(&listing.stderr);
+    assert!(
+        listed.contains("/odom  nav_msgs/msg/Odometry") && listed.contains("ends in the middle"),
+        "{listed}"
+    );
+    // A file cut before its first message holds nothing to read: refused.
+    std::fs::write(&cut, &bytes[..64.min(bytes.len())]).expect("write the cut bag");
+    let output = diagnose_gazebo(&cut, &[]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        !output.status.success() && stderr.contains("damaged or cut short"),
+        "{stderr}"
+    );
 }
 
 /// A motion-capture bridge's bag (rosbags' writer, MCAP): poses as
