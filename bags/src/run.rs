@@ -32,7 +32,7 @@ pub struct BagRun {
     pub clock: ClockChoice,
     /// Files of the bag that end in the middle of a record, said as
     /// sentences; their messages before the cut were read.
-    pub cut_short: Vec<String>,
+    pub unfinished: Vec<String>,
 }
 
 /// Reads the selected topics of `bag` (and its `/clock`, if it has one).
@@ -111,7 +111,7 @@ pub fn read_run(
             .collect(),
         t_origin: origin_ns as f64 / 1e9,
         clock: choice,
-        cut_short: read.cut_short,
+        unfinished: read.unfinished,
     })
 }
 

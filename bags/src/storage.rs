@@ -32,13 +32,15 @@ pub struct Topic {
     pub messages: u64,
 }
 
-/// What a pass over a bag read: its result, and for each file that ends
-/// in the middle of a record (a recorder killed before it closed the
-/// file), a sentence saying so; what came before was read.
+/// What a pass over a bag read: its result, and a sentence for each file
+/// its recorder left unfinished (killed before it closed the file): an MCAP
+/// file that ends in the middle of a record (what came before the cut was
+/// read), an sqlite3 file whose last messages are still in its `-wal`
+/// file beside it (they were read too).
 #[derive(Clone, Debug)]
 pub struct Read<T> {
     pub read: T,
-    pub cut_short: Vec<String>,
+    pub unfinished: Vec<String>,
 }
 
 /// The files of a bag, in the order they were recorded.
@@ -109,7 +111,7 @@ impl Bag {
     /// data is read: a bag of camera images lists as fast as one of poses.
     pub fn topics(&self) -> Result<Read<Vec<Topic>>, BagError> {
         let mut found: BTreeMap<String, Topic> = BTreeMap::new();
-        let cut_short = self.each_stored(Wanted::Headers, |m| {
+        let unfinished = self.each_stored(Wanted::Headers, |m| {
             found
                 .entry(m.topic.to_owned())
                 .or_insert_with(|| Topic {
@@ -122,7 +124,7 @@ impl Bag {
         })?;
         Ok(Read {
             read: found.into_values().collect(),
-            cut_short,
+            unfinished,
         })
     }
 
@@ -132,7 +134,7 @@ impl Bag {
     /// chunk (MCAP) or a row (sqlite3) at a time.
     pub fn messages(&self, topics: Option<&[&str]>) -> Result<Read<Vec<RawMessage>>, BagError> {
         let mut out = Vec::new();
-        let cut_short = self.each_stored(Wanted::Messages(topics), |m| {
+        let unfinished = self.each_stored(Wanted::Messages(topics), |m| {
             let data = if m.data.starts_with(&ZSTD_MAGIC) {
                 zstd::decode_all(m.data).map_err(|e| {
                     BagError::new(
@@ -157,18 +159,18 @@ impl Bag {
         })?;
         Ok(Read {
             read: out,
-            cut_short,
+            unfinished,
         })
     }
 
     /// Calls `take` with each wanted message, file after file; returns what
-    /// [`Read::cut_short`] says.
+    /// [`Read::unfinished`] says.
     fn each_stored(
         &self,
         wanted: Wanted,
         mut take: impl FnMut(Stored) -> Result<(), BagError>,
     ) -> Result<Vec<String>, BagError> {
-        let mut cut_short = Vec::new();
+        let mut unfinished = Vec::new();
         for source in &self.files {
             let ended = match source {
                 Source::File(path) => each_in_file(path, wanted, &mut take)?,
@@ -177,9 +179,9 @@ impl Bag {
                     each_in_bytes(&bytes, &self.path, wanted, &mut take)?
                 }
             };
-            cut_short.extend(ended);
+            unfinished.extend(ended);
         }
-        Ok(cut_short)
+        Ok(unfinished)
     }
 }
 
@@ -245,6 +247,9 @@ fn each_in_file(file: &Path, wanted: Wanted, take: &mut Take) -> Ended {
         return mcap_messages(std::io::BufReader::new(open()?), file, wanted, take);
     }
     if magic.starts_with(SQLITE_MAGIC) {
+        if let Some(wal) = unmerged_wal(file) {
+            return sqlite_with_wal(file, &wal, wanted, take);
+        }
         return match sqlite_in_place(file) {
             Some(db) => sqlite_messages(&db, file, wanted, take).map(|()| None),
             None => each_in_bytes(&read_file(file)?, file, wanted, take),
@@ -505,6 +510,81 @@ fn sqlite_in_place(file: &Path) -> Option<rusqlite::Connection> {
             | OpenFlags::SQLITE_OPEN_NO_MUTEX,
     )
     .ok()
+}
+
+/// The `-wal` file beside an sqlite3 bag, if it holds anything: a
+/// recorder in WAL mode (rosbag2's "resilient" preset) that was killed
+/// leaves its last messages there, not yet moved into the bag.
+fn unmerged_wal(file: &Path) -> Option<PathBuf> {
+    let mut name = file.as_os_str().to_owned();
+    name.push("-wal");
+    let wal = PathBuf::from(name);
+    std::fs::metadata(&wal)
+        .is_ok_and(|m| m.is_file() && m.len() > 0)
+        .then_some(wal)
+}
+
+/// A folder of our own in the temporary folder, removed with everything in
+/// it when dropped.
+struct Scratch(PathBuf);
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        // Only our own copies are in it; failing to remove them loses nothing.
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// An sqlite3 bag with messages still in its `-wal` file, read with them:
+/// SQLite merges a WAL only into a database it may write beside, and the
+/// user's bag is never written to (nor is a `-shm` created beside it), so
+/// the two files are copied into a folder of our own and read there.
+fn sqlite_with_wal(file: &Path, wal: &Path, wanted: Wanted, take: &mut Take) -> Ended {
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.subsec_nanos());
+    let scratch =
+        Scratch(std::env::temp_dir().join(format!("shoal-bag-{}-{nanos}", std::process::id())));
+    let copy = |from: &Path, to: &Path| {
+        std::fs::copy(from, to).map_err(|e| {
+            BagError::new(
+                from,
+                format!(
+                    "cannot copy it to {} to read its -wal file beside it: {e}",
+                    to.display()
+                ),
+            )
+        })
+    };
+    std::fs::create_dir_all(&scratch.0).map_err(|e| {
+        BagError::new(
+            &scratch.0,
+            format!(
+                "cannot create it to read {}'s -wal file: {e}",
+                file.display()
+            ),
+        )
+    })?;
+    let (db_copy, wal_copy) = (scratch.0.join("bag.db3"), scratch.0.join("bag.db3-wal"));
+    copy(file, &db_copy)?;
+    let wal_bytes = copy(wal, &wal_copy)?;
+    use rusqlite::OpenFlags;
+    let db = rusqlite::Connection::open_with_flags(
+        &db_copy,
+        OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX,
+    )
+    .map_err(|e| {
+        BagError::new(
+            file,
+            format!("cannot read the sqlite3 bag with its -wal file: {e}"),
+        )
+    })?;
+    sqlite_messages(&db, file, wanted, take)?;
+    Ok(Some(format!(
+        "{} has its last messages in {} ({wal_bytes} bytes; was its recorder killed?); read them too",
+        file.display(),
+        wal.display()
+    )))
 }
 
 /// An sqlite3 bag held in memory (a decompressed file, a fuzzer's bytes).

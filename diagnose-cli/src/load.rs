@@ -118,7 +118,7 @@ fn load_bag(path: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
                     t.name, t.message_type, t.messages
                 ));
             }
-            for note in &listed.cut_short {
+            for note in &listed.unfinished {
                 listing.push_str(&format!("  ({note})\n"));
             }
             bail!(
@@ -143,7 +143,7 @@ fn load_bag(path: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
     )?;
     // As a recording cut short is read: said once, on stderr, beside the
     // diagnosis of what came before.
-    for note in &run.cut_short {
+    for note in &run.unfinished {
         eprintln!("shoal diagnose: {note}");
     }
     let mut commands = shoal_diagnose::recording::Commands::default();

@@ -434,7 +434,7 @@ fn bad_bags_are_refused_naming_the_file_topic_and_message() {
     let bag = write_bag(&dir, "tf");
     let bytes = std::fs::read(&bag).expect("read bag");
     // Cut before its first message: nothing to read (a bag cut later is
-    // read up to the cut, `an_mcap_bag_cut_short_is_...`).
+    // read up to the cut, `bags_of_a_killed_recorder_...`).
     let cut = dir.join("cut.mcap");
     std::fs::write(&cut, &bytes[..64]).expect("write");
     let csv = dir.join("commands.csv");
@@ -628,12 +628,13 @@ fn gazebo_bags_in_sqlite3_mcap_split_and_compressed_are_diagnosed_on_one_clock()
     assert_eq!(d["input"]["clock"]["poses"], "the bag's log times", "{d}");
 }
 
-/// An MCAP bag whose recorder was killed before it closed the file: the
-/// file ends in the middle of a record and has no summary. What came before
-/// the cut is diagnosed (the latency still named), and the cut is said,
-/// in the diagnosis and in the topic listing.
+/// Bags whose recorder was killed before it closed them. An MCAP file then
+/// ends in the middle of a record and has no summary: what came before the
+/// cut is diagnosed (the latency still named), and the cut is said, in the
+/// diagnosis and in the topic listing. An sqlite3 bag in WAL mode keeps its
+/// last messages in its `-wal` file: they are read too.
 #[test]
-fn an_mcap_bag_cut_short_is_diagnosed_from_what_came_before_and_says_so() {
+fn bags_of_a_killed_recorder_are_diagnosed_from_what_they_hold_and_say_so() {
     let case = case_named(&Generator::bench(), "latency", DURATION_S).expect("latency case");
     let (_, dir) = diagnose_generated("killed", &truth_toml(&case), &[]);
     let bag = write_gazebo_bag(&dir, "whole", &["storage=mcap"]);
@@ -667,6 +668,37 @@ fn an_mcap_bag_cut_short_is_diagnosed_from_what_came_before_and_says_so() {
     assert!(
         listed.contains("/odom  nav_msgs/msg/Odometry") && listed.contains("ends in the middle"),
         "{listed}"
+    );
+    // A sqlite3 bag whose recorder, in WAL mode, was killed with a third of
+    // its messages still in the -wal file: read with them, and said.
+    let db3 = write_gazebo_bag(&dir, "whole-db3", &[]);
+    let db3_file = db3.join("whole-db3.db3");
+    let whole = diagnose_gazebo(&db3_file, &[]);
+    assert!(whole.status.success());
+    let killed = dir.join("killed.db3");
+    python(
+        "kill_wal_recorder.py",
+        &[db3_file.as_os_str(), killed.as_os_str(), "0.33".as_ref()],
+    );
+    let wal = dir.join("killed.db3-wal");
+    let wal_before = std::fs::read(&wal).expect("the killed recorder's -wal file");
+    let output = diagnose_gazebo(&killed, &[]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    assert!(stderr.contains("has its last messages in"), "{stderr}");
+    let (d, d_whole): (Value, Value) = (
+        serde_json::from_slice(&output.stdout).expect("JSON"),
+        serde_json::from_slice(&whole.stdout).expect("JSON"),
+    );
+    assert_eq!(
+        first_latency(&d),
+        first_latency(&d_whole),
+        "the bag with its -wal file is the whole bag"
+    );
+    assert_eq!(
+        std::fs::read(&wal).expect("the -wal file is left"),
+        wal_before,
+        "the user's -wal file is left as it was"
     );
     // A file cut before its first message holds nothing to read: refused.
     std::fs::write(&cut, &bytes[..64.min(bytes.len())]).expect("write the cut bag");
