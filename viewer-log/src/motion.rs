@@ -205,8 +205,7 @@ pub fn read_motion(path: &Path) -> Result<MotionRows> {
     let messages = DecoderApp::decode_eager(BufReader::new(reader))
         .map_err(|e| anyhow::anyhow!("{file}: not a Rerun recording (.rrd): {e}"))?;
     let mut out = MotionRows::default();
-    let mut decoded = 0u64;
-    for message in messages {
+    for (decoded, message) in (0u64..).zip(messages) {
         let message = match message {
             Ok(m) => m,
             Err(e) if decoded > 0 => {
@@ -217,7 +216,6 @@ pub fn read_motion(path: &Path) -> Result<MotionRows> {
             }
             Err(e) => bail!("{file}: not a Rerun recording (.rrd): {e}"),
         };
-        decoded += 1;
         let LogMsg::ArrowMsg(store, arrow) = message else {
             continue;
         };

@@ -54,11 +54,9 @@ impl SlamViews {
                     .with_colors([rerun::Color::from_rgb(190, 90, 255)]),
             )?;
             self.ticks.insert(p.agent_id, (p.tick, p.sim_time));
-            if !self.models.contains_key(&p.agent_id) {
-                self.models.insert(
-                    p.agent_id,
-                    robot_streams::model_subscriber(bus, p.agent_id)?,
-                );
+            if let std::collections::btree_map::Entry::Vacant(slot) = self.models.entry(p.agent_id)
+            {
+                slot.insert(robot_streams::model_subscriber(bus, p.agent_id)?);
             }
         }
         self.log_maps(rec)?;
