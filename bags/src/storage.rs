@@ -217,8 +217,8 @@ struct Stored<'a> {
 
 type Take<'t> = dyn FnMut(Stored) -> Result<(), BagError> + 't;
 
-/// How a file's messages ended: `Some` sentence when the file was cut short
-/// after some of them.
+/// How a file's messages ended: `Some` sentence when its recorder left it
+/// unfinished ([`Read::unfinished`]).
 type Ended = Result<Option<String>, BagError>;
 
 /// The messages of one bag file, read where it lies: an MCAP file streamed
@@ -231,15 +231,12 @@ fn each_in_file(file: &Path, wanted: Wanted, take: &mut Take) -> Ended {
     };
     let magic = first_bytes(open()?, file)?;
     if magic.starts_with(&ZSTD_MAGIC) {
-        let decoder = zstd::Decoder::new(open()?)
-            .map_err(|e| BagError::new(file, format!("does not decompress (zstd): {e}")))?;
-        let inner = first_bytes(
+        let decompressing = || {
             zstd::Decoder::new(open()?)
-                .map_err(|e| BagError::new(file, format!("does not decompress (zstd): {e}")))?,
-            file,
-        )?;
-        if inner.starts_with(mcap::MAGIC) {
-            return mcap_messages(decoder, file, wanted, take);
+                .map_err(|e| BagError::new(file, format!("does not decompress (zstd): {e}")))
+        };
+        if first_bytes(decompressing()?, file)?.starts_with(mcap::MAGIC) {
+            return mcap_messages(decompressing()?, file, wanted, take);
         }
         return each_in_bytes(&read_file(file)?, file, wanted, take);
     }
