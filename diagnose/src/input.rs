@@ -205,8 +205,9 @@ fn csv_fields(
             return Err(error(
                 Some(header_line),
                 format!(
-                    "missing column `{column}`: the header must name {}",
-                    columns.join(", ")
+                    "missing column `{column}`: the header must name {} (it names {})",
+                    columns.join(", "),
+                    header.iter().collect::<Vec<_>>().join(", ")
                 ),
             ));
         };

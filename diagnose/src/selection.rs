@@ -269,6 +269,11 @@ impl Selection<'_> {
             .map(|f| (judge(&f.effects[0]), f.effects[0].clone()))
             .collect();
         judged.sort_by(|a, b| a.0.total_cmp(&b.0));
+        tracing::debug!(
+            judged = ?judged.iter().map(|(g, c)| (c.effect.kind(), *g)).collect::<Vec<_>>(),
+            factors = ?factors,
+            "round: confirmed on every segment, judged with the long-run factors (ΔBIC)"
+        );
         let passing = self.first_passing(base, &judged, long_runs);
         let Some((index, delta_bic, chosen, test, long_runs)) = passing else {
             return Round::Done;
