@@ -808,6 +808,60 @@ fn motion_capture_glitches_are_set_aside_reported_and_never_fitted() {
     assert!(read.contains("/diagnosis/set_aside"), "{read}");
 }
 
+/// One stretch of an MRCLAM robot diagnosed as `shoal diagnose --mrclam
+/// DIR --robot 3 --json`, with `extra` arguments.
+fn diagnose_mrclam(dir: &Path, extra: &[&std::ffi::OsStr]) -> Value {
+    let stdout = succeed(
+        Command::new(binary())
+            .args(["--json", "--robot", "3", "--mrclam"])
+            .arg(dir)
+            .args(extra),
+    );
+    serde_json::from_slice(&stdout).expect("JSON")
+}
+
+/// On a stretch of under two minutes where the robot turned left only (its
+/// second eighth: 0.6 m driven turning left, none turning right), a
+/// turning-centre offset to the side and speed lost in turns are one curve.
+/// The offset was named, and its model predicted the robot's other
+/// stretches up to 1.6 times worse than the plain model (EXPERIMENTS.md 6b,
+/// "Physics that transfers"). It adds nothing beside the speed loss, which
+/// has fewer parameters: the speed loss is named, the offset reported as
+/// explaining the stretch about as well, and the model transfers.
+#[test]
+fn a_stretch_that_turns_one_way_names_what_transfers_and_says_what_it_cannot_tell_apart() {
+    let dir = scratch("one-way");
+    let parts = mrclam_parts(&dir, 8);
+    let model = dir.join("model");
+    let d = diagnose_mrclam(&parts[1], &["--out".as_ref(), model.as_os_str()]);
+    let named = kinds(&d);
+    assert!(!named.iter().any(|k| k == "turn_centre_offset"), "{d}");
+    let loss = d["effects"]
+        .as_array()
+        .and_then(|effects| effects.iter().find(|e| e["kind"] == "turn_speed_loss"))
+        .unwrap_or_else(|| panic!("speed lost in turns is named: {named:?}"));
+    assert!(
+        loss["indistinguishable_from"]
+            .as_array()
+            .is_some_and(|a| a.iter().any(|k| k == "turn_centre_offset")),
+        "the offset is said as explaining it about as well: {loss}"
+    );
+    let model = model.join("model.toml");
+    for other in [&parts[0], &parts[6]] {
+        let heldout = |d: &Value| d["baseline"]["heldout_rmse_pos_m"].as_f64().expect("rmse");
+        let with_model = heldout(&diagnose_mrclam(
+            other,
+            &["--model".as_ref(), model.as_os_str()],
+        ));
+        let plain = heldout(&diagnose_mrclam(other, &[]));
+        assert!(
+            with_model < plain,
+            "{}: the stretch's model {with_model} m against plain {plain} m",
+            other.display()
+        );
+    }
+}
+
 /// Robot 3's excerpt cut into `parts` MRCLAM folders by command time.
 fn mrclam_parts(dir: &Path, parts: usize) -> Vec<PathBuf> {
     let read = |name: &str| -> Vec<(f64, String)> {

@@ -275,9 +275,11 @@ impl Selection<'_> {
             "round: confirmed on every segment, judged with the long-run factors (ΔBIC)"
         );
         let passing = self.first_passing(base, &judged, long_runs);
-        let Some((index, delta_bic, chosen, test, long_runs)) = passing else {
+        let Some(passing) = passing else {
             return Round::Done;
         };
+        let (index, (delta_bic, chosen, test, long_runs), equivalent) =
+            self.encompassing(base, &judged, passing);
         // Explanations within 2 of BIC are not worth more than a bare
         // mention apart (Kass and Raftery): one finding, with alternatives
         // among those ranked after it (those before it failed their test).
@@ -285,6 +287,7 @@ impl Selection<'_> {
             .iter()
             .filter(|(g, c)| *g < delta_bic + 2.0 && c.effect.kind() != chosen.effect.kind())
             .cloned()
+            .chain(equivalent)
             .collect();
         let (scoped, delta_bic) = self.scoped(base, chosen.clone(), delta_bic, &judge, &mut tied);
         let test = if scoped == chosen {
@@ -351,6 +354,101 @@ impl Selection<'_> {
             }
         }
         None
+    }
+
+    /// The passing candidate, or a rival that encompasses it. Two kinds can
+    /// explain one mismatch alike over the conditions a run holds: a marker
+    /// off the axle (a turning-centre offset) and speed lost in turns are
+    /// one curve in the along residual while the robot turns one way only,
+    /// and opposite curves when it turns the other way. Ranked by ΔBIC
+    /// alone, the one the run's noise favours is named, and on a stretch that
+    /// turned left only, the offset was: it predicted the robot's other
+    /// stretches worse than no model at all (EXPERIMENTS.md 6b, "Physics
+    /// that transfers", eight blocks). The encompassing principle of
+    /// non-nested model choice settles it: the chosen effect must add
+    /// something the entry test accepts beside each rival that passes alone
+    /// (the two refitted together); a rival that encompasses it and adds
+    /// beside it what it lacks is named instead, and of two that encompass
+    /// each other the one with fewer parameters is, the other listed as its
+    /// equivalent. Returns the chosen's index in `judged`, its (ΔBIC, effect,
+    /// test, long runs), and the equivalent left as an alternative.
+    fn encompassing(
+        &self,
+        base: &[ScopedEffect],
+        judged: &[(f64, ScopedEffect)],
+        passing: (usize, f64, ScopedEffect, EntryTest, [LongRun; 3]),
+    ) -> Chosen {
+        /// Rivals tried beside the chosen: the next best of other kinds.
+        const RIVALS: usize = 2;
+        let (index, delta_bic, chosen, test, long_runs) = passing;
+        let (grid, segs) = (self.grid(), self.segs());
+        let rivals = judged
+            .iter()
+            .enumerate()
+            .skip(index + 1)
+            .filter(|(_, (g, c))| *g < 0.0 && c.effect.kind() != chosen.effect.kind())
+            .take(RIVALS);
+        for (k, (rival_bic, rival)) in rivals {
+            if self.adds_beside(base, &chosen, rival) {
+                continue;
+            }
+            let rival_adds = self.adds_beside(base, rival, &chosen);
+            let simpler = extra_params(rival) < extra_params(&chosen);
+            tracing::debug!(
+                chosen = chosen.effect.kind(),
+                rival = rival.effect.kind(),
+                rival_adds,
+                simpler,
+                "round: the chosen adds nothing beside a rival"
+            );
+            if !rival_adds && !simpler {
+                continue;
+            }
+            let rival_runs = factors_with(grid, segs, base, rival);
+            let rival_test = self.entry_of(base, rival, (*rival_bic, rival_runs));
+            if rival_test.passed() {
+                let equivalent = (!rival_adds).then(|| (delta_bic, chosen.clone()));
+                return (
+                    k,
+                    (*rival_bic, rival.clone(), rival_test, rival_runs),
+                    equivalent,
+                );
+            }
+        }
+        (index, (delta_bic, chosen, test, long_runs), None)
+    }
+
+    /// Whether `candidate` adds what the entry test accepts beside `other`
+    /// (already fitted beside `base`), the two refitted together.
+    fn adds_beside(
+        &self,
+        base: &[ScopedEffect],
+        candidate: &ScopedEffect,
+        other: &ScopedEffect,
+    ) -> bool {
+        let (grid, segs, options) = (self.grid(), self.segs(), self.options);
+        let rest: Vec<ScopedEffect> = base.iter().cloned().chain([other.clone()]).collect();
+        let pair = fit(
+            grid,
+            segs,
+            base,
+            &[other.clone(), candidate.clone()],
+            options.max_iters / 2,
+        );
+        let joint: Vec<ScopedEffect> = base.iter().cloned().chain(pair.effects.clone()).collect();
+        let long_runs = factors_of(grid, segs, &joint);
+        let factors = long_runs.map(|l| l.factor);
+        let added = &pair.effects[1];
+        let gain = calibrated_gain_of_move(
+            grid,
+            segs,
+            components_of(grid, segs, &rest),
+            &joint,
+            added,
+            factors,
+        );
+        self.entry_through_lens((&rest, &joint), added, (gain, long_runs))
+            .passed()
     }
 
     /// An effect may act in part of the run only. Trying that is not left
@@ -460,6 +558,15 @@ struct Completion {
     /// and the candidate.
     with: Vec<ScopedEffect>,
 }
+
+/// A round's chosen candidate: its index among those judged, its (ΔBIC,
+/// effect, entry test, long runs), and an equivalent rival it was chosen
+/// over, as an alternative (see [`Selection::encompassing`]).
+type Chosen = (
+    usize,
+    (f64, ScopedEffect, EntryTest, [LongRun; 3]),
+    Option<(f64, ScopedEffect)>,
+);
 
 /// What forward selection concluded.
 #[derive(Default)]
