@@ -368,10 +368,12 @@ impl Selection<'_> {
     /// non-nested model choice settles it: the chosen effect must add
     /// something the entry test accepts beside each rival that passes alone
     /// (the two refitted together); a rival that encompasses it and adds
-    /// beside it what it lacks is named instead, and of two that encompass
-    /// each other the one with fewer parameters is, the other listed as its
-    /// equivalent. Returns the chosen's index in `judged`, its (ΔBIC, effect,
-    /// test, long runs), and the equivalent left as an alternative.
+    /// beside it what it lacks is named instead; of two that encompass each
+    /// other, a rival with fewer parameters is named and the chosen listed
+    /// as explaining the run about as well, and with as many the chosen
+    /// stays (listed beside the rival only within 2 of ΔBIC, as any tie).
+    /// Returns the chosen's index in `judged`, its (ΔBIC, effect, test, long
+    /// runs), and the equivalent it was chosen over, as an alternative.
     fn encompassing(
         &self,
         base: &[ScopedEffect],
