@@ -30,8 +30,8 @@ pub struct BagRun {
     /// The chosen clock's time of the first command, in seconds.
     pub t_origin: f64,
     pub clock: ClockChoice,
-    /// Files of the bag that end in the middle of a record, said as
-    /// sentences; their messages before the cut were read.
+    /// Files of the bag its recorder left unfinished, said as sentences
+    /// (see `storage::Read::unfinished`); what they hold was read.
     pub unfinished: Vec<String>,
 }
 

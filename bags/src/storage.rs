@@ -236,12 +236,13 @@ fn each_in_file(file: &Path, wanted: Wanted, take: &mut Take) -> Ended {
                 .map_err(|e| BagError::new(file, format!("does not decompress (zstd): {e}")))
         };
         if first_bytes(decompressing()?, file)?.starts_with(mcap::MAGIC) {
-            return mcap_messages(decompressing()?, file, wanted, take);
+            return mcap_messages(decompressing()?, file, record_limit(file), wanted, take);
         }
         return each_in_bytes(&read_file(file)?, file, wanted, take);
     }
     if magic.starts_with(mcap::MAGIC) {
-        return mcap_messages(std::io::BufReader::new(open()?), file, wanted, take);
+        let reader = std::io::BufReader::new(open()?);
+        return mcap_messages(reader, file, record_limit(file), wanted, take);
     }
     if magic.starts_with(SQLITE_MAGIC) {
         if let Some(wal) = unmerged_wal(file) {
@@ -258,7 +259,9 @@ fn each_in_file(file: &Path, wanted: Wanted, take: &mut Take) -> Ended {
 /// A bag file's bytes already in memory (decompressed).
 fn each_in_bytes(bytes: &[u8], file: &Path, wanted: Wanted, take: &mut Take) -> Ended {
     if bytes.starts_with(mcap::MAGIC) {
-        mcap_messages(bytes, file, wanted, take)
+        // In memory (a fuzzer's bytes, a test's) no record is longer than
+        // the bytes themselves.
+        mcap_messages(bytes, file, bytes.len(), wanted, take)
     } else if bytes.starts_with(SQLITE_MAGIC) {
         sqlite_messages(&sqlite_in_memory(bytes, file)?, file, wanted, take).map(|()| None)
     } else {
@@ -386,6 +389,16 @@ fn natural_key(path: &Path) -> (String, u64) {
     )
 }
 
+/// The longest MCAP record read from `file`: its own length, or 256 MiB if
+/// that is more (a message in a compressed chunk may be longer than the
+/// file that holds it; no ROS message a diagnosis reads comes near).
+fn record_limit(file: &Path) -> usize {
+    const FLOOR: usize = 256 << 20;
+    std::fs::metadata(file)
+        .map_or(FLOOR, |m| usize::try_from(m.len()).unwrap_or(usize::MAX))
+        .max(FLOOR)
+}
+
 /// An MCAP stream, record by record: MCAP's own sans-io reader holds one
 /// chunk at a time (decompressed), so memory does not grow with the file.
 /// A file that ends in the middle of a record after some messages is what
@@ -395,6 +408,7 @@ fn natural_key(path: &Path) -> (String, u64) {
 fn mcap_messages(
     mut reader: impl std::io::Read,
     file: &Path,
+    record_limit: usize,
     wanted: Wanted,
     take: &mut Take,
 ) -> Ended {
@@ -406,7 +420,13 @@ fn mcap_messages(
     // Schema names by id; channels by id with their topic, type, encoding.
     let mut schemas: BTreeMap<u16, String> = BTreeMap::new();
     let mut channels: BTreeMap<u16, (String, String, String)> = BTreeMap::new();
-    let mut stream = LinearReader::new();
+    // The reader makes room for a record's whole length before reading
+    // it: a damaged length (the fuzzer's 72 PB) must be an error, not an
+    // allocation.
+    let mut stream = LinearReader::new_with_options(
+        mcap::sans_io::linear_reader::LinearReaderOptions::default()
+            .with_record_length_limit(record_limit),
+    );
     let mut messages = 0_u64;
     while let Some(event) = stream.next_event() {
         let event = match event {
