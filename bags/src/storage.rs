@@ -389,6 +389,9 @@ fn natural_key(path: &Path) -> (String, u64) {
     )
 }
 
+/// The most bytes asked of an MCAP file in one read.
+const READ_AT_MOST: usize = 1 << 20;
+
 /// The longest MCAP record read from `file`: its own length, or 256 MiB if
 /// that is more (a message in a compressed chunk may be longer than the
 /// file that holds it; no ROS message a diagnosis reads comes near).
@@ -441,8 +444,11 @@ fn mcap_messages(
         };
         match event {
             LinearReadEvent::ReadRequest(need) => {
+                // Asked for a whole record or chunk at once, the reader
+                // would zero that much memory before a byte arrived; in
+                // pieces, its buffer grows only with what the file holds.
                 let read = reader
-                    .read(stream.insert(need))
+                    .read(stream.insert(need.min(READ_AT_MOST)))
                     .map_err(|e| BagError::new(file, format!("cannot read it: {e}")))?;
                 stream.notify_read(read);
             }
