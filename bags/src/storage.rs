@@ -423,9 +423,8 @@ fn mcap_messages(
     // Schema names by id; channels by id with their topic, type, encoding.
     let mut schemas: BTreeMap<u16, String> = BTreeMap::new();
     let mut channels: BTreeMap<u16, (String, String, String)> = BTreeMap::new();
-    // The reader makes room for a record's whole length before reading
-    // it: a damaged length (the fuzzer's 72 PB) must be an error, not an
-    // allocation.
+    // A record longer than `record_limit` is an error: a damaged length
+    // (the fuzzer's 72 PB) is never taken at its word.
     let mut stream = LinearReader::new_with_options(
         mcap::sans_io::linear_reader::LinearReaderOptions::default()
             .with_record_length_limit(record_limit),
