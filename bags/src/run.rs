@@ -31,7 +31,7 @@ pub struct BagRun {
     pub t_origin: f64,
     pub clock: ClockChoice,
     /// Files of the bag its recorder left unfinished, said as sentences
-    /// (see `storage::Read::unfinished`); what they hold was read.
+    /// (see `storage::Reading::unfinished`); what they hold was read.
     pub unfinished: Vec<String>,
 }
 
@@ -47,7 +47,7 @@ pub fn read_run(
     let mut clock: Vec<(i64, i64)> = Vec::new();
     let mut seen = [0_u64; 2];
     let read = bag.messages(Some(&wanted))?;
-    for message in read.read {
+    for message in read.found {
         let RawMessage {
             topic,
             message_type,

@@ -38,8 +38,8 @@ pub struct Topic {
 /// read), an sqlite3 file whose last messages are still in its `-wal`
 /// file beside it (they were read too).
 #[derive(Clone, Debug)]
-pub struct Read<T> {
-    pub read: T,
+pub struct Reading<T> {
+    pub found: T,
     pub unfinished: Vec<String>,
 }
 
@@ -109,7 +109,7 @@ impl Bag {
 
     /// Every topic with its type and message count, by name. No message's
     /// data is read: a bag of camera images lists as fast as one of poses.
-    pub fn topics(&self) -> Result<Read<Vec<Topic>>, BagError> {
+    pub fn topics(&self) -> Result<Reading<Vec<Topic>>, BagError> {
         let mut found: BTreeMap<String, Topic> = BTreeMap::new();
         let unfinished = self.each_stored(Wanted::Headers, |m| {
             found
@@ -122,8 +122,8 @@ impl Bag {
                 .messages += 1;
             Ok(())
         })?;
-        Ok(Read {
-            read: found.into_values().collect(),
+        Ok(Reading {
+            found: found.into_values().collect(),
             unfinished,
         })
     }
@@ -132,7 +132,7 @@ impl Bag {
     /// message decompressed if rosbag2 compressed it. Only these topics'
     /// messages are held: a bag of many gigabytes of images is read a
     /// chunk (MCAP) or a row (sqlite3) at a time.
-    pub fn messages(&self, topics: Option<&[&str]>) -> Result<Read<Vec<RawMessage>>, BagError> {
+    pub fn messages(&self, topics: Option<&[&str]>) -> Result<Reading<Vec<RawMessage>>, BagError> {
         let mut out = Vec::new();
         let unfinished = self.each_stored(Wanted::Messages(topics), |m| {
             let data = if m.data.starts_with(&ZSTD_MAGIC) {
@@ -157,14 +157,14 @@ impl Bag {
             });
             Ok(())
         })?;
-        Ok(Read {
-            read: out,
+        Ok(Reading {
+            found: out,
             unfinished,
         })
     }
 
     /// Calls `take` with each wanted message, file after file; returns what
-    /// [`Read::unfinished`] says.
+    /// [`Reading::unfinished`] says.
     fn each_stored(
         &self,
         wanted: Wanted,
@@ -205,7 +205,8 @@ impl Wanted<'_> {
 }
 
 /// One message as a reader holds it: borrowed from the chunk or row being
-/// read, and empty data for [`Wanted::Headers`].
+/// read. For [`Wanted::Headers`] its data may be left empty (sqlite3 then
+/// never loads them).
 struct Stored<'a> {
     file: &'a Path,
     topic: &'a str,
@@ -218,7 +219,7 @@ struct Stored<'a> {
 type Take<'t> = dyn FnMut(Stored) -> Result<(), BagError> + 't;
 
 /// How a file's messages ended: `Some` sentence when its recorder left it
-/// unfinished ([`Read::unfinished`]).
+/// unfinished ([`Reading::unfinished`]).
 type Ended = Result<Option<String>, BagError>;
 
 /// The messages of one bag file, read where it lies: an MCAP file streamed
@@ -494,11 +495,7 @@ fn mcap_messages(
                             message_type,
                             encoding,
                             log_time_ns,
-                            data: if matches!(wanted, Wanted::Headers) {
-                                &[]
-                            } else {
-                                &data
-                            },
+                            data: &data,
                         })?;
                     }
                     _ => {}
@@ -546,27 +543,24 @@ fn unmerged_wal(file: &Path) -> Option<PathBuf> {
         .then_some(wal)
 }
 
-/// A folder of our own in the temporary folder, removed with everything in
-/// it when dropped.
-struct Scratch(PathBuf);
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        // Only our own copies are in it; failing to remove them loses nothing.
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
 /// An sqlite3 bag with messages still in its `-wal` file, read with them:
 /// SQLite merges a WAL only into a database it may write beside, and the
 /// user's bag is never written to (nor is a `-shm` created beside it), so
 /// the two files are copied into a folder of our own and read there.
 fn sqlite_with_wal(file: &Path, wal: &Path, wanted: Wanted, take: &mut Take) -> Ended {
-    let nanos = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.subsec_nanos());
-    let scratch =
-        Scratch(std::env::temp_dir().join(format!("shoal-bag-{}-{nanos}", std::process::id())));
+    // Removed with our copies in it when dropped.
+    let scratch = tempfile::Builder::new()
+        .prefix("shoal-bag-")
+        .tempdir()
+        .map_err(|e| {
+            BagError::new(
+                &std::env::temp_dir(),
+                format!(
+                    "cannot make a folder in it to read {}'s -wal file: {e}",
+                    file.display()
+                ),
+            )
+        })?;
     let copy = |from: &Path, to: &Path| {
         std::fs::copy(from, to).map_err(|e| {
             BagError::new(
@@ -578,16 +572,10 @@ fn sqlite_with_wal(file: &Path, wal: &Path, wanted: Wanted, take: &mut Take) -> 
             )
         })
     };
-    std::fs::create_dir_all(&scratch.0).map_err(|e| {
-        BagError::new(
-            &scratch.0,
-            format!(
-                "cannot create it to read {}'s -wal file: {e}",
-                file.display()
-            ),
-        )
-    })?;
-    let (db_copy, wal_copy) = (scratch.0.join("bag.db3"), scratch.0.join("bag.db3-wal"));
+    let (db_copy, wal_copy) = (
+        scratch.path().join("bag.db3"),
+        scratch.path().join("bag.db3-wal"),
+    );
     copy(file, &db_copy)?;
     let wal_bytes = copy(wal, &wal_copy)?;
     use rusqlite::OpenFlags;

@@ -96,7 +96,7 @@ fn load_rrd(path: &Path, robot: Option<u32>) -> Result<Recording> {
 fn load_bag(path: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
     let bag = Bag::open(path)?;
     let listed = bag.topics()?;
-    let topics = listed.read;
+    let topics = listed.found;
     let of = |types: &[&str]| -> Vec<String> {
         topics
             .iter()

@@ -289,13 +289,7 @@ fn mrclam_d6() -> PathBuf {
 
 #[test]
 fn a_real_mrclam_robot_shows_a_mismatch_that_the_fit_reduces() {
-    let data = mrclam_d6();
-    let stdout = succeed(
-        Command::new(binary())
-            .args(["--json", "--robot", "3", "--mrclam"])
-            .arg(&data),
-    );
-    let d: Value = serde_json::from_slice(&stdout).expect("JSON");
+    let d = diagnose_mrclam(&mrclam_d6(), &[]);
     assert_eq!(d["mismatch"], true);
     // A response delay: pure latency or a first-order actuator lag.
     assert!(
@@ -808,8 +802,16 @@ fn motion_capture_glitches_are_set_aside_reported_and_never_fitted() {
     assert!(read.contains("/diagnosis/set_aside"), "{read}");
 }
 
-/// One stretch of an MRCLAM robot diagnosed as `shoal diagnose --mrclam
-/// DIR --robot 3 --json`, with `extra` arguments.
+/// The input model's held-out position error (m): the plain model's, or
+/// the one `--model` loaded.
+fn baseline_heldout(diagnosis: &Value) -> f64 {
+    diagnosis["baseline"]["heldout_rmse_pos_m"]
+        .as_f64()
+        .expect("rmse")
+}
+
+/// MRCLAM robot 3 (a dataset folder, or a stretch of one) diagnosed as
+/// `shoal diagnose --mrclam DIR --robot 3 --json`, with `extra` arguments.
 fn diagnose_mrclam(dir: &Path, extra: &[&std::ffi::OsStr]) -> Value {
     let stdout = succeed(
         Command::new(binary())
@@ -848,12 +850,11 @@ fn a_stretch_that_turns_one_way_names_what_transfers_and_says_what_it_cannot_tel
     );
     let model = model.join("model.toml");
     for other in [&parts[0], &parts[6]] {
-        let heldout = |d: &Value| d["baseline"]["heldout_rmse_pos_m"].as_f64().expect("rmse");
-        let with_model = heldout(&diagnose_mrclam(
+        let with_model = baseline_heldout(&diagnose_mrclam(
             other,
             &["--model".as_ref(), model.as_os_str()],
         ));
-        let plain = heldout(&diagnose_mrclam(other, &[]));
+        let plain = baseline_heldout(&diagnose_mrclam(other, &[]));
         assert!(
             with_model < plain,
             "{}: the stretch's model {with_model} m against plain {plain} m",
@@ -913,13 +914,11 @@ fn physics_fitted_on_one_stretch_of_a_real_robot_holds_on_the_other() {
     let dir = scratch("halves");
     let parts = mrclam_parts(&dir, 2);
     let held_out = |part: &Path, model: Option<&Path>| -> f64 {
-        let mut command = Command::new(binary());
-        command.arg(part).args(["--robot", "3", "--json"]);
-        if let Some(model) = model {
-            command.arg("--model").arg(model);
-        }
-        let d: Value = serde_json::from_slice(&succeed(&mut command)).expect("JSON");
-        d["baseline"]["heldout_rmse_pos_m"].as_f64().expect("rmse")
+        let extra: Vec<&std::ffi::OsStr> = match model {
+            Some(model) => vec!["--model".as_ref(), model.as_os_str()],
+            None => vec![],
+        };
+        baseline_heldout(&diagnose_mrclam(part, &extra))
     };
     // Each half's written model, loaded on the other half, predicts it no
     // worse than the plain model.

@@ -274,12 +274,19 @@ impl Selection<'_> {
             factors = ?factors,
             "round: confirmed on every segment, judged with the long-run factors (ΔBIC)"
         );
-        let passing = self.first_passing(base, &judged, long_runs);
-        let Some(passing) = passing else {
+        let Some(passing) = self.first_passing(base, &judged, long_runs) else {
             return Round::Done;
         };
-        let (index, (delta_bic, chosen, test, long_runs), equivalent) =
-            self.encompassing(base, &judged, passing);
+        let (
+            Passing {
+                index,
+                delta_bic,
+                candidate: chosen,
+                test,
+                long_runs,
+            },
+            equivalent,
+        ) = self.encompassing(base, &judged, passing);
         // Explanations within 2 of BIC are not worth more than a bare
         // mention apart (Kass and Raftery): one finding, with alternatives
         // among those ranked after it (those before it failed their test).
@@ -333,7 +340,7 @@ impl Selection<'_> {
         base: &[ScopedEffect],
         judged: &[(f64, ScopedEffect)],
         first_long_runs: [LongRun; 3],
-    ) -> Option<(usize, f64, ScopedEffect, EntryTest, [LongRun; 3])> {
+    ) -> Option<Passing> {
         let (grid, segs) = (self.grid(), self.segs());
         for (index, (delta_bic, candidate)) in judged.iter().enumerate() {
             let long_runs = if index == 0 {
@@ -350,7 +357,13 @@ impl Selection<'_> {
                 "round: candidate"
             );
             if test.passed() {
-                return Some((index, *delta_bic, candidate.clone(), test, long_runs));
+                return Some(Passing {
+                    index,
+                    delta_bic: *delta_bic,
+                    candidate: candidate.clone(),
+                    test,
+                    long_runs,
+                });
             }
         }
         None
@@ -372,30 +385,30 @@ impl Selection<'_> {
     /// other, a rival with fewer parameters is named and the chosen listed
     /// as explaining the run about as well, and with as many the chosen
     /// stays (listed beside the rival only within 2 of ΔBIC, as any tie).
-    /// Returns the chosen's index in `judged`, its (ΔBIC, effect, test, long
-    /// runs), and the equivalent it was chosen over, as an alternative.
+    /// Returns the one named, and the equivalent it was named over (with
+    /// its ΔBIC), as an alternative.
     fn encompassing(
         &self,
         base: &[ScopedEffect],
         judged: &[(f64, ScopedEffect)],
-        passing: (usize, f64, ScopedEffect, EntryTest, [LongRun; 3]),
-    ) -> Chosen {
+        passing: Passing,
+    ) -> (Passing, Option<(f64, ScopedEffect)>) {
         /// Rivals tried beside the chosen: the next best of other kinds.
         const RIVALS: usize = 2;
-        let (index, delta_bic, chosen, test, long_runs) = passing;
+        let chosen = &passing.candidate;
         let (grid, segs) = (self.grid(), self.segs());
         let rivals = judged
             .iter()
             .enumerate()
-            .skip(index + 1)
+            .skip(passing.index + 1)
             .filter(|(_, (g, c))| *g < 0.0 && c.effect.kind() != chosen.effect.kind())
             .take(RIVALS);
-        for (k, (rival_bic, rival)) in rivals {
-            if self.adds_beside(base, &chosen, rival) {
+        for (index, (rival_bic, rival)) in rivals {
+            if self.adds_beside(base, chosen, rival) {
                 continue;
             }
-            let rival_adds = self.adds_beside(base, rival, &chosen);
-            let simpler = extra_params(rival) < extra_params(&chosen);
+            let rival_adds = self.adds_beside(base, rival, chosen);
+            let simpler = extra_params(rival) < extra_params(chosen);
             tracing::debug!(
                 chosen = chosen.effect.kind(),
                 rival = rival.effect.kind(),
@@ -409,15 +422,18 @@ impl Selection<'_> {
             let rival_runs = factors_with(grid, segs, base, rival);
             let rival_test = self.entry_of(base, rival, (*rival_bic, rival_runs));
             if rival_test.passed() {
-                let equivalent = (!rival_adds).then(|| (delta_bic, chosen.clone()));
-                return (
-                    k,
-                    (*rival_bic, rival.clone(), rival_test, rival_runs),
-                    equivalent,
-                );
+                let equivalent = (!rival_adds).then(|| (passing.delta_bic, chosen.clone()));
+                let rival = Passing {
+                    index,
+                    delta_bic: *rival_bic,
+                    candidate: rival.clone(),
+                    test: rival_test,
+                    long_runs: rival_runs,
+                };
+                return (rival, equivalent);
             }
         }
-        (index, (delta_bic, chosen, test, long_runs), None)
+        (passing, None)
     }
 
     /// Whether `candidate` adds what the entry test accepts beside `other`
@@ -438,19 +454,27 @@ impl Selection<'_> {
             options.max_iters / 2,
         );
         let joint: Vec<ScopedEffect> = base.iter().cloned().chain(pair.effects.clone()).collect();
-        let long_runs = factors_of(grid, segs, &joint);
-        let factors = long_runs.map(|l| l.factor);
-        let added = &pair.effects[1];
-        let gain = calibrated_gain_of_move(
-            grid,
-            segs,
-            components_of(grid, segs, &rest),
-            &joint,
-            added,
-            factors,
-        );
-        self.entry_through_lens((&rest, &joint), added, (gain, long_runs))
+        self.entry_of_move(&rest, &joint, &pair.effects[1])
+            .1
             .passed()
+    }
+
+    /// The calibrated ΔBIC and entry test of the move from `without` to
+    /// `with`, which adds `candidate` and may have refitted the rest: the
+    /// long-run factors are `with`'s residuals'.
+    fn entry_of_move(
+        &self,
+        without: &[ScopedEffect],
+        with: &[ScopedEffect],
+        candidate: &ScopedEffect,
+    ) -> (f64, EntryTest) {
+        let (grid, segs) = (self.grid(), self.segs());
+        let long_runs = factors_of(grid, segs, with);
+        let factors = long_runs.map(|l| l.factor);
+        let without_nll = components_of(grid, segs, without);
+        let delta_bic = calibrated_gain_of_move(grid, segs, without_nll, with, candidate, factors);
+        let test = self.entry_through_lens((without, with), candidate, (delta_bic, long_runs));
+        (delta_bic, test)
     }
 
     /// An effect may act in part of the run only. Trying that is not left
@@ -527,11 +551,7 @@ impl Selection<'_> {
             let rest: Vec<ScopedEffect> =
                 fixed.iter().cloned().chain(refit.effects.clone()).collect();
             let joint: Vec<ScopedEffect> = fixed.iter().chain(found.iter()).cloned().collect();
-            let long_runs = factors_of(grid, segs, &joint);
-            let rest_nll = components_of(grid, segs, &rest);
-            let factors = long_runs.map(|l| l.factor);
-            let needed = calibrated_gain_of_move(grid, segs, rest_nll, &joint, &found[k], factors);
-            let test = self.entry_through_lens((&rest, &joint), &found[k], (needed, long_runs));
+            let (needed, test) = self.entry_of_move(&rest, &joint, &found[k]);
             if !test.passed() {
                 tracing::debug!(
                     kind = found[k].effect.kind(),
@@ -561,14 +581,15 @@ struct Completion {
     with: Vec<ScopedEffect>,
 }
 
-/// A round's chosen candidate: its index among those judged, its (ΔBIC,
-/// effect, entry test, long runs), and an equivalent rival it was chosen
-/// over, as an alternative (see [`Selection::encompassing`]).
-type Chosen = (
-    usize,
-    (f64, ScopedEffect, EntryTest, [LongRun; 3]),
-    Option<(f64, ScopedEffect)>,
-);
+/// A round's candidate that passed its entry test: its index among those
+/// judged, its calibrated ΔBIC, the test and the residuals' long runs with it.
+struct Passing {
+    index: usize,
+    delta_bic: f64,
+    candidate: ScopedEffect,
+    test: EntryTest,
+    long_runs: [LongRun; 3],
+}
 
 /// What forward selection concluded.
 #[derive(Default)]
@@ -816,13 +837,7 @@ impl Selection<'_> {
             .chain([&candidate])
             .cloned()
             .collect();
-        let refitted: Vec<ScopedEffect> = fixed.iter().chain(&joint).cloned().collect();
-        let long_runs = factors_with(grid, segs, &refitted, &candidate);
-        let factors = long_runs.map(|l| l.factor);
-        let without_nll = components_of(grid, segs, &without);
-        let delta_bic =
-            calibrated_gain_of_move(grid, segs, without_nll, &with, &candidate, factors);
-        let test = self.entry_through_lens((&without, &with), &candidate, (delta_bic, long_runs));
+        let (delta_bic, test) = self.entry_of_move(&without, &with, &candidate);
         tracing::debug!(
             kind = candidate.effect.kind(),
             during = ?candidate.during,
