@@ -29,7 +29,7 @@ fn effects_text(d: &Diagnosis) -> Vec<String> {
             e.delta_bic
         ));
         if let Some(check) = &e.feedback_free {
-            let size = if check.z < shoal_diagnose::feedback::MIN_Z {
+            let size = if check.z < check.z_needed {
                 format!(
                     "; not confirmed there, but it moves the prediction by {:.1} noise standard deviations, more than a controller's answer to the noise can",
                     check.size_in_noise
@@ -38,8 +38,8 @@ fn effects_text(d: &Diagnosis) -> Vec<String> {
                 String::new()
             };
             line(format!(
-                "    where no command answered the noise (held out on {:.2} s segments): {:+.1} nats, z {:.1} (a real effect of its size: about {:+.1}){size}",
-                check.horizon_s, check.gain, check.z, check.expected_gain
+                "    where no command answered the noise (held out on {:.2} s segments): {:+.1} nats, z {:.1} ({:.2} needed; a real effect of its size: about {:+.1}){size}",
+                check.horizon_s, check.gain, check.z, check.z_needed, check.expected_gain
             ));
         }
         // An effect the data cannot tell from another is one finding with

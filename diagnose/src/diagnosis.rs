@@ -46,9 +46,10 @@ pub struct FoundEffect {
     /// The test that let it in.
     pub test: EntryTest,
     pub sentence: String,
-    /// Other kinds that explain the run as well (within 2 of BIC): this
-    /// data cannot tell them apart, so they are one finding. The kinds of
-    /// `alternatives`, kept for readers of the earlier JSON.
+    /// Other kinds that explain the run as well (within 2 of BIC, or
+    /// neither adding beside the other): this data cannot tell them apart,
+    /// so they are one finding. The kinds of `alternatives`, kept for
+    /// readers of the earlier JSON.
     pub indistinguishable_from: Vec<&'static str>,
     /// The same, with each alternative's fitted parameters and sentence.
     pub alternatives: Vec<Alternative>,
@@ -333,10 +334,14 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
         fit(grid, segs, fixed, &found, options.max_iters).stderr
     };
     let mut offset = 0;
+    let named: Vec<&'static str> = found.iter().map(|e| e.effect.kind()).collect();
     let effects: Vec<FoundEffect> = found
         .iter()
         .zip(evidence)
-        .map(|(scoped, evidence)| {
+        .map(|(scoped, mut evidence)| {
+            // A kind said beside one effect and named in its own right later
+            // (it added something there) is a finding, not an alternative.
+            evidence.alternatives.retain(|a| !named.contains(&a.kind));
             let count = scoped.effect.params().len();
             let se = &stderr[offset.min(stderr.len())..(offset + count).min(stderr.len())];
             offset += count;

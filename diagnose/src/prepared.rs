@@ -98,10 +98,22 @@ pub struct Prepared {
 /// `Poses::without_outliers`), commands on a grid, segments started at the
 /// observed poses.
 pub fn prepare(recording: &Recording, options: &Options) -> Prepared {
+    prepare_cut(recording, options, |recording, grid| {
+        segments(recording, grid, options.horizon_s)
+    })
+}
+
+/// [`prepare`], with the segments cut by `cut` from the cleaned run and its
+/// grid.
+pub fn prepare_cut(
+    recording: &Recording,
+    options: &Options,
+    cut: impl Fn(&Recording, &CommandGrid) -> Vec<Segment>,
+) -> Prepared {
     let (recording, glitches) = crate::glitches::set_aside(recording);
     let (recording, pose_outliers) = recording.without_pose_outliers();
     let grid = command_grid(&recording, options.grid_dt);
-    let segments = segments(&recording, &grid, options.horizon_s);
+    let segments = cut(&recording, &grid);
     let blocks = blocks(&segments, &recording.joins, options.folds);
     Prepared {
         grid,

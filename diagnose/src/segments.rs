@@ -36,30 +36,76 @@ pub fn command_grid(recording: &Recording, dt: f64) -> CommandGrid {
 /// both ends were observed.
 pub fn segments(recording: &Recording, grid: &CommandGrid, horizon: f64) -> Vec<Segment> {
     let steps = ((horizon / grid.dt).round() as usize).max(1);
+    (0..grid.len().saturating_sub(1) / steps)
+        .filter_map(|k| segment(recording, grid, k * steps, (k + 1) * steps))
+        .collect()
+}
+
+/// Cuts each stretch over which the robot was commanded to move and the
+/// command held one value into back-to-back segments of `steps` grid steps
+/// from where the value was given, wherever both ends were observed: each
+/// replays one command, chosen before any of its segments' noise.
+pub fn held_segments(recording: &Recording, grid: &CommandGrid, steps: usize) -> Vec<Segment> {
+    holds(grid)
+        .into_iter()
+        .filter(|hold| moving(grid, hold.start))
+        .flat_map(|hold| {
+            let count = hold.len() / steps.max(1);
+            (0..count).map(move |k| (hold.start + k * steps, hold.start + (k + 1) * steps))
+        })
+        .filter(|&(_, to)| to < grid.len())
+        .filter_map(|(from, to)| segment(recording, grid, from, to))
+        .collect()
+}
+
+/// The grid's stretches of one command value: a new stretch wherever speed
+/// or turn rate changes (beyond rounding of the grid's time-weighted means).
+pub fn holds(grid: &CommandGrid) -> Vec<std::ops::Range<usize>> {
     let mut out = Vec::new();
-    let mut from = 0;
-    while from + steps < grid.len() {
-        let to = from + steps;
-        let (t_start, t_end) = (grid.time(from), grid.time(to));
-        if let (Some(start), Some(end)) = (recording.poses.at(t_start), recording.poses.at(t_end)) {
-            let speed = grid.v[from..to].iter().map(|v| v.abs()).sum::<f64>() / steps as f64;
-            let turn = grid.omega[from..to].iter().sum::<f64>() / steps as f64;
-            out.push(Segment {
-                from,
-                to,
-                t_start,
-                t_end,
-                start,
-                end,
-                speed,
-                turn,
-                distance: speed * (t_end - t_start),
-                mid: [0.5 * (start.x + end.x), 0.5 * (start.y + end.y)],
-            });
+    let mut start = 0;
+    for i in 1..=grid.len() {
+        let changed = i == grid.len()
+            || !same(grid.v[i], grid.v[start])
+            || !same(grid.omega[i], grid.omega[start]);
+        if changed {
+            out.push(start..i);
+            start = i;
         }
-        from = to;
     }
     out
+}
+
+/// One command value, but for the rounding of the grid's time-weighted
+/// means (a command given off the grid leaves a trace of the one before).
+fn same(a: f64, b: f64) -> bool {
+    (a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1.0)
+}
+
+/// Whether the command at grid step `at` asks the robot to move.
+pub fn moving(grid: &CommandGrid, at: usize) -> bool {
+    !same(grid.v[at], 0.0) || !same(grid.omega[at], 0.0)
+}
+
+/// The segment over grid steps `from..to`, if both its ends were observed.
+fn segment(recording: &Recording, grid: &CommandGrid, from: usize, to: usize) -> Option<Segment> {
+    let (t_start, t_end) = (grid.time(from), grid.time(to));
+    let start = recording.poses.at(t_start)?;
+    let end = recording.poses.at(t_end)?;
+    let steps = (to - from) as f64;
+    let speed = grid.v[from..to].iter().map(|v| v.abs()).sum::<f64>() / steps;
+    let turn = grid.omega[from..to].iter().sum::<f64>() / steps;
+    Some(Segment {
+        from,
+        to,
+        t_start,
+        t_end,
+        start,
+        end,
+        speed,
+        turn,
+        distance: speed * (t_end - t_start),
+        mid: [0.5 * (start.x + end.x), 0.5 * (start.y + end.y)],
+    })
 }
 
 /// The held-out blocks of `segments`: one per recording where several were

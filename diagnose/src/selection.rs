@@ -286,6 +286,7 @@ impl Selection<'_> {
                 long_runs,
             },
             equivalent,
+            beside,
         ) = self.encompassing(base, &judged, passing);
         // Explanations within 2 of BIC are not worth more than a bare
         // mention apart (Kass and Raftery): one finding, with alternatives
@@ -304,6 +305,15 @@ impl Selection<'_> {
         };
         let chosen = scoped;
         let tied_kinds: Vec<&'static str> = tied.iter().map(|(_, c)| c.effect.kind()).collect();
+        // Said beside, but free to enter later: it added nothing beside the
+        // chosen on its own, and may beside what enters next (a drift over
+        // the part of the run a bias does not cover). Named later, it is
+        // no longer said as an alternative (`select`).
+        if let Some(beside) = beside
+            && !tied_kinds.contains(&beside.1.effect.kind())
+        {
+            tied.push(beside);
+        }
         // Later rounds only try what helped on its own (an effect that did
         // not lower the likelihood alone is rarely needed in company), and
         // never an alternative of what was found: that would name one
@@ -384,15 +394,21 @@ impl Selection<'_> {
     /// beside it what it lacks is named instead; of two that encompass each
     /// other, a rival with fewer parameters is named and the chosen listed
     /// as explaining the run about as well, and with as many the chosen
-    /// stays (listed beside the rival only within 2 of ΔBIC, as any tie).
-    /// Returns the one named, and the equivalent it was named over (with
-    /// its ΔBIC), as an alternative.
+    /// stays and the rival is listed, whatever their ΔBIC apart: a turn
+    /// bias and a heading drift on a robot that seldom stops differ by a
+    /// few of ΔBIC, and neither adds beside the other.
+    /// Returns the one named, the equivalent it was named over, and the
+    /// equivalent named beside (each with its ΔBIC), as alternatives.
     fn encompassing(
         &self,
         base: &[ScopedEffect],
         judged: &[(f64, ScopedEffect)],
         passing: Passing,
-    ) -> (Passing, Option<(f64, ScopedEffect)>) {
+    ) -> (
+        Passing,
+        Option<(f64, ScopedEffect)>,
+        Option<(f64, ScopedEffect)>,
+    ) {
         /// Rivals tried beside the chosen: the next best of other kinds.
         const RIVALS: usize = 2;
         let chosen = &passing.candidate;
@@ -403,6 +419,7 @@ impl Selection<'_> {
             .skip(passing.index + 1)
             .filter(|(_, (g, c))| *g < 0.0 && c.effect.kind() != chosen.effect.kind())
             .take(RIVALS);
+        let mut equal = None;
         for (index, (rival_bic, rival)) in rivals {
             if self.adds_beside(base, chosen, rival) {
                 continue;
@@ -416,24 +433,28 @@ impl Selection<'_> {
                 simpler,
                 "round: the chosen adds nothing beside a rival"
             );
-            if !rival_adds && !simpler {
-                continue;
-            }
             let rival_runs = factors_with(grid, segs, base, rival);
             let rival_test = self.entry_of(base, rival, (*rival_bic, rival_runs));
-            if rival_test.passed() {
-                let equivalent = (!rival_adds).then(|| (passing.delta_bic, chosen.clone()));
-                let rival = Passing {
-                    index,
-                    delta_bic: *rival_bic,
-                    candidate: rival.clone(),
-                    test: rival_test,
-                    long_runs: rival_runs,
-                };
-                return (rival, equivalent);
+            if !rival_test.passed() {
+                continue;
             }
+            if !rival_adds && !simpler {
+                // Neither adds beside the other: the data cannot tell them
+                // apart, however far apart their ΔBIC, so the rival is said.
+                equal.get_or_insert((*rival_bic, rival.clone()));
+                continue;
+            }
+            let equivalent = (!rival_adds).then(|| (passing.delta_bic, chosen.clone()));
+            let rival = Passing {
+                index,
+                delta_bic: *rival_bic,
+                candidate: rival.clone(),
+                test: rival_test,
+                long_runs: rival_runs,
+            };
+            return (rival, equivalent, None);
         }
-        (passing, None)
+        (passing, None, equal)
     }
 
     /// Whether `candidate` adds what the entry test accepts beside `other`
