@@ -148,22 +148,11 @@ pub(crate) fn check_each(
         .iter()
         .map(|cut| cut.prepare(recording, options))
         .collect();
+    let runs: Vec<(f64, &Prepared)> = cuts.iter().map(|cut| cut.horizon_s).zip(&shorts).collect();
     (0..found.len())
         .map(|k| {
             let check = (!found[k].effect.only_noise()).then(|| {
-                let checks: Vec<FeedbackFree> = cuts
-                    .iter()
-                    .zip(&shorts)
-                    .map(|(cut, short)| {
-                        feedback_free_gain(
-                            prepared,
-                            short,
-                            cut.horizon_s,
-                            (fixed, found, k),
-                            options,
-                        )
-                    })
-                    .collect();
+                let checks = feedback_free_gains(prepared, &runs, (fixed, found, k), options);
                 // The horizon that predicts it best speaks for it; the level
                 // pays for the choice.
                 let zs: Vec<f64> = checks.iter().map(|c| c.z).collect();
@@ -300,16 +289,21 @@ pub fn feedback_free_cuts(
     ]
 }
 
-/// How `found[k]` predicts the short-horizon run `short`, against the model
-/// of `fixed` and the other effects of `found`, and how large it is against
-/// the noise of the long-horizon run `long`.
-pub fn feedback_free_gain(
+/// How `found[k]` predicts each short-horizon run of `shorts` (with its
+/// horizon), against the model of `fixed` and the other effects of
+/// `found`, and how large it is against the noise of the long-horizon run
+/// `long`. The held-out blocks are the first run's; each other run is
+/// scored on its segments that lie within a block's span, so that the
+/// refits outside each block serve every horizon.
+pub fn feedback_free_gains(
     long: &Prepared,
-    short: &Prepared,
-    horizon_s: f64,
+    shorts: &[(f64, &Prepared)],
     (fixed, found, k): (&[ScopedEffect], &[ScopedEffect], usize),
     options: &Options,
-) -> FeedbackFree {
+) -> Vec<FeedbackFree> {
+    let Some(&(_, first)) = shorts.first() else {
+        return Vec::new();
+    };
     let others = all_but(found, k);
     // Each block is held out from the parameters too: the effects that move
     // the prediction are refitted on the long segments outside it, so that
@@ -326,17 +320,19 @@ pub fn feedback_free_gain(
         .cloned()
         .collect();
     let held: Vec<ScopedEffect> = fixed.iter().chain(&noise_effects).cloned().collect();
-    let per_block: Vec<BlockGains> = on_folds(short, |train, test| {
-        let (from, to) = (
-            test.first().map_or(0.0, |s| s.t_start),
-            test.last().map_or(0.0, |s| s.t_end),
-        );
-        let long_train: Vec<Segment> = long
-            .segments
+    let outside = |segments: &[Segment], from: f64, to: f64| -> Vec<Segment> {
+        segments
             .iter()
             .filter(|s| s.t_end <= from || s.t_start >= to)
             .cloned()
-            .collect();
+            .collect()
+    };
+    let per_block: Vec<Vec<BlockGains>> = on_folds(first, |_, block| {
+        let (from, to) = (
+            block.first().map_or(0.0, |s| s.t_start),
+            block.last().map_or(0.0, |s| s.t_end),
+        );
+        let long_train = outside(&long.segments, from, to);
         let with =
             UnicycleModel::with_effects(refit_on(long, &long_train, &held, &moving, options));
         let without = UnicycleModel::with_effects(refit_on(
@@ -346,24 +342,45 @@ pub fn feedback_free_gain(
             &moving_others,
             options,
         ));
-        block_gains(short, train, test, &with, &without)
+        shorts
+            .iter()
+            .map(|(_, short)| {
+                let test: Vec<Segment> = short
+                    .segments
+                    .iter()
+                    .filter(|s| s.t_start >= from && s.t_end <= to)
+                    .cloned()
+                    .collect();
+                let train = outside(&short.segments, from, to);
+                block_gains(short, &train, test, &with, &without)
+            })
+            .collect()
     });
-    let expected_gain = per_block.iter().map(|b| b.expected).sum();
-    let gains: Vec<f64> = per_block.into_iter().flat_map(|b| b.gains).collect();
-    let gain: f64 = gains.iter().sum();
-    let sd = sd_of_sum(&short.segments, &gains);
-    let z = |x: f64| if sd > 0.0 { x / sd } else { 0.0 };
     let with = UnicycleModel::with_effects(fixed.iter().chain(found).cloned().collect());
     let without = UnicycleModel::with_effects(fixed.iter().chain(&others).cloned().collect());
-    FeedbackFree {
-        horizon_s,
-        gain,
-        z: z(gain),
-        z_needed: MIN_Z,
-        expected_gain,
-        z_against_expected: z(gain - expected_gain),
-        size_in_noise: size_in_noise(long, &with, &without),
-    }
+    let size = size_in_noise(long, &with, &without);
+    shorts
+        .iter()
+        .enumerate()
+        .map(|(c, &(horizon_s, _))| {
+            let blocks = || per_block.iter().map(|b| &b[c]);
+            let expected_gain = blocks().map(|b| b.expected).sum();
+            let gains: Vec<f64> = blocks().flat_map(|b| b.gains.iter().copied()).collect();
+            let scored: Vec<Segment> = blocks().flat_map(|b| b.test.iter().cloned()).collect();
+            let gain: f64 = gains.iter().sum();
+            let sd = sd_of_sum(&scored, &gains);
+            let z = |x: f64| if sd > 0.0 { x / sd } else { 0.0 };
+            FeedbackFree {
+                horizon_s,
+                gain,
+                z: z(gain),
+                z_needed: MIN_Z,
+                expected_gain,
+                z_against_expected: z(gain - expected_gain),
+                size_in_noise: size,
+            }
+        })
+        .collect()
 }
 
 /// How far `with` moves the prediction of `long`'s segments from `without`'s,
@@ -388,6 +405,8 @@ fn size_in_noise(long: &Prepared, with: &UnicycleModel, without: &UnicycleModel)
 
 /// One held-out block at the short horizon.
 struct BlockGains {
+    /// The segments scored.
+    test: Vec<Segment>,
     /// Each test segment's log-likelihood gain of `with` over `without`.
     gains: Vec<f64>,
     /// What the gain would be on average were `with` the truth: half the
@@ -400,16 +419,17 @@ struct BlockGains {
 fn block_gains(
     prepared: &Prepared,
     train: &[Segment],
-    test: &[Segment],
+    test: Vec<Segment>,
     with: &UnicycleModel,
     without: &UnicycleModel,
 ) -> BlockGains {
-    let with_block = predict_block(&prepared.grid, train, test, with);
-    let without_block = predict_block(&prepared.grid, train, test, without);
+    let with_block = predict_block(&prepared.grid, train, &test, with);
+    let without_block = predict_block(&prepared.grid, train, &test, without);
     let noise = &with_block.noise;
-    let a = standardised(with, noise, test, &with_block.residuals);
-    let b = standardised(with, noise, test, &without_block.residuals);
+    let a = standardised(with, noise, &test, &with_block.residuals);
+    let b = standardised(with, noise, &test, &without_block.residuals);
     BlockGains {
+        test,
         gains: without_block
             .nll
             .iter()

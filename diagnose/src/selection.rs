@@ -87,6 +87,10 @@ pub(crate) struct Selection<'a> {
 /// noise hardly grows with speed.
 pub(crate) const LENS_MIN_SHARE: f64 = 0.05;
 
+/// An effect that explains the run about as well as the one named, with
+/// its ΔBIC, if any.
+type Equivalent = Option<(f64, ScopedEffect)>;
+
 impl Selection<'_> {
     /// `effects` as tests judge them when `candidate` is tried: with noise
     /// that grows with speed, fitted to these effects, unless they already
@@ -404,11 +408,7 @@ impl Selection<'_> {
         base: &[ScopedEffect],
         judged: &[(f64, ScopedEffect)],
         passing: Passing,
-    ) -> (
-        Passing,
-        Option<(f64, ScopedEffect)>,
-        Option<(f64, ScopedEffect)>,
-    ) {
+    ) -> (Passing, Equivalent, Equivalent) {
         /// Rivals tried beside the chosen: the next best of other kinds.
         const RIVALS: usize = 2;
         let chosen = &passing.candidate;
