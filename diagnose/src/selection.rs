@@ -312,7 +312,7 @@ impl Selection<'_> {
         // Said beside, but free to enter later: it added nothing beside the
         // chosen on its own, and may beside what enters next (a drift over
         // the part of the run a bias does not cover). Named later, it is
-        // no longer said as an alternative (`select`).
+        // no longer said as an alternative (`diagnosis::diagnose`).
         if let Some(beside) = beside
             && !tied_kinds.contains(&beside.1.effect.kind())
         {
