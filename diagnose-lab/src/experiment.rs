@@ -652,6 +652,37 @@ fn effect_text(e: &FoundEffect) -> String {
     format!("{} {}{during}", e.kind, params.join(" "))
 }
 
+/// One run of `case` as the experiment generates it: its true effects and
+/// operator, under `noise`, for `seed`.
+pub fn case_run(
+    generator: &Generator,
+    case: &Case,
+    noise: &NoiseColour,
+    seed: u64,
+    duration_s: f64,
+) -> shoal_diagnose::Recording {
+    let truth = UnicycleModel::with_effects(case.truth.clone());
+    generate(
+        &truth,
+        &run_settings(generator, Some(case), noise, seed, duration_s),
+    )
+}
+
+/// [`case_run`] by the names the experiment's options use, 600 s long:
+/// a test's way to one run of the experiment.
+pub fn named_run(
+    generator: &str,
+    case: &str,
+    noise: &str,
+    seed: u64,
+) -> Result<shoal_diagnose::Recording, String> {
+    const DURATION_S: f64 = 600.0;
+    let generator = Generator::parse(generator)?;
+    let case = case_named(&generator, case, DURATION_S)?;
+    let noise = NoiseColour::parse(noise)?;
+    Ok(case_run(&generator, &case, &noise, seed, DURATION_S))
+}
+
 /// Generates and diagnoses one run of `case`, and compares with the truth.
 fn run_one(
     generator: &Generator,
@@ -661,11 +692,7 @@ fn run_one(
     duration_s: f64,
     options: &Options,
 ) -> RunFindings {
-    let truth = UnicycleModel::with_effects(case.truth.clone());
-    let recording = generate(
-        &truth,
-        &run_settings(generator, Some(case), noise, seed, duration_s),
-    );
+    let recording = case_run(generator, case, noise, seed, duration_s);
     let started = std::time::Instant::now();
     let diagnosis = diagnose(&recording, &UnicycleModel::plain(), options);
     let seconds = started.elapsed().as_secs_f64();

@@ -2,8 +2,7 @@
 //! data cannot tell them apart, however their ΔBIC differs by chance.
 
 use shoal_diagnose::diagnosis::{Options, diagnose};
-use shoal_diagnose_lab::experiment::{Generator, NoiseColour, case_named, run_settings};
-use shoal_diagnose_lab::generate::generate;
+use shoal_diagnose_lab::experiment::named_run;
 use shoal_physics::UnicycleModel;
 
 #[test]
@@ -12,16 +11,8 @@ fn a_turn_bias_and_a_heading_drift_that_explain_one_mismatch_are_said_together()
     // which seldom stops: a constant turn bias explains it as well. The
     // bias ranks first by 2.2 of ΔBIC (a hair more than a tie's 2), and
     // was named alone; neither adds beside the other.
-    let generator = Generator::parse("bench").expect("a known generator");
-    let case = case_named(&generator, "latency+heading_drift", 600.0).expect("a known case");
-    let noise = NoiseColour::parse("white").expect("a known noise");
-    let settings = run_settings(&generator, Some(&case), &noise, 1001, 600.0);
-    let truth = UnicycleModel::with_effects(case.truth.clone());
-    let run = diagnose(
-        &generate(&truth, &settings),
-        &UnicycleModel::plain(),
-        &Options::default(),
-    );
+    let run = named_run("bench", "latency+heading_drift", "white", 1001).expect("a known run");
+    let run = diagnose(&run, &UnicycleModel::plain(), &Options::default());
     let heading = run
         .effects
         .iter()

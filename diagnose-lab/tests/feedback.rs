@@ -5,8 +5,7 @@
 
 use shoal_diagnose::diagnosis::{Options, diagnose};
 use shoal_diagnose::feedback::MIN_Z;
-use shoal_diagnose_lab::experiment::{Generator, NoiseColour, case_named, run_settings};
-use shoal_diagnose_lab::generate::generate;
+use shoal_diagnose_lab::experiment::named_run;
 use shoal_physics::UnicycleModel;
 
 /// Diagnoses the closed-loop waypoint follower's `case` under mixed noise.
@@ -21,16 +20,8 @@ fn diagnosed_from(
     noise: &str,
     seed: u64,
 ) -> shoal_diagnose::Diagnosis {
-    let generator = Generator::parse(generator).expect("a known generator");
-    let case = case_named(&generator, case, 600.0).expect("a known case");
-    let noise = NoiseColour::parse(noise).expect("a known noise");
-    let settings = run_settings(&generator, Some(&case), &noise, seed, 600.0);
-    let truth = UnicycleModel::with_effects(case.truth.clone());
-    diagnose(
-        &generate(&truth, &settings),
-        &UnicycleModel::plain(),
-        &Options::default(),
-    )
+    let run = named_run(generator, case, noise, seed).expect("a known run");
+    diagnose(&run, &UnicycleModel::plain(), &Options::default())
 }
 
 #[test]

@@ -2,8 +2,7 @@
 //! only: the completion pass tries that part, as a round does.
 
 use shoal_diagnose::diagnosis::{Options, diagnose};
-use shoal_diagnose_lab::experiment::{Generator, NoiseColour, case_named, run_settings};
-use shoal_diagnose_lab::generate::generate;
+use shoal_diagnose_lab::experiment::named_run;
 use shoal_physics::UnicycleModel;
 
 #[test]
@@ -13,16 +12,8 @@ fn a_turn_bias_in_the_first_third_found_beside_the_noise_is_named_for_that_third
     // speed. The bias enters only beside the speed-dependent noise (the
     // completion pass); fitted to the whole run, the blocks after 200 s
     // contradicted it and it went unnamed (EXPERIMENTS.md 5c).
-    let generator = Generator::parse("speed-only").expect("a known generator");
-    let case = case_named(&generator, "turn_bias", 600.0).expect("a known case");
-    let noise = NoiseColour::parse("ou-2s").expect("a known noise");
-    let settings = run_settings(&generator, Some(&case), &noise, 1000, 600.0);
-    let truth = UnicycleModel::with_effects(case.truth.clone());
-    let diagnosis = diagnose(
-        &generate(&truth, &settings),
-        &UnicycleModel::plain(),
-        &Options::default(),
-    );
+    let run = named_run("speed-only", "turn_bias", "ou-2s", 1000).expect("a known run");
+    let diagnosis = diagnose(&run, &UnicycleModel::plain(), &Options::default());
     let kinds: Vec<&str> = diagnosis.effects.iter().map(|e| e.kind).collect();
     let bias = diagnosis
         .effects

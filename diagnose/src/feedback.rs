@@ -151,20 +151,11 @@ pub(crate) fn check_each(
     let runs: Vec<(f64, &Prepared)> = cuts.iter().map(|cut| cut.horizon_s).zip(&shorts).collect();
     (0..found.len())
         .map(|k| {
-            let check = (!found[k].effect.only_noise()).then(|| {
-                let checks = feedback_free_gains(prepared, &runs, (fixed, found, k), options);
-                // The horizon that predicts it best speaks for it; the level
-                // pays for the choice.
-                let zs: Vec<f64> = checks.iter().map(|c| c.z).collect();
-                let best = checks
-                    .into_iter()
-                    .max_by(|a, b| a.z.total_cmp(&b.z))
-                    .expect("at least one horizon");
-                FeedbackFree {
-                    z_needed: z_needed(&zs),
-                    ..best
-                }
-            });
+            let check = if found[k].effect.only_noise() {
+                None
+            } else {
+                feedback_free_check(prepared, &runs, (fixed, found, k), options)
+            };
             tracing::debug!(effect = ?found[k].effect, ?check, "feedback-free check");
             check
         })
@@ -289,21 +280,21 @@ pub fn feedback_free_cuts(
     ]
 }
 
-/// How `found[k]` predicts each short-horizon run of `shorts` (with its
-/// horizon), against the model of `fixed` and the other effects of
+/// How `found[k]` predicts the short-horizon runs of `shorts` (each with
+/// its horizon), against the model of `fixed` and the other effects of
 /// `found`, and how large it is against the noise of the long-horizon run
-/// `long`. The held-out blocks are the first run's; each other run is
-/// scored on its segments that lie within a block's span, so that the
-/// refits outside each block serve every horizon.
-pub fn feedback_free_gains(
+/// `long`: the horizon that predicts it best speaks for it, at the level
+/// that pays for the choice ([`z_needed`]). The held-out blocks are the
+/// first run's; each other run is scored on its segments that lie within a
+/// block's span, so that the refits outside each block serve every horizon.
+/// None without a run to score.
+pub fn feedback_free_check(
     long: &Prepared,
     shorts: &[(f64, &Prepared)],
     (fixed, found, k): (&[ScopedEffect], &[ScopedEffect], usize),
     options: &Options,
-) -> Vec<FeedbackFree> {
-    let Some(&(_, first)) = shorts.first() else {
-        return Vec::new();
-    };
+) -> Option<FeedbackFree> {
+    let &(_, first) = shorts.first()?;
     let others = all_but(found, k);
     // Each block is held out from the parameters too: the effects that move
     // the prediction are refitted on the long segments outside it, so that
@@ -359,7 +350,7 @@ pub fn feedback_free_gains(
     let with = UnicycleModel::with_effects(fixed.iter().chain(found).cloned().collect());
     let without = UnicycleModel::with_effects(fixed.iter().chain(&others).cloned().collect());
     let size = size_in_noise(long, &with, &without);
-    shorts
+    let checks: Vec<FeedbackFree> = shorts
         .iter()
         .enumerate()
         .map(|(c, &(horizon_s, _))| {
@@ -374,13 +365,21 @@ pub fn feedback_free_gains(
                 horizon_s,
                 gain,
                 z: z(gain),
+                // Set below, once every horizon's z is known.
                 z_needed: MIN_Z,
                 expected_gain,
                 z_against_expected: z(gain - expected_gain),
                 size_in_noise: size,
             }
         })
-        .collect()
+        .collect();
+    tracing::debug!(?checks, "feedback-free check on each horizon");
+    let zs: Vec<f64> = checks.iter().map(|c| c.z).collect();
+    let best = checks.into_iter().max_by(|a, b| a.z.total_cmp(&b.z))?;
+    Some(FeedbackFree {
+        z_needed: z_needed(&zs),
+        ..best
+    })
 }
 
 /// How far `with` moves the prediction of `long`'s segments from `without`'s,
