@@ -329,6 +329,36 @@ fn ten_seeds_of_the_default_against_500_drawn_from_the_model() {
     }
 }
 
+/// The demo offline on cells half as wide (`shoal-slam --grid 0.025`),
+/// which hold a lone robot in a small room closer (EXPERIMENTS.md 8b):
+/// `cargo test --release -p shoal-slam --test crowd -- --ignored
+/// --nocapture finer_grid`.
+#[test]
+#[ignore = "an experiment: three minutes of filtering"]
+fn the_demo_offline_on_a_finer_grid() {
+    let short = demo().motion.scaled(0.75, 1.0, 1.0);
+    for seed in [0, 100] {
+        let started = std::time::Instant::now();
+        let followed = follow_in_crowd(
+            &short,
+            Crowd {
+                config: FilterConfig {
+                    cell_size: 0.025,
+                    ..FilterConfig::default()
+                },
+                ..Crowd::new(450, seed, Judged::Every)
+            },
+        );
+        eprintln!(
+            "2.5 cm cells, seed {seed}: {:.1} s; mean over 20 robots, first 10 s {:.3} m, last 10 s {:.3} m, worst robot over the last 10 s {:.3} m",
+            started.elapsed().as_secs_f64(),
+            followed.error_over_first(50),
+            followed.error_over_last(50),
+            followed.worst_over_last(50),
+        );
+    }
+}
+
 /// The demo offline: its 20 robots for its 90 s (450 steps), every one
 /// followed, each filter mapping the others' first scans or not
 /// (EXPERIMENTS.md 8b): `cargo test --release -p shoal-slam --test crowd

@@ -154,8 +154,9 @@ fn the_scan_matched_proposal_against_the_motion_models() {
 }
 
 /// EXPERIMENTS.md 8b's six-seed figures: the default filter (50 scan-matched
-/// particles) against 500 drawn from the model, and learning against the
-/// model held fixed, from the wrong model and from the true one: `cargo
+/// particles) against 500 drawn from the model, learning against the
+/// model held fixed, from the wrong model and from the true one, and the
+/// default on cells half as wide (`shoal-slam --grid 0.025`): `cargo
 /// test --release -p shoal-slam --test unseen -- --ignored --nocapture
 /// six_seeds`.
 #[test]
@@ -184,6 +185,23 @@ fn six_seeds_of_each_filter_learning_and_fixed() {
         (
             "default, fixed, true model",
             FilterConfig {
+                learning: false,
+                ..defaults.clone()
+            },
+            true_model(),
+        ),
+        (
+            "default on 2.5 cm cells, learning, wrong model",
+            FilterConfig {
+                cell_size: 0.025,
+                ..defaults.clone()
+            },
+            MotionModel::legged_default(),
+        ),
+        (
+            "default on 2.5 cm cells, fixed, true model",
+            FilterConfig {
+                cell_size: 0.025,
                 learning: false,
                 ..defaults.clone()
             },
