@@ -3,6 +3,7 @@
 //! moves the simulated body and predicts motion in `shoal diagnose`, so a
 //! model that diagnosis writes is exactly what the simulator runs.
 
+use glam::DVec2;
 use serde::{Deserialize, Serialize};
 
 use crate::effects::{Effect, ScopedEffect};
@@ -195,6 +196,58 @@ impl Actuators {
     }
 }
 
+/// One step of the body: its velocity in its own frame (along, across the
+/// heading, m/s), the turn over the step (rad) and the world's flow (m/s).
+struct BodyMotion {
+    velocity: DVec2,
+    turn: f64,
+    flow: DVec2,
+}
+
+impl BodyMotion {
+    /// Midpoint integration from `pose`, whose heading at the step's middle
+    /// is the unit vector `mid_heading`; the heading is left unwrapped so
+    /// that long predictions need no wrapping per step.
+    fn advance(&self, pose: Pose, mid_heading: DVec2, dt: f64) -> Pose {
+        let moved = (mid_heading.rotate(self.velocity) + self.flow) * dt;
+        Pose {
+            x: pose.x + moved.x,
+            y: pose.y + moved.y,
+            theta: pose.theta + self.turn,
+        }
+    }
+}
+
+/// Below this a turn's half is rotated by [`small_rotation`]'s series.
+const SMALL_ANGLE_RAD: f64 = 0.1;
+
+/// The unit vector at `angle` from the x axis, for the small angles one
+/// step turns: Taylor series whose first terms left out are below 3e-17
+/// at [`SMALL_ANGLE_RAD`], a quarter of a double's rounding step at 1, so
+/// it equals `DVec2::from_angle` to the last bit or so, for a few
+/// multiplications (a `sin_cos` per step was a third of a diagnosis's
+/// time; BENCHMARKS.md 3). Larger angles take `from_angle`.
+#[inline]
+fn small_rotation(angle: f64) -> DVec2 {
+    if angle.abs() > SMALL_ANGLE_RAD {
+        return DVec2::from_angle(angle);
+    }
+    // Horner's form with the factorials' reciprocals folded into constants:
+    // divisions cost several times a multiplication.
+    const S3: f64 = -1.0 / 6.0;
+    const S5: f64 = 1.0 / 120.0;
+    const S7: f64 = -1.0 / 5040.0;
+    const S9: f64 = 1.0 / 362_880.0;
+    const C2: f64 = -1.0 / 2.0;
+    const C4: f64 = 1.0 / 24.0;
+    const C6: f64 = -1.0 / 720.0;
+    const C8: f64 = 1.0 / 40_320.0;
+    let a2 = angle * angle;
+    let sin = angle * (1.0 + a2 * (S3 + a2 * (S5 + a2 * (S7 + a2 * S9))));
+    let cos = 1.0 + a2 * (C2 + a2 * (C4 + a2 * (C6 + a2 * C8)));
+    DVec2::new(cos, sin)
+}
+
 impl UnicycleModel {
     pub fn plain() -> Self {
         Self::default()
@@ -259,9 +312,18 @@ impl UnicycleModel {
     }
 
     fn step_raw(&self, pose: Pose, v: f64, omega: f64, run_s: f64, dt: f64) -> Pose {
+        let motion = self.body_motion(&pose, v, omega, run_s, dt);
+        let mid_heading = DVec2::from_angle(pose.theta + 0.5 * motion.turn);
+        motion.advance(pose, mid_heading, dt)
+    }
+
+    /// What the body does over one step of `dt` from `pose` with the
+    /// executed `v`, `omega` at `run_s` seconds into the run: the effects
+    /// that depend on place and distance.
+    fn body_motion(&self, pose: &Pose, v: f64, omega: f64, run_s: f64, dt: f64) -> BodyMotion {
         let mut speed = v;
         let mut turn = omega * dt;
-        let mut flow = (0.0, 0.0);
+        let mut flow = DVec2::ZERO;
         for effect in self.active(run_s) {
             match *effect {
                 Effect::SurfaceZone {
@@ -272,7 +334,7 @@ impl UnicycleModel {
                     speed *= speed_factor;
                     turn *= turn_factor;
                 }
-                Effect::ExternalFlow { vx, vy } => flow = (vx, vy),
+                Effect::ExternalFlow { vx, vy } => flow = DVec2::new(vx, vy),
                 _ => {}
             }
         }
@@ -291,26 +353,10 @@ impl UnicycleModel {
                 swing = (-rate * left_m, rate * forward_m);
             }
         }
-        self.step_unwrapped(pose, (speed + swing.0, swing.1), turn, flow, dt)
-    }
-
-    /// Midpoint integration of `body_velocity` (along and across the
-    /// heading, m/s); the heading is left unwrapped so that long
-    /// predictions need no wrapping per step.
-    fn step_unwrapped(
-        &self,
-        pose: Pose,
-        body_velocity: (f64, f64),
-        turn: f64,
-        flow: (f64, f64),
-        dt: f64,
-    ) -> Pose {
-        let (sin, cos) = (pose.theta + 0.5 * turn).sin_cos();
-        let (along, across) = body_velocity;
-        Pose {
-            x: pose.x + (along * cos - across * sin + flow.0) * dt,
-            y: pose.y + (along * sin + across * cos + flow.1) * dt,
-            theta: pose.theta + turn,
+        BodyMotion {
+            velocity: DVec2::new(speed + swing.0, swing.1),
+            turn,
+            flow,
         }
     }
 
@@ -365,10 +411,19 @@ impl UnicycleModel {
                 }
             }
             let mut pose = start;
+            // The heading as a unit vector, turned by each step's half turn
+            // twice (to the step's middle, then its end) rather than taken
+            // from a sine and cosine per step.
+            let mut heading = DVec2::from_angle(pose.theta);
             while cursor < to {
                 let (v, omega) = actuators.execute(self, grid, cursor);
                 if cursor >= from {
-                    pose = self.step_raw(pose, v, omega, grid.time(cursor) - grid.t0, grid.dt);
+                    let motion =
+                        self.body_motion(&pose, v, omega, grid.time(cursor) - grid.t0, grid.dt);
+                    let half_turn = small_rotation(0.5 * motion.turn);
+                    let mid_heading = half_turn.rotate(heading);
+                    pose = motion.advance(pose, mid_heading, grid.dt);
+                    heading = half_turn.rotate(mid_heading);
                     on_step(index, cursor, pose);
                 }
                 cursor += 1;
@@ -408,6 +463,75 @@ impl UnicycleModel {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_small_rotation_is_the_sine_and_cosine_to_the_last_bits() {
+        for k in -2000..=2000 {
+            let angle = k as f64 * 0.6e-4;
+            let (fast, exact) = (small_rotation(angle), DVec2::from_angle(angle));
+            assert!(
+                (fast - exact).abs().max_element() <= 2.0 * f64::EPSILON,
+                "{angle}: {fast} against {exact}"
+            );
+        }
+        // Past the series' range it is the sine and cosine themselves.
+        assert_eq!(small_rotation(0.3), DVec2::from_angle(0.3));
+    }
+
+    /// Predicting stretches turns the heading by rotations; stepping pose
+    /// by pose takes a sine and cosine each step: both must end in one place,
+    /// whatever the body does, over turns small and large.
+    #[test]
+    fn predicted_stretches_end_where_stepping_pose_by_pose_does() {
+        let model = UnicycleModel::with_effects(
+            [
+                Effect::ActuatorLag { seconds: 0.2 },
+                Effect::Latency { seconds: 0.05 },
+                Effect::HeadingDrift { rad_per_m: 0.05 },
+                Effect::TurnCentreOffset {
+                    forward_m: 0.03,
+                    left_m: -0.02,
+                },
+                Effect::ExternalFlow {
+                    vx: 0.01,
+                    vy: -0.02,
+                },
+                Effect::SurfaceZone {
+                    region: [0.5, -1.0, 1.5, 1.0],
+                    speed_factor: 0.6,
+                    turn_factor: 0.8,
+                },
+            ]
+            .into_iter()
+            .map(ScopedEffect::always)
+            .collect(),
+        );
+        // Standing (so the actuators start as `execute` starts them),
+        // gentle turns, a spin of 0.15 rad a step (past the series' range)
+        // and straight driving; the stretches follow on from one another,
+        // so the actuators run on through them.
+        let times = [0.0, 0.5, 2.5, 3.5, 5.5, 8.5];
+        let grid = CommandGrid::from_held(
+            &times,
+            &[0.0, 0.4, 0.0, 0.3, 0.5, 0.5],
+            &[0.0, 0.5, 15.0, -0.8, 0.0, 0.0],
+            0.01,
+        );
+        let starts = [(0, 200), (200, 370), (370, 750)];
+        let start = Pose::new(0.2, -0.1, 0.4);
+        let executed = model.execute(&grid);
+        let predicted =
+            model.predict_stretches(&grid, starts.iter().map(|&(from, to)| (start, from, to)), 0);
+        for (&(from, to), end) in starts.iter().zip(predicted) {
+            let stepped = model.integrate(&grid, &executed, start, from, to);
+            assert!(
+                (end.x - stepped.x).abs() < 1e-12
+                    && (end.y - stepped.y).abs() < 1e-12
+                    && crate::pose::wrap_angle(end.theta - stepped.theta).abs() < 1e-12,
+                "{from}-{to}: {end:?} against {stepped:?}"
+            );
+        }
+    }
 
     fn straight(seconds: f64, v: f64, omega: f64) -> CommandGrid {
         CommandGrid::from_held(&[0.0, seconds], &[v, v], &[omega, omega], 0.01)
