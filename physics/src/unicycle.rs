@@ -223,7 +223,7 @@ const SMALL_ANGLE_RAD: f64 = 0.1;
 
 /// The unit vector at `angle` from the x axis, for the small angles one
 /// step turns: Taylor series whose first terms left out are below 3e-17
-/// at [`SMALL_ANGLE_RAD`], a quarter of a double's rounding step at 1, so
+/// at [`SMALL_ANGLE_RAD`], an eighth of a double's spacing at 1, so
 /// it equals `DVec2::from_angle` to the last bit or so, for a few
 /// multiplications (a `sin_cos` per step was a third of a diagnosis's
 /// time; BENCHMARKS.md 3). Larger angles take `from_angle`.
