@@ -129,7 +129,37 @@ pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
         d.baseline.heldout_nll,
         d.improved.heldout_nll
     ));
+    if let Some(text) = given_model_text(d) {
+        line(text);
+    }
     out
+}
+
+/// What the report says of a given model (`--model`) that predicts the
+/// recording worse than the plain model.
+fn given_model_text(d: &Diagnosis) -> Option<String> {
+    let given = d.given_model.as_ref().filter(|g| g.worse_than_plain)?;
+    let without: Vec<String> = given
+        .not_holding
+        .iter()
+        .map(|n| {
+            format!(
+                "without its {} it predicts {:.1} mm",
+                n.kind.replace('_', " "),
+                n.heldout_rmse_pos_m_without * 1e3
+            )
+        })
+        .collect();
+    let which = if without.is_empty() {
+        String::new()
+    } else {
+        format!(" ({})", without.join("; "))
+    };
+    Some(format!(
+        "The model given predicts this recording worse than the plain model: {:.1} mm against {:.1} mm held out. Physics fitted elsewhere does not hold here{which}; diagnose the recordings together to keep what transfers.",
+        d.baseline.heldout_rmse_pos_m * 1e3,
+        given.plain.heldout_rmse_pos_m * 1e3,
+    ))
 }
 
 /// A located difference: where, when, under which commands, how strong.

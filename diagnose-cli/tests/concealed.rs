@@ -937,6 +937,13 @@ fn physics_fitted_on_one_stretch_of_a_real_robot_holds_on_the_other() {
             "half {from}'s model on half {to}: {with} vs plain {plain}"
         );
     }
+    let given = dir.join("model0/model.toml");
+    let d = diagnose_mrclam(&parts[1], &["--model".as_ref(), given.as_os_str()]);
+    assert_eq!(d["given_model"]["worse_than_plain"], false, "{d}");
+    assert!(
+        diagnose_mrclam(&parts[1], &[])["given_model"].is_null(),
+        "no model given, nothing said of one"
+    );
     // Both halves as one: each is a held-out block, predicted better by
     // the joint model fitted on the other.
     let d: Value = serde_json::from_slice(&succeed(
@@ -959,6 +966,49 @@ fn physics_fitted_on_one_stretch_of_a_real_robot_holds_on_the_other() {
         );
         assert!(fitted < 0.9 * input, "{block}");
     }
+}
+
+/// A model fitted elsewhere that predicts a stretch worse than no model at
+/// all (here a marker 15 cm off the axle, which robot 3 does not have) is
+/// said, in the JSON and the text, with the effect that does not hold; the
+/// plain model's held-out error it is compared with is the one a
+/// diagnosis without a model reports.
+#[test]
+fn a_given_model_that_predicts_worse_than_no_model_is_said_with_what_does_not_hold() {
+    let dir = scratch("given-worse");
+    let parts = mrclam_parts(&dir, 8);
+    let model = dir.join("wrong.toml");
+    std::fs::write(
+        &model,
+        "[[effects]]\nkind = \"turn_centre_offset\"\nforward_m = 0.0\nleft_m = 0.15\n",
+    )
+    .expect("write the model");
+    let d = diagnose_mrclam(&parts[0], &["--model".as_ref(), model.as_os_str()]);
+    let given = &d["given_model"];
+    assert_eq!(given["worse_than_plain"], true, "{d}");
+    let plain = baseline_heldout(&diagnose_mrclam(&parts[0], &[]));
+    let said_plain = given["plain"]["heldout_rmse_pos_m"]
+        .as_f64()
+        .expect("the plain model's error");
+    assert!((said_plain - plain).abs() < 1e-9, "{said_plain} vs {plain}");
+    assert!(baseline_heldout(&d) > plain, "{d}");
+    assert_eq!(
+        given["not_holding"][0]["kind"], "turn_centre_offset",
+        "{given}"
+    );
+    let text = String::from_utf8(succeed(
+        Command::new(binary())
+            .args(["--robot", "3", "--mrclam"])
+            .arg(&parts[0])
+            .arg("--model")
+            .arg(&model),
+    ))
+    .expect("UTF-8");
+    assert!(
+        text.contains("worse than the plain model")
+            && text.contains("without its turn centre offset"),
+        "{text}"
+    );
 }
 
 /// Files as other tools write them: pandas on a Windows desktop (BOM, CRLF,

@@ -16,7 +16,7 @@ use shoal_physics::{CommandGrid, Effect, ScopedEffect, UnicycleModel};
 use crate::covariates::{self, Covariate};
 pub use crate::entry::EntryTest;
 use crate::feedback::{self, FeedbackFree, NotFeedbackFree};
-use crate::fit::fit;
+use crate::fit::{all_but, fit};
 use crate::heldout::{BlockReport, block_reports, heldout, transferable};
 use crate::likelihood::{estimate_noise, long_run_factors_of_noise, residuals, standardised};
 use crate::locate::{Located, locate};
@@ -99,6 +99,9 @@ pub struct Diagnosis {
     pub blocks: Vec<BlockReport>,
     pub baseline: Heldout,
     pub improved: Heldout,
+    /// How the model diagnosed against predicts this recording beside the
+    /// plain model, when one was given (`--model`).
+    pub given_model: Option<GivenModel>,
     pub segments: usize,
     pub horizon_s: f64,
     /// Seconds subtracted from the input's times; reported times count from it.
@@ -109,6 +112,67 @@ pub struct Diagnosis {
     /// Per held-out segment: start time, plain and improved position error.
     #[serde(skip)]
     pub heldout_errors: Vec<(f64, f64, f64)>,
+}
+
+/// How a model given to diagnose against (another stretch's `model.toml`,
+/// say) predicts this recording beside the plain model. Physics fitted on
+/// one stretch of a robot may not hold on another (a stretch that turned
+/// one way cannot tell a marker off the axle from speed lost in turns;
+/// EXPERIMENTS.md 6b): a given model that predicts the recording worse
+/// than no model at all is said, with the effects that do not hold here,
+/// not taken as the baseline silently.
+#[derive(Clone, Debug, Serialize)]
+pub struct GivenModel {
+    /// The plain model's held-out fit (no effects at all).
+    pub plain: Heldout,
+    /// Whether the given model's held-out position error is larger than
+    /// the plain model's.
+    pub worse_than_plain: bool,
+    /// When it is worse: the given effects without which it predicts this
+    /// recording better held out.
+    pub not_holding: Vec<NotHolding>,
+}
+
+/// An effect of the given model that does not hold on this recording.
+#[derive(Clone, Debug, Serialize)]
+pub struct NotHolding {
+    pub kind: &'static str,
+    /// Held-out position error of the given model without it.
+    pub heldout_rmse_pos_m_without: f64,
+}
+
+/// [`GivenModel`] for the effects `given` whose held-out fit is `baseline`;
+/// `None` for the plain model.
+fn given_model(
+    prepared: &Prepared,
+    given: &[ScopedEffect],
+    baseline: &Heldout,
+    options: &Options,
+) -> Option<GivenModel> {
+    if given.is_empty() {
+        return None;
+    }
+    let error = |effects: &[ScopedEffect]| heldout(prepared, effects, &[], options).0;
+    let plain = error(&[]);
+    let worse_than_plain = baseline.heldout_rmse_pos_m > plain.heldout_rmse_pos_m;
+    let not_holding = if worse_than_plain {
+        (0..given.len())
+            .filter_map(|k| {
+                let without = error(&all_but(given, k)).heldout_rmse_pos_m;
+                (without < baseline.heldout_rmse_pos_m).then(|| NotHolding {
+                    kind: given[k].effect.kind(),
+                    heldout_rmse_pos_m_without: without,
+                })
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
+    Some(GivenModel {
+        plain,
+        worse_than_plain,
+        not_holding,
+    })
 }
 
 /// How many of the residuals' strongest covariates a diagnosis lists.
@@ -369,6 +433,7 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
         not_transferring,
         not_feedback_free,
         blocks: block_reports(&prepared, &baseline_blocks, &improved_blocks),
+        given_model: given_model(&prepared, fixed, &baseline, options),
         baseline,
         improved,
         segments: segs.len(),
