@@ -668,19 +668,21 @@ pub fn case_run(
     )
 }
 
-/// [`case_run`] by the names the experiment's options use, 600 s long:
-/// a test's way to one run of the experiment.
-pub fn named_run(
+/// [`case_run`] by the names the experiment's options use, 600 s long,
+/// diagnosed against the plain model with the default options: a test's
+/// way to one run of the experiment and what diagnosis makes of it.
+pub fn diagnosed_run(
     generator: &str,
     case: &str,
     noise: &str,
     seed: u64,
-) -> Result<shoal_diagnose::Recording, String> {
+) -> Result<shoal_diagnose::Diagnosis, String> {
     const DURATION_S: f64 = 600.0;
     let generator = Generator::parse(generator)?;
     let case = case_named(&generator, case, DURATION_S)?;
     let noise = NoiseColour::parse(noise)?;
-    Ok(case_run(&generator, &case, &noise, seed, DURATION_S))
+    let run = case_run(&generator, &case, &noise, seed, DURATION_S);
+    Ok(diagnose(&run, &UnicycleModel::plain(), &Options::default()))
 }
 
 /// Generates and diagnoses one run of `case`, and compares with the truth.

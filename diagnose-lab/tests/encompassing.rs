@@ -1,9 +1,7 @@
 //! Two effects that neither adds beside the other are one finding: the
 //! data cannot tell them apart, however their ΔBIC differs by chance.
 
-use shoal_diagnose::diagnosis::{Options, diagnose};
-use shoal_diagnose_lab::experiment::named_run;
-use shoal_physics::UnicycleModel;
+use shoal_diagnose_lab::experiment::diagnosed_run;
 
 #[test]
 fn a_turn_bias_and_a_heading_drift_that_explain_one_mismatch_are_said_together() {
@@ -11,8 +9,7 @@ fn a_turn_bias_and_a_heading_drift_that_explain_one_mismatch_are_said_together()
     // which seldom stops: a constant turn bias explains it as well. The
     // bias ranks first by 2.2 of ΔBIC (a hair more than a tie's 2), and
     // was named alone; neither adds beside the other.
-    let run = named_run("bench", "latency+heading_drift", "white", 1001).expect("a known run");
-    let run = diagnose(&run, &UnicycleModel::plain(), &Options::default());
+    let run = diagnosed_run("bench", "latency+heading_drift", "white", 1001).expect("a known run");
     let heading = run
         .effects
         .iter()

@@ -3,25 +3,12 @@
 //! noise, and keeps real physics in the same closed loop. Where commands
 //! are held, it also scores within the holds, where a weak drift shows.
 
-use shoal_diagnose::diagnosis::{Options, diagnose};
 use shoal_diagnose::feedback::MIN_Z;
-use shoal_diagnose_lab::experiment::named_run;
-use shoal_physics::UnicycleModel;
+use shoal_diagnose_lab::experiment::diagnosed_run;
 
 /// Diagnoses the closed-loop waypoint follower's `case` under mixed noise.
 fn diagnosed(case: &str, seed: u64) -> shoal_diagnose::Diagnosis {
-    diagnosed_from("waypoints", case, "mixed", seed)
-}
-
-/// Diagnoses `generator`'s `case` under `noise`.
-fn diagnosed_from(
-    generator: &str,
-    case: &str,
-    noise: &str,
-    seed: u64,
-) -> shoal_diagnose::Diagnosis {
-    let run = named_run(generator, case, noise, seed).expect("a known run");
-    diagnose(&run, &UnicycleModel::plain(), &Options::default())
+    diagnosed_run("waypoints", case, "mixed", seed).expect("a known run")
 }
 
 #[test]
@@ -66,12 +53,10 @@ fn a_weak_drift_under_held_commands_is_confirmed_within_the_holds() {
     // Beside a latency, this heading drift gains too little on one command
     // period (0.02 s, z 1.52) to be told from a controller's answer, and was
     // dropped; within the holds (0.98 s) it is confirmed (EXPERIMENTS.md 5c).
-    let run = diagnosed_from("bench", "latency+heading_drift", "white", 1002);
+    let run = diagnosed_run("bench", "latency+heading_drift", "white", 1002).expect("a known run");
     let kinds: Vec<&str> = run.effects.iter().map(|e| e.kind).collect();
     let drift = run
-        .effects
-        .iter()
-        .find(|e| e.kind == "heading_drift")
+        .effect("heading_drift")
         .unwrap_or_else(|| panic!("the drift is named: {kinds:?}"));
     let check = drift.feedback_free.expect("a drift moves the prediction");
     assert!(check.horizon_s > 0.5, "{check:?}");

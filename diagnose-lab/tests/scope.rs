@@ -1,9 +1,7 @@
 //! An effect found beside the ones already named may act in part of the run
 //! only: the completion pass tries that part, as a round does.
 
-use shoal_diagnose::diagnosis::{Options, diagnose};
-use shoal_diagnose_lab::experiment::named_run;
-use shoal_physics::UnicycleModel;
+use shoal_diagnose_lab::experiment::diagnosed_run;
 
 #[test]
 fn a_turn_bias_in_the_first_third_found_beside_the_noise_is_named_for_that_third() {
@@ -12,14 +10,13 @@ fn a_turn_bias_in_the_first_third_found_beside_the_noise_is_named_for_that_third
     // speed. The bias enters only beside the speed-dependent noise (the
     // completion pass); fitted to the whole run, the blocks after 200 s
     // contradicted it and it went unnamed (EXPERIMENTS.md 5c).
-    let run = named_run("speed-only", "turn_bias", "ou-2s", 1000).expect("a known run");
-    let diagnosis = diagnose(&run, &UnicycleModel::plain(), &Options::default());
-    let kinds: Vec<&str> = diagnosis.effects.iter().map(|e| e.kind).collect();
-    let bias = diagnosis
-        .effects
-        .iter()
-        .find(|e| e.kind == "turn_bias")
-        .unwrap_or_else(|| panic!("the turn bias is named: {kinds:?}"));
+    let diagnosis = diagnosed_run("speed-only", "turn_bias", "ou-2s", 1000).expect("a known run");
+    let bias = diagnosis.effect("turn_bias").unwrap_or_else(|| {
+        panic!(
+            "the turn bias is named: {:?}",
+            diagnosis.effects.iter().map(|e| e.kind).collect::<Vec<_>>()
+        )
+    });
     let [from, to] = bias
         .scoped
         .during

@@ -114,6 +114,13 @@ pub struct Diagnosis {
     pub heldout_errors: Vec<(f64, f64, f64)>,
 }
 
+impl Diagnosis {
+    /// The effect named of `kind`, if one was.
+    pub fn effect(&self, kind: &str) -> Option<&FoundEffect> {
+        self.effects.iter().find(|e| e.kind == kind)
+    }
+}
+
 /// How a model given to diagnose against (another stretch's `model.toml`,
 /// say) predicts this recording beside the plain model. Physics fitted on
 /// one stretch of a robot may not hold on another (a stretch that turned

@@ -350,36 +350,41 @@ pub fn feedback_free_check(
     let with = UnicycleModel::with_effects(fixed.iter().chain(found).cloned().collect());
     let without = UnicycleModel::with_effects(fixed.iter().chain(&others).cloned().collect());
     let size = size_in_noise(long, &with, &without);
-    let checks: Vec<FeedbackFree> = shorts
+    // Each horizon's gain and z first: the level they must reach depends
+    // on all of them (Simes').
+    let scored: Vec<(f64, f64, f64, f64)> = shorts
         .iter()
         .enumerate()
         .map(|(c, &(horizon_s, _))| {
             let blocks = || per_block.iter().map(|b| &b[c]);
-            let expected_gain = blocks().map(|b| b.expected).sum();
+            let expected_gain: f64 = blocks().map(|b| b.expected).sum();
             let gains: Vec<f64> = blocks().flat_map(|b| b.gains.iter().copied()).collect();
             let scored: Vec<Segment> = blocks().flat_map(|b| b.test.iter().cloned()).collect();
-            let gain: f64 = gains.iter().sum();
-            let sd = sd_of_sum(&scored, &gains);
-            let z = |x: f64| if sd > 0.0 { x / sd } else { 0.0 };
-            FeedbackFree {
+            (
                 horizon_s,
-                gain,
-                z: z(gain),
-                // Set below, once every horizon's z is known.
-                z_needed: MIN_Z,
+                gains.iter().sum(),
+                sd_of_sum(&scored, &gains),
                 expected_gain,
-                z_against_expected: z(gain - expected_gain),
-                size_in_noise: size,
-            }
+            )
+        })
+        .collect();
+    let z = |x: f64, sd: f64| if sd > 0.0 { x / sd } else { 0.0 };
+    let zs: Vec<f64> = scored.iter().map(|&(_, gain, sd, _)| z(gain, sd)).collect();
+    let needed = z_needed(&zs);
+    let checks: Vec<FeedbackFree> = scored
+        .into_iter()
+        .map(|(horizon_s, gain, sd, expected_gain)| FeedbackFree {
+            horizon_s,
+            gain,
+            z: z(gain, sd),
+            z_needed: needed,
+            expected_gain,
+            z_against_expected: z(gain - expected_gain, sd),
+            size_in_noise: size,
         })
         .collect();
     tracing::debug!(?checks, "feedback-free check on each horizon");
-    let zs: Vec<f64> = checks.iter().map(|c| c.z).collect();
-    let best = checks.into_iter().max_by(|a, b| a.z.total_cmp(&b.z))?;
-    Some(FeedbackFree {
-        z_needed: z_needed(&zs),
-        ..best
-    })
+    checks.into_iter().max_by(|a, b| a.z.total_cmp(&b.z))
 }
 
 /// How far `with` moves the prediction of `long`'s segments from `without`'s,

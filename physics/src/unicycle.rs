@@ -302,19 +302,15 @@ impl UnicycleModel {
         Executed { v, omega }
     }
 
-    /// One integration step of `dt` from `pose` with the executed `v`,
-    /// `omega` at `run_s` seconds into the run: the effects that depend on
-    /// place and distance.
+    /// One integration step of `dt` from `pose`: the body's motion
+    /// ([`Self::body_motion`]) integrated at the step's middle heading, the
+    /// heading wrapped.
     pub fn step(&self, pose: Pose, v: f64, omega: f64, run_s: f64, dt: f64) -> Pose {
-        let mut next = self.step_raw(pose, v, omega, run_s, dt);
-        next.theta = wrap_angle(next.theta);
-        next
-    }
-
-    fn step_raw(&self, pose: Pose, v: f64, omega: f64, run_s: f64, dt: f64) -> Pose {
         let motion = self.body_motion(&pose, v, omega, run_s, dt);
         let mid_heading = DVec2::from_angle(pose.theta + 0.5 * motion.turn);
-        motion.advance(pose, mid_heading, dt)
+        let mut next = motion.advance(pose, mid_heading, dt);
+        next.theta = wrap_angle(next.theta);
+        next
     }
 
     /// What the body does over one step of `dt` from `pose` with the
