@@ -38,11 +38,7 @@ fn a_play_made_by_the_controllers_feedback_is_dropped_and_a_real_one_kept() {
     // A true play of 0.06 rad/s, same robot and controller: kept, and
     // confirmed far beyond the bar.
     let real = diagnosed("hysteresis", 1000);
-    let play = real
-        .effects
-        .iter()
-        .find(|e| e.kind == "hysteresis")
-        .expect("the true play is named");
+    let play = real.effect("hysteresis").expect("the true play is named");
     let check = play.feedback_free.expect("a play moves the prediction");
     assert!(check.z > 4.0 * MIN_Z, "{check:?}");
 }
