@@ -168,8 +168,8 @@ fn write_into_place(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Res
     written
 }
 
-/// Writes `model.toml` (the input model with the effects found, to load
-/// with `--model`) and `fit.png` into `dir`, each whole or not at all.
+/// Writes `model.toml` (the input model, less any effect of it set aside
+/// as not holding here, with the effects found, to load with `--model`) and `fit.png` into `dir`, each whole or not at all.
 fn write_out(
     dir: &std::path::Path,
     recording: &shoal_diagnose::Recording,
@@ -178,7 +178,7 @@ fn write_out(
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let path = dir.join("model.toml");
     let text = format!(
-        "# Written by shoal diagnose: the input model plus the effects it found.\n# Load it with --model, or as the body of a simulated robot.\n{}",
+        "# Written by shoal diagnose: the input model (less what did not hold here) plus the effects it found.\n# Load it with --model, or as the body of a simulated robot.\n{}",
         diagnosis
             .model
             .to_toml()

@@ -155,9 +155,23 @@ fn given_model_text(d: &Diagnosis) -> Option<String> {
     } else {
         format!(" ({})", without.join("; "))
     };
+    let set_aside = if given.set_aside.is_empty() {
+        String::new()
+    } else {
+        let kinds: Vec<String> = given
+            .set_aside
+            .iter()
+            .map(|kind| kind.replace('_', " "))
+            .collect();
+        format!(
+            ": its {} set aside, and the recording diagnosed against the rest ({:.1} mm held out)",
+            kinds.join(" and "),
+            d.baseline.heldout_rmse_pos_m * 1e3
+        )
+    };
     Some(format!(
-        "The model given predicts this recording worse than the plain model: {:.1} mm against {:.1} mm held out. Physics fitted elsewhere does not hold here{which}; diagnose the recordings together to keep what transfers.",
-        d.baseline.heldout_rmse_pos_m * 1e3,
+        "The model given predicts this recording worse than the plain model: {:.1} mm against {:.1} mm held out. Physics fitted elsewhere does not hold here{which}{set_aside}; diagnose the recordings together to keep what transfers.",
+        given.given.heldout_rmse_pos_m * 1e3,
         given.plain.heldout_rmse_pos_m * 1e3,
     ))
 }

@@ -991,10 +991,32 @@ fn a_given_model_that_predicts_worse_than_no_model_is_said_with_what_does_not_ho
         .as_f64()
         .expect("the plain model's error");
     assert!((said_plain - plain).abs() < 1e-9, "{said_plain} vs {plain}");
-    assert!(baseline_heldout(&d) > plain, "{d}");
+    let said_given = given["given"]["heldout_rmse_pos_m"]
+        .as_f64()
+        .expect("the given model's error");
+    assert!(said_given > plain, "{d}");
     assert_eq!(
         given["not_holding"][0]["kind"], "turn_centre_offset",
         "{given}"
+    );
+    // The offset is set aside: the recording is diagnosed against what is
+    // left (here nothing), and the model written carries only what holds.
+    assert_eq!(given["set_aside"][0], "turn_centre_offset", "{given}");
+    assert!((baseline_heldout(&d) - plain).abs() < 1e-9, "{d}");
+    let out = dir.join("out");
+    succeed(
+        Command::new(binary())
+            .args(["--robot", "3", "--mrclam"])
+            .arg(&parts[0])
+            .arg("--model")
+            .arg(&model)
+            .arg("--out")
+            .arg(&out),
+    );
+    let written = std::fs::read_to_string(out.join("model.toml")).expect("the model written");
+    assert!(
+        !written.contains("left_m = 0.15"),
+        "the offset set aside was written back: {written}"
     );
     let text = String::from_utf8(succeed(
         Command::new(binary())
@@ -1006,7 +1028,8 @@ fn a_given_model_that_predicts_worse_than_no_model_is_said_with_what_does_not_ho
     .expect("UTF-8");
     assert!(
         text.contains("worse than the plain model")
-            && text.contains("without its turn centre offset"),
+            && text.contains("without its turn centre offset")
+            && text.contains("its turn centre offset set aside"),
         "{text}"
     );
 }

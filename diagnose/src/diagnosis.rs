@@ -126,18 +126,26 @@ impl Diagnosis {
 /// one stretch of a robot may not hold on another (a stretch that turned
 /// one way cannot tell a marker off the axle from speed lost in turns;
 /// EXPERIMENTS.md 6b): a given model that predicts the recording worse
-/// than no model at all is said, with the effects that do not hold here,
-/// not taken as the baseline silently.
+/// than no model at all is said, and the effects it predicts better
+/// without are set aside, so the recording is diagnosed against what holds
+/// on it and the model written (`--out`) carries only that.
 #[derive(Clone, Debug, Serialize)]
 pub struct GivenModel {
     /// The plain model's held-out fit (no effects at all).
     pub plain: Heldout,
+    /// The given model's held-out fit, every effect of it kept.
+    pub given: Heldout,
     /// Whether the given model's held-out position error is larger than
     /// the plain model's.
     pub worse_than_plain: bool,
     /// When it is worse: the given effects without which it predicts this
     /// recording better held out.
     pub not_holding: Vec<NotHolding>,
+    /// The given effects left out of the diagnosis, in the order they were:
+    /// while what is kept predicts worse than the plain model, the effect
+    /// whose absence predicts best goes. The diagnosis's baseline is what
+    /// is left.
+    pub set_aside: Vec<&'static str>,
 }
 
 /// An effect of the given model that does not hold on this recording.
@@ -148,25 +156,27 @@ pub struct NotHolding {
     pub heldout_rmse_pos_m_without: f64,
 }
 
-/// [`GivenModel`] for the effects `given` whose held-out fit is `baseline`;
-/// `None` for the plain model.
+/// [`GivenModel`] for the effects `given`, and the effects to diagnose
+/// against: all of them, or those left once the ones that do not hold are
+/// set aside. `None` for the plain model.
 fn given_model(
     prepared: &Prepared,
     given: &[ScopedEffect],
-    baseline: &Heldout,
     options: &Options,
-) -> Option<GivenModel> {
+) -> Option<(GivenModel, Vec<ScopedEffect>)> {
     if given.is_empty() {
         return None;
     }
     let error = |effects: &[ScopedEffect]| heldout(prepared, effects, &[], options).0;
     let plain = error(&[]);
-    let worse_than_plain = baseline.heldout_rmse_pos_m > plain.heldout_rmse_pos_m;
+    let fit = error(given);
+    let worse = |fit: &Heldout| fit.heldout_rmse_pos_m > plain.heldout_rmse_pos_m;
+    let worse_than_plain = worse(&fit);
     let not_holding = if worse_than_plain {
         (0..given.len())
             .filter_map(|k| {
                 let without = error(&all_but(given, k)).heldout_rmse_pos_m;
-                (without < baseline.heldout_rmse_pos_m).then(|| NotHolding {
+                (without < fit.heldout_rmse_pos_m).then(|| NotHolding {
                     kind: given[k].effect.kind(),
                     heldout_rmse_pos_m_without: without,
                 })
@@ -175,11 +185,28 @@ fn given_model(
     } else {
         Vec::new()
     };
-    Some(GivenModel {
-        plain,
-        worse_than_plain,
-        not_holding,
-    })
+    let (mut kept, mut kept_fit, mut set_aside) = (given.to_vec(), fit, Vec::new());
+    while worse(&kept_fit) && !kept.is_empty() {
+        let Some((k, without)) = (0..kept.len())
+            .map(|k| (k, error(&all_but(&kept, k))))
+            .min_by(|a, b| a.1.heldout_rmse_pos_m.total_cmp(&b.1.heldout_rmse_pos_m))
+        else {
+            break;
+        };
+        set_aside.push(kept[k].effect.kind());
+        kept.remove(k);
+        kept_fit = without;
+    }
+    Some((
+        GivenModel {
+            plain,
+            given: fit,
+            worse_than_plain,
+            not_holding,
+            set_aside,
+        },
+        kept,
+    ))
 }
 
 /// How many of the residuals' strongest covariates a diagnosis lists.
@@ -369,8 +396,13 @@ fn residual_covariates_of(
 }
 
 /// Diagnoses `recording` against `model`.
-pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options) -> Diagnosis {
+pub fn diagnose(recording: &Recording, given: &UnicycleModel, options: &Options) -> Diagnosis {
     let prepared = prepare(recording, options);
+    let (given_model, model) = match given_model(&prepared, &given.effects, options) {
+        Some((report, kept)) => (Some(report), UnicycleModel::with_effects(kept)),
+        None => (None, given.clone()),
+    };
+    let model = &model;
     let (grid, segs) = (&prepared.grid, &prepared.segments);
     let duration = recording.duration();
     let plain_residuals = residuals(model, grid, segs);
@@ -440,7 +472,7 @@ pub fn diagnose(recording: &Recording, model: &UnicycleModel, options: &Options)
         not_transferring,
         not_feedback_free,
         blocks: block_reports(&prepared, &baseline_blocks, &improved_blocks),
-        given_model: given_model(&prepared, fixed, &baseline, options),
+        given_model,
         baseline,
         improved,
         segments: segs.len(),
