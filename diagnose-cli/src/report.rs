@@ -164,13 +164,13 @@ fn given_model_text(d: &Diagnosis) -> Option<String> {
             .map(|kind| kind.replace('_', " "))
             .collect();
         format!(
-            ": its {} set aside, and the recording diagnosed against the rest ({:.1} mm held out)",
-            kinds.join(" and "),
+            " Its {} set aside and the recording diagnosed against the rest ({:.1} mm held out).",
+            kinds.join(" and ") + if kinds.len() == 1 { " was" } else { " were" },
             d.baseline.heldout_rmse_pos_m * 1e3
         )
     };
     Some(format!(
-        "The model given predicts this recording worse than the plain model: {:.1} mm against {:.1} mm held out. Physics fitted elsewhere does not hold here{which}{set_aside}; diagnose the recordings together to keep what transfers.",
+        "The model given predicts this recording worse than the plain model: {:.1} mm against {:.1} mm held out. Physics fitted elsewhere does not hold here{which}.{set_aside} Diagnose the recordings together to keep what transfers.",
         given.given.heldout_rmse_pos_m * 1e3,
         given.plain.heldout_rmse_pos_m * 1e3,
     ))

@@ -1029,7 +1029,7 @@ fn a_given_model_that_predicts_worse_than_no_model_is_said_with_what_does_not_ho
     assert!(
         text.contains("worse than the plain model")
             && text.contains("without its turn centre offset")
-            && text.contains("its turn centre offset set aside"),
+            && text.contains("Its turn centre offset was set aside"),
         "{text}"
     );
 }
