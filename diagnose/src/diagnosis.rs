@@ -395,7 +395,8 @@ fn residual_covariates_of(
     )
 }
 
-/// Diagnoses `recording` against `model`.
+/// Diagnoses `recording` against the model `given`, less any effect of it
+/// that does not hold on the recording (see [`GivenModel`]).
 pub fn diagnose(recording: &Recording, given: &UnicycleModel, options: &Options) -> Diagnosis {
     let prepared = prepare(recording, options);
     let (given_model, model) = match given_model(&prepared, &given.effects, options) {
