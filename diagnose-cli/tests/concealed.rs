@@ -574,6 +574,24 @@ fn gazebo_bags_in_sqlite3_mcap_split_and_compressed_are_diagnosed_on_one_clock()
             "log times mapped into simulation time through /clock",
             -0.001,
         ),
+        // ROS 2 Jazzy's stamped commands: both topics stamped in simulation
+        // time where they were made, so the delay is the CSV's own.
+        ("stamped", &["command=stamped"][..], "header stamps", 0.0),
+        (
+            "stamped-mcap",
+            &["command=stamped", "storage=mcap"][..],
+            "header stamps",
+            0.0,
+        ),
+        // A teleop node left on the wall clock stamps the commands there,
+        // the simulation stamps the poses: the two stamp clocks differ, and
+        // both topics are timed by the log times they share.
+        (
+            "stamped-wall",
+            &["command=stamped-wall"][..],
+            "the bag's log times",
+            0.002,
+        ),
     ] {
         let bag = write_gazebo_bag(&dir, name, options);
         // The bag as a positional argument, as a user types it.

@@ -21,6 +21,12 @@ few milliseconds after it was made. OPTIONS, any of:
                          (geometry_msgs/msg/TransformStamped) stamped by a
                          robot clock 2.5 s ahead of the recorder's; with
                          vicon there is no simulation and no /clock
+  command=twist|stamped|stamped-wall
+                         /cmd_vel as geometry_msgs/msg/Twist (default) or
+                         TwistStamped stamped in simulation time (ROS 2
+                         Jazzy's controllers take stamped commands), or
+                         stamped by a teleop node left on the wall clock
+                         (no use_sim_time)
   camera=no|yes          also /camera/image_raw (sensor_msgs/msg/Image,
                          640 x 480 rgb8, 15 Hz): 0.9 MB a message, as a
                          robot's bag is mostly images
@@ -62,6 +68,9 @@ def main(run_dir, out_dir, *options):
 
     typestore = get_typestore(Stores.ROS2_HUMBLE)
     Twist = typestore.types["geometry_msgs/msg/Twist"]
+    TwistStamped = typestore.types["geometry_msgs/msg/TwistStamped"]
+    stamped_commands = opts.get("command", "twist") in ("stamped", "stamped-wall")
+    wall_stamped = opts.get("command", "twist") == "stamped-wall"
     Vector3 = typestore.types["geometry_msgs/msg/Vector3"]
     Odometry = typestore.types["nav_msgs/msg/Odometry"]
     Header = typestore.types["std_msgs/msg/Header"]
@@ -91,6 +100,9 @@ def main(run_dir, out_dir, *options):
     types = {}
     for r in rows(f"{run_dir}/commands.csv"):
         msg = Twist(linear=Vector3(x=r["v"], y=0.0, z=0.0), angular=Vector3(x=0.0, y=0.0, z=r["omega"]))
+        if stamped_commands:
+            made = wall_ns(r["t"]) if wall_stamped else sim_ns(r["t"])
+            msg = TwistStamped(header=Header(stamp=stamp(made), frame_id="base_link"), twist=msg)
         messages.append((wall_ns(r["t"]) + COMMAND_TRANSPORT_NS, "/cmd_vel", msg))
     zero36 = [0.0] * 36
     import numpy as np
@@ -141,7 +153,8 @@ def main(run_dir, out_dir, *options):
         types["/camera/image_raw"] = Image.__msgtype__
     messages.sort(key=lambda m: m[0])
 
-    types.update({"/cmd_vel": Twist.__msgtype__, poses_topic: pose_type.__msgtype__, "/clock": Clock.__msgtype__})
+    command_type = TwistStamped if stamped_commands else Twist
+    types.update({"/cmd_vel": command_type.__msgtype__, poses_topic: pose_type.__msgtype__, "/clock": Clock.__msgtype__})
     out = Path(out_dir)
     if out.exists():
         shutil.rmtree(out)
