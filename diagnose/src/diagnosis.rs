@@ -168,34 +168,48 @@ fn given_model(
         return None;
     }
     let error = |effects: &[ScopedEffect]| heldout(prepared, effects, &[], options).0;
+    // Each effect's absence from `effects`, judged held out.
+    let without_each = |effects: &[ScopedEffect]| -> Vec<Heldout> {
+        (0..effects.len())
+            .map(|k| error(&all_but(effects, k)))
+            .collect()
+    };
     let plain = error(&[]);
     let fit = error(given);
     let worse = |fit: &Heldout| fit.heldout_rmse_pos_m > plain.heldout_rmse_pos_m;
     let worse_than_plain = worse(&fit);
-    let not_holding = if worse_than_plain {
-        (0..given.len())
-            .filter_map(|k| {
-                let without = error(&all_but(given, k)).heldout_rmse_pos_m;
-                (without < fit.heldout_rmse_pos_m).then(|| NotHolding {
-                    kind: given[k].effect.kind(),
-                    heldout_rmse_pos_m_without: without,
-                })
-            })
-            .collect()
+    // The given model's first round of absences serves both what is said
+    // (`not_holding`) and the first effect set aside.
+    let mut withouts = if worse_than_plain {
+        without_each(given)
     } else {
         Vec::new()
     };
+    let not_holding = withouts
+        .iter()
+        .enumerate()
+        .filter(|(_, without)| without.heldout_rmse_pos_m < fit.heldout_rmse_pos_m)
+        .map(|(k, without)| NotHolding {
+            kind: given[k].effect.kind(),
+            heldout_rmse_pos_m_without: without.heldout_rmse_pos_m,
+        })
+        .collect();
     let (mut kept, mut kept_fit, mut set_aside) = (given.to_vec(), fit, Vec::new());
-    while worse(&kept_fit) && !kept.is_empty() {
-        let Some((k, without)) = (0..kept.len())
-            .map(|k| (k, error(&all_but(&kept, k))))
+    while worse(&kept_fit) {
+        let Some((k, without)) = withouts
+            .into_iter()
+            .enumerate()
             .min_by(|a, b| a.1.heldout_rmse_pos_m.total_cmp(&b.1.heldout_rmse_pos_m))
         else {
             break;
         };
-        set_aside.push(kept[k].effect.kind());
-        kept.remove(k);
+        set_aside.push(kept.remove(k).effect.kind());
         kept_fit = without;
+        withouts = if worse(&kept_fit) {
+            without_each(&kept)
+        } else {
+            Vec::new()
+        };
     }
     Some((
         GivenModel {

@@ -443,24 +443,17 @@ fn what_the_demos_error_is_made_of() {
                 )
             })
             .collect();
-        let late: Vec<String> = runs
-            .iter()
-            .map(|r| format!("{:.3}", r.error_over_last(50)))
-            .collect();
-        let worst: Vec<String> = runs
-            .iter()
-            .map(|r| format!("{:.2}", r.worst_over_last(50)))
-            .collect();
-        let mean_late = mean(
-            &runs
-                .iter()
-                .map(|r| r.error_over_last(50))
-                .collect::<Vec<_>>(),
-        );
+        let late: Vec<f64> = runs.iter().map(|r| r.error_over_last(50)).collect();
+        let listed = |values: &[f64], digits: usize| -> String {
+            let texts: Vec<String> = values.iter().map(|v| format!("{v:.digits$}")).collect();
+            texts.join(", ")
+        };
+        let worst: Vec<f64> = runs.iter().map(|r| r.worst_over_last(50)).collect();
         eprintln!(
-            "{label}: seeds 0, 100, 1, 2: mean over 20 robots over the last 10 s {} m (their mean {mean_late:.3} m); worst robot {} m",
-            late.join(", "),
-            worst.join(", "),
+            "{label}: seeds 0, 100, 1, 2: mean over 20 robots over the last 10 s {} m (their mean {:.3} m); worst robot {} m",
+            listed(&late, 3),
+            mean(&late),
+            listed(&worst, 2),
         );
     }
 }
