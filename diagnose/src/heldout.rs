@@ -184,8 +184,8 @@ pub(crate) fn block_reports(
         .collect()
 }
 
-/// A held-out block whose log-likelihood an effect lowers by more than
-/// this contradicts it: a likelihood ratio of e^2 (about 7) against the
+/// Held out alone, a block whose log-likelihood an effect lowers by more
+/// than this contradicts it: a likelihood ratio of e^2 (about 7) against the
 /// effect in data it was not fitted on, "positive" evidence on Kass and
 /// Raftery's scale (2 log-ratio above 4), where a refitted effect that is
 /// merely useless in a block loses a fraction of a nat. The same body's
@@ -194,11 +194,21 @@ pub(crate) fn block_reports(
 /// scaled, on MRCLAM's robots twice as many single-stretch models predicted
 /// another stretch worse than the plain model (EXPERIMENTS.md, "Physics
 /// that transfers").
-pub const CONTRADICTION_NATS: f64 = 2.0;
+const CONTRADICTION_NATS: f64 = 2.0;
+
+/// How far below zero the worst of `blocks` held-out gains must fall to
+/// contradict an effect: [`CONTRADICTION_NATS`] for the one block, plus
+/// the log of how many blocks were looked at. Under an effect that holds,
+/// the chance that a block's likelihood ratio goes against it by a factor
+/// c is at most 1/c (Royall's universal bound); the worst of k blocks
+/// has k such chances, and e^2 k keeps their sum at e^-2.
+pub fn contradiction_nats(blocks: usize) -> f64 {
+    CONTRADICTION_NATS + (blocks.max(1) as f64).ln()
+}
 
 /// The effects of `found` that transfer: while the model with them
 /// predicts some held-out block worse than `fixed` alone by more than
-/// `CONTRADICTION_NATS`, the effect whose removal helps the worst block
+/// [`contradiction_nats`] of the blocks, the effect whose removal helps the worst block
 /// most is dropped. Effects that need not transfer (`must_transfer`) are
 /// on both sides of the comparison and never dropped here. Returns the indices
 /// into `found` of the effects kept, and of those dropped with the block
@@ -234,7 +244,7 @@ pub(crate) fn transferable(
         else {
             break;
         };
-        if excess <= CONTRADICTION_NATS {
+        if excess <= contradiction_nats(plain.len()) {
             break;
         }
         let without =

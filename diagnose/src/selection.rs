@@ -11,7 +11,7 @@ use crate::entry::{
     factors_of, factors_with,
 };
 use crate::fit::{Fitted, all_but, fit, nll_of};
-use crate::heldout::{CONTRADICTION_NATS, heldout_gain, heldout_gain_of_joint, must_transfer};
+use crate::heldout::{contradiction_nats, heldout_gain, heldout_gain_of_joint, must_transfer};
 use crate::likelihood::LongRun;
 use crate::locate::Located;
 use crate::prepared::{Alternative, OperatingPoint, Options, Prepared, Unexplained};
@@ -627,12 +627,12 @@ pub(crate) struct Selected {
 /// The held-out gain of adding `chosen` to `base`, if it holds out: it
 /// must predict the held-out blocks better in all, and, if it is physics
 /// of the body (`heldout::must_transfer`), no block may contradict it
-/// (`heldout::CONTRADICTION_NATS`).
+/// (`heldout::contradiction_nats`).
 fn holds_out(selection: &Selection, base: &[ScopedEffect], chosen: &ScopedEffect) -> Option<f64> {
     let gains = selection.heldout_through_lens(base, chosen);
     let gain_heldout: f64 = gains.iter().sum();
     let worst = gains.iter().copied().fold(f64::INFINITY, f64::min);
-    let contradicted = must_transfer(chosen) && worst < -CONTRADICTION_NATS;
+    let contradicted = must_transfer(chosen) && worst < -contradiction_nats(gains.len());
     tracing::debug!(
         kind = chosen.effect.kind(),
         ?gains,
@@ -820,7 +820,7 @@ impl Selection<'_> {
         );
         if heldout_gain.is_nan()
             || heldout_gain <= 0.0
-            || (must_transfer(&candidate) && worst < -CONTRADICTION_NATS)
+            || (must_transfer(&candidate) && worst < -contradiction_nats(gains.len()))
         {
             out.rejected_heldout.push(candidate.effect.kind());
             return false;
