@@ -260,14 +260,21 @@ pub fn long_run_of_components(segments: &[Segment], standardised: &[[f64; 3]]) -
 }
 
 /// Half-width, in segments, of the local mean that
-/// [`long_run_factors_of_noise`] removes.
-const LOCAL_MEAN_HALF_WIDTH: usize = 25;
+/// [`long_run_factors_of_noise`] removes: two and a half times the longest
+/// lag the kernel weighs (`long_run_around`'s 40). A local mean takes from
+/// the series what varies slower than its window, and the kernel reads the
+/// long-run variance from what varies slower than its bandwidth: with a
+/// half-width of 25, inside the 28-segment bandwidth of a 5 s noise on 1 s
+/// segments, the along factor came out 0.54-0.60 of the whole run's (two
+/// null runs), and 4 of 40 null runs under that noise located a stretch
+/// of time that differed; with 100, none (EXPERIMENTS.md 5b).
+const LOCAL_MEAN_HALF_WIDTH: usize = 100;
 
 /// [`long_run_of_components`]' factors for the noise alone, for a model that may still miss
 /// an effect: a mismatch that comes and goes over minutes (a zone driven
 /// into, a fault that starts) would otherwise pass for correlated noise and
-/// hide itself. A local mean over about 50 segments is removed first, which
-/// keeps the correlation of noise over seconds.
+/// hide itself. A local mean over about 200 segments is removed first,
+/// which keeps the correlation of noise over seconds.
 pub fn long_run_factors_of_noise(segments: &[Segment], standardised: &[[f64; 3]]) -> [f64; 3] {
     components_around(segments, standardised, Some(LOCAL_MEAN_HALF_WIDTH)).map(|l| l.factor)
 }
