@@ -417,6 +417,33 @@ mod tests {
     }
 
     #[test]
+    fn the_noise_factor_of_a_slow_noise_on_a_ten_minute_run_is_the_whole_runs() {
+        // 5 s noise seen on 1 s segments: AR(1) with rho = 0.82. The local
+        // mean must not take what the kernel reads: with a mean over 51
+        // segments the noise factor came out near half the whole run's.
+        let n = 600;
+        let segments = chain(n);
+        let normal = rand_distr::StandardNormal;
+        let ratios: Vec<f64> = (0..10)
+            .map(|seed| {
+                let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+                let mut x = 0.0;
+                let ar: Vec<[f64; 3]> = (0..n)
+                    .map(|_| {
+                        x = 0.82 * x + rng.sample::<f64, _>(normal);
+                        [x, x, x]
+                    })
+                    .collect();
+                let whole = long_run_of_components(&segments, &ar)[0].factor;
+                long_run_factors_of_noise(&segments, &ar)[0] / whole
+            })
+            .collect();
+        let mean = ratios.iter().sum::<f64>() / ratios.len() as f64;
+        // 0.83 with the mean over 201 segments, 0.42 over 51.
+        assert!(mean > 0.7, "{ratios:?}");
+    }
+
+    #[test]
     fn a_mismatch_that_comes_and_goes_is_not_taken_for_correlated_noise() {
         // White noise plus a shift of 1.5 standard deviations in the middle
         // third of the run: an effect, not coloured noise.
