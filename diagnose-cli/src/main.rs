@@ -169,7 +169,8 @@ fn write_into_place(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Res
 }
 
 /// Writes `model.toml` (the input model, less any effect of it set aside
-/// as not holding here, with the effects found, to load with `--model`) and `fit.png` into `dir`, each whole or not at all.
+/// as not holding here, with the effects found, to load with `--model`)
+/// and `fit.png` into `dir`, each whole or not at all.
 fn write_out(
     dir: &std::path::Path,
     recording: &shoal_diagnose::Recording,

@@ -17,7 +17,7 @@ use crate::covariates::{self, Covariate};
 pub use crate::entry::EntryTest;
 use crate::feedback::{self, FeedbackFree, NotFeedbackFree};
 use crate::fit::{all_but, fit};
-use crate::heldout::{BlockReport, block_reports, heldout, transferable};
+use crate::heldout::{BlockReport, HeldoutRun, block_reports, heldout, transferable};
 use crate::likelihood::{estimate_noise, long_run_factors_of_noise, residuals, standardised};
 use crate::locate::{Located, locate};
 pub use crate::prepared::{
@@ -156,27 +156,28 @@ pub struct NotHolding {
     pub heldout_rmse_pos_m_without: f64,
 }
 
-/// [`GivenModel`] for the effects `given`, and the effects to diagnose
-/// against: all of them, or those left once the ones that do not hold are
-/// set aside. `None` for the plain model.
+/// [`GivenModel`] for the effects `given`, the effects to diagnose
+/// against (all of them, or those left once the ones that do not hold are
+/// set aside) and their held-out run, the diagnosis's baseline. `None` for
+/// the plain model.
 fn given_model(
     prepared: &Prepared,
     given: &[ScopedEffect],
     options: &Options,
-) -> Option<(GivenModel, Vec<ScopedEffect>)> {
+) -> Option<(GivenModel, Vec<ScopedEffect>, HeldoutRun)> {
     if given.is_empty() {
         return None;
     }
-    let error = |effects: &[ScopedEffect]| heldout(prepared, effects, &[], options).0;
+    let error = |effects: &[ScopedEffect]| heldout(prepared, effects, &[], options);
     // Each effect's absence from `effects`, judged held out.
-    let without_each = |effects: &[ScopedEffect]| -> Vec<Heldout> {
+    let without_each = |effects: &[ScopedEffect]| -> Vec<HeldoutRun> {
         (0..effects.len())
             .map(|k| error(&all_but(effects, k)))
             .collect()
     };
-    let plain = error(&[]);
+    let plain = error(&[]).0;
     let fit = error(given);
-    let worse = |fit: &Heldout| fit.heldout_rmse_pos_m > plain.heldout_rmse_pos_m;
+    let worse = |run: &HeldoutRun| run.0.heldout_rmse_pos_m > plain.heldout_rmse_pos_m;
     let worse_than_plain = worse(&fit);
     // The given model's first round of absences serves both what is said
     // (`not_holding`) and the first effect set aside.
@@ -188,19 +189,20 @@ fn given_model(
     let not_holding = withouts
         .iter()
         .enumerate()
-        .filter(|(_, without)| without.heldout_rmse_pos_m < fit.heldout_rmse_pos_m)
+        .filter(|(_, without)| without.0.heldout_rmse_pos_m < fit.0.heldout_rmse_pos_m)
         .map(|(k, without)| NotHolding {
             kind: given[k].effect.kind(),
-            heldout_rmse_pos_m_without: without.heldout_rmse_pos_m,
+            heldout_rmse_pos_m_without: without.0.heldout_rmse_pos_m,
         })
         .collect();
+    let given_fit = fit.0;
     let (mut kept, mut kept_fit, mut set_aside) = (given.to_vec(), fit, Vec::new());
     while worse(&kept_fit) {
-        let Some((k, without)) = withouts
-            .into_iter()
-            .enumerate()
-            .min_by(|a, b| a.1.heldout_rmse_pos_m.total_cmp(&b.1.heldout_rmse_pos_m))
-        else {
+        let Some((k, without)) = withouts.into_iter().enumerate().min_by(|a, b| {
+            a.1.0
+                .heldout_rmse_pos_m
+                .total_cmp(&b.1.0.heldout_rmse_pos_m)
+        }) else {
             break;
         };
         set_aside.push(kept.remove(k).effect.kind());
@@ -214,12 +216,13 @@ fn given_model(
     Some((
         GivenModel {
             plain,
-            given: fit,
+            given: given_fit,
             worse_than_plain,
             not_holding,
             set_aside,
         },
         kept,
+        kept_fit,
     ))
 }
 
@@ -413,9 +416,9 @@ fn residual_covariates_of(
 /// that does not hold on the recording (see [`GivenModel`]).
 pub fn diagnose(recording: &Recording, given: &UnicycleModel, options: &Options) -> Diagnosis {
     let prepared = prepare(recording, options);
-    let (given_model, model) = match given_model(&prepared, &given.effects, options) {
-        Some((report, kept)) => (Some(report), UnicycleModel::with_effects(kept)),
-        None => (None, given.clone()),
+    let (given_model, model, given_run) = match given_model(&prepared, &given.effects, options) {
+        Some((report, kept, run)) => (Some(report), UnicycleModel::with_effects(kept), Some(run)),
+        None => (None, given.clone(), None),
     };
     let model = &model;
     let (grid, segs) = (&prepared.grid, &prepared.segments);
@@ -467,7 +470,9 @@ pub fn diagnose(recording: &Recording, given: &UnicycleModel, options: &Options)
         })
         .collect();
     let final_model = UnicycleModel::with_effects(fixed.iter().chain(&found).cloned().collect());
-    let (baseline, plain_errors, baseline_blocks) = heldout(&prepared, fixed, &[], options);
+    // What the given model's check already held out is the baseline.
+    let (baseline, plain_errors, baseline_blocks) =
+        given_run.unwrap_or_else(|| heldout(&prepared, fixed, &[], options));
     let (improved, improved_errors, improved_blocks) = if found.is_empty() {
         (baseline, plain_errors.clone(), baseline_blocks.clone())
     } else {

@@ -129,6 +129,10 @@ pub fn must_transfer(scoped: &ScopedEffect) -> bool {
 /// A held-out block's negative log-likelihood and position error.
 pub(crate) type BlockScore = (f64, f64);
 
+/// [`heldout`]'s result: the totals, each segment's start time and
+/// position error, and each block's score.
+pub(crate) type HeldoutRun = (Heldout, Vec<(f64, f64)>, Vec<BlockScore>);
+
 /// Held-out fit of `fixed` plus `found` (refitted per block) over every
 /// block: the totals, each segment's position error, and each block's
 /// negative log-likelihood and position error.
@@ -137,7 +141,7 @@ pub(crate) fn heldout(
     fixed: &[ScopedEffect],
     found: &[ScopedEffect],
     options: &Options,
-) -> (Heldout, Vec<(f64, f64)>, Vec<BlockScore>) {
+) -> HeldoutRun {
     let n = prepared.segments.len();
     let per_fold: Vec<(f64, Vec<Residual>)> = on_folds(prepared, |train, test| {
         let effects = refit_on(prepared, train, fixed, found, options);
@@ -202,7 +206,7 @@ const CONTRADICTION_NATS: f64 = 2.0;
 /// the chance that a block's likelihood ratio goes against it by a factor
 /// c is at most 1/c (Royall's universal bound); the worst of k blocks
 /// has k such chances, and e^2 k keeps their sum at e^-2.
-pub fn contradiction_nats(blocks: usize) -> f64 {
+pub(crate) fn contradiction_nats(blocks: usize) -> f64 {
     CONTRADICTION_NATS + (blocks.max(1) as f64).ln()
 }
 
