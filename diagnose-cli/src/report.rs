@@ -88,6 +88,17 @@ pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
         "{} segments of {:.1} s compared.",
         d.segments, d.horizon_s
     ));
+    if let Some(made) = &d.integration {
+        line(format!(
+            "How the recording was made: {} (χ² {:.1} on {} parameters, {:.1} needed at {}; ΔBIC {:.0}). The plain model below steps so too; what follows is measured against it.",
+            made.sentence,
+            made.test.chi2,
+            made.test.dof,
+            made.test.needed,
+            made.test.level,
+            made.delta_bic
+        ));
+    }
     let in_motion = |l: &&Located| l.component != "spread";
     let motion_differs = d.located.iter().any(|l| in_motion(&l));
     if !d.mismatch {

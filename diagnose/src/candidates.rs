@@ -147,6 +147,7 @@ pub(crate) fn narrower_scope(
             | Effect::BatteryFade { .. }
             | Effect::SpeedNoise { .. }
             | Effect::TurnCentreOffset { .. }
+            | Effect::EulerStep { .. }
     );
     if !scopable || global.during.is_some() {
         return None;

@@ -67,6 +67,11 @@ pub struct Diagnosis {
     pub mismatch: bool,
     pub located: Vec<Located>,
     pub effects: Vec<FoundEffect>,
+    /// How the recording was made, found as an effect is and said apart
+    /// from the body's physics: the poses move as a body a simulator steps
+    /// by forward Euler (`euler_step`). The plain model the effects are
+    /// measured against steps so too.
+    pub integration: Option<FoundEffect>,
     /// Mismatches no effect of the library explains physically.
     pub unexplained: Vec<Unexplained>,
     /// What the residuals of the model with the effects found still
@@ -456,7 +461,7 @@ pub fn diagnose(recording: &Recording, given: &UnicycleModel, options: &Options)
     };
     let mut offset = 0;
     let named: Vec<&'static str> = found.iter().map(|e| e.effect.kind()).collect();
-    let effects: Vec<FoundEffect> = found
+    let (integration, effects): (Vec<FoundEffect>, Vec<FoundEffect>) = found
         .iter()
         .zip(evidence)
         .map(|(scoped, mut evidence)| {
@@ -468,11 +473,31 @@ pub fn diagnose(recording: &Recording, given: &UnicycleModel, options: &Options)
             offset += count;
             describe(scoped, se, evidence, duration, operating_point)
         })
-        .collect();
+        .partition(|e| e.kind == "euler_step");
     let final_model = UnicycleModel::with_effects(fixed.iter().chain(&found).cloned().collect());
+    // How the recording was made (a simulator's integration step) is found
+    // as an effect is, beside the physics it could be taken for, and then
+    // held as the recording's: the plain model the physics is measured
+    // against, and what the residuals are located on, both move as the
+    // recording does.
+    let (made, found): (Vec<ScopedEffect>, Vec<ScopedEffect>) =
+        found.into_iter().partition(|e| e.effect.of_the_recording());
+    let fixed = &fixed.iter().chain(&made).cloned().collect::<Vec<_>>();
+    let (located, noise_correlation) = if made.is_empty() {
+        (located, noise_correlation)
+    } else {
+        let model = UnicycleModel::with_effects(fixed.clone());
+        let residuals = residuals(&model, grid, segs);
+        let noise = estimate_noise(&model, segs, &residuals);
+        let z = standardised(&model, &noise, segs, &residuals);
+        let factors = long_run_factors_of_noise(segs, &z);
+        (locate(segs, &z, factors, options.alpha), factors)
+    };
     // What the given model's check already held out is the baseline.
-    let (baseline, plain_errors, baseline_blocks) =
-        given_run.unwrap_or_else(|| heldout(&prepared, fixed, &[], options));
+    let (baseline, plain_errors, baseline_blocks) = match given_run {
+        Some(run) if made.is_empty() => run,
+        _ => heldout(&prepared, fixed, &[], options),
+    };
     let (improved, improved_errors, improved_blocks) = if found.is_empty() {
         (baseline, plain_errors.clone(), baseline_blocks.clone())
     } else {
@@ -481,6 +506,7 @@ pub fn diagnose(recording: &Recording, given: &UnicycleModel, options: &Options)
     Diagnosis {
         mismatch: !effects.is_empty() || !located.is_empty() || !unexplained.is_empty(),
         located,
+        integration: integration.into_iter().next(),
         effects,
         unexplained,
         residual_covariates: residual_covariates_of(&final_model, grid, segs),

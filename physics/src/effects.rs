@@ -60,6 +60,15 @@ pub enum Effect {
     /// differential drive's axle): in every turn it swings sideways by
     /// `forward_m` and back by `left_m` per radian.
     TurnCentreOffset { forward_m: f64, left_m: f64 },
+    /// The observed body moves as one stepped by forward Euler every
+    /// `seconds`: each step drives along the heading it started with, so
+    /// in every turn the path slips to the inside by half a step's turn,
+    /// sideways at speed times turn rate times half the step. No body's
+    /// wheels do that (a skidding body slides to the outside); a simulator
+    /// that integrates its robot so does, and what it records is the
+    /// recording's integration, not physics (`shoal diagnose` says it
+    /// apart from the effects).
+    EulerStep { seconds: f64 },
 }
 
 fn unchanged() -> f64 {
@@ -67,7 +76,7 @@ fn unchanged() -> f64 {
 }
 
 /// The kinds, in the order `shoal diagnose` tries them.
-pub const EFFECT_KINDS: [&str; 15] = [
+pub const EFFECT_KINDS: [&str; 16] = [
     "latency",
     "actuator_lag",
     "speed_scale",
@@ -83,6 +92,7 @@ pub const EFFECT_KINDS: [&str; 15] = [
     "speed_noise",
     "turn_speed_loss",
     "turn_centre_offset",
+    "euler_step",
 ];
 
 impl Effect {
@@ -90,6 +100,12 @@ impl Effect {
     /// robot is predicted to go.
     pub fn only_noise(&self) -> bool {
         matches!(self, Effect::SpeedNoise { .. })
+    }
+
+    /// Whether the effect is how the recording was made (a simulator's
+    /// integration step), not the body's physics.
+    pub fn of_the_recording(&self) -> bool {
+        matches!(self, Effect::EulerStep { .. })
     }
 
     pub fn kind(&self) -> &'static str {
@@ -109,6 +125,7 @@ impl Effect {
             Effect::SpeedNoise { .. } => "speed_noise",
             Effect::TurnSpeedLoss { .. } => "turn_speed_loss",
             Effect::TurnCentreOffset { .. } => "turn_centre_offset",
+            Effect::EulerStep { .. } => "euler_step",
         }
     }
 
@@ -116,7 +133,9 @@ impl Effect {
     /// of a surface zone is located, not fitted, so it is not among them.
     pub fn params(&self) -> Vec<(&'static str, f64)> {
         match *self {
-            Effect::Latency { seconds } | Effect::ActuatorLag { seconds } => {
+            Effect::Latency { seconds }
+            | Effect::ActuatorLag { seconds }
+            | Effect::EulerStep { seconds } => {
                 vec![("seconds", seconds)]
             }
             Effect::SpeedScale { factor } => vec![("factor", factor)],
@@ -175,6 +194,7 @@ impl Effect {
                 forward_m: v(0),
                 left_m: v(1),
             },
+            Effect::EulerStep { .. } => Effect::EulerStep { seconds: v(0) },
         }
     }
 
@@ -209,6 +229,7 @@ impl Effect {
                 forward_m: 0.0,
                 left_m: 0.0,
             },
+            "euler_step" => Effect::EulerStep { seconds: 0.0 },
             _ => return None,
         })
     }
@@ -270,6 +291,10 @@ impl Effect {
             // Within a robot's body: a point half a metre from the axle is
             // not on a robot of the size this library is for.
             Effect::TurnCentreOffset { .. } => vec![(-0.5, 0.5), (-0.5, 0.5)],
+            // A step is never negative (that would be a skid to the
+            // outside, which is physics); a simulator stepping slower than
+            // 2 Hz is not simulating a robot.
+            Effect::EulerStep { .. } => vec![(0.0, 0.5)],
         }
     }
 
@@ -404,6 +429,9 @@ impl Effect {
                 } else {
                     "to the left"
                 }
+            ),
+            Effect::EulerStep { seconds } => format!(
+                "The poses move as a body stepped by forward Euler every {seconds:.3} s: each step drives along the heading it started with, so the path slips to the inside of every turn (a simulator's integration step: how the recording was made, not the body's physics)."
             ),
         }
     }

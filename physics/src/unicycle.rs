@@ -342,11 +342,18 @@ impl UnicycleModel {
         // The observed point's own velocity in the body frame, beyond the
         // turning centre's (along, across), m/s.
         let mut swing = (0.0, 0.0);
+        let rate = turn / dt;
         for effect in self.active(run_s) {
-            if let Effect::TurnCentreOffset { forward_m, left_m } = *effect {
-                // omega x r for r = (forward, left): (-omega left, omega forward).
-                let rate = turn / dt;
-                swing = (-rate * left_m, rate * forward_m);
+            match *effect {
+                Effect::TurnCentreOffset { forward_m, left_m } => {
+                    // omega x r for r = (forward, left): (-omega left, omega forward).
+                    swing.0 -= rate * left_m;
+                    swing.1 += rate * forward_m;
+                }
+                // A forward-Euler step of h drives along a heading h/2 old
+                // on average: to first order, sideways at -v omega h/2.
+                Effect::EulerStep { seconds } => swing.1 -= speed * rate * 0.5 * seconds,
+                _ => {}
             }
         }
         BodyMotion {
