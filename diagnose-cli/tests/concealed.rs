@@ -1107,3 +1107,66 @@ fn runs_written_by_pandas_and_by_the_rerun_python_sdk_are_diagnosed_as_shoal_wri
         "the Rerun Python SDK's recording: {named_rrd:?}"
     );
 }
+
+/// Writes a run with another lab's forward-Euler simulator
+/// (`write_euler_run.py`) and diagnoses it.
+fn diagnose_euler_run(dir: &Path, name: &str, options: &[&str]) -> Value {
+    let run = dir.join(name);
+    let mut args: Vec<&std::ffi::OsStr> = vec![run.as_os_str(), "7".as_ref()];
+    args.extend(options.iter().map(|o| std::ffi::OsStr::new(*o)));
+    python("write_euler_run.py", &args);
+    diagnose_dir(&run, &[])
+}
+
+fn motion_located(diagnosis: &Value) -> usize {
+    diagnosis["located"]
+        .as_array()
+        .expect("located")
+        .iter()
+        .filter(|l| l["component"] != "spread")
+        .count()
+}
+
+#[test]
+fn a_simulators_forward_euler_step_is_said_as_how_the_recording_was_made_not_as_physics() {
+    let dir = scratch("euler");
+    // A null run stepped every 50 ms: its path slips to the inside of every
+    // turn, which a turning-centre offset was named for in 19 of 20 seeds.
+    let null = diagnose_euler_run(&dir, "null", &["step=0.05"]);
+    let step = null["integration"]["params"]["seconds"]
+        .as_f64()
+        .unwrap_or_else(|| panic!("the step is said: {}", null["integration"]));
+    assert!((0.04..0.065).contains(&step), "step {step}");
+    assert_eq!(null["integration"]["kind"], "euler_step");
+    assert!(kinds(&null).is_empty(), "no physics: {:?}", kinds(&null));
+    assert_eq!(motion_located(&null), 0, "{}", null["located"]);
+    assert_eq!(
+        null["baseline"]["heldout_nll"], null["improved"]["heldout_nll"],
+        "the plain model measured against steps as the recording does"
+    );
+
+    // Wheels 6% larger than the model's: speed and turn rate 1.06, found
+    // beside the step, and no offset invented for the step.
+    let wheels = diagnose_euler_run(&dir, "wheels", &["step=0.05", "radius_scale=1.06"]);
+    assert_eq!(wheels["integration"]["kind"], "euler_step");
+    let named = kinds(&wheels);
+    assert!(
+        !named.iter().any(|k| k == "turn_centre_offset"),
+        "{named:?}"
+    );
+    for kind in ["speed_scale", "turn_scale"] {
+        let factor = wheels["effects"]
+            .as_array()
+            .expect("effects")
+            .iter()
+            .find(|e| e["kind"] == kind)
+            .and_then(|e| e["params"]["factor"].as_f64())
+            .unwrap_or_else(|| panic!("{kind} named: {named:?}"));
+        assert!((factor - 1.06).abs() < 0.01, "{kind} {factor}");
+    }
+
+    // Stepped every 5 ms, as a body moves: nothing said of the recording.
+    let fine = diagnose_euler_run(&dir, "fine", &["step=0.005"]);
+    assert!(fine["integration"].is_null(), "{}", fine["integration"]);
+    assert!(kinds(&fine).is_empty(), "{:?}", kinds(&fine));
+}
