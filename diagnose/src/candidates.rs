@@ -27,6 +27,7 @@ pub(crate) fn candidates(
     located: &[Located],
     segments: &[Segment],
     duration: f64,
+    pose_period_s: f64,
 ) -> Vec<ScopedEffect> {
     // Speed noise is stated at the robot's usual speed.
     let usual_speed = OperatingPoint::of(segments).speed_m_per_s;
@@ -34,7 +35,12 @@ pub(crate) fn candidates(
         .iter()
         .filter(|k| **k != "surface_zone")
         .filter_map(|k| Effect::identity(k, [0.0; 4]))
-        .map(|e| ScopedEffect::always(e.at_reference_speed(usual_speed)))
+        .map(|e| {
+            ScopedEffect::always(
+                e.at_reference_speed(usual_speed)
+                    .within_pose_period(pose_period_s),
+            )
+        })
         .collect();
     let spans = located
         .iter()

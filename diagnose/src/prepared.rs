@@ -91,6 +91,9 @@ pub struct Prepared {
     /// The held-out blocks, as ranges of `segments`: one per recording
     /// joined, or `Options::folds` equal stretches of time.
     pub blocks: Vec<std::ops::Range<usize>>,
+    /// How often poses come: the median interval between observed poses
+    /// (what is left after the cleaning above), seconds.
+    pub pose_period_s: f64,
 }
 
 /// The run as diagnosis compares it: what no body's motion explains set
@@ -115,12 +118,15 @@ pub fn prepare_cut(
     let grid = command_grid(&recording, options.grid_dt);
     let segments = cut(&recording, &grid);
     let blocks = blocks(&segments, &recording.joins, options.folds);
+    let mut intervals: Vec<f64> = recording.poses.t.windows(2).map(|w| w[1] - w[0]).collect();
+    intervals.sort_by(f64::total_cmp);
     Prepared {
         grid,
         segments,
         pose_outliers,
         glitches,
         blocks,
+        pose_period_s: intervals.get(intervals.len() / 2).copied().unwrap_or(0.0),
     }
 }
 

@@ -649,10 +649,14 @@ pub(crate) fn select(selection: &Selection, located: &[Located], at: OperatingPo
     // mismatch of the mean (mud, a drift) otherwise passes for noise that
     // grows with speed, and the noise model it leaves behind then judges
     // the true explanation unlikely (feasible GLS orders them the same way).
-    let (mean_candidates, noise_candidates): (Vec<ScopedEffect>, Vec<ScopedEffect>) =
-        candidates(located, segs, selection.duration)
-            .into_iter()
-            .partition(|c| !c.effect.only_noise());
+    let (mean_candidates, noise_candidates): (Vec<ScopedEffect>, Vec<ScopedEffect>) = candidates(
+        located,
+        segs,
+        selection.duration,
+        selection.prepared.pose_period_s,
+    )
+    .into_iter()
+    .partition(|c| !c.effect.only_noise());
     for mut remaining in [mean_candidates, noise_candidates] {
         while out.found.len() < selection.options.max_effects
             && !remaining.is_empty()
@@ -733,7 +737,12 @@ impl Selection<'_> {
             .filter(|k| **k != "surface_zone" && !named.contains(k) && !tried.contains(k))
             .filter_map(|k| Effect::identity(k, [0.0; 4]))
             .filter(|e| !e.only_noise())
-            .map(|e| ScopedEffect::always(e.at_reference_speed(at.speed_m_per_s)))
+            .map(|e| {
+                ScopedEffect::always(
+                    e.at_reference_speed(at.speed_m_per_s)
+                        .within_pose_period(self.prepared.pose_period_s),
+                )
+            })
             .map(|c| {
                 let together: Vec<ScopedEffect> =
                     found.iter().cloned().chain([c.clone()]).collect();

@@ -67,12 +67,23 @@ pub enum Effect {
     /// wheels do that (a skidding body slides to the outside); a simulator
     /// that integrates its robot so does, and what it records is the
     /// recording's integration, not physics (`shoal diagnose` says it
-    /// apart from the effects).
-    EulerStep { seconds: f64 },
+    /// apart from the effects). A simulator's state changes once a step,
+    /// so it publishes poses at most once a step: `longest_s`, the
+    /// recording's pose period, bounds the step (not fitted).
+    EulerStep {
+        seconds: f64,
+        #[serde(default = "longest_step")]
+        longest_s: f64,
+    },
 }
 
 fn unchanged() -> f64 {
     1.0
+}
+
+/// A simulator stepping slower than 2 Hz is not simulating a robot.
+fn longest_step() -> f64 {
+    0.5
 }
 
 /// The kinds, in the order `shoal diagnose` tries them.
@@ -135,7 +146,7 @@ impl Effect {
         match *self {
             Effect::Latency { seconds }
             | Effect::ActuatorLag { seconds }
-            | Effect::EulerStep { seconds } => {
+            | Effect::EulerStep { seconds, .. } => {
                 vec![("seconds", seconds)]
             }
             Effect::SpeedScale { factor } => vec![("factor", factor)],
@@ -194,7 +205,10 @@ impl Effect {
                 forward_m: v(0),
                 left_m: v(1),
             },
-            Effect::EulerStep { .. } => Effect::EulerStep { seconds: v(0) },
+            Effect::EulerStep { longest_s, .. } => Effect::EulerStep {
+                seconds: v(0),
+                longest_s,
+            },
         }
     }
 
@@ -229,7 +243,10 @@ impl Effect {
                 forward_m: 0.0,
                 left_m: 0.0,
             },
-            "euler_step" => Effect::EulerStep { seconds: 0.0 },
+            "euler_step" => Effect::EulerStep {
+                seconds: 0.0,
+                longest_s: longest_step(),
+            },
             _ => return None,
         })
     }
@@ -246,6 +263,21 @@ impl Effect {
                     at_m_per_s: speed_m_per_s,
                 }
             }
+            _ => self.clone(),
+        }
+    }
+
+    /// The same effect for a recording whose poses come every `period_s`:
+    /// only a simulator's step has a bound there (see
+    /// [`Effect::EulerStep`]), half as long again as the period, so that
+    /// a step equal to the period is fitted inside the bound, not on it;
+    /// every other effect is returned as it is.
+    pub fn within_pose_period(&self, period_s: f64) -> Effect {
+        match *self {
+            Effect::EulerStep { seconds, .. } if period_s > 0.0 => Effect::EulerStep {
+                seconds,
+                longest_s: (1.5 * period_s).min(longest_step()),
+            },
             _ => self.clone(),
         }
     }
@@ -292,9 +324,8 @@ impl Effect {
             // not on a robot of the size this library is for.
             Effect::TurnCentreOffset { .. } => vec![(-0.5, 0.5), (-0.5, 0.5)],
             // A step is never negative (that would be a skid to the
-            // outside, which is physics); a simulator stepping slower than
-            // 2 Hz is not simulating a robot.
-            Effect::EulerStep { .. } => vec![(0.0, 0.5)],
+            // outside, which is physics), nor longer than the poses' period.
+            Effect::EulerStep { longest_s, .. } => vec![(0.0, longest_s)],
         }
     }
 
@@ -430,7 +461,7 @@ impl Effect {
                     "to the left"
                 }
             ),
-            Effect::EulerStep { seconds } => format!(
+            Effect::EulerStep { seconds, .. } => format!(
                 "The poses move as a body stepped by forward Euler every {seconds:.3} s: each step drives along the heading it started with, so the path slips to the inside of every turn (a simulator's integration step: how the recording was made, not the body's physics)."
             ),
         }
