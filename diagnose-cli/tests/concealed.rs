@@ -1128,7 +1128,7 @@ fn motion_located(diagnosis: &Value) -> usize {
 }
 
 #[test]
-fn a_simulators_forward_euler_step_is_said_as_how_the_recording_was_made_not_as_physics() {
+fn a_simulators_euler_step_is_said_as_how_the_recording_was_made_not_as_physics() {
     let dir = scratch("euler");
     // A null run stepped every 50 ms: its path slips to the inside of every
     // turn, which a turning-centre offset was named for in 19 of 20 seeds.
@@ -1164,6 +1164,15 @@ fn a_simulators_forward_euler_step_is_said_as_how_the_recording_was_made_not_as_
             .unwrap_or_else(|| panic!("{kind} named: {named:?}"));
         assert!((factor - 1.06).abs() < 0.01, "{kind} {factor}");
     }
+
+    // Semi-implicit Euler (the turn first): the path slips outward, and
+    // the step is said as negative.
+    let semi = diagnose_euler_run(&dir, "semi", &["step=0.05", "scheme=semi-implicit"]);
+    let step = semi["integration"]["params"]["seconds"]
+        .as_f64()
+        .unwrap_or_else(|| panic!("the step is said: {}", semi["integration"]));
+    assert!((-0.065..-0.04).contains(&step), "step {step}");
+    assert!(kinds(&semi).is_empty(), "no physics: {:?}", kinds(&semi));
 
     // Stepped every 5 ms, as a body moves: nothing said of the recording.
     let fine = diagnose_euler_run(&dir, "fine", &["step=0.005"]);

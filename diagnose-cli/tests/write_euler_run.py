@@ -9,6 +9,8 @@ Usage: python3 write_euler_run.py OUT_FOLDER SEED [key=value ...]
   step=0.05          the simulator's integration step, seconds
   radius_scale=1.0   true wheel radius over the nominal (speed and turn)
   delay=0.0          actuation delay, seconds
+  scheme=forward     forward (x by the old heading, then turn) or
+                     semi-implicit (turn, then x by the new heading)
   duration=600       seconds
 """
 
@@ -30,6 +32,7 @@ def main():
     radius_scale = float(opts.get("radius_scale", "1.0"))
     delay = float(opts.get("delay", "0.0"))
     duration = float(opts.get("duration", "600"))
+    semi_implicit = opts.get("scheme", "forward") == "semi-implicit"
     rng = random.Random(seed)
 
     x = y = 0.0
@@ -65,9 +68,12 @@ def main():
         left = (v - w * WHEEL_BASE_M / 2) * (1 + noise * rng.gauss(0, 1)) * radius_scale
         right = (v + w * WHEEL_BASE_M / 2) * (1 + noise * rng.gauss(0, 1)) * radius_scale
         speed, turn = (left + right) / 2, (right - left) / WHEEL_BASE_M
+        if semi_implicit:
+            theta += turn * step
         x += speed * math.cos(theta) * step
         y += speed * math.sin(theta) * step
-        theta += turn * step
+        if not semi_implicit:
+            theta += turn * step
         if t + step >= next_pose - 1e-9:
             poses.append((t + step, x + 0.003 * rng.gauss(0, 1),
                           y + 0.003 * rng.gauss(0, 1), theta + 0.01 * rng.gauss(0, 1)))

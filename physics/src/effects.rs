@@ -60,16 +60,19 @@ pub enum Effect {
     /// differential drive's axle): in every turn it swings sideways by
     /// `forward_m` and back by `left_m` per radian.
     TurnCentreOffset { forward_m: f64, left_m: f64 },
-    /// The observed body moves as one stepped by forward Euler every
-    /// `seconds`: each step drives along the heading it started with, so
-    /// in every turn the path slips to the inside by half a step's turn,
-    /// sideways at speed times turn rate times half the step. No body's
-    /// wheels do that (a skidding body slides to the outside); a simulator
-    /// that integrates its robot so does, and what it records is the
-    /// recording's integration, not physics (`shoal diagnose` says it
-    /// apart from the effects). A simulator's state changes once a step,
-    /// so it publishes poses at most once a step: `longest_s`, the
-    /// recording's pose period, bounds the step (not fitted).
+    /// The observed body moves as one a simulator steps by Euler every
+    /// `seconds`. Forward Euler (`seconds` > 0) drives each step along the
+    /// heading the step started with, so in every turn the path slips to
+    /// the inside by half a step's turn, sideways at speed times turn rate
+    /// times half the step; semi-implicit Euler (the turn first, then the
+    /// step along the new heading: `seconds` < 0) slips to the outside as
+    /// much. What a simulator so integrating records is the recording's
+    /// integration, not physics (`shoal diagnose` says it apart from the
+    /// effects). A simulator's state changes once a step, so it publishes
+    /// poses at most once a step: `longest_s`, from the recording's pose
+    /// period, bounds the step either way (not fitted), which also keeps
+    /// a real body's skid, never more than a few millimetres a second on
+    /// a robot filmed at tens of hertz, from being taken for a simulator.
     EulerStep {
         seconds: f64,
         #[serde(default = "longest_step")]
@@ -323,9 +326,8 @@ impl Effect {
             // Within a robot's body: a point half a metre from the axle is
             // not on a robot of the size this library is for.
             Effect::TurnCentreOffset { .. } => vec![(-0.5, 0.5), (-0.5, 0.5)],
-            // A step is never negative (that would be a skid to the
-            // outside, which is physics), nor longer than the poses' period.
-            Effect::EulerStep { longest_s, .. } => vec![(0.0, longest_s)],
+            // Never longer than the poses' period, either scheme.
+            Effect::EulerStep { longest_s, .. } => vec![(-longest_s, longest_s)],
         }
     }
 
@@ -461,8 +463,12 @@ impl Effect {
                     "to the left"
                 }
             ),
-            Effect::EulerStep { seconds, .. } => format!(
+            Effect::EulerStep { seconds, .. } if seconds >= 0.0 => format!(
                 "The poses move as a body stepped by forward Euler every {seconds:.3} s: each step drives along the heading it started with, so the path slips to the inside of every turn (a simulator's integration step: how the recording was made, not the body's physics)."
+            ),
+            Effect::EulerStep { seconds, .. } => format!(
+                "The poses move as a body stepped by semi-implicit Euler every {:.3} s: each step turns first and drives along the heading it ends with, so the path slips to the outside of every turn (a simulator's integration step: how the recording was made, not the body's physics).",
+                -seconds
             ),
         }
     }

@@ -351,7 +351,8 @@ impl UnicycleModel {
                     swing.1 += rate * forward_m;
                 }
                 // A forward-Euler step of h drives along a heading h/2 old
-                // on average: to first order, sideways at -v omega h/2.
+                // on average: to first order, sideways at -v omega h/2 (a
+                // semi-implicit one, h < 0 here, along one h/2 ahead).
                 Effect::EulerStep { seconds, .. } => swing.1 -= speed * rate * 0.5 * seconds,
                 _ => {}
             }
@@ -619,8 +620,11 @@ mod tests {
     #[test]
     fn a_simulators_step_is_bounded_by_how_often_it_published_poses() {
         let step = Effect::identity("euler_step", [0.0; 4]).expect("a kind");
-        assert_eq!(step.within_pose_period(0.01).ranges(), vec![(0.0, 0.015)]);
-        assert_eq!(step.within_pose_period(2.0).ranges(), vec![(0.0, 0.5)]);
+        assert_eq!(
+            step.within_pose_period(0.01).ranges(),
+            vec![(-0.015, 0.015)]
+        );
+        assert_eq!(step.within_pose_period(2.0).ranges(), vec![(-0.5, 0.5)]);
         let speed = Effect::SpeedScale { factor: 1.0 };
         assert_eq!(speed.within_pose_period(0.01), speed);
     }
