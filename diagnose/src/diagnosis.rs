@@ -69,8 +69,8 @@ pub struct Diagnosis {
     pub effects: Vec<FoundEffect>,
     /// How the recording was made, found as an effect is and said apart
     /// from the body's physics: the poses move as a body a simulator steps
-    /// by forward Euler (`euler_step`). The plain model the effects are
-    /// measured against steps so too.
+    /// by Euler (`euler_step`, forward or semi-implicit). The plain model
+    /// the effects are measured against steps so too.
     pub integration: Option<FoundEffect>,
     /// Mismatches no effect of the library explains physically.
     pub unexplained: Vec<Unexplained>,
@@ -417,6 +417,22 @@ fn residual_covariates_of(
     )
 }
 
+/// Where the run differs from `model` (its residuals' tests by time,
+/// place, command and speed), and the residuals' long-run variance factors
+/// the tests were divided by.
+fn where_it_differs(
+    model: &UnicycleModel,
+    grid: &CommandGrid,
+    segs: &[Segment],
+    options: &Options,
+) -> (Vec<Located>, [f64; 3]) {
+    let residuals = residuals(model, grid, segs);
+    let noise = estimate_noise(model, segs, &residuals);
+    let z = standardised(model, &noise, segs, &residuals);
+    let factors = long_run_factors_of_noise(segs, &z);
+    (locate(segs, &z, factors, options.alpha), factors)
+}
+
 /// Diagnoses `recording` against the model `given`, less any effect of it
 /// that does not hold on the recording (see [`GivenModel`]).
 pub fn diagnose(recording: &Recording, given: &UnicycleModel, options: &Options) -> Diagnosis {
@@ -428,12 +444,8 @@ pub fn diagnose(recording: &Recording, given: &UnicycleModel, options: &Options)
     let model = &model;
     let (grid, segs) = (&prepared.grid, &prepared.segments);
     let duration = recording.duration();
-    let plain_residuals = residuals(model, grid, segs);
-    let noise = estimate_noise(model, segs, &plain_residuals);
-    let plain_standardised = standardised(model, &noise, segs, &plain_residuals);
-    let noise_correlation = long_run_factors_of_noise(segs, &plain_standardised);
+    let (located, noise_correlation) = where_it_differs(model, grid, segs, options);
     let operating_point = OperatingPoint::of(segs);
-    let located = locate(segs, &plain_standardised, noise_correlation, options.alpha);
     let selection = Selection {
         prepared: &prepared,
         screen: subsample(segs, options.screen_segments),
@@ -473,7 +485,7 @@ pub fn diagnose(recording: &Recording, given: &UnicycleModel, options: &Options)
             offset += count;
             describe(scoped, se, evidence, duration, operating_point)
         })
-        .partition(|e| e.kind == "euler_step");
+        .partition(|e| e.scoped.effect.of_the_recording());
     let final_model = UnicycleModel::with_effects(fixed.iter().chain(&found).cloned().collect());
     // How the recording was made (a simulator's integration step) is found
     // as an effect is, beside the physics it could be taken for, and then
@@ -486,12 +498,12 @@ pub fn diagnose(recording: &Recording, given: &UnicycleModel, options: &Options)
     let (located, noise_correlation) = if made.is_empty() {
         (located, noise_correlation)
     } else {
-        let model = UnicycleModel::with_effects(fixed.clone());
-        let residuals = residuals(&model, grid, segs);
-        let noise = estimate_noise(&model, segs, &residuals);
-        let z = standardised(&model, &noise, segs, &residuals);
-        let factors = long_run_factors_of_noise(segs, &z);
-        (locate(segs, &z, factors, options.alpha), factors)
+        where_it_differs(
+            &UnicycleModel::with_effects(fixed.clone()),
+            grid,
+            segs,
+            options,
+        )
     };
     // What the given model's check already held out is the baseline.
     let (baseline, plain_errors, baseline_blocks) = match given_run {
