@@ -1179,3 +1179,34 @@ fn a_simulators_euler_step_is_said_as_how_the_recording_was_made_not_as_physics(
     assert!(fine["integration"].is_null(), "{}", fine["integration"]);
     assert!(kinds(&fine).is_empty(), "{:?}", kinds(&fine));
 }
+
+#[test]
+fn a_motion_capture_body_defined_askew_is_named_as_a_crab_angle_not_as_noise() {
+    let (null, dir) = diagnose_generated("askew", "", &[]);
+    assert!(kinds(&null).is_empty(), "{:?}", kinds(&null));
+    // The same run seen through a rigid body whose heading was defined
+    // 0.04 rad (2.3°) to the left of the robot's: it drives to the right of
+    // the heading observed. Before crab angles were a kind, this read as
+    // speed-dependent noise, the sideways residual left following speed.
+    let poses = std::fs::read_to_string(dir.join("poses.csv")).expect("poses");
+    let askew: Vec<String> = poses
+        .lines()
+        .enumerate()
+        .map(|(i, line)| {
+            let fields: Vec<&str> = line.split(',').collect();
+            match (i, fields.as_slice()) {
+                (0, _) => line.to_owned(),
+                (_, [t, x, y, theta]) => {
+                    let theta: f64 = theta.parse().expect("a heading");
+                    format!("{t},{x},{y},{:.6}", theta + 0.04)
+                }
+                _ => panic!("poses.csv line {}: {line}", i + 1),
+            }
+        })
+        .collect();
+    std::fs::write(dir.join("poses.csv"), askew.join("\n") + "\n").expect("write poses");
+    let d = diagnose_dir(&dir, &[]);
+    assert_eq!(kinds(&d), ["crab_angle"], "{}", d["effects"]);
+    let rad = d["effects"][0]["params"]["rad"].as_f64().expect("rad");
+    assert!((rad + 0.04).abs() < 0.005, "crab angle {rad}");
+}

@@ -45,6 +45,7 @@ pub fn step_of(effect: &Effect, name: &str) -> f64 {
         (Effect::SpeedNoise { .. }, _) => 0.2,
         (Effect::TurnSpeedLoss { .. }, _) => 0.1,
         (Effect::TurnCentreOffset { .. }, _) => 0.03,
+        (Effect::CrabAngle { .. }, _) => 0.02,
         (Effect::EulerStep { .. }, _) => 0.02,
     }
 }

@@ -60,6 +60,11 @@ pub enum Effect {
     /// differential drive's axle): in every turn it swings sideways by
     /// `forward_m` and back by `left_m` per radian.
     TurnCentreOffset { forward_m: f64, left_m: f64 },
+    /// The body moves `rad` to the left of the heading observed (right
+    /// when negative), sideways at speed times its sine: a motion-capture
+    /// body or a frame whose heading was set askew of the robot's, or
+    /// wheels that crab. The two are the same in poses.
+    CrabAngle { rad: f64 },
     /// The observed body moves as one a simulator steps by Euler every
     /// `seconds`. Forward Euler (`seconds` > 0) drives each step along the
     /// heading the step started with, so in every turn the path slips to
@@ -90,7 +95,7 @@ fn longest_step() -> f64 {
 }
 
 /// The kinds, in the order `shoal diagnose` tries them.
-pub const EFFECT_KINDS: [&str; 16] = [
+pub const EFFECT_KINDS: [&str; 17] = [
     "latency",
     "actuator_lag",
     "speed_scale",
@@ -106,6 +111,7 @@ pub const EFFECT_KINDS: [&str; 16] = [
     "speed_noise",
     "turn_speed_loss",
     "turn_centre_offset",
+    "crab_angle",
     "euler_step",
 ];
 
@@ -139,6 +145,7 @@ impl Effect {
             Effect::SpeedNoise { .. } => "speed_noise",
             Effect::TurnSpeedLoss { .. } => "turn_speed_loss",
             Effect::TurnCentreOffset { .. } => "turn_centre_offset",
+            Effect::CrabAngle { .. } => "crab_angle",
             Effect::EulerStep { .. } => "euler_step",
         }
     }
@@ -171,6 +178,7 @@ impl Effect {
             Effect::TurnCentreOffset { forward_m, left_m } => {
                 vec![("forward_m", forward_m), ("left_m", left_m)]
             }
+            Effect::CrabAngle { rad } => vec![("rad", rad)],
         }
     }
 
@@ -208,6 +216,7 @@ impl Effect {
                 forward_m: v(0),
                 left_m: v(1),
             },
+            Effect::CrabAngle { .. } => Effect::CrabAngle { rad: v(0) },
             Effect::EulerStep { longest_s, .. } => Effect::EulerStep {
                 seconds: v(0),
                 longest_s,
@@ -246,6 +255,7 @@ impl Effect {
                 forward_m: 0.0,
                 left_m: 0.0,
             },
+            "crab_angle" => Effect::CrabAngle { rad: 0.0 },
             "euler_step" => Effect::EulerStep {
                 seconds: 0.0,
                 longest_s: longest_step(),
@@ -326,6 +336,8 @@ impl Effect {
             // Within a robot's body: a point half a metre from the axle is
             // not on a robot of the size this library is for.
             Effect::TurnCentreOffset { .. } => vec![(-0.5, 0.5), (-0.5, 0.5)],
+            // A body askew by more than a quarter turn is not askew.
+            Effect::CrabAngle { .. } => vec![(-0.8, 0.8)],
             // Never longer than the poses' period, either scheme.
             Effect::EulerStep { longest_s, .. } => vec![(-longest_s, longest_s)],
         }
@@ -462,6 +474,11 @@ impl Effect {
                 } else {
                     "to the left"
                 }
+            ),
+            Effect::CrabAngle { rad } => format!(
+                "The robot moves {:.1}° to the {} of the heading observed (crab angle: the observed heading is set askew of the robot's, as a motion-capture body defined askew is, or its wheels crab).",
+                rad.abs().to_degrees(),
+                if rad > 0.0 { "left" } else { "right" }
             ),
             Effect::EulerStep { seconds, .. } if seconds >= 0.0 => format!(
                 "The poses move as a body stepped by forward Euler every {seconds:.3} s: each step drives along the heading it started with, so the path slips to the inside of every turn (a simulator's integration step: how the recording was made, not the body's physics)."

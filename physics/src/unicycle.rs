@@ -357,8 +357,14 @@ impl UnicycleModel {
                 _ => {}
             }
         }
+        let mut ahead = DVec2::X;
+        for effect in self.active(run_s) {
+            if let Effect::CrabAngle { rad } = *effect {
+                ahead = DVec2::from_angle(rad);
+            }
+        }
         BodyMotion {
-            velocity: DVec2::new(speed + swing.0, swing.1),
+            velocity: ahead * speed + DVec2::new(swing.0, swing.1),
             turn,
             flow,
         }
@@ -615,6 +621,25 @@ mod tests {
             off(&stepped) < 0.007,
             "stepped {stepped:?}, Euler {euler:?}"
         );
+    }
+
+    #[test]
+    fn a_crabbing_body_drives_at_its_angle_to_its_heading_and_turns_as_it_would() {
+        let model = UnicycleModel::with_effects(vec![ScopedEffect::always(Effect::CrabAngle {
+            rad: -0.1,
+        })]);
+        // Two metres ahead, facing east: 0.2 m to the right of the heading.
+        let end = drive(&model, &straight(4.0, 0.5, 0.0));
+        let plain = drive(&UnicycleModel::plain(), &straight(4.0, 0.5, 0.0));
+        let along = plain.x;
+        assert!(
+            (end.x - along * 0.1f64.cos()).abs() < 1e-9
+                && (end.y + along * 0.1f64.sin()).abs() < 1e-9,
+            "{end:?}"
+        );
+        // Turning in place it turns as the plain body does.
+        let turn = straight(1.0, 0.0, 1.0);
+        assert_eq!(drive(&model, &turn), drive(&UnicycleModel::plain(), &turn));
     }
 
     #[test]
