@@ -75,9 +75,9 @@ pub enum Effect {
     /// integration, not physics (`shoal diagnose` says it apart from the
     /// effects). A simulator's state changes once a step, so it publishes
     /// poses at most once a step: `longest_s`, from the recording's pose
-    /// period, bounds the step either way (not fitted), which also keeps
-    /// a real body's skid, never more than a few millimetres a second on
-    /// a robot filmed at tens of hertz, from being taken for a simulator.
+    /// period, bounds the step either way (not fitted). Without the bound
+    /// a real robot filmed every 10 ms (MRCLAM's robot 3) was taken for a
+    /// simulator stepping every 0.26 s.
     EulerStep {
         seconds: f64,
         #[serde(default = "longest_step")]
@@ -336,7 +336,7 @@ impl Effect {
             // Within a robot's body: a point half a metre from the axle is
             // not on a robot of the size this library is for.
             Effect::TurnCentreOffset { .. } => vec![(-0.5, 0.5), (-0.5, 0.5)],
-            // A body askew by more than a quarter turn is not askew.
+            // A body more than 45 degrees askew is mounted wrong, not askew.
             Effect::CrabAngle { .. } => vec![(-0.8, 0.8)],
             // Never longer than the poses' period, either scheme.
             Effect::EulerStep { longest_s, .. } => vec![(-longest_s, longest_s)],
