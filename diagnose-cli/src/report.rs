@@ -1,6 +1,7 @@
 //! The report a person reads: printed, and the diagnosis recording's document.
 
 use shoal_diagnose::Diagnosis;
+use shoal_diagnose::diagnosis::FoundEffect;
 use shoal_diagnose::glitches::{Glitch, GlitchKind};
 use shoal_diagnose::locate::Located;
 use shoal_diagnose_lab::experiment::Row;
@@ -19,12 +20,9 @@ fn effects_text(d: &Diagnosis) -> Vec<String> {
     let mut line = |text: String| lines.push(text);
     for e in &d.effects {
         line(format!(
-            "  {} (χ² {:.1} on {} parameters, {:.1} needed at {}; p {:.1e} after correcting for the library's kinds; ΔBIC {:.0})",
+            "  {} ({}; p {:.1e} after correcting for the library's kinds; ΔBIC {:.0})",
             e.sentence,
-            e.test.chi2,
-            e.test.dof,
-            e.test.needed,
-            e.test.level,
+            entry_test_text(e),
             e.test.p_adjusted,
             e.delta_bic
         ));
@@ -71,6 +69,14 @@ fn effects_text(d: &Diagnosis) -> Vec<String> {
     lines
 }
 
+/// The entry test that let `e` in, as the report states it.
+fn entry_test_text(e: &FoundEffect) -> String {
+    format!(
+        "χ² {:.1} on {} parameters, {:.1} needed at {}",
+        e.test.chi2, e.test.dof, e.test.needed, e.test.level
+    )
+}
+
 pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
     use std::fmt::Write as _;
     let mut out = String::new();
@@ -90,12 +96,9 @@ pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
     ));
     if let Some(made) = &d.integration {
         line(format!(
-            "How the recording was made: {} (χ² {:.1} on {} parameters, {:.1} needed at {}; ΔBIC {:.0}). The plain model below steps so too; what follows is measured against it.",
+            "How the recording was made: {} ({}; ΔBIC {:.0}). The plain model below steps so too; what follows is measured against it.",
             made.sentence,
-            made.test.chi2,
-            made.test.dof,
-            made.test.needed,
-            made.test.level,
+            entry_test_text(made),
             made.delta_bic
         ));
     }

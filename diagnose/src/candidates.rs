@@ -8,7 +8,7 @@ use shoal_physics::{CommandGrid, Effect, ScopedEffect};
 
 use crate::fit::{Fitted, fit};
 use crate::locate::Located;
-use crate::prepared::{OperatingPoint, Options, joined};
+use crate::prepared::{Options, joined};
 use crate::segments::Segment;
 use crate::zones::{at_least_min_side, region_driven};
 
@@ -23,24 +23,29 @@ const SPAN_PARAMS: usize = 2;
 /// real on generators diagnosis was not developed against").
 const ZONE_EDGE_PARAMS: usize = 4;
 
+/// `effect` over the whole run as this recording tries it: speed noise
+/// stated at the robot's usual speed, a simulator's step bounded by the
+/// poses' period.
+pub(crate) fn whole_run(effect: Effect, usual_speed: f64, pose_period_s: f64) -> ScopedEffect {
+    ScopedEffect::always(
+        effect
+            .at_reference_speed(usual_speed)
+            .within_pose_period(pose_period_s),
+    )
+}
+
 pub(crate) fn candidates(
     located: &[Located],
     segments: &[Segment],
     duration: f64,
+    usual_speed: f64,
     pose_period_s: f64,
 ) -> Vec<ScopedEffect> {
-    // Speed noise is stated at the robot's usual speed.
-    let usual_speed = OperatingPoint::of(segments).speed_m_per_s;
     let mut out: Vec<ScopedEffect> = EFFECT_KINDS
         .iter()
         .filter(|k| **k != "surface_zone")
         .filter_map(|k| Effect::identity(k, [0.0; 4]))
-        .map(|e| {
-            ScopedEffect::always(
-                e.at_reference_speed(usual_speed)
-                    .within_pose_period(pose_period_s),
-            )
-        })
+        .map(|e| whole_run(e, usual_speed, pose_period_s))
         .collect();
     let spans = located
         .iter()

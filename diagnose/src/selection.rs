@@ -5,7 +5,7 @@
 use shoal_physics::effects::EFFECT_KINDS;
 use shoal_physics::{CommandGrid, Effect, ScopedEffect};
 
-use crate::candidates::{candidates, extra_params, fit_all, narrower_scope};
+use crate::candidates::{candidates, extra_params, fit_all, narrower_scope, whole_run};
 use crate::entry::{
     EntryTest, calibrated_gain, calibrated_gain_of_move, components_of, entry_test_of_move,
     factors_of, factors_with,
@@ -112,7 +112,7 @@ impl Selection<'_> {
         let Some(identity) = Effect::identity("speed_noise", [0.0; 4]) else {
             return out;
         };
-        let start = ScopedEffect::always(identity.at_reference_speed(self.usual_speed));
+        let start = whole_run(identity, self.usual_speed, self.prepared.pose_period_s);
         let fitted = fit(
             self.grid(),
             &self.screen,
@@ -653,6 +653,7 @@ pub(crate) fn select(selection: &Selection, located: &[Located], at: OperatingPo
         located,
         segs,
         selection.duration,
+        selection.usual_speed,
         selection.prepared.pose_period_s,
     )
     .into_iter()
@@ -737,12 +738,7 @@ impl Selection<'_> {
             .filter(|k| **k != "surface_zone" && !named.contains(k) && !tried.contains(k))
             .filter_map(|k| Effect::identity(k, [0.0; 4]))
             .filter(|e| !e.only_noise())
-            .map(|e| {
-                ScopedEffect::always(
-                    e.at_reference_speed(at.speed_m_per_s)
-                        .within_pose_period(self.prepared.pose_period_s),
-                )
-            })
+            .map(|e| whole_run(e, at.speed_m_per_s, self.prepared.pose_period_s))
             .map(|c| {
                 let together: Vec<ScopedEffect> =
                     found.iter().cloned().chain([c.clone()]).collect();

@@ -77,7 +77,7 @@ pub enum Effect {
     /// poses at most once a step: `longest_s`, from the recording's pose
     /// period, bounds the step either way (not fitted). Without the bound
     /// a real robot filmed every 10 ms (MRCLAM's robot 3) was taken for a
-    /// simulator stepping every 0.26 s.
+    /// simulator stepping every 0.26 s (EXPERIMENTS.md 5c).
     EulerStep {
         seconds: f64,
         #[serde(default = "longest_step")]
