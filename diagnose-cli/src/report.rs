@@ -94,6 +94,12 @@ pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
         "{} segments of {:.1} s compared.",
         d.segments, d.horizon_s
     ));
+    if let Some(timeout) = &d.command_timeout {
+        line(format!(
+            "How the robot took its commands: {}",
+            timeout.sentence()
+        ));
+    }
     if let Some(made) = &d.integration {
         line(format!(
             "How the recording was made: {} ({}; ΔBIC {:.0}). The plain model below steps so too; what follows is measured against it.",

@@ -12,8 +12,13 @@ Usage: python3 write_euler_run.py OUT_FOLDER SEED [key=value ...]
   scheme=forward     forward (x by the old heading, then turn) or
                      semi-implicit (turn, then x by the new heading)
   duration=600       seconds
+  teleop=steady      steady (a command every 50 ms) or sparse (only when
+                     the command changes, as a keyboard teleop publishes)
+  timeout=0          the drive stops when no command has come for this
+                     long (ros2_control's cmd_vel_timeout); 0: it holds
 """
 
+import bisect
 import math
 import os
 import random
@@ -33,6 +38,8 @@ def main():
     delay = float(opts.get("delay", "0.0"))
     duration = float(opts.get("duration", "600"))
     semi_implicit = opts.get("scheme", "forward") == "semi-implicit"
+    sparse = opts.get("teleop", "steady") == "sparse"
+    timeout = float(opts.get("timeout", "0"))
     rng = random.Random(seed)
 
     x = y = 0.0
@@ -40,13 +47,16 @@ def main():
     target_v = target_w = v_cmd = w_cmd = 0.0
     change_at = 0.0
     commands, poses = [], []
+    # What the recorder saw: every command, or only the changes.
+    published = []
     next_pose = 0.0
     for i in range(int(duration / step)):
         t = i * step
         # The teleoperator: a new target every 1-4 s, pauses, a way home.
         while len(commands) * COMMAND_PERIOD_S <= t + 1e-9:
             now = len(commands) * COMMAND_PERIOD_S
-            if now >= change_at:
+            pressed = now >= change_at
+            if pressed:
                 if math.hypot(x, y) > 2.0:
                     home = math.atan2(-y, -x)
                     error = (home - theta + math.pi) % (2 * math.pi) - math.pi
@@ -60,10 +70,17 @@ def main():
                     change_at = now + rng.uniform(1, 4)
             v_cmd += max(-0.02, min(0.02, target_v - v_cmd))
             w_cmd += max(-0.1, min(0.1, target_w - w_cmd))
+            # A sparse teleop publishes on a key press and while the
+            # command ramps, not while it holds.
+            if not sparse or pressed or published[-1][1:] != (v_cmd, w_cmd):
+                published.append((now, v_cmd, w_cmd))
             commands.append((now, v_cmd, w_cmd))
         # The drive executes the command of `delay` ago, wheel by wheel.
         k = min(int(max(0.0, t - delay) / COMMAND_PERIOD_S + 1e-9), len(commands) - 1)
         _, v, w = commands[k]
+        heard = bisect.bisect_right(published, (commands[k][0] + 1e-9,))
+        if timeout > 0 and t - delay - published[heard - 1][0] > timeout:
+            v = w = 0.0
         noise = WHEEL_NOISE / math.sqrt(step / 0.01)
         left = (v - w * WHEEL_BASE_M / 2) * (1 + noise * rng.gauss(0, 1)) * radius_scale
         right = (v + w * WHEEL_BASE_M / 2) * (1 + noise * rng.gauss(0, 1)) * radius_scale
@@ -82,7 +99,7 @@ def main():
     os.makedirs(out, exist_ok=True)
     with open(os.path.join(out, "commands.csv"), "w") as f:
         f.write("t,v,omega\n")
-        f.writelines(f"{t:.3f},{v:.6f},{w:.6f}\n" for t, v, w in commands)
+        f.writelines(f"{t:.3f},{v:.6f},{w:.6f}\n" for t, v, w in published)
     with open(os.path.join(out, "poses.csv"), "w") as f:
         f.write("t,x,y,theta\n")
         f.writelines(f"{t:.4f},{a:.6f},{b:.6f},{c:.6f}\n" for t, a, b, c in poses)

@@ -27,6 +27,7 @@ use crate::recording::Recording;
 use crate::segments::Segment;
 use crate::segments::subsample;
 use crate::selection::{Evidence, Selected, Selection, select};
+use crate::timeout::{CommandTimeout, with_timeout};
 
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Where {
@@ -72,6 +73,11 @@ pub struct Diagnosis {
     /// by Euler (`euler_step`, forward or semi-implicit). The plain model
     /// the effects are measured against steps so too.
     pub integration: Option<FoundEffect>,
+    /// The robot stops when no command has come for a while (a
+    /// controller's command timeout), as the pauses of its command stream
+    /// showed before anything was fitted: each command is compared as
+    /// ending then (`timeout`).
+    pub command_timeout: Option<CommandTimeout>,
     /// Mismatches no effect of the library explains physically.
     pub unexplained: Vec<Unexplained>,
     /// What the residuals of the model with the effects found still
@@ -436,6 +442,11 @@ fn where_it_differs(
 /// Diagnoses `recording` against the model `given`, less any effect of it
 /// that does not hold on the recording (see [`GivenModel`]).
 pub fn diagnose(recording: &Recording, given: &UnicycleModel, options: &Options) -> Diagnosis {
+    let timed_out = with_timeout(recording, options);
+    let (recording, command_timeout) = match &timed_out {
+        Some((ended, timeout)) => (ended, Some(timeout.clone())),
+        None => (recording, None),
+    };
     let prepared = prepare(recording, options);
     let (given_model, model, given_run) = match given_model(&prepared, &given.effects, options) {
         Some((report, kept, run)) => (Some(report), UnicycleModel::with_effects(kept), Some(run)),
@@ -519,6 +530,7 @@ pub fn diagnose(recording: &Recording, given: &UnicycleModel, options: &Options)
         mismatch: !effects.is_empty() || !located.is_empty() || !unexplained.is_empty(),
         located,
         integration: integration.into_iter().next(),
+        command_timeout,
         effects,
         unexplained,
         residual_covariates: residual_covariates_of(&final_model, grid, segs),

@@ -18,6 +18,7 @@ pub mod recording;
 pub mod replay;
 pub mod segments;
 pub mod selection;
+pub mod timeout;
 pub mod zones;
 
 pub use diagnosis::{Diagnosis, Options, diagnose};
