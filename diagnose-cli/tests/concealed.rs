@@ -1118,6 +1118,17 @@ fn diagnose_euler_run(dir: &Path, name: &str, options: &[&str]) -> Value {
     diagnose_dir(&run, &[])
 }
 
+/// The factor of the effect of `kind` a diagnosis named.
+fn factor_named(diagnosis: &Value, kind: &str) -> f64 {
+    diagnosis["effects"]
+        .as_array()
+        .expect("effects")
+        .iter()
+        .find(|e| e["kind"] == kind)
+        .and_then(|e| e["params"]["factor"].as_f64())
+        .unwrap_or_else(|| panic!("{kind} named: {:?}", kinds(diagnosis)))
+}
+
 fn motion_located(diagnosis: &Value) -> usize {
     diagnosis["located"]
         .as_array()
@@ -1155,13 +1166,7 @@ fn a_simulators_euler_step_is_said_as_how_the_recording_was_made_not_as_physics(
         "{named:?}"
     );
     for kind in ["speed_scale", "turn_scale"] {
-        let factor = wheels["effects"]
-            .as_array()
-            .expect("effects")
-            .iter()
-            .find(|e| e["kind"] == kind)
-            .and_then(|e| e["params"]["factor"].as_f64())
-            .unwrap_or_else(|| panic!("{kind} named: {named:?}"));
+        let factor = factor_named(&wheels, kind);
         assert!((factor - 1.06).abs() < 0.01, "{kind} {factor}");
     }
 
@@ -1178,6 +1183,60 @@ fn a_simulators_euler_step_is_said_as_how_the_recording_was_made_not_as_physics(
     let fine = diagnose_euler_run(&dir, "fine", &["step=0.005"]);
     assert!(fine["integration"].is_null(), "{}", fine["integration"]);
     assert!(kinds(&fine).is_empty(), "{:?}", kinds(&fine));
+}
+
+#[test]
+fn a_robot_that_stops_when_its_commands_pause_has_its_timeout_said_not_invented_physics() {
+    let dir = scratch("timeout");
+    // A keyboard teleop publishes on a key press and while its command
+    // ramps, not while it holds one; the drive stops half a second after
+    // the last command it heard (ros2_control's cmd_vel_timeout). Compared
+    // as held, this null run read as a speed scale of 0.62 and a battery
+    // fading 80% in ten minutes.
+    let timed_out = ["step=0.01", "teleop=sparse", "timeout=0.5"];
+    let null = diagnose_euler_run(&dir, "null", &timed_out);
+    let seconds = null["command_timeout"]["seconds"]
+        .as_f64()
+        .unwrap_or_else(|| panic!("the timeout is said: {}", null["command_timeout"]));
+    assert!((0.45..0.56).contains(&seconds), "timeout {seconds}");
+    assert!(kinds(&null).is_empty(), "no physics: {:?}", kinds(&null));
+    assert_eq!(motion_located(&null), 0, "{}", null["located"]);
+
+    // The same robot's bag, as rosbag2 records it (sqlite3, simulation
+    // time): the timeout is said there too.
+    let bag = write_gazebo_bag(&dir.join("null"), "bag", &["storage=sqlite3"]);
+    let output = diagnose_gazebo(&bag, &[]);
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let from_bag: Value = serde_json::from_slice(&output.stdout).expect("json");
+    let from_bag_seconds = from_bag["command_timeout"]["seconds"].as_f64();
+    assert!(
+        from_bag_seconds.is_some_and(|s| (0.45..0.56).contains(&s)),
+        "{}",
+        from_bag["command_timeout"]
+    );
+    assert!(kinds(&from_bag).is_empty(), "{:?}", kinds(&from_bag));
+
+    // Wheels 6% large are named beside the timeout.
+    let wheels_options = [&timed_out[..], &["radius_scale=1.06"]].concat();
+    let wheels = diagnose_euler_run(&dir, "wheels", &wheels_options);
+    assert!(!wheels["command_timeout"].is_null());
+    for kind in ["speed_scale", "turn_scale"] {
+        let factor = factor_named(&wheels, kind);
+        assert!((factor - 1.06).abs() < 0.015, "{kind} {factor}");
+    }
+
+    // The same teleop on a robot that holds its last command: no timeout.
+    let held = diagnose_euler_run(&dir, "held", &["step=0.01", "teleop=sparse"]);
+    assert!(
+        held["command_timeout"].is_null(),
+        "{}",
+        held["command_timeout"]
+    );
+    assert!(kinds(&held).is_empty(), "{:?}", kinds(&held));
 }
 
 #[test]

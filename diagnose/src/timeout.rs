@@ -14,10 +14,7 @@
 
 use serde::Serialize;
 
-use crate::fit::nll_of;
-use crate::prepared::Options;
 use crate::recording::{Commands, Recording};
-use crate::segments::{command_grid, segments};
 
 /// A pause of the command stream this long, or longer, shows whether the
 /// robot holds its command or stops: longer than any common timeout
@@ -45,15 +42,8 @@ const HELD_SHARE: f64 = 0.6;
 /// whether the robot stands.
 const LONGEST_TIMEOUT_S: f64 = 1.0;
 
-/// How finely the stop in a pause is looked for, and over how long a
-/// window the robot's speed is taken there.
-const STOP_STEP_S: f64 = 0.02;
-const SPEED_WINDOW_S: f64 = 0.1;
-
-/// How far around the stops' median, and how finely, the timeout is
-/// refined.
-const REFINE_STEPS: i32 = 10;
-const REFINE_STEP_S: f64 = 0.01;
+/// How finely the stop in a pause is looked for.
+const STOP_STEP_S: f64 = 0.005;
 
 /// What the command stream's pauses showed.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -90,10 +80,7 @@ enum Pause {
 
 /// The recording with its commands ended by a timeout, if its pauses show
 /// one (see the module's documentation), and the timeout.
-pub fn with_timeout(
-    recording: &Recording,
-    options: &Options,
-) -> Option<(Recording, CommandTimeout)> {
+pub fn with_timeout(recording: &Recording) -> Option<(Recording, CommandTimeout)> {
     let pauses: Vec<Pause> = pauses(&recording.commands)
         .filter_map(|k| pause(recording, k))
         .collect();
@@ -111,7 +98,7 @@ pub fn with_timeout(
     if judged < MIN_PAUSES || (stopped_after.len() as f64) < STOPPED_SHARE * judged as f64 {
         return None;
     }
-    let seconds = refined(recording, median(stopped_after.clone()), options);
+    let seconds = median(stopped_after.clone());
     let (commands, commands_ended) = ended(&recording.commands, seconds);
     let timeout = CommandTimeout {
         seconds,
@@ -168,68 +155,54 @@ fn pause(recording: &Recording, k: usize) -> Option<Pause> {
     if share >= STOPPED_MOTION_SHARE {
         return Some(Pause::Unclear);
     }
-    // When it stopped: the end of the last tenth of a second in which it
-    // still moved at half its fastest in the pause (so that neither a
-    // speed gain nor a slow start moves the stop).
-    let moved = |t: f64| -> Option<f64> {
-        let (a, b) = (poses.at(t)?, poses.at(t + SPEED_WINDOW_S)?);
-        Some(if driving {
-            (b.position() - a.position()).length()
-        } else {
-            (b.theta - a.theta).abs()
+    // When it stopped: the knee of a line that rises and then stays flat,
+    // fitted by least squares to how far it went (or turned) in the
+    // pause's first `LONGEST_TIMEOUT_S`. The rise's slope is free, so a
+    // speed gain does not move the knee.
+    let origin = poses.at(start)?;
+    let toward = (from.position() - origin.position()).normalize_or_zero();
+    let first = poses.t.partition_point(|&t| t < start);
+    let last = poses.t.partition_point(|&t| t <= late_from);
+    let progress: Vec<(f64, f64)> = (first..last)
+        .map(|i| {
+            let gone = if driving {
+                (poses.x[i] - origin.x) * toward.x + (poses.y[i] - origin.y) * toward.y
+            } else {
+                (poses.theta[i] - origin.theta).abs()
+            };
+            (poses.t[i] - start, gone)
         })
-    };
-    let windows: Vec<(f64, f64)> = (0..)
-        .map(|i| start + i as f64 * STOP_STEP_S)
-        .take_while(|t| t + SPEED_WINDOW_S <= late_from)
-        .filter_map(|t| Some((t, moved(t)?)))
         .collect();
-    let fastest = windows.iter().map(|w| w.1).fold(0.0, f64::max);
-    let last_moving = windows
-        .iter()
-        .rev()
-        .find(|w| w.1 >= fastest / 2.0)
-        .map_or(start, |w| w.0);
-    Some(Pause::Stopped {
-        after_s: (last_moving + SPEED_WINDOW_S / 2.0 - start).min(LONGEST_TIMEOUT_S),
-    })
+    let after_s = (1..)
+        .map(|i| i as f64 * STOP_STEP_S)
+        .take_while(|&knee| knee < LONGEST_TIMEOUT_S)
+        .map(|knee| (knee_misfit(&progress, knee), knee))
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+        .map_or(LONGEST_TIMEOUT_S, |(_, knee)| knee);
+    Some(Pause::Stopped { after_s })
 }
 
-/// The timeout, to a hundredth of a second: of the lengths within
-/// `REFINE_S` of `rough` (the stops' median, which a pose rate of a few
-/// tens a second blurs by a few hundredths: enough to leave a lag in every
-/// pause), the one under which the plain model predicts the run best.
-fn refined(recording: &Recording, rough: f64, options: &Options) -> f64 {
-    let candidates: Vec<f64> = (-REFINE_STEPS..=REFINE_STEPS)
-        .map(|i| rough + i as f64 * REFINE_STEP_S)
-        .filter(|s| *s > 0.0)
-        .collect();
-    let Some(&shortest) = candidates.first() else {
-        return rough;
-    };
-    // The segments are cut once, on the shortest command stream (every
-    // other one reaches as far), so that each length is judged on the same.
-    let ended_by = |seconds: f64| {
-        let (commands, _) = ended(&recording.commands, seconds);
-        Recording {
-            commands,
-            ..recording.clone()
-        }
-    };
-    let cut = ended_by(shortest);
-    let segments = segments(
-        &cut,
-        &command_grid(&cut, options.grid_dt),
-        options.horizon_s,
-    );
-    candidates
-        .into_iter()
-        .map(|seconds| {
-            let grid = command_grid(&ended_by(seconds), options.grid_dt);
-            (nll_of(&grid, &segments, &[]), seconds)
-        })
-        .min_by(|a, b| a.0.total_cmp(&b.0))
-        .map_or(rough, |(_, seconds)| seconds)
+/// The squared misfit of the least-squares line through `progress` (t,
+/// distance) against `min(t, knee)`.
+fn knee_misfit(progress: &[(f64, f64)], knee: f64) -> f64 {
+    let n = progress.len() as f64;
+    if n < 3.0 {
+        return f64::INFINITY;
+    }
+    let xs: Vec<f64> = progress.iter().map(|p| p.0.min(knee)).collect();
+    let mean_x = xs.iter().sum::<f64>() / n;
+    let mean_y = progress.iter().map(|p| p.1).sum::<f64>() / n;
+    let sxx: f64 = xs.iter().map(|x| (x - mean_x).powi(2)).sum();
+    let sxy: f64 = xs
+        .iter()
+        .zip(progress)
+        .map(|(x, p)| (x - mean_x) * (p.1 - mean_y))
+        .sum();
+    let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+    xs.iter()
+        .zip(progress)
+        .map(|(x, p)| (p.1 - mean_y - slope * (x - mean_x)).powi(2))
+        .sum()
 }
 
 /// `commands` with a stop inserted `seconds` after every command not
@@ -295,8 +268,7 @@ mod tests {
     #[test]
     fn a_robot_that_stands_in_the_pauses_of_its_commands_has_a_timeout_and_its_length_is_measured()
     {
-        let (recording, timeout) =
-            with_timeout(&teleoperated(Some(0.5)), &Options::default()).expect("a timeout");
+        let (recording, timeout) = with_timeout(&teleoperated(Some(0.5))).expect("a timeout");
         assert!((timeout.seconds - 0.5).abs() < 0.02, "{timeout:?}");
         assert_eq!((timeout.pauses, timeout.stopped), (40, 40), "{timeout:?}");
         assert_eq!(timeout.commands_ended, 40);
@@ -311,6 +283,6 @@ mod tests {
 
     #[test]
     fn a_robot_that_drives_on_through_its_pauses_holds_its_commands() {
-        assert_eq!(with_timeout(&teleoperated(None), &Options::default()), None);
+        assert_eq!(with_timeout(&teleoperated(None)), None);
     }
 }
