@@ -1229,6 +1229,26 @@ fn a_robot_that_stops_when_its_commands_pause_has_its_timeout_said_not_invented_
         assert!((factor - 1.06).abs() < 0.015, "{kind} {factor}");
     }
 
+    // A robot that acts on its commands 0.1 s late stops 0.1 s later too:
+    // the timeout is measured apart from the delay, and the delay named.
+    // Measured together (0.61 s), they left a fading battery named.
+    let late_options = [&timed_out[..], &["delay=0.1"]].concat();
+    let late = diagnose_euler_run(&dir, "late", &late_options);
+    let seconds = late["command_timeout"]["seconds"]
+        .as_f64()
+        .unwrap_or(f64::NAN);
+    assert!(
+        (0.45..0.56).contains(&seconds),
+        "{}",
+        late["command_timeout"]
+    );
+    assert_eq!(kinds(&late), ["latency"]);
+    assert!(
+        (first_latency(&late) - 0.1).abs() < 0.015,
+        "{}",
+        late["effects"]
+    );
+
     // The same teleop on a robot that holds its last command: no timeout.
     let held = diagnose_euler_run(&dir, "held", &["step=0.01", "teleop=sparse"]);
     assert!(

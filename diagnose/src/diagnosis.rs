@@ -442,7 +442,7 @@ fn where_it_differs(
 /// Diagnoses `recording` against the model `given`, less any effect of it
 /// that does not hold on the recording (see [`GivenModel`]).
 pub fn diagnose(recording: &Recording, given: &UnicycleModel, options: &Options) -> Diagnosis {
-    let timed_out = with_timeout(recording);
+    let timed_out = with_timeout(recording, options);
     let (recording, command_timeout) = match &timed_out {
         Some((ended, timeout)) => (ended, Some(timeout.clone())),
         None => (recording, None),
