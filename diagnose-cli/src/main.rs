@@ -229,7 +229,17 @@ fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
             std::fs::create_dir_all(parent)
                 .with_context(|| format!("cannot create {}", parent.display()))?;
         }
-        let segments = replay(&recording, &model, &diagnosis.model, &options);
+        // Replayed on the commands as diagnosis compared them.
+        let compared = diagnosis
+            .command_timeout
+            .as_ref()
+            .map(|timeout| timeout.applied_to(&recording));
+        let segments = replay(
+            compared.as_ref().unwrap_or(&recording),
+            &model,
+            &diagnosis.model,
+            &options,
+        );
         write_into_place(path, |partial| {
             rrd::write(partial, &recording, &diagnosis, &segments, &report)
         })?;

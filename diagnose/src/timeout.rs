@@ -74,6 +74,15 @@ pub struct CommandTimeout {
 }
 
 impl CommandTimeout {
+    /// `recording` with each command not followed within the timeout
+    /// ended then, as diagnosis compares it.
+    pub fn applied_to(&self, recording: &Recording) -> Recording {
+        Recording {
+            commands: ended(&recording.commands, self.seconds).0,
+            ..recording.clone()
+        }
+    }
+
     pub fn sentence(&self) -> String {
         let apart = if self.delay_s > 0.0 {
             format!(
@@ -125,21 +134,14 @@ pub fn with_timeout(
         return None;
     }
     let (seconds, delay_s) = apart_from_delay(recording, median(stopped_after.clone()), options);
-    let (commands, commands_ended) = ended(&recording.commands, seconds);
     let timeout = CommandTimeout {
         seconds,
         delay_s,
         pauses: judged,
         stopped: stopped_after.len(),
-        commands_ended,
+        commands_ended: ended(&recording.commands, seconds).1,
     };
-    Some((
-        Recording {
-            commands,
-            ..recording.clone()
-        },
-        timeout,
-    ))
+    Some((timeout.applied_to(recording), timeout))
 }
 
 /// The indices of commands that move the robot and are followed by a
