@@ -1260,6 +1260,32 @@ fn a_robot_that_stops_when_its_commands_pause_has_its_timeout_said_not_invented_
 }
 
 #[test]
+fn a_robot_whose_firmware_clamps_its_speed_is_named_a_speed_limit_not_slip_and_a_gain() {
+    let dir = scratch("top_speed");
+    // Commands up to 0.35 m/s to a robot that never drives faster than
+    // 0.22 m/s (a TurtleBot3 Burger's firmware). Without the kind, slip
+    // (49% lost at 0.35 m/s) and a speed gain of 1.29 were named.
+    let clamped = diagnose_euler_run(&dir, "clamped", &["step=0.005", "top_speed=0.22"]);
+    assert_eq!(kinds(&clamped), ["speed_limit"]);
+    let pace = clamped["effects"][0]["params"]["pace_s_per_m"]
+        .as_f64()
+        .unwrap_or(f64::NAN);
+    assert!((1.0 / pace - 0.22).abs() < 0.01, "top speed {}", 1.0 / pace);
+    // Wheels 6% large behind the same clamp: both named.
+    let wheels = diagnose_euler_run(
+        &dir,
+        "wheels",
+        &["step=0.005", "top_speed=0.22", "radius_scale=1.06"],
+    );
+    let named = kinds(&wheels);
+    assert!(named.iter().any(|k| k == "speed_limit"), "{named:?}");
+    assert!(
+        (factor_named(&wheels, "turn_scale") - 1.06).abs() < 0.015,
+        "{named:?}"
+    );
+}
+
+#[test]
 fn a_motion_capture_body_defined_askew_is_named_as_a_crab_angle_not_as_noise() {
     let (null, dir) = diagnose_generated("askew", "", &[]);
     assert!(kinds(&null).is_empty(), "{:?}", kinds(&null));

@@ -16,6 +16,8 @@ Usage: python3 write_euler_run.py OUT_FOLDER SEED [key=value ...]
                      the command changes, as a keyboard teleop publishes)
   timeout=0          the drive stops when no command has come for this
                      long (ros2_control's cmd_vel_timeout); 0: it holds
+  top_speed=0        the drive clamps commanded speeds above this, m/s
+                     (a TurtleBot3 Burger's firmware: 0.22); 0: none
 """
 
 import bisect
@@ -40,6 +42,7 @@ def main():
     semi_implicit = opts.get("scheme", "forward") == "semi-implicit"
     sparse = opts.get("teleop", "steady") == "sparse"
     timeout = float(opts.get("timeout", "0"))
+    top_speed = float(opts.get("top_speed", "0"))
     rng = random.Random(seed)
 
     x = y = 0.0
@@ -81,6 +84,8 @@ def main():
         heard = bisect.bisect_right(published, (commands[k][0] + 1e-9,))
         if timeout > 0 and t - delay - published[heard - 1][0] > timeout:
             v = w = 0.0
+        if top_speed > 0:
+            v = max(-top_speed, min(top_speed, v))
         noise = WHEEL_NOISE / math.sqrt(step / 0.01)
         left = (v - w * WHEEL_BASE_M / 2) * (1 + noise * rng.gauss(0, 1)) * radius_scale
         right = (v + w * WHEEL_BASE_M / 2) * (1 + noise * rng.gauss(0, 1)) * radius_scale

@@ -27,12 +27,27 @@ const ZONE_EDGE_PARAMS: usize = 4;
 /// stated at the robot's usual speed, a simulator's step bounded by the
 /// poses' period.
 pub(crate) fn whole_run(effect: Effect, usual_speed: f64, pose_period_s: f64) -> ScopedEffect {
+    // A speed limit at the plain model's (none) clamps nothing, and a fit
+    // from there has no slope to follow: it starts a little above the
+    // robot's usual speed, from where it moves either way.
+    let effect = match effect {
+        Effect::SpeedLimit { pace_s_per_m } if pace_s_per_m == 0.0 && usual_speed > 0.0 => {
+            Effect::SpeedLimit {
+                pace_s_per_m: 1.0 / (SPEED_LIMIT_START * usual_speed),
+            }
+        }
+        other => other,
+    };
     ScopedEffect::always(
         effect
             .at_reference_speed(usual_speed)
             .within_pose_period(pose_period_s),
     )
 }
+
+/// Where a speed limit's fit starts, as a multiple of the robot's usual
+/// speed.
+const SPEED_LIMIT_START: f64 = 1.3;
 
 pub(crate) fn candidates(
     located: &[Located],

@@ -37,6 +37,7 @@ pub fn step_of(effect: &Effect, name: &str) -> f64 {
         (Effect::TurnBias { .. }, _) => 0.02,
         (Effect::HeadingDrift { .. }, _) => 0.05,
         (Effect::AccelLimit { .. }, _) => 1.0,
+        (Effect::SpeedLimit { .. }, _) => 0.5,
         (Effect::Slip { .. }, _) => 0.2,
         (Effect::BatteryFade { .. }, _) => 0.01,
         (Effect::SurfaceZone { .. }, _) => 0.1,

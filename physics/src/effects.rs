@@ -23,6 +23,11 @@ pub enum Effect {
     HeadingDrift { rad_per_m: f64 },
     /// Forward speed cannot change faster than this (inertia).
     AccelLimit { m_per_s2: f64 },
+    /// Forward speed never exceeds a top speed: faster commands are
+    /// clamped (a controller's velocity limit, a robot's firmware). Given
+    /// as its inverse, the top speed's pace in seconds per metre, so that
+    /// the plain model (no limit) is 0 and a fit changes it smoothly.
+    SpeedLimit { pace_s_per_m: f64 },
     /// The fraction of speed lost grows with speed: v (1 - k |v|).
     Slip { per_m_per_s: f64 },
     /// Speed and turn gain lose this fraction per minute since the start.
@@ -85,6 +90,15 @@ pub enum Effect {
     },
 }
 
+/// The top speed of a speed limit's pace; infinite for no limit.
+pub fn top_speed(pace_s_per_m: f64) -> f64 {
+    if pace_s_per_m > 0.0 {
+        1.0 / pace_s_per_m
+    } else {
+        f64::INFINITY
+    }
+}
+
 fn unchanged() -> f64 {
     1.0
 }
@@ -95,7 +109,7 @@ fn longest_step() -> f64 {
 }
 
 /// The kinds, in the order `shoal diagnose` tries them.
-pub const EFFECT_KINDS: [&str; 17] = [
+pub const EFFECT_KINDS: [&str; 18] = [
     "latency",
     "actuator_lag",
     "speed_scale",
@@ -103,6 +117,7 @@ pub const EFFECT_KINDS: [&str; 17] = [
     "turn_bias",
     "heading_drift",
     "accel_limit",
+    "speed_limit",
     "slip",
     "battery_fade",
     "surface_zone",
@@ -137,6 +152,7 @@ impl Effect {
             Effect::TurnBias { .. } => "turn_bias",
             Effect::HeadingDrift { .. } => "heading_drift",
             Effect::AccelLimit { .. } => "accel_limit",
+            Effect::SpeedLimit { .. } => "speed_limit",
             Effect::Slip { .. } => "slip",
             Effect::BatteryFade { .. } => "battery_fade",
             Effect::SurfaceZone { .. } => "surface_zone",
@@ -164,6 +180,7 @@ impl Effect {
             Effect::TurnBias { rad_per_s } => vec![("rad_per_s", rad_per_s)],
             Effect::HeadingDrift { rad_per_m } => vec![("rad_per_m", rad_per_m)],
             Effect::AccelLimit { m_per_s2 } => vec![("m_per_s2", m_per_s2)],
+            Effect::SpeedLimit { pace_s_per_m } => vec![("pace_s_per_m", pace_s_per_m)],
             Effect::Slip { per_m_per_s } => vec![("per_m_per_s", per_m_per_s)],
             Effect::BatteryFade { per_minute } => vec![("per_minute", per_minute)],
             Effect::SurfaceZone {
@@ -194,6 +211,7 @@ impl Effect {
             Effect::TurnBias { .. } => Effect::TurnBias { rad_per_s: v(0) },
             Effect::HeadingDrift { .. } => Effect::HeadingDrift { rad_per_m: v(0) },
             Effect::AccelLimit { .. } => Effect::AccelLimit { m_per_s2: v(0) },
+            Effect::SpeedLimit { .. } => Effect::SpeedLimit { pace_s_per_m: v(0) },
             Effect::Slip { .. } => Effect::Slip { per_m_per_s: v(0) },
             Effect::BatteryFade { .. } => Effect::BatteryFade { per_minute: v(0) },
             Effect::SurfaceZone { region, .. } => Effect::SurfaceZone {
@@ -235,6 +253,7 @@ impl Effect {
             "turn_bias" => Effect::TurnBias { rad_per_s: 0.0 },
             "heading_drift" => Effect::HeadingDrift { rad_per_m: 0.0 },
             "accel_limit" => Effect::AccelLimit { m_per_s2: 5.0 },
+            "speed_limit" => Effect::SpeedLimit { pace_s_per_m: 0.0 },
             "slip" => Effect::Slip { per_m_per_s: 0.0 },
             "battery_fade" => Effect::BatteryFade { per_minute: 0.0 },
             "surface_zone" => Effect::SurfaceZone {
@@ -323,6 +342,8 @@ impl Effect {
             Effect::TurnBias { .. } => vec![(-2.0, 2.0)],
             Effect::HeadingDrift { .. } => vec![(-2.0, 2.0)],
             Effect::AccelLimit { .. } => vec![(0.01, 50.0)],
+            // A top speed under 2 cm/s is a robot that does not drive.
+            Effect::SpeedLimit { .. } => vec![(0.0, 50.0)],
             Effect::Slip { .. } => vec![(0.0, 3.0)],
             Effect::BatteryFade { .. } => vec![(0.0, 0.5)],
             Effect::SurfaceZone { .. } => vec![(0.05, 3.0), (0.05, 3.0)],
@@ -436,6 +457,10 @@ impl Effect {
             Effect::AccelLimit { m_per_s2 } => {
                 format!("Speed changes at most {m_per_s2:.2} m/s² (inertia).")
             }
+            Effect::SpeedLimit { pace_s_per_m } => format!(
+                "The robot never drives faster than {:.2} m/s: faster commands are clamped (a speed limit in its controller or firmware).",
+                top_speed(pace_s_per_m)
+            ),
             Effect::Slip { per_m_per_s } => format!(
                 "The robot loses {:.0}% of its speed per m/s of speed (slip).",
                 per_m_per_s * 100.0

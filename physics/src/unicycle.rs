@@ -150,6 +150,13 @@ impl Actuators {
                 (v, omega) = grid.at(t - seconds);
             }
         }
+        // The controller clamps the command before the motors follow it.
+        for effect in model.active(run_s) {
+            if let Effect::SpeedLimit { pace_s_per_m } = *effect {
+                let top = crate::effects::top_speed(pace_s_per_m);
+                v = v.clamp(-top, top);
+            }
+        }
         for effect in model.active(run_s) {
             if let Effect::ActuatorLag { seconds } = *effect
                 && seconds > 0.0
@@ -640,6 +647,28 @@ mod tests {
         // Turning in place it turns as the plain body does.
         let turn = straight(1.0, 0.0, 1.0);
         assert_eq!(drive(&model, &turn), drive(&UnicycleModel::plain(), &turn));
+    }
+
+    #[test]
+    fn a_speed_limit_clamps_faster_commands_and_leaves_slower_ones() {
+        let limited = UnicycleModel::with_effects(vec![ScopedEffect::always(Effect::SpeedLimit {
+            pace_s_per_m: 1.0 / 0.22,
+        })]);
+        // Commanded 0.5 m/s, it drives as the plain body commanded 0.22.
+        let fast = drive(&limited, &straight(4.0, 0.5, 0.0));
+        let top = drive(&UnicycleModel::plain(), &straight(4.0, 0.22, 0.0));
+        assert!(
+            (fast.x - top.x).abs() < 1e-9 && top.x > 0.8,
+            "{fast:?} {top:?}"
+        );
+        // At 0.2 m/s, below it, as the plain body.
+        let slow = straight(4.0, 0.2, 0.3);
+        assert_eq!(
+            drive(&limited, &slow),
+            drive(&UnicycleModel::plain(), &slow)
+        );
+        // No limit at the plain model's pace.
+        assert_eq!(crate::effects::top_speed(0.0), f64::INFINITY);
     }
 
     #[test]
