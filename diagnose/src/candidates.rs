@@ -24,8 +24,8 @@ const SPAN_PARAMS: usize = 2;
 const ZONE_EDGE_PARAMS: usize = 4;
 
 /// `effect` over the whole run as this recording tries it: speed noise
-/// stated at the robot's usual speed, a simulator's step bounded by the
-/// poses' period.
+/// stated at the robot's usual speed, a speed limit started above it, a
+/// simulator's step bounded by the poses' period.
 pub(crate) fn whole_run(effect: Effect, usual_speed: f64, pose_period_s: f64) -> ScopedEffect {
     // A speed limit at the plain model's (none) clamps nothing, and a fit
     // from there has no slope to follow: it starts a little above the

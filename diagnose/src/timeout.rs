@@ -8,8 +8,8 @@
 //! quarter of its commanded speed (invented physics). So the pauses in which
 //! the robot was commanded to move are looked at first; if it stood still in
 //! nearly all of them, the robot has a timeout, its length is measured from
-//! how far the robot went before it stopped, and each command is taken to
-//! end that long after it was given. A robot that drove on through its
+//! when the robot stopped (apart from how late it acts on a command), and
+//! each command is taken to end that long after it was given. A robot that drove on through its
 //! pauses holds its commands, as the recording says, and nothing changes.
 
 use serde::Serialize;
@@ -37,9 +37,9 @@ const STOPPED_SHARE: f64 = 0.8;
 const MOVING_M_PER_S: f64 = 0.03;
 const MOVING_RAD_PER_S: f64 = 0.1;
 
-/// Seen over the second after the longest timeout looked for, a robot that moves less than this share of what the held
-/// command asks has stopped; one that moves more than `HELD_SHARE` of it
-/// holds the command.
+/// Seen over the second after the longest timeout looked for, a robot
+/// that moves less than this share of what the held command asks has
+/// stopped; one that moves more than `HELD_SHARE` of it holds the command.
 const STOPPED_MOTION_SHARE: f64 = 0.25;
 const HELD_SHARE: f64 = 0.6;
 
@@ -133,12 +133,13 @@ pub fn with_timeout(
     if judged < MIN_PAUSES || (stopped_after.len() as f64) < STOPPED_SHARE * judged as f64 {
         return None;
     }
-    let (seconds, delay_s) = apart_from_delay(recording, median(stopped_after.clone()), options);
+    let stopped = stopped_after.len();
+    let (seconds, delay_s) = apart_from_delay(recording, median(stopped_after), options);
     let timeout = CommandTimeout {
         seconds,
         delay_s,
         pauses: judged,
-        stopped: stopped_after.len(),
+        stopped,
         commands_ended: ended(&recording.commands, seconds).1,
     };
     Some((timeout.applied_to(recording), timeout))
