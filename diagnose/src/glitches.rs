@@ -322,12 +322,7 @@ mod tests {
             let noise = ((i * 7919) % 13) as f64 / 13.0 - 0.5;
             poses.push(t, 0.3 * t + 0.002 * noise, 0.001 * noise, 0.0);
         }
-        Recording {
-            commands,
-            poses,
-            t_origin: 0.0,
-            joins: Vec::new(),
-        }
+        Recording::of(commands, poses)
     }
 
     #[test]

@@ -166,6 +166,16 @@ impl Poses {
 }
 
 impl Recording {
+    /// One recording of `commands` and `poses`, its times as they are.
+    pub fn of(commands: Commands, poses: Poses) -> Self {
+        Self {
+            commands,
+            poses,
+            t_origin: 0.0,
+            joins: Vec::new(),
+        }
+    }
+
     /// The run with gross pose outliers set aside (see
     /// [`Poses::without_outliers`]), and how many were.
     pub fn without_pose_outliers(&self) -> (Self, usize) {

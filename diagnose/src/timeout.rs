@@ -322,12 +322,7 @@ mod tests {
             }
         }
         commands.hold(120.0, 0.0, 0.0);
-        Recording {
-            commands,
-            poses,
-            t_origin: 0.0,
-            joins: Vec::new(),
-        }
+        Recording::of(commands, poses)
     }
 
     #[test]
