@@ -110,9 +110,17 @@ pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
     }
     let in_motion = |l: &&Located| l.component != "spread";
     let motion_differs = d.located.iter().any(|l| in_motion(&l));
+    let nothing_more = !motion_differs && d.effects.is_empty() && d.unexplained.is_empty();
     if !d.mismatch {
         line("No significant mismatch: the model explains the run within its noise.".into());
-    } else if !motion_differs && d.effects.is_empty() && d.unexplained.is_empty() {
+    } else if nothing_more && d.command_timeout.is_some() {
+        line(if d.located.is_empty() {
+            "Beside the timeout, the model explains the run within its noise.".into()
+        } else {
+            "Beside the timeout, the motion matches the model. Only the size of its noise differs:"
+                .into()
+        });
+    } else if nothing_more {
         line("The motion matches the model: no difference in where the robot went. Only the size of its noise differs:".into());
     }
     // A difference in the residuals' spread is about the noise, not the

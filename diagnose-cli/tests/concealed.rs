@@ -1201,6 +1201,19 @@ fn a_robot_that_stops_when_its_commands_pause_has_its_timeout_said_not_invented_
     assert!((0.45..0.56).contains(&seconds), "timeout {seconds}");
     assert!(kinds(&null).is_empty(), "no physics: {:?}", kinds(&null));
     assert_eq!(motion_located(&null), 0, "{}", null["located"]);
+    // The timeout is what the model lacked: a mismatch, and the fit with it
+    // (each command ended) against the commands held.
+    assert_eq!(null["mismatch"], true);
+    let fit = |which: &str| {
+        null["command_timeout"][which]
+            .as_f64()
+            .unwrap_or_else(|| panic!("{which}: {}", null["command_timeout"]))
+    };
+    assert!(
+        fit("heldout_rmse_pos_m_ended") < 0.2 * fit("heldout_rmse_pos_m_held"),
+        "{}",
+        null["command_timeout"]
+    );
 
     // The same robot's bag, as rosbag2 records it (sqlite3, simulation
     // time): the timeout is said there too.

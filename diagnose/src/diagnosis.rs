@@ -442,8 +442,9 @@ fn where_it_differs(
 /// Diagnoses `recording` against the model `given`, less any effect of it
 /// that does not hold on the recording (see [`GivenModel`]).
 pub fn diagnose(recording: &Recording, given: &UnicycleModel, options: &Options) -> Diagnosis {
+    let as_recorded = recording;
     let timed_out = with_timeout(recording, options);
-    let (recording, command_timeout) = match &timed_out {
+    let (recording, mut command_timeout) = match &timed_out {
         Some((ended, timeout)) => (ended, Some(timeout.clone())),
         None => (recording, None),
     };
@@ -526,8 +527,19 @@ pub fn diagnose(recording: &Recording, given: &UnicycleModel, options: &Options)
     } else {
         heldout(&prepared, fixed, &found, options)
     };
+    // The timeout is a difference the model lacks: how much it explains
+    // is the model's held-out error with the commands held, as recorded,
+    // against the same with them ended.
+    if let Some(timeout) = &mut command_timeout {
+        let held = heldout(&prepare(as_recorded, options), fixed, &[], options).0;
+        timeout.heldout_rmse_pos_m_held = Some(held.heldout_rmse_pos_m);
+        timeout.heldout_rmse_pos_m_ended = Some(baseline.heldout_rmse_pos_m);
+    }
     Diagnosis {
-        mismatch: !effects.is_empty() || !located.is_empty() || !unexplained.is_empty(),
+        mismatch: !effects.is_empty()
+            || !located.is_empty()
+            || !unexplained.is_empty()
+            || command_timeout.is_some(),
         located,
         integration: integration.into_iter().next(),
         command_timeout,

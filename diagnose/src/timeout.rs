@@ -71,6 +71,12 @@ pub struct CommandTimeout {
     pub stopped: usize,
     /// Commands now taken to end `seconds` after they were given.
     pub commands_ended: usize,
+    /// The held-out position error (m) of the model diagnosed against,
+    /// with each command held until the next (as a simulation without the
+    /// timeout drives) and with the commands ended by it; set by
+    /// `diagnose`, which knows the model.
+    pub heldout_rmse_pos_m_held: Option<f64>,
+    pub heldout_rmse_pos_m_ended: Option<f64>,
 }
 
 impl CommandTimeout {
@@ -93,11 +99,19 @@ impl CommandTimeout {
         } else {
             String::new()
         };
+        let fit = match (self.heldout_rmse_pos_m_held, self.heldout_rmse_pos_m_ended) {
+            (Some(held), Some(ended)) => format!(
+                " With it, the model's held-out position error is {:.1} mm, against {:.1} mm with each command held.",
+                ended * 1e3,
+                held * 1e3
+            ),
+            _ => String::new(),
+        };
         format!(
             "The robot stops when no command has come for {:.2} s (a controller's command timeout, as ros2_control's \
              cmd_vel_timeout): it stood still in {} of the {} pauses of {PAUSE_S} s or more in the command \
              stream{apart}. So each of the {} commands not followed within that time is taken to end then, not held \
-             until the next.",
+             until the next.{fit}",
             self.seconds, self.stopped, self.pauses, self.commands_ended
         )
     }
@@ -141,6 +155,8 @@ pub fn with_timeout(
         pauses: judged,
         stopped,
         commands_ended: ended(&recording.commands, seconds).1,
+        heldout_rmse_pos_m_held: None,
+        heldout_rmse_pos_m_ended: None,
     };
     Some((timeout.applied_to(recording), timeout))
 }
