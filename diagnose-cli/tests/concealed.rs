@@ -1277,7 +1277,7 @@ fn a_robot_whose_firmware_clamps_its_speed_is_named_a_speed_limit_not_slip_and_a
     let dir = scratch("top_speed");
     // Commands up to 0.35 m/s to a robot that never drives faster than
     // 0.22 m/s (a TurtleBot3 Burger's firmware). Without the kind, slip
-    // (49% lost at 0.35 m/s) and a speed gain of 1.29 were named.
+    // (48% lost at 0.35 m/s) and a speed gain of 1.29 were named.
     let clamped = diagnose_euler_run(&dir, "clamped", &["step=0.005", "top_speed=0.22"]);
     assert_eq!(kinds(&clamped), ["speed_limit"]);
     let pace = clamped["effects"][0]["params"]["pace_s_per_m"]

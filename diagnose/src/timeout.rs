@@ -83,10 +83,7 @@ impl CommandTimeout {
     /// `recording` with each command not followed within the timeout
     /// ended then, as diagnosis compares it.
     pub fn applied_to(&self, recording: &Recording) -> Recording {
-        Recording {
-            commands: ended(&recording.commands, self.seconds).0,
-            ..recording.clone()
-        }
+        ended_recording(recording, self.seconds)
     }
 
     pub fn sentence(&self) -> String {
@@ -264,12 +261,8 @@ fn apart_from_delay(recording: &Recording, stopped: f64, options: &Options) -> (
         .map(|i| i as f64 * DELAY_STEP_S)
         .take_while(|d| *d <= LONGEST_DELAY_S.min(stopped - DELAY_STEP_S))
         .collect();
-    let ended_by = |seconds: f64| Recording {
-        commands: ended(&recording.commands, seconds).0,
-        ..recording.clone()
-    };
     // The segments are cut once, where every command stream tried reaches.
-    let shortest = ended_by(stopped - delays.last().copied().unwrap_or(0.0));
+    let shortest = ended_recording(recording, stopped - delays.last().copied().unwrap_or(0.0));
     let segments = segments(
         &shortest,
         &command_grid(&shortest, options.grid_dt),
@@ -278,12 +271,24 @@ fn apart_from_delay(recording: &Recording, stopped: f64, options: &Options) -> (
     delays
         .into_iter()
         .map(|delay| {
-            let grid = command_grid(&ended_by(stopped - delay), options.grid_dt);
+            let grid = command_grid(
+                &ended_recording(recording, stopped - delay),
+                options.grid_dt,
+            );
             let late = [ScopedEffect::always(Effect::Latency { seconds: delay })];
             (nll_of(&grid, &segments, &late), delay)
         })
         .min_by(|a, b| a.0.total_cmp(&b.0))
         .map_or((stopped, 0.0), |(_, delay)| (stopped - delay, delay))
+}
+
+/// `recording` with its commands ended `seconds` after each not followed
+/// within that time ([`ended`]).
+fn ended_recording(recording: &Recording, seconds: f64) -> Recording {
+    Recording {
+        commands: ended(&recording.commands, seconds).0,
+        ..recording.clone()
+    }
 }
 
 /// `commands` with a stop inserted `seconds` after every command not
