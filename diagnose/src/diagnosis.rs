@@ -26,7 +26,7 @@ pub use crate::prepared::{
 use crate::recording::Recording;
 use crate::segments::Segment;
 use crate::segments::subsample;
-use crate::selection::{Evidence, Selected, Selection, select};
+use crate::selection::{Evidence, Selected, Selection, reselected, select};
 use crate::timeout::{CommandTimeout, with_timeout};
 
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -237,6 +237,11 @@ fn given_model(
     ))
 }
 
+/// How many times the effects the feedback stage kept are judged again
+/// without what it dropped: each pass bars the kinds dropped so far, so a
+/// pass can only name kinds not yet refused.
+const RESELECTIONS: usize = 3;
+
 /// How many of the residuals' strongest covariates a diagnosis lists.
 const COVARIATES_REPORTED: usize = 5;
 
@@ -278,6 +283,7 @@ fn feedback_checked(
                 params: found[k].effect.params().into_iter().collect(),
                 sentence: at.sentence(&found[k].effect, duration),
                 check: checks[k]?,
+                scoped: found[k].clone(),
             })
         })
         .collect();
@@ -470,13 +476,54 @@ pub fn diagnose(recording: &Recording, given: &UnicycleModel, options: &Options)
         found,
         evidence,
         unexplained,
-        rejected_heldout,
+        mut rejected_heldout,
     } = select(&selection, &located, operating_point);
     let fixed = &selection.fixed;
-    let (found, evidence, not_transferring) =
+    let (found, evidence, mut not_transferring) =
         transferring(&prepared, fixed, found, evidence, duration, options);
-    let (found, evidence, not_feedback_free) =
+    let (found, evidence, mut not_feedback_free) =
         feedback_checked(recording, &prepared, fixed, found, evidence, options);
+    // An effect admitted beside one the feedback stage then dropped was
+    // judged against a model that is no longer the diagnosis: the rest are
+    // judged again without the dropped kinds (`selection::reselected`), and
+    // what changed faces the later stages as the first choice did, until
+    // they drop nothing more.
+    let (mut found, mut evidence) = (found, evidence);
+    let mut dropped_in_pass = not_feedback_free.len();
+    for _ in 0..RESELECTIONS {
+        if dropped_in_pass == 0 || found.is_empty() {
+            break;
+        }
+        let barred: Vec<&'static str> = not_feedback_free
+            .iter()
+            .map(|d| d.kind)
+            .chain(not_transferring.iter().map(|d| d.kind))
+            .collect();
+        let refused: Vec<ScopedEffect> =
+            not_feedback_free.iter().map(|d| d.scoped.clone()).collect();
+        let before: Vec<&'static str> = found.iter().map(|e| e.effect.kind()).collect();
+        let again = reselected(
+            &selection,
+            found,
+            evidence,
+            (&barred, &refused),
+            operating_point,
+        );
+        rejected_heldout.extend(again.rejected_heldout);
+        let after: Vec<&'static str> = again.found.iter().map(|e| e.effect.kind()).collect();
+        (found, evidence) = (again.found, again.evidence);
+        if after == before {
+            break;
+        }
+        let (kept, kept_evidence, more) =
+            transferring(&prepared, fixed, found, evidence, duration, options);
+        not_transferring.extend(more);
+        let (kept, kept_evidence, more) =
+            feedback_checked(recording, &prepared, fixed, kept, kept_evidence, options);
+        dropped_in_pass = more.len();
+        not_feedback_free.extend(more);
+        (found, evidence) = (kept, kept_evidence);
+    }
 
     let stderr = if found.is_empty() {
         Vec::new()

@@ -128,6 +128,9 @@ pub struct NotFeedbackFree {
     pub params: BTreeMap<&'static str, f64>,
     pub sentence: String,
     pub check: FeedbackFree,
+    /// The effect as it was fitted when dropped.
+    #[serde(skip)]
+    pub scoped: ScopedEffect,
 }
 
 /// Each effect of `found` that moves the prediction, checked at the

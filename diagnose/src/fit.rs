@@ -20,7 +20,7 @@ pub struct Fitted {
 }
 
 /// `effects` without the one at `k`: the model an effect is judged against.
-pub(crate) fn all_but(effects: &[ScopedEffect], k: usize) -> Vec<ScopedEffect> {
+pub(crate) fn all_but<T: Clone>(effects: &[T], k: usize) -> Vec<T> {
     effects
         .iter()
         .enumerate()

@@ -19,6 +19,7 @@ use crate::segments::Segment;
 use crate::zones::{is_whole_floor, refine_zone, zone_of_span};
 
 /// What selection learned of an effect it accepted.
+#[derive(Clone)]
 pub(crate) struct Evidence {
     pub(crate) delta_bic: f64,
     pub(crate) test: EntryTest,
@@ -712,17 +713,119 @@ pub(crate) fn select(selection: &Selection, located: &[Located], at: OperatingPo
         }
     }
     // Each kind is tried once: one that pruning then drops is not tried again.
-    let mut tried = Vec::new();
-    while out.found.len() < selection.options.max_effects
-        && selection.complete(&mut out, at, &mut tried)
-    {}
+    if !out.found.is_empty() {
+        selection.completed(&mut out, at, (&[], &[]));
+    }
+    out
+}
+
+/// The effects a later stage kept, judged again without the ones it
+/// dropped: an effect that entered beside a dropped one was tested against
+/// a model that is no longer the diagnosis (a turning-centre offset that
+/// entered beside an actuator lag, which the feedback stage then dropped,
+/// where the simulator's Euler step would have explained both). They are
+/// pruned against one another, and the completion pass runs again with the
+/// dropped kinds barred.
+pub(crate) fn reselected(
+    selection: &Selection,
+    found: Vec<ScopedEffect>,
+    evidence: Vec<Evidence>,
+    (barred, refused): (&[&'static str], &[ScopedEffect]),
+    at: OperatingPoint,
+) -> Selected {
+    let mut out = Selected {
+        found,
+        evidence,
+        ..Selected::default()
+    };
+    if out.found.is_empty() {
+        return out;
+    }
+    selection.refit_and_prune(&mut out.found, &mut out.evidence);
+    selection.completed(&mut out, at, (barred, refused));
+    selection.swap_each(&mut out, at, (barred, refused));
     out
 }
 
 impl Selection<'_> {
+    /// The completion pass run on `out` until no kind enters, the `barred`
+    /// kinds not tried, nor a kind that adds nothing beside an effect a
+    /// later stage `refused`: that is the refused effect under another name
+    /// (a latency where an actuator lag was dropped as the controller's).
+    fn completed(
+        &self,
+        out: &mut Selected,
+        at: OperatingPoint,
+        (barred, refused): (&[&'static str], &[ScopedEffect]),
+    ) {
+        let mut tried = barred.to_vec();
+        while out.found.len() < self.options.max_effects
+            && self.complete(out, at, &mut tried, refused)
+        {}
+    }
+
+    /// Each effect of `out` taken out in turn, the others refitted, and the
+    /// completion pass run from them; whichever set explains the run better
+    /// by BIC on every segment is kept. Forward selection admits an effect beside
+    /// what is named when it enters; once a later stage has dropped some of
+    /// that, an effect may stand where another kind, never tried without
+    /// the dropped one, explains as much with fewer parameters.
+    fn swap_each(
+        &self,
+        out: &mut Selected,
+        at: OperatingPoint,
+        barred: (&[&'static str], &[ScopedEffect]),
+    ) {
+        let (grid, segs, options, fixed) = (self.grid(), self.segs(), self.options, &self.fixed);
+        let bic = |found: &[ScopedEffect]| {
+            let params: usize = found.iter().map(extra_params).sum();
+            let nll = if found.is_empty() {
+                nll_of(grid, segs, fixed)
+            } else {
+                fit(grid, segs, fixed, found, options.max_iters).nll
+            };
+            2.0 * nll + params as f64 * (segs.len() as f64).ln()
+        };
+        let mut k = 0;
+        while k < out.found.len() {
+            let current = bic(&out.found);
+            let others = all_but(&out.found, k);
+            let mut trial = Selected {
+                found: if others.is_empty() {
+                    others
+                } else {
+                    fit(grid, segs, fixed, &others, options.max_iters).effects
+                },
+                evidence: all_but(&out.evidence, k),
+                ..Selected::default()
+            };
+            self.completed(&mut trial, at, barred);
+            let kinds = |found: &[ScopedEffect]| -> Vec<&'static str> {
+                let mut kinds: Vec<_> = found.iter().map(|e| e.effect.kind()).collect();
+                kinds.sort_unstable();
+                kinds
+            };
+            let swapped = kinds(&trial.found) != kinds(&out.found) && bic(&trial.found) < current;
+            tracing::debug!(
+                taken = out.found[k].effect.kind(),
+                into = ?kinds(&trial.found),
+                swapped,
+                "swap: one taken out, the completion run from the others"
+            );
+            if swapped {
+                out.rejected_heldout.extend(trial.rejected_heldout);
+                out.found = trial.found;
+                out.evidence = trial.evidence;
+                k = 0;
+            } else {
+                k += 1;
+            }
+        }
+    }
+
     /// The kind of the library, not named in `found` and not yet `tried`,
     /// that fits best with `found` free beside it, ranked on the screen as
-    /// a round's candidates are; none if none lowers the screen's NLL.
+    /// a round's candidates are; none if none lowers the screen's BIC.
     fn best_beside(
         &self,
         found: &[ScopedEffect],
@@ -733,6 +836,10 @@ impl Selection<'_> {
         let named: Vec<&str> = found.iter().map(|e| e.effect.kind()).collect();
         let without: Vec<ScopedEffect> = fixed.iter().chain(found).cloned().collect();
         let screen_without = nll_of(grid, &self.screen, &without);
+        // Ranked by ΔBIC on the screen, as a round ranks: by the likelihood
+        // alone a kind of two parameters outranked the one-parameter kind
+        // that explained as much, failed its entry test, and ended the pass.
+        let screen_log_n = ((3 * self.screen.len()).max(2) as f64).ln();
         EFFECT_KINDS
             .iter()
             .filter(|k| **k != "surface_zone" && !named.contains(k) && !tried.contains(k))
@@ -742,13 +849,14 @@ impl Selection<'_> {
             .map(|c| {
                 let together: Vec<ScopedEffect> =
                     found.iter().cloned().chain([c.clone()]).collect();
+                let nll = fit(grid, &self.screen, fixed, &together, options.max_iters).nll;
                 (
-                    fit(grid, &self.screen, fixed, &together, options.max_iters).nll,
+                    2.0 * (nll - screen_without) + extra_params(&c) as f64 * screen_log_n,
                     c,
                 )
             })
             .min_by(|a, b| a.0.total_cmp(&b.0))
-            .filter(|(nll, _)| *nll < screen_without - 1.0)
+            .filter(|(gain, _)| *gain < 0.0)
             .map(|(_, c)| c)
     }
 
@@ -761,21 +869,33 @@ impl Selection<'_> {
     /// not yet named is fitted once more with the named effects free beside
     /// it; the best enters on the same entry test and held-out check as in a
     /// round, judged against the named effects as they were, and pruning
-    /// then drops what it makes redundant. Returns whether one entered.
+    /// then drops what it makes redundant. Returns whether to go on: one
+    /// entered, or the best was passed over as a `refused` effect's twin.
     fn complete(
         &self,
         out: &mut Selected,
         at: OperatingPoint,
         tried: &mut Vec<&'static str>,
+        refused: &[ScopedEffect],
     ) -> bool {
         let (grid, segs) = (self.grid(), self.segs());
-        if out.found.is_empty() || segs.len() < 20 {
+        if segs.len() < 20 {
             return false;
         }
         let Some(best) = self.best_beside(&out.found, at, tried) else {
             return false;
         };
         tried.push(best.effect.kind());
+        let base: Vec<ScopedEffect> = self.fixed.iter().chain(&out.found).cloned().collect();
+        if let Some(twin) = refused.iter().find(|r| !self.adds_beside(&base, &best, r)) {
+            tracing::debug!(
+                kind = best.effect.kind(),
+                refused = twin.effect.kind(),
+                "completion: adds nothing beside a refused effect"
+            );
+            // The next kind is tried: this one was not judged.
+            return true;
+        }
         let Some(whole) = self.completion_entry(&out.found, &best) else {
             return false;
         };
