@@ -715,7 +715,6 @@ pub(crate) fn select(selection: &Selection, located: &[Located], at: OperatingPo
     // Each kind is tried once: one that pruning then drops is not tried again.
     if !out.found.is_empty() {
         selection.completed(&mut out, at, (&[], &[]));
-        selection.swap_each(&mut out, at, (&[], &[]));
     }
     out
 }
@@ -767,14 +766,10 @@ impl Selection<'_> {
 
     /// Each effect of `out` taken out in turn, the others refitted, and the
     /// completion pass run from them; whichever set explains the run better
-    /// by BIC on every segment is kept. Forward selection admits an effect
-    /// beside what is named when it enters, so the order decides what a
-    /// later effect is judged against: a surface zone over most of the
-    /// floor, its speed and turn factors both 1.06, entered before a speed
-    /// scale and a turn scale (one effect against two), a second zone then
-    /// took the rest of the floor and pruning dropped the scales; and once
-    /// a later stage has dropped an effect, one admitted beside it may
-    /// stand where another kind, never tried without it, explains as much.
+    /// by BIC on every segment is kept. Forward selection admits an effect beside
+    /// what is named when it enters; once a later stage has dropped some of
+    /// that, an effect may stand where another kind, never tried without
+    /// the dropped one, explains as much with fewer parameters.
     fn swap_each(
         &self,
         out: &mut Selected,
