@@ -724,8 +724,8 @@ pub(crate) fn select(selection: &Selection, located: &[Located], at: OperatingPo
 /// a model that is no longer the diagnosis (a turning-centre offset that
 /// entered beside an actuator lag, which the feedback stage then dropped,
 /// where the simulator's Euler step would have explained both). They are
-/// pruned against one another, and the completion pass runs again with the
-/// dropped kinds barred.
+/// pruned against one another, the completion pass runs again with the
+/// dropped kinds barred, and each is taken out in turn (`swap_each`).
 pub(crate) fn reselected(
     selection: &Selection,
     found: Vec<ScopedEffect>,
