@@ -786,9 +786,13 @@ impl Selection<'_> {
             };
             2.0 * nll + params as f64 * (segs.len() as f64).ln()
         };
+        let kinds = |found: &[ScopedEffect]| -> Vec<&'static str> {
+            let mut kinds: Vec<_> = found.iter().map(|e| e.effect.kind()).collect();
+            kinds.sort_unstable();
+            kinds
+        };
         let mut k = 0;
         while k < out.found.len() {
-            let current = bic(&out.found);
             let others = all_but(&out.found, k);
             let mut trial = Selected {
                 found: if others.is_empty() {
@@ -800,12 +804,9 @@ impl Selection<'_> {
                 ..Selected::default()
             };
             self.completed(&mut trial, at, barred);
-            let kinds = |found: &[ScopedEffect]| -> Vec<&'static str> {
-                let mut kinds: Vec<_> = found.iter().map(|e| e.effect.kind()).collect();
-                kinds.sort_unstable();
-                kinds
-            };
-            let swapped = kinds(&trial.found) != kinds(&out.found) && bic(&trial.found) < current;
+            // The same kinds back is the same set: no fit on every segment.
+            let swapped =
+                kinds(&trial.found) != kinds(&out.found) && bic(&trial.found) < bic(&out.found);
             tracing::debug!(
                 taken = out.found[k].effect.kind(),
                 into = ?kinds(&trial.found),
