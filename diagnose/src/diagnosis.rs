@@ -242,6 +242,88 @@ fn given_model(
 /// pass can only name kinds not yet refused.
 const RESELECTIONS: usize = 3;
 
+/// What the stages after selection dropped, and why.
+#[derive(Default)]
+struct Refused {
+    not_transferring: Vec<NotTransferring>,
+    not_feedback_free: Vec<NotFeedbackFree>,
+}
+
+/// What selection named, kept where it transfers between the run's stretches
+/// (`transferring`) and predicts where no command answered the noise
+/// (`feedback_checked`). An effect admitted beside one the feedback stage
+/// then dropped was judged against a model that is no longer the diagnosis:
+/// the rest are judged again without the dropped kinds
+/// (`selection::reselected`), and what changed faces these stages as the
+/// first choice did, until they drop nothing more (at most `RESELECTIONS`
+/// times).
+fn through_later_stages(
+    selection: &Selection,
+    recording: &Recording,
+    mut selected: Selected,
+    at: OperatingPoint,
+) -> (Selected, Refused) {
+    let mut refused = Refused::default();
+    let mut dropped = checked_once(selection, recording, &mut selected, &mut refused);
+    for _ in 0..RESELECTIONS {
+        if dropped == 0 || selected.found.is_empty() {
+            break;
+        }
+        let barred: Vec<&'static str> = refused
+            .not_feedback_free
+            .iter()
+            .map(|d| d.kind)
+            .chain(refused.not_transferring.iter().map(|d| d.kind))
+            .collect();
+        let dropped_effects: Vec<ScopedEffect> = refused
+            .not_feedback_free
+            .iter()
+            .map(|d| d.scoped.clone())
+            .collect();
+        let before: Vec<&'static str> = selected.found.iter().map(|e| e.effect.kind()).collect();
+        let again = reselected(
+            selection,
+            std::mem::take(&mut selected.found),
+            std::mem::take(&mut selected.evidence),
+            (&barred, &dropped_effects),
+            at,
+        );
+        selected.rejected_heldout.extend(again.rejected_heldout);
+        (selected.found, selected.evidence) = (again.found, again.evidence);
+        if selected.found.iter().map(|e| e.effect.kind()).eq(before) {
+            break;
+        }
+        dropped = checked_once(selection, recording, &mut selected, &mut refused);
+    }
+    (selected, refused)
+}
+
+/// `selected` through the transfer and feedback stages once, what they drop
+/// added to `refused`; returns how many the feedback stage dropped.
+fn checked_once(
+    selection: &Selection,
+    recording: &Recording,
+    selected: &mut Selected,
+    refused: &mut Refused,
+) -> usize {
+    let (prepared, fixed, options) = (selection.prepared, &selection.fixed, selection.options);
+    let (kept, kept_evidence, more) = transferring(
+        prepared,
+        fixed,
+        std::mem::take(&mut selected.found),
+        std::mem::take(&mut selected.evidence),
+        selection.duration,
+        options,
+    );
+    refused.not_transferring.extend(more);
+    let (kept, kept_evidence, more) =
+        feedback_checked(recording, prepared, fixed, kept, kept_evidence, options);
+    let dropped = more.len();
+    refused.not_feedback_free.extend(more);
+    (selected.found, selected.evidence) = (kept, kept_evidence);
+    dropped
+}
+
 /// How many of the residuals' strongest covariates a diagnosis lists.
 const COVARIATES_REPORTED: usize = 5;
 
@@ -472,58 +554,24 @@ pub fn diagnose(recording: &Recording, given: &UnicycleModel, options: &Options)
         duration,
         options,
     };
-    let Selected {
-        found,
-        evidence,
-        unexplained,
-        mut rejected_heldout,
-    } = select(&selection, &located, operating_point);
     let fixed = &selection.fixed;
-    let (found, evidence, mut not_transferring) =
-        transferring(&prepared, fixed, found, evidence, duration, options);
-    let (found, evidence, mut not_feedback_free) =
-        feedback_checked(recording, &prepared, fixed, found, evidence, options);
-    // An effect admitted beside one the feedback stage then dropped was
-    // judged against a model that is no longer the diagnosis: the rest are
-    // judged again without the dropped kinds (`selection::reselected`), and
-    // what changed faces the later stages as the first choice did, until
-    // they drop nothing more.
-    let (mut found, mut evidence) = (found, evidence);
-    let mut dropped_in_pass = not_feedback_free.len();
-    for _ in 0..RESELECTIONS {
-        if dropped_in_pass == 0 || found.is_empty() {
-            break;
-        }
-        let barred: Vec<&'static str> = not_feedback_free
-            .iter()
-            .map(|d| d.kind)
-            .chain(not_transferring.iter().map(|d| d.kind))
-            .collect();
-        let refused: Vec<ScopedEffect> =
-            not_feedback_free.iter().map(|d| d.scoped.clone()).collect();
-        let before: Vec<&'static str> = found.iter().map(|e| e.effect.kind()).collect();
-        let again = reselected(
-            &selection,
+    let (
+        Selected {
             found,
             evidence,
-            (&barred, &refused),
-            operating_point,
-        );
-        rejected_heldout.extend(again.rejected_heldout);
-        let after: Vec<&'static str> = again.found.iter().map(|e| e.effect.kind()).collect();
-        (found, evidence) = (again.found, again.evidence);
-        if after == before {
-            break;
-        }
-        let (kept, kept_evidence, more) =
-            transferring(&prepared, fixed, found, evidence, duration, options);
-        not_transferring.extend(more);
-        let (kept, kept_evidence, more) =
-            feedback_checked(recording, &prepared, fixed, kept, kept_evidence, options);
-        dropped_in_pass = more.len();
-        not_feedback_free.extend(more);
-        (found, evidence) = (kept, kept_evidence);
-    }
+            unexplained,
+            rejected_heldout,
+        },
+        Refused {
+            not_transferring,
+            not_feedback_free,
+        },
+    ) = through_later_stages(
+        &selection,
+        recording,
+        select(&selection, &located, operating_point),
+        operating_point,
+    );
 
     let stderr = if found.is_empty() {
         Vec::new()
