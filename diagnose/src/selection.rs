@@ -712,9 +712,11 @@ pub(crate) fn select(selection: &Selection, located: &[Located], at: OperatingPo
             selection.refit_and_prune(&mut out.found, &mut out.evidence);
         }
     }
-    // Each kind is tried once: one that pruning then drops is not tried again.
+    // Each kind is tried once: one that pruning then drops is not tried
+    // again. Then no effect stays only because of the order it entered in.
     if !out.found.is_empty() {
         selection.completed(&mut out, at, (&[], &[]));
+        selection.swap_each(&mut out, at, (&[], &[]));
     }
     out
 }
@@ -766,10 +768,16 @@ impl Selection<'_> {
 
     /// Each effect of `out` taken out in turn, the others refitted, and the
     /// completion pass run from them; whichever set explains the run better
-    /// by BIC on every segment is kept. Forward selection admits an effect beside
-    /// what is named when it enters; once a later stage has dropped some of
-    /// that, an effect may stand where another kind, never tried without
-    /// the dropped one, explains as much with fewer parameters.
+    /// by BIC on every segment is kept. Forward selection admits an effect
+    /// beside what is named when it enters, so the order decides what a
+    /// later effect is judged against: a surface zone of 106% speed and
+    /// turn over most of the floor entered before a speed scale and a turn
+    /// scale (one effect against two), a second zone took the rest of the
+    /// floor, and pruning dropped the scales; and once a later stage has
+    /// dropped an effect, one admitted beside it may stand where another
+    /// kind, never tried without it, explains as much. What the round
+    /// judged the taken effect's equal (its alternatives) is not tried in
+    /// its place: the encompassing rule chose between them, and says both.
     fn swap_each(
         &self,
         out: &mut Selected,
@@ -791,9 +799,34 @@ impl Selection<'_> {
             kinds.sort_unstable();
             kinds
         };
+        let (barred, refused) = barred;
+        let mut current = bic(&out.found);
         let mut k = 0;
         while k < out.found.len() {
+            let taken = out.found[k].effect.kind();
             let others = all_but(&out.found, k);
+            // A kind the round judged the taken effect's equal does not
+            // replace it: which of two equals is named was decided there, by
+            // the encompassing rule, with both said.
+            let not_tried: Vec<&'static str> = barred
+                .iter()
+                .copied()
+                .chain(out.evidence[k].alternatives.iter().map(|a| a.kind))
+                .collect();
+            // Tried only where another kind ranks above the one taken out
+            // beside the others (`best_beside` frees them beside each kind,
+            // so they need no refit first). Where it still ranks first the
+            // completion pass would start by putting it back; going on from
+            // there can still end elsewhere (a zone and speed-dependent
+            // noise give way to the two scales on one controller run), but
+            // doing it for every effect doubled the run time (03c0acd).
+            if self
+                .best_beside(&others, at, &not_tried)
+                .is_some_and(|best| best.effect.kind() == taken)
+            {
+                k += 1;
+                continue;
+            }
             let mut trial = Selected {
                 found: if others.is_empty() {
                     others
@@ -803,20 +836,22 @@ impl Selection<'_> {
                 evidence: all_but(&out.evidence, k),
                 ..Selected::default()
             };
-            self.completed(&mut trial, at, barred);
+            self.completed(&mut trial, at, (&not_tried, refused));
             // The same kinds back is the same set: no fit on every segment.
-            let swapped =
-                kinds(&trial.found) != kinds(&out.found) && bic(&trial.found) < bic(&out.found);
+            let better = (kinds(&trial.found) != kinds(&out.found))
+                .then(|| bic(&trial.found))
+                .filter(|b| *b < current);
             tracing::debug!(
-                taken = out.found[k].effect.kind(),
+                taken,
                 into = ?kinds(&trial.found),
-                swapped,
+                swapped = better.is_some(),
                 "swap: one taken out, the completion run from the others"
             );
-            if swapped {
+            if let Some(lower) = better {
                 out.rejected_heldout.extend(trial.rejected_heldout);
                 out.found = trial.found;
                 out.evidence = trial.evidence;
+                current = lower;
                 k = 0;
             } else {
                 k += 1;
