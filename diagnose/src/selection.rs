@@ -591,6 +591,17 @@ impl Selection<'_> {
     }
 }
 
+/// What one step of the completion pass did.
+enum CompletionStep {
+    /// The best kind beside the named effects entered, and pruning ran.
+    Entered,
+    /// The best kind was passed over unjudged, as the twin of an effect a
+    /// later stage refused: the next kind is tried.
+    PassedOver,
+    /// Nothing more enters: the pass ends.
+    Done,
+}
+
 /// A completion's candidate fitted beside the named effects, and its entry.
 struct Completion {
     /// The named effects as refitted beside it.
@@ -762,7 +773,10 @@ impl Selection<'_> {
     ) {
         let mut tried = barred.to_vec();
         while out.found.len() < self.options.max_effects
-            && self.complete(out, at, &mut tried, refused)
+            && !matches!(
+                self.complete(out, at, &mut tried, refused),
+                CompletionStep::Done
+            )
         {}
     }
 
@@ -905,21 +919,20 @@ impl Selection<'_> {
     /// not yet named is fitted once more with the named effects free beside
     /// it; the best enters on the same entry test and held-out check as in a
     /// round, judged against the named effects as they were, and pruning
-    /// then drops what it makes redundant. Returns whether to go on: one
-    /// entered, or the best was passed over as a `refused` effect's twin.
+    /// then drops what it makes redundant.
     fn complete(
         &self,
         out: &mut Selected,
         at: OperatingPoint,
         tried: &mut Vec<&'static str>,
         refused: &[ScopedEffect],
-    ) -> bool {
+    ) -> CompletionStep {
         let (grid, segs) = (self.grid(), self.segs());
         if segs.len() < 20 {
-            return false;
+            return CompletionStep::Done;
         }
         let Some(best) = self.best_beside(&out.found, at, tried) else {
-            return false;
+            return CompletionStep::Done;
         };
         tried.push(best.effect.kind());
         let base: Vec<ScopedEffect> = self.fixed.iter().chain(&out.found).cloned().collect();
@@ -929,11 +942,10 @@ impl Selection<'_> {
                 refused = twin.effect.kind(),
                 "completion: adds nothing beside a refused effect"
             );
-            // The next kind is tried: this one was not judged.
-            return true;
+            return CompletionStep::PassedOver;
         }
         let Some(whole) = self.completion_entry(&out.found, &best) else {
-            return false;
+            return CompletionStep::Done;
         };
         // As in a round, the effect may act in part of the run only (a
         // turn bias in the first third, fitted to the whole run, was
@@ -984,7 +996,7 @@ impl Selection<'_> {
             || (must_transfer(&candidate) && worst < -contradiction_nats(gains.len()))
         {
             out.rejected_heldout.push(candidate.effect.kind());
-            return false;
+            return CompletionStep::Done;
         }
         out.found = joint;
         out.found.push(candidate);
@@ -996,7 +1008,7 @@ impl Selection<'_> {
             alternatives: Vec::new(),
         });
         self.refit_and_prune(&mut out.found, &mut out.evidence);
-        true
+        CompletionStep::Entered
     }
 
     /// `candidate` fitted beside the named `found` (all free), and its
