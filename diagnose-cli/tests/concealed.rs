@@ -1195,6 +1195,21 @@ fn a_simulators_euler_step_is_said_as_how_the_recording_was_made_not_as_physics(
         .unwrap_or_else(|| panic!("the step is said: {}", fifth["integration"]));
     assert!((0.012..0.03).contains(&step), "step {step}");
     assert!(kinds(&fifth).is_empty(), "no physics: {:?}", kinds(&fifth));
+    // Semi-implicit, the same: judged again without the dropped lag, a
+    // latency entered in its place and passed the feedback check. It adds
+    // nothing beside the lag, so it is the lag under another name, and
+    // nothing is named.
+    let semi_fifth = diagnose_euler_seed(
+        &dir,
+        "semi-fifth",
+        "15",
+        &["step=0.02", "scheme=semi-implicit"],
+    );
+    assert!(
+        kinds(&semi_fifth).is_empty(),
+        "no physics: {:?}",
+        kinds(&semi_fifth)
+    );
 
     // Stepped every 5 ms, as a body moves: nothing said of the recording.
     let fine = diagnose_euler_run(&dir, "fine", &["step=0.005"]);
