@@ -244,7 +244,7 @@ const RESELECTIONS: usize = 3;
 
 /// What the stages after selection dropped, and why.
 #[derive(Default)]
-struct Refused {
+struct Dropped {
     not_transferring: Vec<NotTransferring>,
     not_feedback_free: Vec<NotFeedbackFree>,
 }
@@ -262,20 +262,20 @@ fn through_later_stages(
     recording: &Recording,
     mut selected: Selected,
     at: OperatingPoint,
-) -> (Selected, Refused) {
-    let mut refused = Refused::default();
-    let mut dropped = checked_once(selection, recording, &mut selected, &mut refused);
+) -> (Selected, Dropped) {
+    let mut dropped = Dropped::default();
+    let mut dropped_by_feedback = checked_once(selection, recording, &mut selected, &mut dropped);
     for _ in 0..RESELECTIONS {
-        if dropped == 0 || selected.found.is_empty() {
+        if dropped_by_feedback == 0 || selected.found.is_empty() {
             break;
         }
-        let barred: Vec<&'static str> = refused
+        let barred: Vec<&'static str> = dropped
             .not_feedback_free
             .iter()
             .map(|d| d.kind)
-            .chain(refused.not_transferring.iter().map(|d| d.kind))
+            .chain(dropped.not_transferring.iter().map(|d| d.kind))
             .collect();
-        let dropped_effects: Vec<ScopedEffect> = refused
+        let dropped_effects: Vec<ScopedEffect> = dropped
             .not_feedback_free
             .iter()
             .map(|d| d.scoped.clone())
@@ -293,18 +293,18 @@ fn through_later_stages(
         if selected.found.iter().map(|e| e.effect.kind()).eq(before) {
             break;
         }
-        dropped = checked_once(selection, recording, &mut selected, &mut refused);
+        dropped_by_feedback = checked_once(selection, recording, &mut selected, &mut dropped);
     }
-    (selected, refused)
+    (selected, dropped)
 }
 
 /// `selected` through the transfer and feedback stages once, what they drop
-/// added to `refused`; returns how many the feedback stage dropped.
+/// added to `dropped`; returns how many the feedback stage dropped.
 fn checked_once(
     selection: &Selection,
     recording: &Recording,
     selected: &mut Selected,
-    refused: &mut Refused,
+    dropped: &mut Dropped,
 ) -> usize {
     let (prepared, fixed, options) = (selection.prepared, &selection.fixed, selection.options);
     let (kept, kept_evidence, more) = transferring(
@@ -315,13 +315,13 @@ fn checked_once(
         selection.duration,
         options,
     );
-    refused.not_transferring.extend(more);
+    dropped.not_transferring.extend(more);
     let (kept, kept_evidence, more) =
         feedback_checked(recording, prepared, fixed, kept, kept_evidence, options);
-    let dropped = more.len();
-    refused.not_feedback_free.extend(more);
+    let by_feedback = more.len();
+    dropped.not_feedback_free.extend(more);
     (selected.found, selected.evidence) = (kept, kept_evidence);
-    dropped
+    by_feedback
 }
 
 /// How many of the residuals' strongest covariates a diagnosis lists.
@@ -562,7 +562,7 @@ pub fn diagnose(recording: &Recording, given: &UnicycleModel, options: &Options)
             unexplained,
             rejected_heldout,
         },
-        Refused {
+        Dropped {
             not_transferring,
             not_feedback_free,
         },

@@ -796,7 +796,7 @@ impl Selection<'_> {
         &self,
         out: &mut Selected,
         at: OperatingPoint,
-        barred: (&[&'static str], &[ScopedEffect]),
+        (barred, refused): (&[&'static str], &[ScopedEffect]),
     ) {
         let (grid, segs, options, fixed) = (self.grid(), self.segs(), self.options, &self.fixed);
         let bic = |found: &[ScopedEffect]| {
@@ -813,7 +813,6 @@ impl Selection<'_> {
             kinds.sort_unstable();
             kinds
         };
-        let (barred, refused) = barred;
         let mut current = bic(&out.found);
         let mut k = 0;
         while k < out.found.len() {
@@ -833,7 +832,8 @@ impl Selection<'_> {
             // completion pass would start by putting it back; going on from
             // there can still end elsewhere (a zone and speed-dependent
             // noise give way to the two scales on one controller run), but
-            // doing it for every effect doubled the run time (03c0acd).
+            // doing it for every effect doubled the run time (EXPERIMENTS.md
+            // 5c, "Each named effect taken out in turn").
             if self
                 .best_beside(&others, at, &not_tried)
                 .is_some_and(|best| best.effect.kind() == taken)
