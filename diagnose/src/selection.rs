@@ -185,6 +185,14 @@ impl Selection<'_> {
         &self.prepared.segments
     }
 
+    /// The plain ΔBIC on the screen of `candidate` fitted to `nll` against
+    /// `nll_before` without it: what candidates are ranked by (each
+    /// segment's three residual components counted as observations).
+    fn screen_delta_bic(&self, nll: f64, nll_before: f64, candidate: &ScopedEffect) -> f64 {
+        let screen_log_n = ((3 * self.screen.len()).max(2) as f64).ln();
+        2.0 * (nll - nll_before) + extra_params(candidate) as f64 * screen_log_n
+    }
+
     /// The best few candidates of different kinds, by their fit on the
     /// screen (each already fitted there, in `screened`), that lower its
     /// plain BIC. Ranking only: the decision is made on all segments with
@@ -195,13 +203,14 @@ impl Selection<'_> {
         remaining: &[ScopedEffect],
         screen_current: f64,
     ) -> Vec<ScopedEffect> {
-        let screen_log_n = ((3 * self.screen.len()).max(2) as f64).ln();
         let mut ranked: Vec<(f64, ScopedEffect)> = screened
             .iter()
             .zip(remaining)
             .map(|(f, c)| {
-                let gain = 2.0 * (f.nll - screen_current) + extra_params(c) as f64 * screen_log_n;
-                (gain, f.effects[0].clone())
+                (
+                    self.screen_delta_bic(f.nll, screen_current, c),
+                    f.effects[0].clone(),
+                )
             })
             .filter(|(g, _)| *g < 0.0)
             .collect();
@@ -889,7 +898,6 @@ impl Selection<'_> {
         // Ranked by ΔBIC on the screen, as a round ranks: by the likelihood
         // alone a kind of two parameters outranked the one-parameter kind
         // that explained as much, failed its entry test, and ended the pass.
-        let screen_log_n = ((3 * self.screen.len()).max(2) as f64).ln();
         EFFECT_KINDS
             .iter()
             .filter(|k| **k != "surface_zone" && !named.contains(k) && !tried.contains(k))
@@ -900,10 +908,7 @@ impl Selection<'_> {
                 let together: Vec<ScopedEffect> =
                     found.iter().cloned().chain([c.clone()]).collect();
                 let nll = fit(grid, &self.screen, fixed, &together, options.max_iters).nll;
-                (
-                    2.0 * (nll - screen_without) + extra_params(&c) as f64 * screen_log_n,
-                    c,
-                )
+                (self.screen_delta_bic(nll, screen_without, &c), c)
             })
             .min_by(|a, b| a.0.total_cmp(&b.0))
             .filter(|(gain, _)| *gain < 0.0)
