@@ -561,6 +561,10 @@ pub struct RunFindings {
     pub effects: Vec<String>,
     /// Each difference located in the motion, as `family component`.
     pub located_in_motion: Vec<String>,
+    /// Each mismatch no effect of the library explained within physical
+    /// limits, as the effect tried and the edge its fit ended on: a null
+    /// run that says one counts as beyond the noise, so it is listed.
+    pub unexplained: Vec<String>,
     #[serde(skip)]
     outcome: Outcome,
 }
@@ -761,6 +765,11 @@ fn run_one(
             .map(effect_text)
             .collect(),
         located_in_motion,
+        unexplained: diagnosis
+            .unexplained
+            .iter()
+            .map(|u| format!("{}: {}", u.tried, u.reason))
+            .collect(),
         outcome,
     }
 }
