@@ -64,3 +64,24 @@ fn a_weak_drift_under_held_commands_is_confirmed_within_the_holds() {
     );
     assert!(kinds.contains(&"latency"), "{kinds:?}");
 }
+
+#[test]
+fn a_mismatch_fitted_only_on_a_physical_edge_faces_the_feedback_stage_as_an_effect_does() {
+    // An open-loop null run (the follower steering on where its commands
+    // alone take it), mixed noise: the round's best fit is a semi-implicit
+    // step on the edge of what its poses allow, and it used to be said as a
+    // real mismatch no effect explains, on the round's test alone
+    // (EXPERIMENTS.md 5c). On one command period it gains nothing.
+    let null = diagnosed_run("waypoints-open", "null", "mixed", 5000).expect("a known run");
+    assert!(
+        null.unexplained.is_empty(),
+        "no mismatch is said where there is none: {:?}",
+        null.unexplained
+    );
+    let dropped = null
+        .not_feedback_free
+        .iter()
+        .find(|n| n.kind == "euler_step")
+        .expect("the edge fit is reported as dropped, with its check");
+    assert!(dropped.check.z < MIN_Z, "{:?}", dropped.check);
+}

@@ -7,7 +7,7 @@
 use std::collections::BTreeMap;
 
 use serde::Serialize;
-use shoal_physics::{CommandGrid, Effect};
+use shoal_physics::{CommandGrid, Effect, ScopedEffect};
 
 use crate::recording::Recording;
 use crate::segments::{Segment, blocks, command_grid, segments};
@@ -70,6 +70,9 @@ pub struct Unexplained {
     pub tried: &'static str,
     pub params: BTreeMap<&'static str, f64>,
     pub reason: String,
+    /// The fit on the edge, for the checks a named effect faces too.
+    #[serde(skip)]
+    pub scoped: ScopedEffect,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]

@@ -704,6 +704,7 @@ pub(crate) fn select(selection: &Selection, located: &[Located], at: OperatingPo
                     reason: format!(
                         "{reason}; the mismatch is real (BIC {delta_bic:.0}) but no effect of the library explains it within physical limits"
                     ),
+                    scoped: chosen.clone(),
                 });
                 continue;
             }
