@@ -11,7 +11,7 @@ use shoal_physics::legged::Param;
 use shoal_physics::range::RangeSensor;
 use shoal_physics::{Command, MotionModel, Pose};
 
-use crate::grid::{TiledGrid, Tolerance};
+use crate::grid::TiledGrid;
 use crate::learning::{Draw, MixtureLearner};
 use crate::proposal::{
     MotionPrior, PROPOSAL_POSES_SCORED, ScoredBeams, improved_proposal, match_scan,
@@ -693,34 +693,13 @@ impl PositionsByTick {
 /// range), and the share of those scored that returned: how much the
 /// step knew.
 fn scored_beams(ranges: &[f64], config: &FilterConfig) -> (ScoredBeams, f64) {
-    let sensor = &config.sensor;
-    let scored: Vec<usize> = (0..ranges.len().min(sensor.beams))
-        .step_by(config.score_stride.max(1))
-        .collect();
-    let returned: Vec<usize> = scored
-        .iter()
-        .copied()
-        .filter(|&b| ranges[b] < sensor.max_range)
-        .collect();
-    let information = if scored.is_empty() {
+    let stride = config.score_stride.max(1);
+    let scored = ranges.len().min(config.sensor.beams).div_ceil(stride);
+    let beams = ScoredBeams::of_scan(ranges, &config.sensor, stride, config.cell_size);
+    let information = if scored == 0 {
         0.0
     } else {
-        returned.len() as f64 / scored.len() as f64
-    };
-    // Where each beam ends in the robot's frame is the same for every
-    // particle: computed once, then turned by each particle's heading (the
-    // profile in BENCHMARKS.md, "SLAM", had a sine and cosine per particle
-    // and beam at 12% of the filter's time). The range noise grows with the
-    // range: so does how far off an obstacle a beam may end.
-    let beams = ScoredBeams {
-        local_ends: returned
-            .iter()
-            .map(|&b| DVec2::from_angle(sensor.bearing(b)) * ranges[b])
-            .collect(),
-        tolerances: returned
-            .iter()
-            .map(|&b| Tolerance::new(sensor.noise_per_m * ranges[b], config.cell_size))
-            .collect(),
+        beams.len() as f64 / scored as f64
     };
     (beams, information)
 }

@@ -9,7 +9,7 @@ use shoal_physics::range::RangeSensor;
 use shoal_physics::wander::{range_ahead, wander_command};
 use shoal_physics::{Arena, Body, Command, MotionModel, Pose, Wall};
 use shoal_slam::filter::{FilterConfig, ParticleFilter, Proposal};
-use shoal_slam::grid::{TiledGrid, Tolerance};
+use shoal_slam::grid::TiledGrid;
 use shoal_slam::proposal::{ScoredBeams, match_scan};
 
 /// A 6 x 5 m room whose north-east quarter (3 x 2.5 m) is walled off.
@@ -269,20 +269,7 @@ fn scan_peak_off_the_truth(seed: u64, cell_size: f64) -> (f64, f64) {
         command = wander_command(step as u64 + 1, range_ahead(&ranges, &sensor), command);
         body.step(command, &arena, &[], &mut rng);
         ranges = sensor.read(&arena, &body.pose, &[], 0.15, &mut rng);
-        let returned: Vec<usize> = (0..ranges.len())
-            .step_by(config.score_stride)
-            .filter(|&b| ranges[b] < sensor.max_range)
-            .collect();
-        let beams = ScoredBeams {
-            local_ends: returned
-                .iter()
-                .map(|&b| DVec2::from_angle(sensor.bearing(b)) * ranges[b])
-                .collect(),
-            tolerances: returned
-                .iter()
-                .map(|&b| Tolerance::new(sensor.noise_per_m * ranges[b], cell_size))
-                .collect(),
-        };
+        let beams = ScoredBeams::of_scan(&ranges, &sensor, config.score_stride, cell_size);
         let truth = body.pose;
         let score = |pose: &Pose| beams.log_likelihood(&map, pose);
         matched += match_scan(&score, truth)
