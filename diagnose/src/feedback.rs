@@ -422,7 +422,7 @@ struct BlockGains {
     expected: f64,
 }
 
-/// [`BlockGains`] of `test`, each model's noise estimated on `train`.
+/// [`BlockGains`] of `test`, both models scored with the noise `with` leaves on `train`.
 fn block_gains(
     prepared: &Prepared,
     train: &[Segment],
