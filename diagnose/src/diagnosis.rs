@@ -359,15 +359,7 @@ fn feedback_checked(
     let duration = recording.duration();
     let not_feedback_free = dropped
         .iter()
-        .filter_map(|&k| {
-            Some(NotFeedbackFree {
-                kind: found[k].effect.kind(),
-                params: found[k].effect.params().into_iter().collect(),
-                sentence: at.sentence(&found[k].effect, duration),
-                check: checks[k]?,
-                scoped: found[k].clone(),
-            })
-        })
+        .filter_map(|&k| Some(NotFeedbackFree::of(&found[k], checks[k]?, &at, duration)))
         .collect();
     let (refitted, mut kept_evidence) =
         kept_refitted(prepared, fixed, &found, evidence, &kept, options);
@@ -412,19 +404,31 @@ fn unexplained_checked(
             .flatten();
             match check {
                 Some(check) if !check.confirmed() => {
-                    not_feedback_free.push(NotFeedbackFree {
-                        kind: u.tried,
-                        params: u.params.clone(),
-                        sentence: at.sentence(&u.scoped.effect, recording.duration()),
+                    not_feedback_free.push(NotFeedbackFree::of(
+                        &u.scoped,
                         check,
-                        scoped: u.scoped.clone(),
-                    });
+                        &at,
+                        recording.duration(),
+                    ));
                     false
                 }
                 _ => true,
             }
         })
         .collect()
+}
+
+impl NotFeedbackFree {
+    /// `scoped`, dropped by `check`, with its sentence at the operating point.
+    fn of(scoped: &ScopedEffect, check: FeedbackFree, at: &OperatingPoint, duration: f64) -> Self {
+        Self {
+            kind: scoped.effect.kind(),
+            params: scoped.effect.params().into_iter().collect(),
+            sentence: at.sentence(&scoped.effect, duration),
+            check,
+            scoped: scoped.clone(),
+        }
+    }
 }
 
 /// An effect dropped because it does not transfer between blocks.
