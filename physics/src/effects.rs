@@ -384,10 +384,16 @@ impl Effect {
                 percent(1.0 - factor),
                 if factor < 1.0 { "slower" } else { "faster" }
             ),
+            // The body loses at most all of its speed (`unicycle`), so a
+            // loss past the whole command is said as standing still.
+            Effect::Slip { per_m_per_s } if per_m_per_s * speed >= 1.0 => format!(
+                "At its usual {speed:.2} m/s the robot does not move: it loses speed in proportion to its speed, all of it from {:.2} m/s (slip).",
+                1.0 / per_m_per_s
+            ),
             Effect::Slip { per_m_per_s } => format!(
                 "At its usual {speed:.2} m/s the robot drives {:.0}% slower than commanded, and the loss grows with speed ({:.0}% at {:.2} m/s) (slip).",
                 percent(per_m_per_s * speed),
-                percent(per_m_per_s * 2.0 * speed),
+                percent((per_m_per_s * 2.0 * speed).min(1.0)),
                 2.0 * speed
             ),
             Effect::TurnScale { factor } => format!(
@@ -567,5 +573,18 @@ mod tests {
             assert!((multiplier(&noise, speed) - multiplier(&slow, speed)).abs() < 1e-9);
         }
         assert!(slow.in_bounds());
+    }
+
+    /// A body whose slip takes all of its speed stands still
+    /// (`unicycle`); its sentence says so, not a loss above 100%.
+    #[test]
+    fn a_slip_past_the_whole_command_is_said_as_standing_still() {
+        let slip = Effect::Slip { per_m_per_s: 0.913 };
+        let jammed = slip.sentence_at(1.2, 0.0, 90.0);
+        assert!(jammed.contains("does not move") && jammed.contains("from 1.10 m/s"), "{jammed}");
+        let slow = slip.sentence_at(0.22, 0.0, 90.0);
+        assert!(slow.contains("20% slower") && slow.contains("(40% at 0.44 m/s)"), "{slow}");
+        let doubled = slip.sentence_at(0.8, 0.0, 90.0);
+        assert!(doubled.contains("73% slower") && doubled.contains("(100% at 1.60 m/s)"), "{doubled}");
     }
 }
