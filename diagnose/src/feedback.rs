@@ -422,7 +422,12 @@ struct BlockGains {
     expected: f64,
 }
 
-/// [`BlockGains`] of `test`, both models scored with the noise `with` leaves on `train`.
+/// Fewest segments a block's noise is estimated from: three variances and
+/// a growth, each within about half of itself (relative error sqrt(2/n)).
+const MIN_NOISE_SEGMENTS: usize = 10;
+
+/// [`BlockGains`] of `test`, both models scored with the noise `with` leaves
+/// on `train`; none when `train` shows no noise to score with.
 fn block_gains(
     prepared: &Prepared,
     train: &[Segment],
@@ -431,6 +436,18 @@ fn block_gains(
     without: &UnicycleModel,
 ) -> BlockGains {
     let with_block = predict_block(&prepared.grid, train, &test, with);
+    // Held commands may all lie in one block: the others then hold too few
+    // segments, or only a robot standing still whose residuals are exactly
+    // zero, and a noise "estimated" there is the variance floor, against
+    // which any residual costs without bound (a mud robot's gain read
+    // 1.3e12 nats). Such a block tells nothing and is not scored.
+    if train.len() < MIN_NOISE_SEGMENTS || with_block.noise.at_floor() {
+        return BlockGains {
+            test: Vec::new(),
+            gains: Vec::new(),
+            expected: 0.0,
+        };
+    }
     let without_residuals = residuals(without, &prepared.grid, &test);
     // Both models are scored with the noise estimated beside the effect, as
     // the gain a real effect would show is. Each with its own noise, the
@@ -503,6 +520,50 @@ mod tests {
             z_against_expected: (z * 3.0 - 3.5) / 3.0,
             size_in_noise,
         }
+    }
+
+    /// 60 s straight at 0.2 m/s as commanded, the observed poses off by
+    /// `jitter` (metres and radians, a fixed pattern), prepared.
+    fn straight(jitter: f64) -> Prepared {
+        let held = commands(0.1, 600, |_| (0.2, 0.0));
+        let mut poses = Poses::default();
+        for i in 0..=600 {
+            let t = i as f64 * 0.1;
+            let wobble = jitter * (1.7 * i as f64).sin();
+            poses.t.push(t);
+            poses.x.push(0.2 * t + wobble);
+            poses.y.push(wobble);
+            poses.theta.push(wobble);
+        }
+        prepare(
+            &Recording::from_absolute(held.commands, poses),
+            &Options::default(),
+        )
+    }
+
+    /// Without noise to score with, a block's gains would be any residual
+    /// over the variance floor: a mud robot's read 1.3e12 nats.
+    #[test]
+    fn a_block_whose_others_show_no_noise_is_not_scored() {
+        let plain = UnicycleModel::default();
+        let slower = UnicycleModel::with_effects(vec![ScopedEffect::always(
+            shoal_physics::Effect::SpeedScale { factor: 0.9 },
+        )]);
+        let gains = |prepared: &Prepared, train: usize, with: &UnicycleModel, without| {
+            let (others, block) = prepared.segments.split_at(prepared.segments.len() / 2);
+            assert!(others.len() >= train && !block.is_empty());
+            block_gains(prepared, &others[..train], block.to_vec(), with, without).gains
+        };
+        // The others' residuals are all zero: no noise, nothing scored.
+        let exact = straight(0.0);
+        assert!(gains(&exact, 20, &plain, &slower).is_empty());
+        // Too few others: nothing scored either.
+        let jittered = straight(0.005);
+        assert!(gains(&jittered, MIN_NOISE_SEGMENTS - 1, &plain, &slower).is_empty());
+        // Enough, with noise: every segment scored, the true model ahead.
+        let scored = gains(&jittered, MIN_NOISE_SEGMENTS, &plain, &slower);
+        assert!(!scored.is_empty() && scored.iter().all(|g| g.is_finite()));
+        assert!(scored.iter().sum::<f64>() > 0.0, "{scored:?}");
     }
 
     #[test]

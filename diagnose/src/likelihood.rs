@@ -26,6 +26,16 @@ pub struct Noise {
     pub theta: f64,
 }
 
+impl Noise {
+    /// Whether a component's variance is at the floor: the residuals it
+    /// was estimated from showed no noise there at all.
+    pub fn at_floor(&self) -> bool {
+        [self.along, self.across, self.theta]
+            .iter()
+            .any(|v| *v <= VARIANCE_FLOOR)
+    }
+}
+
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Score {
     /// Negative log-likelihood of the residuals.
