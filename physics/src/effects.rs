@@ -581,10 +581,19 @@ mod tests {
     fn a_slip_past_the_whole_command_is_said_as_standing_still() {
         let slip = Effect::Slip { per_m_per_s: 0.913 };
         let jammed = slip.sentence_at(1.2, 0.0, 90.0);
-        assert!(jammed.contains("does not move") && jammed.contains("from 1.10 m/s"), "{jammed}");
+        assert!(
+            jammed.contains("does not move") && jammed.contains("from 1.10 m/s"),
+            "{jammed}"
+        );
         let slow = slip.sentence_at(0.22, 0.0, 90.0);
-        assert!(slow.contains("20% slower") && slow.contains("(40% at 0.44 m/s)"), "{slow}");
+        assert!(
+            slow.contains("20% slower") && slow.contains("(40% at 0.44 m/s)"),
+            "{slow}"
+        );
         let doubled = slip.sentence_at(0.8, 0.0, 90.0);
-        assert!(doubled.contains("73% slower") && doubled.contains("(100% at 1.60 m/s)"), "{doubled}");
+        assert!(
+            doubled.contains("73% slower") && doubled.contains("(100% at 1.60 m/s)"),
+            "{doubled}"
+        );
     }
 }
