@@ -206,7 +206,9 @@ struct UpArgs {
     /// Stop after this many seconds (simulated seconds in lockstep).
     #[arg(long, value_parser = positive_seconds, allow_negative_numbers = true)]
     duration: Option<f64>,
-    /// Step all robots on one clock, faster than real time and deterministic for a seed.
+    /// Step all robots on one clock, faster than real time and deterministic for a seed
+    /// (unless a SLAM process follows them: its corrections and learned models reach
+    /// the robots on its own clock).
     #[arg(long)]
     lockstep: bool,
     /// Seed of start poses and noise (overrides the scenario).
