@@ -382,6 +382,8 @@ impl Selection<'_> {
                 kind = candidate.effect.kind(),
                 rank = index,
                 delta_bic,
+                chi2 = test.chi2,
+                needed = test.needed,
                 passed = test.passed(),
                 "round: candidate"
             );
@@ -425,6 +427,8 @@ impl Selection<'_> {
             kind = candidate.effect.kind(),
             during = ?candidate.during,
             delta_bic,
+            chi2 = test.chi2,
+            needed = test.needed,
             passed = test.passed(),
             "round: the best, failed over the whole run, tried over part of it"
         );
