@@ -206,6 +206,36 @@ fn a_recorder_killed_with_sigkill_leaves_a_readable_file() {
     let _ = std::fs::remove_dir_all(dir);
 }
 
+/// Runs `scenario` in lockstep for `seconds` as swarm `swarm`, recording
+/// to `run/run.rrd` and the TUM side folder `run`; returns the recording.
+fn record_lockstep(
+    swarm: &str,
+    scenario: &Path,
+    seconds: u32,
+    run: &Path,
+    extra: &[&str],
+) -> std::path::PathBuf {
+    let recording = run.join("run.rrd");
+    let seconds = seconds.to_string();
+    let mut args = vec![
+        "up",
+        "--swarm",
+        swarm,
+        "--scenario",
+        scenario.to_str().expect("utf-8"),
+        "--lockstep",
+        "--duration",
+        &seconds,
+        "--record",
+        recording.to_str().expect("utf-8"),
+        "--tum",
+        run.to_str().expect("utf-8"),
+    ];
+    args.extend_from_slice(extra);
+    shoal_ok(&args);
+    recording
+}
+
 /// Robots walk from a plain floor into mud their motion model does not know;
 /// `shoal diagnose run.rrd --robot N` finds the mud from the recording alone,
 /// and agrees with what it finds from the TUM side folder.
@@ -215,21 +245,7 @@ fn a_surface_the_robots_model_lacks_is_diagnosed_from_the_recording_alone() {
     let dir = scratch("mud");
     let scenario = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/mud.toml");
     let run = dir.join("run");
-    let recording = run.join("run.rrd");
-    shoal_ok(&[
-        "up",
-        "--swarm",
-        "e2e-mud",
-        "--scenario",
-        scenario.to_str().expect("utf-8"),
-        "--lockstep",
-        "--duration",
-        "150",
-        "--record",
-        recording.to_str().expect("utf-8"),
-        "--tum",
-        run.to_str().expect("utf-8"),
-    ]);
+    let recording = record_lockstep("e2e-mud", &scenario, 150, &run, &[]);
     let diagnose = |input: &[&str]| -> Value {
         let mut args = vec!["diagnose"];
         args.extend_from_slice(input);
@@ -350,23 +366,7 @@ fn the_demos_sand_is_named_for_robots_whose_commands_change_every_step() {
     let dir = scratch("sand");
     let scenario = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/demo.toml");
     let run = dir.join("run");
-    let recording = run.join("run.rrd");
-    shoal_ok(&[
-        "up",
-        "--swarm",
-        "e2e-sand",
-        "--scenario",
-        scenario.to_str().expect("utf-8"),
-        "--slam",
-        "none",
-        "--lockstep",
-        "--duration",
-        "90",
-        "--record",
-        recording.to_str().expect("utf-8"),
-        "--tum",
-        run.to_str().expect("utf-8"),
-    ]);
+    let recording = record_lockstep("e2e-sand", &scenario, 90, &run, &["--slam", "none"]);
     // The demo's sand: x >= 12 and y >= 11.
     let on_sand = |x: f64, y: f64| x >= 12.0 && y >= 11.0;
     let first_on_sand = |robot: usize| -> Option<f64> {
