@@ -135,7 +135,6 @@ pub fn restart(swarm: &str, ids: &[u32], at: Option<[f64; 2]>) -> Result<()> {
 }
 
 /// Adds `count` robots with fresh ids, around `at` or in the start region.
-
 pub fn spawn(swarm: &str, count: usize, at: Option<[f64; 2]>) -> Result<Vec<u32>> {
     let (runtime, scenario) = open_swarm(swarm)?;
     // Back-to-back spawns would otherwise pick the same ids: one at a time.
