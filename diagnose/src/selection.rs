@@ -675,6 +675,14 @@ struct Completion {
     with: Vec<ScopedEffect>,
 }
 
+impl Completion {
+    /// Whether it may enter: it passes its test and fits inside its
+    /// physical range.
+    fn enters(&self) -> bool {
+        self.test.passed() && on_bound(&self.candidate).is_none()
+    }
+}
+
 /// A round's candidate that passed its entry test: its index among those
 /// judged, its calibrated ΔBIC, the test and the residuals' long runs with it.
 struct Passing {
@@ -1008,8 +1016,10 @@ impl Selection<'_> {
         // As in a round, the effect may act in part of the run only (a
         // turn bias in the first third, fitted to the whole run, was
         // contradicted by the blocks after it and never named): the part
-        // is tried on the screen and kept if it beats the whole run on
-        // every segment (`part_beats_whole`).
+        // is tried on the screen and kept if it enters and beats the whole
+        // run on every segment (`part_beats_whole`); and as in a round, it
+        // is tried too when the whole run fails its test, where the part
+        // is diluted by the rest.
         let refitted: Vec<ScopedEffect> = self.fixed.iter().chain(&whole.joint).cloned().collect();
         let narrower = narrower_scope(
             grid,
@@ -1020,14 +1030,19 @@ impl Selection<'_> {
             self.options,
         )
         .and_then(|scoped| self.completion_entry(&out.found, &scoped))
-        .filter(|part| self.part_beats_whole(part.delta_bic, whole.delta_bic));
+        .filter(|part| part.enters() && self.part_beats_whole(part.delta_bic, whole.delta_bic));
+        let chosen = match narrower {
+            Some(part) => part,
+            None if whole.enters() => whole,
+            None => return CompletionStep::Done,
+        };
         let Completion {
             joint,
             candidate,
             delta_bic,
             test,
             with,
-        } = narrower.unwrap_or(whole);
+        } = chosen;
         let through: Vec<ScopedEffect> = self
             .fixed
             .iter()
@@ -1070,8 +1085,7 @@ impl Selection<'_> {
     }
 
     /// `candidate` fitted beside the named `found` (all free), and its
-    /// entry test against `found` as they were; None if it fails the test
-    /// or lies on a bound of its parameters.
+    /// entry test against `found` as they were (see [`Completion::enters`]).
     fn completion_entry(
         &self,
         found: &[ScopedEffect],
@@ -1098,9 +1112,6 @@ impl Selection<'_> {
             on_bound = on_bound(&candidate).is_some(),
             "completion: best beside the named"
         );
-        if !test.passed() || on_bound(&candidate).is_some() {
-            return None;
-        }
         Some(Completion {
             joint,
             candidate,
