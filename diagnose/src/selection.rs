@@ -402,7 +402,7 @@ impl Selection<'_> {
 
     /// When every candidate fails over the whole run, the best of them may
     /// still act in part of it: a legged robot that walked onto sand 13 s
-    /// into a 60 s run loses 46% of its stride there, and over the whole
+    /// into a 90 s run loses 46% of its stride there, and over the whole
     /// run that mismatch is diluted below the test (robot 14 of a demo
     /// recording: χ² 11.2 where 11.9 is needed), while nothing is located
     /// in time to try it scoped. The best is tried over the first or last
