@@ -357,9 +357,9 @@ fn a_surface_the_robots_model_lacks_is_diagnosed_from_the_recording_alone() {
 /// the whole run its mismatch is diluted by the carpet before, so it must be
 /// tried over the part of the run after the robot stepped on it. Measured
 /// on this recording (`--slam none`, deterministic): 5 robots name it; 1
-/// with each model of the feedback stage scored with its own noise, 0 with
-/// nothing tried over part of the run unless located in time first
-/// (EXPERIMENTS.md 5c).
+/// when nothing was tried over part of the run unless located in time
+/// first, none when the feedback stage also scored each model with its
+/// own noise (EXPERIMENTS.md 7, "The demo's sand").
 #[test]
 fn the_demos_sand_is_named_for_robots_whose_commands_change_every_step() {
     let _turn = serial();
