@@ -288,12 +288,12 @@ impl Selection<'_> {
             factors = ?factors,
             "round: confirmed on every segment, judged with the long-run factors (ΔBIC)"
         );
-        let mut tied_in_part = Vec::new();
-        let Some(passing) = self
-            .first_passing(base, &judged, long_runs)
-            .or_else(|| self.passing_in_part(base, &judged, long_runs, &judge, &mut tied_in_part))
-        else {
-            return Round::Done;
+        let (passing, tied_in_part) = match self.first_passing(base, &judged, long_runs) {
+            Some(passing) => (passing, Vec::new()),
+            None => match self.passing_in_part(base, &judged, long_runs, &judge) {
+                Some(found) => found,
+                None => return Round::Done,
+            },
         };
         let (
             Passing {
@@ -408,17 +408,17 @@ impl Selection<'_> {
     /// in time to try it scoped. The best is tried over the first or last
     /// part of the run and faces the entry test with the span's two
     /// parameters counted, and after it the held-out and feedback stages,
-    /// as every effect named.
+    /// as every effect named. Returns it with what `scoped` tied to it.
     fn passing_in_part(
         &self,
         base: &[ScopedEffect],
         judged: &[(f64, ScopedEffect)],
         long_runs: [LongRun; 3],
         judge: &impl Fn(&ScopedEffect) -> f64,
-        tied: &mut Vec<(f64, ScopedEffect)>,
-    ) -> Option<Passing> {
+    ) -> Option<(Passing, Vec<(f64, ScopedEffect)>)> {
         let (whole_bic, best) = judged.first()?;
-        let (candidate, delta_bic) = self.scoped(base, best.clone(), *whole_bic, judge, tied);
+        let mut tied = Vec::new();
+        let (candidate, delta_bic) = self.scoped(base, best.clone(), *whole_bic, judge, &mut tied);
         if candidate == *best {
             return None;
         }
@@ -432,16 +432,15 @@ impl Selection<'_> {
             passed = test.passed(),
             "round: the best, failed over the whole run, tried over part of it"
         );
-        if !test.passed() {
-            tied.clear();
-            return None;
-        }
-        Some(Passing {
-            index: 0,
-            delta_bic,
-            candidate,
-            test,
-            long_runs,
+        test.passed().then(|| {
+            let passing = Passing {
+                index: 0,
+                delta_bic,
+                candidate,
+                test,
+                long_runs,
+            };
+            (passing, tied)
         })
     }
 
