@@ -331,8 +331,8 @@ fn a_surface_the_robots_model_lacks_is_diagnosed_from_the_recording_alone() {
     );
     // Confirmed where no command answered the noise, not only kept for its
     // size: the feedback stage must not lose a gait's mud (EXPERIMENTS.md
-    // 5c, "Both models scored with one noise"; measured z 2.5-3.5 on the
-    // six robots that name it, at 0.2 s or within held commands).
+    // 5c, "Both models scored with one noise"; measured z 2.5-7.7 on the
+    // six robots, at 0.2 s or within held commands).
     assert!(
         confirmed_short.len() >= 3,
         "the mud is confirmed on one command period for robots {confirmed_short:?} only (found for {found_mud:?})"
