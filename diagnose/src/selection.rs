@@ -66,8 +66,19 @@ pub(crate) enum Round {
         test: EntryTest,
         /// Rival explanations within 2 of BIC.
         tied: Vec<(f64, ScopedEffect)>,
+        /// The chosen effect over part of the run, where the run prefers it
+        /// by less than a narrower scope must win by and it passes its own
+        /// entry test: tried if the whole run fails the held-out check.
+        part: Option<Part>,
         remaining: Vec<ScopedEffect>,
     },
+}
+
+/// An effect over part of the run, with its gain (ΔBIC) and entry test.
+pub(crate) struct Part {
+    pub(crate) effect: ScopedEffect,
+    pub(crate) delta_bic: f64,
+    pub(crate) test: EntryTest,
 }
 
 /// One diagnosis's data and settings, shared by its stages.
@@ -316,12 +327,29 @@ impl Selection<'_> {
             .chain(equivalent)
             .chain(tied_in_part)
             .collect();
-        let (scoped, delta_bic) = self.scoped(base, chosen.clone(), delta_bic, &judge, &mut tied);
+        let (scoped, delta_bic, unchosen_part) =
+            self.scoped(base, chosen.clone(), delta_bic, &judge, &mut tied);
         let test = if scoped == chosen {
             test
         } else {
             self.entry_of(base, &scoped, (delta_bic, long_runs))
         };
+        let part = unchosen_part.and_then(|(effect, delta_bic)| {
+            let test = self.entry_of(base, &effect, (delta_bic, long_runs));
+            tracing::debug!(
+                kind = effect.effect.kind(),
+                during = ?effect.during,
+                delta_bic,
+                chi2 = test.chi2,
+                needed = test.needed,
+                "round: the chosen over part of the run, in reserve if the whole fails held out"
+            );
+            test.passed().then_some(Part {
+                effect,
+                delta_bic,
+                test,
+            })
+        });
         let chosen = scoped;
         let tied_kinds: Vec<&'static str> = tied.iter().map(|(_, c)| c.effect.kind()).collect();
         // Said beside, but free to enter later: it added nothing beside the
@@ -353,6 +381,7 @@ impl Selection<'_> {
             delta_bic,
             test,
             tied,
+            part,
             remaining,
         }
     }
@@ -418,7 +447,8 @@ impl Selection<'_> {
     ) -> Option<(Passing, Vec<(f64, ScopedEffect)>)> {
         let (whole_bic, best) = judged.first()?;
         let mut tied = Vec::new();
-        let (candidate, delta_bic) = self.scoped(base, best.clone(), *whole_bic, judge, &mut tied);
+        let (candidate, delta_bic, _) =
+            self.scoped(base, best.clone(), *whole_bic, judge, &mut tied);
         if candidate == *best {
             return None;
         }
@@ -564,6 +594,9 @@ impl Selection<'_> {
     /// narrower scope from fitting noise. A robot that drives into a zone
     /// and stays there shows a change in time that is as much a change in
     /// place, so the region it drove in over that span is tried as a zone.
+    /// Where the whole run is kept but BIC prefers the best part, if by less
+    /// than a narrower scope must win by, the part is returned beside it
+    /// with its gain, for the held-out check to try if the whole run fails.
     fn scoped(
         &self,
         base: &[ScopedEffect],
@@ -571,12 +604,12 @@ impl Selection<'_> {
         delta_bic: f64,
         judge: &impl Fn(&ScopedEffect) -> f64,
         tied: &mut Vec<(f64, ScopedEffect)>,
-    ) -> (ScopedEffect, f64) {
+    ) -> (ScopedEffect, f64, Option<(ScopedEffect, f64)>) {
         let (grid, segs, options) = (self.grid(), self.segs(), self.options);
         let Some(scoped) =
             narrower_scope(grid, &self.screen, base, &chosen, self.duration, options)
         else {
-            return (chosen, delta_bic);
+            return (chosen, delta_bic, None);
         };
         let confirm = |candidate: &ScopedEffect| {
             let full = fit(
@@ -592,7 +625,12 @@ impl Selection<'_> {
         };
         let (scoped_fit, scoped_gain) = confirm(&scoped);
         if !self.part_beats_whole(scoped_gain, delta_bic) {
-            return (chosen, delta_bic);
+            // The part is kept in reserve only where the run prefers it,
+            // its span's parameters paid: a part that merely leaves out
+            // the block of noise that contradicts the whole run's fit (a
+            // slip "from 0 to 525 s" of a 600 s run) is not.
+            let reserve = (scoped_gain < delta_bic).then_some((scoped_fit, scoped_gain));
+            return (chosen, delta_bic, reserve);
         }
         if let Some(zone) = zone_of_span(segs, &scoped_fit)
             && let Some(zone_effect) = Effect::identity("surface_zone", zone)
@@ -602,10 +640,10 @@ impl Selection<'_> {
             let zone_gain = judge(&zone_fit);
             if zone_gain < scoped_gain + 2.0 && !is_whole_floor(segs, &zone_fit.effect) {
                 tied.push((scoped_gain, scoped_fit));
-                return (zone_fit, zone_gain);
+                return (zone_fit, zone_gain, None);
             }
         }
-        (scoped_fit, scoped_gain)
+        (scoped_fit, scoped_gain, None)
     }
 
     /// Whether an effect over part of the run, gaining `part` (ΔBIC, lower
@@ -750,6 +788,7 @@ pub(crate) fn select(selection: &Selection, located: &[Located], at: OperatingPo
                 delta_bic,
                 test,
                 tied,
+                part,
                 remaining: next,
             } = selection.round(&base, &remaining)
             else {
@@ -767,8 +806,24 @@ pub(crate) fn select(selection: &Selection, located: &[Located], at: OperatingPo
                 });
                 continue;
             }
-            let Some(gain_heldout) = holds_out(selection, &base, &chosen) else {
-                out.rejected_heldout.push(chosen.effect.kind());
+            // A whole-run effect the held-out blocks contradict may act in
+            // part of the run only: a turn bias from the middle of the run,
+            // under coloured noise, gains too little over its half to be
+            // chosen over the whole run, and the blocks before it then
+            // contradict the whole run's fit. Its part, which passed its
+            // own entry test, faces the same held-out check.
+            let kind = chosen.effect.kind();
+            let heldout = match holds_out(selection, &base, &chosen) {
+                Some(gain) => Some((chosen, delta_bic, test, gain)),
+                None => part
+                    .filter(|p| on_bound(&p.effect).is_none())
+                    .and_then(|p| {
+                        holds_out(selection, &base, &p.effect)
+                            .map(|gain| (p.effect, p.delta_bic, p.test, gain))
+                    }),
+            };
+            let Some((chosen, delta_bic, test, gain_heldout)) = heldout else {
+                out.rejected_heldout.push(kind);
                 continue;
             };
             out.found.push(chosen);
