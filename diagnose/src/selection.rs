@@ -69,7 +69,7 @@ pub(crate) enum Round {
         /// The chosen effect over part of the run, where the run prefers it
         /// by less than a narrower scope must win by and it passes its own
         /// entry test: tried if the whole run fails the held-out check.
-        part: Option<Part>,
+        part: Option<Box<Part>>,
         remaining: Vec<ScopedEffect>,
     },
 }
@@ -344,10 +344,12 @@ impl Selection<'_> {
                 needed = test.needed,
                 "round: the chosen over part of the run, in reserve if the whole fails held out"
             );
-            test.passed().then_some(Part {
-                effect,
-                delta_bic,
-                test,
+            test.passed().then(|| {
+                Box::new(Part {
+                    effect,
+                    delta_bic,
+                    test,
+                })
             })
         });
         let chosen = scoped;
@@ -818,8 +820,13 @@ pub(crate) fn select(selection: &Selection, located: &[Located], at: OperatingPo
                 None => part
                     .filter(|p| on_bound(&p.effect).is_none())
                     .and_then(|p| {
-                        holds_out(selection, &base, &p.effect)
-                            .map(|gain| (p.effect, p.delta_bic, p.test, gain))
+                        let Part {
+                            effect,
+                            delta_bic,
+                            test,
+                        } = *p;
+                        holds_out(selection, &base, &effect)
+                            .map(|gain| (effect, delta_bic, test, gain))
                     }),
             };
             let Some((chosen, delta_bic, test, gain_heldout)) = heldout else {
