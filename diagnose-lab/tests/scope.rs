@@ -3,28 +3,34 @@
 
 use shoal_diagnose_lab::experiment::diagnosed_run;
 
-/// The slow teleoperated robot (`speed-only`), a turn bias of -0.02 rad/s in
-/// the first 200 s of 600, coloured noise that grows with speed: the bias
-/// of run `seed` must be named for that third.
-fn first_third_bias_named(seed: u64) {
-    let diagnosis = diagnosed_run("speed-only", "turn_bias", "ou-2s", seed).expect("a known run");
+/// The turn bias named in run `seed` of `generator`'s `turn_bias` case
+/// under `noise`: its span, its rate (rad/s) and its sentence. Panics if
+/// it is not named, or named for the whole run.
+fn turn_bias_named(generator: &str, noise: &str, seed: u64) -> ([f64; 2], f64, String) {
+    let diagnosis = diagnosed_run(generator, "turn_bias", noise, seed).expect("a known run");
     let bias = diagnosis.effect("turn_bias").unwrap_or_else(|| {
         panic!(
             "the turn bias is named: {:?}",
             diagnosis.effects.iter().map(|e| e.kind).collect::<Vec<_>>()
         )
     });
-    let [from, to] = bias
+    let during = bias
         .scoped
         .during
         .unwrap_or_else(|| panic!("named for part of the run: {}", bias.sentence));
+    (during, bias.params["rad_per_s"], bias.sentence.clone())
+}
+
+/// The slow teleoperated robot (`speed-only`), a turn bias of -0.02 rad/s in
+/// the first 200 s of 600, coloured noise that grows with speed: the bias
+/// of run `seed` must be named for that third.
+fn first_third_bias_named(seed: u64) {
+    let ([from, to], rate, sentence) = turn_bias_named("speed-only", "ou-2s", seed);
     assert!(
         from < 20.0 && (150.0..250.0).contains(&to),
-        "the first third (0-200 s): {}",
-        bias.sentence
+        "the first third (0-200 s): {sentence}"
     );
-    let rate = bias.params["rad_per_s"];
-    assert!((rate + 0.02).abs() < 0.007, "{}", bias.sentence);
+    assert!((rate + 0.02).abs() < 0.007, "{sentence}");
 }
 
 #[test]
@@ -51,22 +57,10 @@ fn a_part_the_run_prefers_is_named_when_the_whole_run_is_contradicted_held_out()
     // narrower scope must win by to be chosen, and the whole run's fit was
     // then contradicted by the first held-out block (-18.9 nats): nothing
     // was named. The part, which the run prefers, is tried held out in turn.
-    let diagnosis = diagnosed_run("bench", "turn_bias", "ou-2s", 1002).expect("a known run");
-    let bias = diagnosis.effect("turn_bias").unwrap_or_else(|| {
-        panic!(
-            "the turn bias is named: {:?}",
-            diagnosis.effects.iter().map(|e| e.kind).collect::<Vec<_>>()
-        )
-    });
-    let [from, to] = bias
-        .scoped
-        .during
-        .unwrap_or_else(|| panic!("named for part of the run: {}", bias.sentence));
+    let ([from, to], rate, sentence) = turn_bias_named("bench", "ou-2s", 1002);
     assert!(
         (250.0..400.0).contains(&from) && to > 580.0,
-        "the second half (300-600 s): {}",
-        bias.sentence
+        "the second half (300-600 s): {sentence}"
     );
-    let rate = bias.params["rad_per_s"];
-    assert!((rate - 0.015).abs() < 0.007, "{}", bias.sentence);
+    assert!((rate - 0.015).abs() < 0.007, "{sentence}");
 }

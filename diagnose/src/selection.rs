@@ -335,14 +335,11 @@ impl Selection<'_> {
             self.entry_of(base, &scoped, (delta_bic, long_runs))
         };
         let part = unchosen_part.and_then(|(effect, delta_bic)| {
-            let test = self.entry_of(base, &effect, (delta_bic, long_runs));
-            tracing::debug!(
-                kind = effect.effect.kind(),
-                during = ?effect.during,
-                delta_bic,
-                chi2 = test.chi2,
-                needed = test.needed,
-                "round: the chosen over part of the run, in reserve if the whole fails held out"
+            let test = self.part_entry(
+                base,
+                &effect,
+                (delta_bic, long_runs),
+                "the chosen, in reserve if the whole run fails held out",
             );
             test.passed().then(|| {
                 Box::new(Part {
@@ -454,15 +451,11 @@ impl Selection<'_> {
         if candidate == *best {
             return None;
         }
-        let test = self.entry_of(base, &candidate, (delta_bic, long_runs));
-        tracing::debug!(
-            kind = candidate.effect.kind(),
-            during = ?candidate.during,
-            delta_bic,
-            chi2 = test.chi2,
-            needed = test.needed,
-            passed = test.passed(),
-            "round: the best, failed over the whole run, tried over part of it"
+        let test = self.part_entry(
+            base,
+            &candidate,
+            (delta_bic, long_runs),
+            "the best, failed over the whole run",
         );
         test.passed().then(|| {
             let passing = Passing {
@@ -474,6 +467,29 @@ impl Selection<'_> {
             };
             (passing, tied)
         })
+    }
+
+    /// The entry test of `part`, an effect over part of the run gaining
+    /// `delta_bic`, logged with `which` it is.
+    fn part_entry(
+        &self,
+        base: &[ScopedEffect],
+        part: &ScopedEffect,
+        (delta_bic, long_runs): (f64, [LongRun; 3]),
+        which: &'static str,
+    ) -> EntryTest {
+        let test = self.entry_of(base, part, (delta_bic, long_runs));
+        tracing::debug!(
+            which,
+            kind = part.effect.kind(),
+            during = ?part.during,
+            delta_bic,
+            chi2 = test.chi2,
+            needed = test.needed,
+            passed = test.passed(),
+            "round: tried over part of the run"
+        );
+        test
     }
 
     /// The passing candidate, or a rival that encompasses it. Two kinds can
