@@ -61,21 +61,19 @@ pub(crate) enum Round {
     Done,
     /// The best candidate, and the candidates later rounds may still try.
     Chosen {
-        chosen: ScopedEffect,
-        delta_bic: f64,
-        test: EntryTest,
+        chosen: Tested,
         /// Rival explanations within 2 of BIC.
         tied: Vec<(f64, ScopedEffect)>,
         /// The chosen effect over part of the run, where the run prefers it
         /// by less than a narrower scope must win by and it passes its own
         /// entry test: tried if the whole run fails the held-out check.
-        part: Option<Box<Part>>,
+        part: Option<Box<Tested>>,
         remaining: Vec<ScopedEffect>,
     },
 }
 
-/// An effect over part of the run, with its gain (ΔBIC) and entry test.
-pub(crate) struct Part {
+/// An effect with its gain (ΔBIC) and its entry test.
+pub(crate) struct Tested {
     pub(crate) effect: ScopedEffect,
     pub(crate) delta_bic: f64,
     pub(crate) test: EntryTest,
@@ -342,7 +340,7 @@ impl Selection<'_> {
                 "the chosen, in reserve if the whole run fails held out",
             );
             test.passed().then(|| {
-                Box::new(Part {
+                Box::new(Tested {
                     effect,
                     delta_bic,
                     test,
@@ -376,9 +374,11 @@ impl Selection<'_> {
             .map(|(c, _)| c.clone())
             .collect();
         Round::Chosen {
-            chosen,
-            delta_bic,
-            test,
+            chosen: Tested {
+                effect: chosen,
+                delta_bic,
+                test,
+            },
             tied,
             part,
             remaining,
@@ -642,6 +642,13 @@ impl Selection<'_> {
             (fitted, gain)
         };
         let (scoped_fit, scoped_gain) = confirm(&scoped);
+        tracing::debug!(
+            kind = scoped_fit.effect.kind(),
+            during = ?scoped_fit.during,
+            part = scoped_gain,
+            whole = delta_bic,
+            "round: the best part of the run against the whole run (ΔBIC)"
+        );
         if !self.part_beats_whole(scoped_gain, delta_bic) {
             // The part is kept in reserve only where the run prefers it,
             // its span's parameters paid: a part that merely leaves out
@@ -803,8 +810,6 @@ pub(crate) fn select(selection: &Selection, located: &[Located], at: OperatingPo
                 selection.fixed.iter().chain(&out.found).cloned().collect();
             let Round::Chosen {
                 chosen,
-                delta_bic,
-                test,
                 tied,
                 part,
                 remaining: next,
@@ -813,14 +818,17 @@ pub(crate) fn select(selection: &Selection, located: &[Located], at: OperatingPo
                 break;
             };
             remaining = next;
-            if let Some(reason) = on_bound(&chosen) {
+            if let Some(reason) = on_bound(&chosen.effect) {
+                let Tested {
+                    effect, delta_bic, ..
+                } = chosen;
                 out.unexplained.push(Unexplained {
-                    tried: chosen.effect.kind(),
-                    params: chosen.effect.params().into_iter().collect(),
+                    tried: effect.effect.kind(),
+                    params: effect.effect.params().into_iter().collect(),
                     reason: format!(
                         "{reason}; the mismatch is real (BIC {delta_bic:.0}) but no effect of the library explains it within physical limits"
                     ),
-                    scoped: chosen.clone(),
+                    scoped: effect,
                 });
                 continue;
             }
@@ -830,22 +838,22 @@ pub(crate) fn select(selection: &Selection, located: &[Located], at: OperatingPo
             // chosen over the whole run, and the blocks before it then
             // contradict the whole run's fit. Its part, which passed its
             // own entry test, faces the same held-out check.
-            let kind = chosen.effect.kind();
-            let heldout = match holds_out(selection, &base, &chosen) {
-                Some(gain) => Some((chosen, delta_bic, test, gain)),
-                None => part
-                    .filter(|p| on_bound(&p.effect).is_none())
-                    .and_then(|p| {
-                        let Part {
-                            effect,
-                            delta_bic,
-                            test,
-                        } = *p;
-                        holds_out(selection, &base, &effect)
-                            .map(|gain| (effect, delta_bic, test, gain))
-                    }),
-            };
-            let Some((chosen, delta_bic, test, gain_heldout)) = heldout else {
+            let kind = chosen.effect.effect.kind();
+            let heldout = holds_out(selection, &base, &chosen.effect)
+                .map(|gain| (chosen, gain))
+                .or_else(|| {
+                    let part = part.filter(|p| on_bound(&p.effect).is_none())?;
+                    holds_out(selection, &base, &part.effect).map(|gain| (*part, gain))
+                });
+            let Some((
+                Tested {
+                    effect: chosen,
+                    delta_bic,
+                    test,
+                },
+                gain_heldout,
+            )) = heldout
+            else {
                 out.rejected_heldout.push(kind);
                 continue;
             };
