@@ -307,9 +307,12 @@ impl Selection<'_> {
         let (
             Passing {
                 index,
-                delta_bic,
-                candidate: chosen,
-                test,
+                tested:
+                    Tested {
+                        effect: chosen,
+                        delta_bic,
+                        test,
+                    },
                 long_runs,
             },
             equivalent,
@@ -418,9 +421,11 @@ impl Selection<'_> {
             if test.passed() {
                 return Some(Passing {
                     index,
-                    delta_bic: *delta_bic,
-                    candidate: candidate.clone(),
-                    test,
+                    tested: Tested {
+                        effect: candidate.clone(),
+                        delta_bic: *delta_bic,
+                        test,
+                    },
                     long_runs,
                 });
             }
@@ -460,9 +465,11 @@ impl Selection<'_> {
         test.passed().then(|| {
             let passing = Passing {
                 index: 0,
-                delta_bic,
-                candidate,
-                test,
+                tested: Tested {
+                    effect: candidate,
+                    delta_bic,
+                    test,
+                },
                 long_runs,
             };
             (passing, tied)
@@ -520,7 +527,7 @@ impl Selection<'_> {
     ) -> (Passing, Equivalent, Equivalent) {
         /// Rivals tried beside the chosen: the next best of other kinds.
         const RIVALS: usize = 2;
-        let chosen = &passing.candidate;
+        let chosen = &passing.tested.effect;
         let (grid, segs) = (self.grid(), self.segs());
         let rivals = judged
             .iter()
@@ -553,12 +560,14 @@ impl Selection<'_> {
                 equal.get_or_insert((*rival_bic, rival.clone()));
                 continue;
             }
-            let equivalent = (!rival_adds).then(|| (passing.delta_bic, chosen.clone()));
+            let equivalent = (!rival_adds).then(|| (passing.tested.delta_bic, chosen.clone()));
             let rival = Passing {
                 index,
-                delta_bic: *rival_bic,
-                candidate: rival.clone(),
-                test: rival_test,
+                tested: Tested {
+                    effect: rival.clone(),
+                    delta_bic: *rival_bic,
+                    test: rival_test,
+                },
                 long_runs: rival_runs,
             };
             return (rival, equivalent, None);
@@ -729,9 +738,7 @@ enum CompletionStep {
 struct Completion {
     /// The named effects as refitted beside it.
     joint: Vec<ScopedEffect>,
-    candidate: ScopedEffect,
-    delta_bic: f64,
-    test: EntryTest,
+    tested: Tested,
     /// Everything the prediction holds with it: the fixed effects, `joint`
     /// and the candidate.
     with: Vec<ScopedEffect>,
@@ -741,17 +748,16 @@ impl Completion {
     /// Whether it may enter: it passes its test and fits inside its
     /// physical range.
     fn enters(&self) -> bool {
-        self.test.passed() && on_bound(&self.candidate).is_none()
+        self.tested.test.passed() && on_bound(&self.tested.effect).is_none()
     }
 }
 
 /// A round's candidate that passed its entry test: its index among those
-/// judged, its calibrated ΔBIC, the test and the residuals' long runs with it.
+/// judged, it with its calibrated ΔBIC and test, and the residuals' long
+/// runs with it.
 struct Passing {
     index: usize,
-    delta_bic: f64,
-    candidate: ScopedEffect,
-    test: EntryTest,
+    tested: Tested,
     long_runs: [LongRun; 3],
 }
 
@@ -1110,12 +1116,14 @@ impl Selection<'_> {
             grid,
             &self.screen,
             &refitted,
-            &whole.candidate,
+            &whole.tested.effect,
             self.duration,
             self.options,
         )
         .and_then(|scoped| self.completion_entry(&out.found, &scoped))
-        .filter(|part| part.enters() && self.part_beats_whole(part.delta_bic, whole.delta_bic));
+        .filter(|part| {
+            part.enters() && self.part_beats_whole(part.tested.delta_bic, whole.tested.delta_bic)
+        });
         let chosen = match narrower {
             Some(part) => part,
             None if whole.enters() => whole,
@@ -1123,9 +1131,12 @@ impl Selection<'_> {
         };
         let Completion {
             joint,
-            candidate,
-            delta_bic,
-            test,
+            tested:
+                Tested {
+                    effect: candidate,
+                    delta_bic,
+                    test,
+                },
             with,
         } = chosen;
         let through: Vec<ScopedEffect> = self
@@ -1199,9 +1210,11 @@ impl Selection<'_> {
         );
         Some(Completion {
             joint,
-            candidate,
-            delta_bic,
-            test,
+            tested: Tested {
+                effect: candidate,
+                delta_bic,
+                test,
+            },
             with,
         })
     }
