@@ -293,7 +293,7 @@ impl Selection<'_> {
             .collect();
         judged.sort_by(|a, b| a.0.total_cmp(&b.0));
         tracing::debug!(
-            judged = ?judged.iter().map(|(g, c)| (c.effect.kind(), *g)).collect::<Vec<_>>(),
+            judged = ?judged.iter().map(|(g, c)| (c.effect.kind(), *g, c.effect.params())).collect::<Vec<_>>(),
             factors = ?factors,
             "round: confirmed on every segment, judged with the long-run factors (ΔBIC)"
         );
