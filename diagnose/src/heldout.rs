@@ -210,6 +210,18 @@ pub(crate) fn contradiction_nats(blocks: usize) -> f64 {
     CONTRADICTION_NATS + (blocks.max(1) as f64).ln()
 }
 
+/// The summed held-out gain of `effect` over its blocks' `gains`, if it
+/// holds out: it must predict the held-out blocks better in all, and, if
+/// it is physics of the body ([`must_transfer`]), no block may contradict
+/// it ([`contradiction_nats`]). A round and the completion pass both judge
+/// by it.
+pub(crate) fn holds_out_by(gains: &[f64], effect: &ScopedEffect) -> Option<f64> {
+    let total: f64 = gains.iter().sum();
+    let worst = gains.iter().copied().fold(f64::INFINITY, f64::min);
+    let contradicted = must_transfer(effect) && worst < -contradiction_nats(gains.len());
+    (total > 0.0 && !contradicted).then_some(total)
+}
+
 /// The effects of `found` that transfer: while the model with them
 /// predicts some held-out block worse than `fixed` alone by more than
 /// [`contradiction_nats`] of the blocks, the effect whose removal helps the worst block

@@ -11,7 +11,7 @@ use crate::entry::{
     factors_of, factors_with,
 };
 use crate::fit::{Fitted, all_but, fit, nll_of};
-use crate::heldout::{contradiction_nats, heldout_gain, heldout_gain_of_joint, must_transfer};
+use crate::heldout::{heldout_gain, heldout_gain_of_joint, holds_out_by};
 use crate::likelihood::LongRun;
 use crate::locate::Located;
 use crate::prepared::{Alternative, OperatingPoint, Options, Prepared, Unexplained};
@@ -773,22 +773,18 @@ pub(crate) struct Selected {
 
 /// Forward selection: round after round, the best candidate enters if its
 /// fit is physical and it predicts held-out time blocks better.
-/// The held-out gain of adding `chosen` to `base`, if it holds out: it
-/// must predict the held-out blocks better in all, and, if it is physics
-/// of the body (`heldout::must_transfer`), no block may contradict it
-/// (`heldout::contradiction_nats`).
+/// The held-out gain of adding `chosen` to `base`, if it holds out
+/// (`heldout::holds_out_by`).
 fn holds_out(selection: &Selection, base: &[ScopedEffect], chosen: &ScopedEffect) -> Option<f64> {
     let gains = selection.heldout_through_lens(base, chosen);
-    let gain_heldout: f64 = gains.iter().sum();
-    let worst = gains.iter().copied().fold(f64::INFINITY, f64::min);
-    let contradicted = must_transfer(chosen) && worst < -contradiction_nats(gains.len());
+    let held = holds_out_by(&gains, chosen);
     tracing::debug!(
         kind = chosen.effect.kind(),
         ?gains,
-        contradicted,
+        held = held.is_some(),
         "round: held out"
     );
-    (gain_heldout > 0.0 && !contradicted).then_some(gain_heldout)
+    held
 }
 
 pub(crate) fn select(selection: &Selection, located: &[Located], at: OperatingPoint) -> Selected {
@@ -1152,21 +1148,16 @@ impl Selection<'_> {
             &candidate,
             self.options,
         );
-        let worst = gains.iter().copied().fold(f64::INFINITY, f64::min);
-        let heldout_gain: f64 = gains.iter().sum();
         tracing::debug!(
             kind = candidate.effect.kind(),
             during = ?candidate.during,
             ?gains,
             "completion: held out"
         );
-        if heldout_gain.is_nan()
-            || heldout_gain <= 0.0
-            || (must_transfer(&candidate) && worst < -contradiction_nats(gains.len()))
-        {
+        let Some(heldout_gain) = holds_out_by(&gains, &candidate) else {
             out.rejected_heldout.push(candidate.effect.kind());
             return CompletionStep::Done;
-        }
+        };
         out.found = joint;
         out.found.push(candidate);
         out.evidence.push(Evidence {
