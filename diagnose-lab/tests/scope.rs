@@ -64,3 +64,43 @@ fn a_part_the_run_prefers_is_named_when_the_whole_run_is_contradicted_held_out()
     );
     assert!((rate - 0.015).abs() < 0.007, "{sentence}");
 }
+
+#[test]
+fn an_effect_scoped_beside_one_that_entered_before_it_is_tried_over_the_whole_run_again() {
+    // A battery fading 1.2% a minute and a turn scale of 0.93 on the slow
+    // teleoperated robot, white noise (seed 1000). The fade entered first,
+    // took part of the turn's loss (0.019 a minute), and left the turn
+    // scale a span, 0-345 s, where it beat the whole run by 36 of BIC; a
+    // speed scale of 1.05 from 135 s, not there, then made up for the
+    // fade's excess on the speed. Once the set is complete the turn scale
+    // is tried over the whole run again, the others refitted beside it
+    // (EXPERIMENTS.md 5c, "A path that forward selection cannot undo").
+    let diagnosis =
+        diagnosed_run("speed-only", "battery_fade+turn_scale", "white", 1000).expect("a known run");
+    let kinds: Vec<&str> = diagnosis.effects.iter().map(|e| e.kind).collect();
+    let turn = diagnosis
+        .effect("turn_scale")
+        .unwrap_or_else(|| panic!("the turn scale is named: {kinds:?}"));
+    assert!(
+        turn.scoped.during.is_none(),
+        "the turn scale acts over the whole run: {}",
+        turn.sentence
+    );
+    assert!(
+        (turn.params["factor"] - 0.93).abs() < 0.015,
+        "{}",
+        turn.sentence
+    );
+    let fade = diagnosis
+        .effect("battery_fade")
+        .unwrap_or_else(|| panic!("the fade is named: {kinds:?}"));
+    assert!(
+        (fade.params["per_minute"] - 0.012).abs() < 0.004,
+        "{}",
+        fade.sentence
+    );
+    assert!(
+        !kinds.contains(&"speed_scale"),
+        "no speed scale that is not there: {kinds:?}"
+    );
+}

@@ -884,6 +884,7 @@ pub(crate) fn select(selection: &Selection, located: &[Located], at: OperatingPo
     // again. Then no effect stays only because of the order it entered in.
     if !out.found.is_empty() {
         selection.completed(&mut out, at, (&[], &[]));
+        selection.widened(&mut out);
         selection.swap_each(&mut out, at, (&[], &[]));
     }
     out
@@ -913,6 +914,7 @@ pub(crate) fn reselected(
     }
     selection.refit_and_prune(&mut out.found, &mut out.evidence);
     selection.completed(&mut out, at, (barred, refused));
+    selection.widened(&mut out);
     selection.swap_each(&mut out, at, (barred, refused));
     out
 }
@@ -937,6 +939,89 @@ impl Selection<'_> {
         {}
     }
 
+    /// BIC of `found` fitted on every segment, beside the fixed effects.
+    fn bic_of(&self, found: &[ScopedEffect]) -> f64 {
+        let (grid, segs, options, fixed) = (self.grid(), self.segs(), self.options, &self.fixed);
+        let params: usize = found.iter().map(extra_params).sum();
+        let nll = if found.is_empty() {
+            nll_of(grid, segs, fixed)
+        } else {
+            fit(grid, segs, fixed, found, options.max_iters).nll
+        };
+        2.0 * nll + params as f64 * (segs.len() as f64).ln()
+    }
+
+    /// Each effect named over part of the run tried again over the whole
+    /// run, once the set is complete: whether it acts only there was judged
+    /// beside the effects named before it, and an effect that entered
+    /// before its partner can take part of it. A fading battery fitted
+    /// before a turn scale takes some of the turn's loss, fades too fast,
+    /// and leaves the turn scale a span where it beats the whole run; a
+    /// speed scale over the later part then makes up for the fade on the
+    /// speed (EXPERIMENTS.md 5c, "A path that forward selection cannot
+    /// undo"). With the set complete the scope is judged by the rule a
+    /// round judges it by (`part_beats_whole`), the others refitted beside
+    /// the whole run; the widened effect must pass its entry test and hold
+    /// out as one entering would, and pruning then drops what it made
+    /// redundant.
+    fn widened(&self, out: &mut Selected) {
+        let (grid, segs, options, fixed) = (self.grid(), self.segs(), self.options, &self.fixed);
+        let mut current = self.bic_of(&out.found);
+        let mut k = 0;
+        while k < out.found.len() {
+            if out.found[k].during.is_none() {
+                k += 1;
+                continue;
+            }
+            let mut trial = out.found.clone();
+            trial[k].during = None;
+            let trial = fit(grid, segs, fixed, &trial, options.max_iters).effects;
+            let whole_bic = self.bic_of(&trial);
+            let widens = !self.part_beats_whole(current, whole_bic);
+            tracing::debug!(
+                kind = trial[k].effect.kind(),
+                during = ?out.found[k].during,
+                part = current,
+                whole = whole_bic,
+                widens,
+                "widen: a scoped effect over the whole run, the set complete"
+            );
+            if !widens {
+                k += 1;
+                continue;
+            }
+            let others = all_but(&trial, k);
+            let rest: Vec<ScopedEffect> = fixed
+                .iter()
+                .cloned()
+                .chain(fit(grid, segs, fixed, &others, options.max_iters).effects)
+                .collect();
+            let joint: Vec<ScopedEffect> = fixed.iter().chain(&trial).cloned().collect();
+            let (delta_bic, test) = self.entry_of_move(&rest, &joint, &trial[k]);
+            let gains = heldout_gain_of_joint(self.prepared, fixed, &others, &trial[k], options);
+            let held = holds_out_by(&gains, &trial[k]);
+            tracing::debug!(
+                kind = trial[k].effect.kind(),
+                delta_bic,
+                passed = test.passed(),
+                ?gains,
+                held = held.is_some(),
+                "widen: the whole run's entry"
+            );
+            let Some(heldout_gain) = held.filter(|_| test.passed()) else {
+                k += 1;
+                continue;
+            };
+            out.evidence[k].delta_bic = delta_bic;
+            out.evidence[k].test = test;
+            out.evidence[k].heldout_gain = heldout_gain;
+            out.found = trial;
+            self.refit_and_prune(&mut out.found, &mut out.evidence);
+            current = self.bic_of(&out.found);
+            k = 0;
+        }
+    }
+
     /// Each effect of `out` taken out in turn, the others refitted, and the
     /// completion pass run from them; whichever set explains the run better
     /// by BIC on every segment is kept. Forward selection admits an effect
@@ -956,15 +1041,7 @@ impl Selection<'_> {
         (barred, refused): (&[&'static str], &[ScopedEffect]),
     ) {
         let (grid, segs, options, fixed) = (self.grid(), self.segs(), self.options, &self.fixed);
-        let bic = |found: &[ScopedEffect]| {
-            let params: usize = found.iter().map(extra_params).sum();
-            let nll = if found.is_empty() {
-                nll_of(grid, segs, fixed)
-            } else {
-                fit(grid, segs, fixed, found, options.max_iters).nll
-            };
-            2.0 * nll + params as f64 * (segs.len() as f64).ln()
-        };
+        let bic = |found: &[ScopedEffect]| self.bic_of(found);
         let kinds = |found: &[ScopedEffect]| -> Vec<&'static str> {
             let mut kinds: Vec<_> = found.iter().map(|e| e.effect.kind()).collect();
             kinds.sort_unstable();
