@@ -942,13 +942,18 @@ impl Selection<'_> {
     /// BIC of `found` fitted on every segment, beside the fixed effects.
     fn bic_of(&self, found: &[ScopedEffect]) -> f64 {
         let (grid, segs, options, fixed) = (self.grid(), self.segs(), self.options, &self.fixed);
-        let params: usize = found.iter().map(extra_params).sum();
         let nll = if found.is_empty() {
             nll_of(grid, segs, fixed)
         } else {
             fit(grid, segs, fixed, found, options.max_iters).nll
         };
-        2.0 * nll + params as f64 * (segs.len() as f64).ln()
+        self.bic_at(found, nll)
+    }
+
+    /// BIC of `found` where its fit on every segment reached `nll`.
+    fn bic_at(&self, found: &[ScopedEffect], nll: f64) -> f64 {
+        let params: usize = found.iter().map(extra_params).sum();
+        2.0 * nll + params as f64 * (self.segs().len() as f64).ln()
     }
 
     /// Each effect named over part of the run tried again over the whole
@@ -966,6 +971,9 @@ impl Selection<'_> {
     /// redundant.
     fn widened(&self, out: &mut Selected) {
         let (grid, segs, options, fixed) = (self.grid(), self.segs(), self.options, &self.fixed);
+        if out.found.iter().all(|e| e.during.is_none()) {
+            return;
+        }
         let mut current = self.bic_of(&out.found);
         let mut k = 0;
         while k < out.found.len() {
@@ -975,8 +983,9 @@ impl Selection<'_> {
             }
             let mut trial = out.found.clone();
             trial[k].during = None;
-            let trial = fit(grid, segs, fixed, &trial, options.max_iters).effects;
-            let whole_bic = self.bic_of(&trial);
+            let fitted = fit(grid, segs, fixed, &trial, options.max_iters);
+            let whole_bic = self.bic_at(&fitted.effects, fitted.nll);
+            let trial = fitted.effects;
             let widens = !self.part_beats_whole(current, whole_bic);
             tracing::debug!(
                 kind = trial[k].effect.kind(),
