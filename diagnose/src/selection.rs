@@ -963,8 +963,8 @@ impl Selection<'_> {
     /// before a turn scale takes some of the turn's loss, fades too fast,
     /// and leaves the turn scale a span where it beats the whole run; a
     /// speed scale over the later part then makes up for the fade on the
-    /// speed (EXPERIMENTS.md 5c, "A path that forward selection cannot
-    /// undo"). With the set complete the scope is judged by the rule a
+    /// speed (EXPERIMENTS.md 5c, "An effect scoped beside one that
+    /// entered before it"). With the set complete the scope is judged by the rule a
     /// round judges it by (`part_beats_whole`), the others refitted beside
     /// the whole run; the widened effect must pass its entry test and hold
     /// out as one entering would, and pruning then drops what it made
@@ -1050,13 +1050,12 @@ impl Selection<'_> {
         (barred, refused): (&[&'static str], &[ScopedEffect]),
     ) {
         let (grid, segs, options, fixed) = (self.grid(), self.segs(), self.options, &self.fixed);
-        let bic = |found: &[ScopedEffect]| self.bic_of(found);
         let kinds = |found: &[ScopedEffect]| -> Vec<&'static str> {
             let mut kinds: Vec<_> = found.iter().map(|e| e.effect.kind()).collect();
             kinds.sort_unstable();
             kinds
         };
-        let mut current = bic(&out.found);
+        let mut current = self.bic_of(&out.found);
         let mut k = 0;
         while k < out.found.len() {
             let taken = out.found[k].effect.kind();
@@ -1096,7 +1095,7 @@ impl Selection<'_> {
             self.completed(&mut trial, at, (&not_tried, refused));
             // The same kinds back is the same set: no fit on every segment.
             let better = (kinds(&trial.found) != kinds(&out.found))
-                .then(|| bic(&trial.found))
+                .then(|| self.bic_of(&trial.found))
                 .filter(|b| *b < current);
             tracing::debug!(
                 taken,
