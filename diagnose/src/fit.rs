@@ -133,6 +133,17 @@ pub fn fit(
         })
         .collect();
     let baseline = nll_of(grid, segments, fixed);
+    // Nothing to fit (the others beside the one effect named): argmin's
+    // Nelder-Mead indexes a simplex of one vertex out of bounds.
+    if start.is_empty() {
+        let model: Vec<ScopedEffect> = fixed.iter().chain(free).cloned().collect();
+        return Fitted {
+            effects: free.to_vec(),
+            nll: nll_of(grid, segments, &model),
+            stderr: Vec::new(),
+            iterations: 0,
+        };
+    }
     let problem = Problem {
         grid,
         segments,
@@ -244,7 +255,49 @@ fn invert(mut a: Vec<Vec<f64>>) -> Option<Vec<Vec<f64>>> {
 
 #[cfg(test)]
 mod tests {
-    use super::invert;
+    use shoal_physics::{CommandGrid, Pose};
+
+    use super::{fit, invert, nll_of};
+    use crate::segments::Segment;
+
+    #[test]
+    fn a_fit_with_nothing_free_is_the_likelihood_of_what_is_fixed() {
+        // Selection refits the others beside an effect; with one effect
+        // named there are none (robot 5's fourth block of MRCLAM, cut by
+        // `scripts/transfer-table`, panicked in argmin there).
+        let t: Vec<f64> = (0..=100).map(|k| f64::from(k) * 0.1).collect();
+        let grid = CommandGrid::from_held(&t, &vec![0.2; t.len()], &vec![0.0; t.len()], 0.1);
+        let segments: Vec<Segment> = (0..10)
+            .map(|k| {
+                let x = 0.2 * f64::from(k);
+                let wobble = 0.01 * f64::from(k % 3) - 0.01;
+                Segment {
+                    from: 10 * k as usize,
+                    to: 10 * (k as usize + 1),
+                    t_start: f64::from(k),
+                    t_end: f64::from(k + 1),
+                    start: Pose {
+                        x,
+                        y: 0.0,
+                        theta: 0.0,
+                    },
+                    end: Pose {
+                        x: x + 0.2 + wobble,
+                        y: wobble,
+                        theta: wobble,
+                    },
+                    speed: 0.2,
+                    turn: 0.0,
+                    distance: 0.2,
+                    mid: [x + 0.1, 0.0],
+                }
+            })
+            .collect();
+        let fitted = fit(&grid, &segments, &[], &[], 50);
+        assert!(fitted.effects.is_empty());
+        assert!(fitted.nll.is_finite());
+        assert_eq!(fitted.nll, nll_of(&grid, &segments, &[]));
+    }
 
     #[test]
     fn inverts_a_small_matrix() {
