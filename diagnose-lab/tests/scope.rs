@@ -74,7 +74,7 @@ fn an_effect_scoped_beside_one_that_entered_before_it_is_tried_over_the_whole_ru
     // speed scale of 1.05 from 135 s, not there, then made up for the
     // fade's excess on the speed. Once the set is complete the turn scale
     // is tried over the whole run again, the others refitted beside it
-    // (EXPERIMENTS.md 5c, "A path that forward selection cannot undo").
+    // (EXPERIMENTS.md 5c, "An effect scoped beside one that entered before it").
     let diagnosis =
         diagnosed_run("speed-only", "battery_fade+turn_scale", "white", 1000).expect("a known run");
     let kinds: Vec<&str> = diagnosis.effects.iter().map(|e| e.kind).collect();
