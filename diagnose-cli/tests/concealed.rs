@@ -277,12 +277,20 @@ fn bad_input_names_the_file_and_line_and_exits_non_zero() {
     );
 }
 
+/// This package's folder in the checkout under test: `cargo test` says it
+/// at run time, where the path compiled in is where the binary was built
+/// (a target folder shared by two checkouts keeps the other's binaries).
+fn package_dir() -> PathBuf {
+    std::env::var_os("CARGO_MANIFEST_DIR")
+        .map_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")), PathBuf::from)
+}
+
 /// Robot 3 of MRCLAM dataset 6, kept in the repository with its
 /// attribution (`tests/data/mrclam-d6-excerpt/README.md`), so a clone with
 /// nothing beside it passes; `SHOAL_MRCLAM_D6` points at another copy.
 fn mrclam_d6() -> PathBuf {
     std::env::var_os("SHOAL_MRCLAM_D6").map_or_else(
-        || Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mrclam-d6-excerpt"),
+        || package_dir().join("tests/data/mrclam-d6-excerpt"),
         PathBuf::from,
     )
 }
@@ -330,11 +338,7 @@ fn write_bag(dir: &Path, poses_as: &str) -> PathBuf {
 fn python(script: &str, args: &[&std::ffi::OsStr]) -> Vec<u8> {
     succeed(
         Command::new("python3")
-            .arg(
-                Path::new(env!("CARGO_MANIFEST_DIR"))
-                    .join("tests")
-                    .join(script),
-            )
+            .arg(package_dir().join("tests").join(script))
             .args(args),
     )
 }

@@ -210,10 +210,19 @@ pub fn scratch(name: &str) -> PathBuf {
     dir
 }
 
+/// This package's folder (`tests/`) in the checkout under test. `cargo
+/// test` says it at run time: the path compiled in is where the binary was
+/// built, and a target folder shared by two checkouts (CI's clean clone
+/// and a working copy) keeps binaries built in the other one.
+pub fn package_dir() -> PathBuf {
+    std::env::var_os("CARGO_MANIFEST_DIR")
+        .map_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")), PathBuf::from)
+}
+
 /// What `tests/python/check_recording.py` finds in a recording, read with
 /// the official Rerun reader.
 pub fn inspect_recording(recording: &std::path::Path) -> Value {
-    let script = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("python/check_recording.py");
+    let script = package_dir().join("python/check_recording.py");
     let output = Command::new("python3")
         .arg(script)
         .arg(recording)

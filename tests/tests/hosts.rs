@@ -17,7 +17,7 @@ const SPREAD: f64 = 1.0;
 /// Host `a`'s or `b`'s scenario: the left or right half of a 20 x 13 m
 /// arena (`scenarios/two-hosts-*.toml`).
 fn scenario(host: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
+    shoal_e2e::package_dir()
         .join("../scenarios")
         .join(format!("two-hosts-{host}.toml"))
 }

@@ -252,7 +252,7 @@ fn confirmed_where_no_command_answered(check: &Value) -> bool {
 fn a_surface_the_robots_model_lacks_is_diagnosed_from_the_recording_alone() {
     let _turn = serial();
     let dir = scratch("mud");
-    let scenario = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/mud.toml");
+    let scenario = shoal_e2e::package_dir().join("scenarios/mud.toml");
     let run = dir.join("run");
     let recording = record_lockstep("e2e-mud", &scenario, 150, &run, &[]);
     let diagnose = |input: &[&str]| -> Value {
@@ -367,7 +367,7 @@ fn a_surface_the_robots_model_lacks_is_diagnosed_from_the_recording_alone() {
 fn the_demos_sand_is_named_for_robots_whose_commands_change_every_step() {
     let _turn = serial();
     let dir = scratch("sand");
-    let scenario = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/demo.toml");
+    let scenario = shoal_e2e::package_dir().join("../scenarios/demo.toml");
     let run = dir.join("run");
     let recording = record_lockstep("e2e-sand", &scenario, 90, &run, &["--slam", "none"]);
     // The demo's sand: x >= 12 and y >= 11.
@@ -593,7 +593,7 @@ fn the_demo_records_slam_healing_and_a_diagnosis() {
     let _turn = serial();
     let dir = scratch("demo");
     let recording = dir.join("demo.rrd");
-    let scenario = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios/demo.toml");
+    let scenario = shoal_e2e::package_dir().join("../scenarios/demo.toml");
     let output = shoal_ok(&[
         "demo",
         "--swarm",

@@ -221,7 +221,7 @@ fn belief_errors(tum: &std::path::Path) -> Vec<f64> {
 #[test]
 fn a_robot_followed_by_slam_knows_where_it_is_better_than_dead_reckoning() {
     let _turn = serial();
-    let scenario = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/room.toml");
+    let scenario = shoal_e2e::package_dir().join("scenarios/room.toml");
     let dir = std::env::temp_dir().join(format!("shoal-e2e-belief-{}", std::process::id()));
     let run = |slam: bool| {
         let tum = dir.join(if slam { "slam" } else { "alone" });

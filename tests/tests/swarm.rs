@@ -392,7 +392,7 @@ fn the_official_python_iceoryx2_client_reads_the_roster() {
     let _turn = serial();
     let mut swarm = BackgroundSwarm::start("e2e-python", &["--agents", "5"]);
     swarm.wait_alive(5, Duration::from_secs(30));
-    let script = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("python/read_roster.py");
+    let script = shoal_e2e::package_dir().join("python/read_roster.py");
     let output = std::process::Command::new("python3")
         .arg(script)
         .args([swarm.name.as_str(), "1.5"])
