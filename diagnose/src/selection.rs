@@ -687,6 +687,21 @@ impl Selection<'_> {
         part < whole - self.options.min_scope_bic_gain
     }
 
+    /// The entry test of `found[k]` as the move from the others, refitted
+    /// without it, to `found` as fitted together; with the others' refit.
+    fn entry_beside_others(
+        &self,
+        found: &[ScopedEffect],
+        k: usize,
+    ) -> (Vec<ScopedEffect>, (f64, EntryTest)) {
+        let (grid, segs, options, fixed) = (self.grid(), self.segs(), self.options, &self.fixed);
+        let refit = fit(grid, segs, fixed, &all_but(found, k), options.max_iters).effects;
+        let rest: Vec<ScopedEffect> = fixed.iter().chain(&refit).cloned().collect();
+        let joint: Vec<ScopedEffect> = fixed.iter().chain(found).cloned().collect();
+        let entry = self.entry_of_move(&rest, &joint, &found[k]);
+        (refit, entry)
+    }
+
     /// Refits `found` together, then drops any effect the others, refitted,
     /// do as well without (a turn scale standing in for steering play, once
     /// the play joined); `evidence` follows index for index. Each effect is
@@ -700,12 +715,7 @@ impl Selection<'_> {
         *found = fit(grid, segs, fixed, found, options.max_iters * 2).effects;
         let mut k = 0;
         while found.len() >= 2 && k < found.len() {
-            let others = all_but(found, k);
-            let refit = fit(grid, segs, fixed, &others, options.max_iters);
-            let rest: Vec<ScopedEffect> =
-                fixed.iter().cloned().chain(refit.effects.clone()).collect();
-            let joint: Vec<ScopedEffect> = fixed.iter().chain(found.iter()).cloned().collect();
-            let (needed, test) = self.entry_of_move(&rest, &joint, &found[k]);
+            let (refit, (needed, test)) = self.entry_beside_others(found, k);
             if !test.passed() {
                 tracing::debug!(
                     kind = found[k].effect.kind(),
@@ -714,7 +724,7 @@ impl Selection<'_> {
                     delta_bic = needed,
                     "pruned: the others do as well"
                 );
-                *found = refit.effects;
+                *found = refit;
                 evidence.remove(k);
             } else {
                 k += 1;
@@ -999,14 +1009,8 @@ impl Selection<'_> {
                 k += 1;
                 continue;
             }
+            let (_, (delta_bic, test)) = self.entry_beside_others(&trial, k);
             let others = all_but(&trial, k);
-            let rest: Vec<ScopedEffect> = fixed
-                .iter()
-                .cloned()
-                .chain(fit(grid, segs, fixed, &others, options.max_iters).effects)
-                .collect();
-            let joint: Vec<ScopedEffect> = fixed.iter().chain(&trial).cloned().collect();
-            let (delta_bic, test) = self.entry_of_move(&rest, &joint, &trial[k]);
             let gains = heldout_gain_of_joint(self.prepared, fixed, &others, &trial[k], options);
             let held = holds_out_by(&gains, &trial[k]);
             tracing::debug!(
