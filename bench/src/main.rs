@@ -69,6 +69,10 @@ enum Commands {
         /// Which proposals: motion, matched, or both.
         #[arg(long, value_delimiter = ',', default_value = "motion,matched")]
         proposal: Vec<slam::ProposalArg>,
+        /// The map's cell, metres (default: the filter's for the sensor and
+        /// arena, as `shoal-slam` chooses it).
+        #[arg(long)]
+        grid: Option<f64>,
         #[arg(long)]
         json: bool,
     },
@@ -134,8 +138,14 @@ fn main() -> Result<()> {
             steps,
             scenario,
             proposal,
+            grid,
             json,
-        } => slam::run(&particles, steps, (scenario.as_deref(), &proposal), json),
+        } => slam::run(
+            &particles,
+            steps,
+            (scenario.as_deref(), &proposal, grid),
+            json,
+        ),
         Commands::Scan {
             robots,
             repeats,

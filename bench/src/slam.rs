@@ -14,7 +14,7 @@ use shoal_physics::range::RangeSensor;
 use shoal_physics::wander::{range_ahead, wander_command};
 use shoal_physics::{Body, Command, MotionModel, Pose};
 use shoal_scenario::Scenario;
-use shoal_slam::filter::{FilterConfig, ParticleFilter, Proposal};
+use shoal_slam::filter::{FilterConfig, ParticleFilter, Proposal, cell_for};
 
 #[derive(Debug, Serialize)]
 struct Row {
@@ -22,6 +22,9 @@ struct Row {
     particles: usize,
     threads: usize,
     beams: usize,
+    /// The map's cell, metres: what the filter chooses for this sensor and
+    /// arena (`filter::cell_for`).
+    cell_m: f64,
     /// Scored beams per pose, on average (every second beam that returned).
     scored_beams: f64,
     /// Poses scored per particle and step, on average: the learner's draws
@@ -51,12 +54,14 @@ struct World {
     arena: shoal_physics::arena::Arena,
     sensor: RangeSensor,
     start: Pose,
+    /// The map's cell, if not the filter's own choice.
+    grid: Option<f64>,
 }
 
 impl World {
     /// The SLAM tests' room with a sensor of 180 beams, or `scenario`'s
     /// arena and sensor from the middle of its start region.
-    fn new(scenario: Option<&Path>) -> Result<Self> {
+    fn new(scenario: Option<&Path>, grid: Option<f64>) -> Result<Self> {
         Ok(match scenario {
             None => Self {
                 arena: Scenario::room().arena,
@@ -65,6 +70,7 @@ impl World {
                     ..RangeSensor::default()
                 },
                 start: Pose::new(1.5, 0.6, std::f64::consts::FRAC_PI_2),
+                grid,
             },
             Some(path) => {
                 let scenario = shoal_runtime::read_scenario(path)?;
@@ -73,9 +79,18 @@ impl World {
                     arena: scenario.arena,
                     sensor: scenario.sensor,
                     start: Pose::new((x0 + x1) / 2.0, (y0 + y1) / 2.0, 0.0),
+                    grid,
                 }
             }
         })
+    }
+}
+
+impl World {
+    /// The cell the filter maps with.
+    fn cell_m(&self) -> f64 {
+        self.grid
+            .unwrap_or_else(|| cell_for(&self.sensor, self.arena.width, self.arena.height))
     }
 }
 
@@ -95,6 +110,7 @@ fn cost_per_step(world: &World, proposal: Proposal, particles: usize, steps: usi
         arena,
         sensor,
         start,
+        grid,
     } = world;
     let (sensor, start) = (sensor.clone(), *start);
     let model = MotionModel::legged_default();
@@ -108,6 +124,7 @@ fn cost_per_step(world: &World, proposal: Proposal, particles: usize, steps: usi
         particles,
         proposal,
         sensor: sensor.clone(),
+        cell_size: *grid,
         ..FilterConfig::default()
     };
     let mut filter = ParticleFilter::new(start, model, config, arena.width, arena.height, 3);
@@ -159,10 +176,10 @@ pub enum ProposalArg {
 pub fn run(
     particles: &[usize],
     steps: usize,
-    (scenario, proposals): (Option<&Path>, &[ProposalArg]),
+    (scenario, proposals, grid): (Option<&Path>, &[ProposalArg], Option<f64>),
     json: bool,
 ) -> Result<()> {
-    let world = World::new(scenario)?;
+    let world = World::new(scenario, grid)?;
     let baseline = cost_on(&world, 1, (Proposal::Motion, 100), steps)?.seconds;
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let mut rows = Vec::new();
@@ -179,6 +196,7 @@ pub fn run(
                     particles: n,
                     threads,
                     beams: world.sensor.beams,
+                    cell_m: world.cell_m(),
                     scored_beams: cost.scored_beams,
                     poses_scored_per_particle: cost.poses_per_particle,
                     steps_per_s: 1.0 / cost.seconds,

@@ -40,6 +40,35 @@ const EXPLORER_WEIGHT: f64 = 0.1;
 /// How far the map reaches beyond the arena.
 const MAP_MARGIN_M: f64 = 0.5;
 
+/// The finest cell [`cell_for`] chooses.
+pub const FINEST_CELL_M: f64 = 0.025;
+
+/// The coarsest cell [`cell_for`] chooses: GMapping's default, and this
+/// filter's for any sensor before cells followed the sensor.
+pub const COARSEST_CELL_M: f64 = 0.05;
+
+/// The most cells [`cell_for`] lets a map hold before it coarsens them:
+/// about a 9 x 9 m arena on 2.5 cm cells. Each particle holds its own map,
+/// and a SLAM process that follows 20 robots holds 1000 of them.
+pub const MAX_MAP_CELLS: f64 = 131_072.0;
+
+/// The cell a filter maps `width` x `height` metres with, seen by
+/// `sensor`: as wide as the sensor's range noise at half its reach (what
+/// a typical beam can tell), between [`FINEST_CELL_M`] and
+/// [`COARSEST_CELL_M`], and no finer than keeps the map (with its margin)
+/// within [`MAX_MAP_CELLS`]. Cells much wider than the noise draw walls
+/// coarser than the scans see them: on 5 cm cells a scan matched on a map
+/// drawn from the true poses peaks 3.1 cm off the truth, on 2.5 cm cells
+/// 1.9 cm (EXPERIMENTS.md 8b). Cells much finer than the noise only cost:
+/// with 10 m beams (10 cm of noise at their reach) the demo's crowd did
+/// worse on 2.5 cm cells than on 5 cm, at 2.3 times the time.
+pub fn cell_for(sensor: &RangeSensor, width: f64, height: f64) -> f64 {
+    let seen = (sensor.noise_per_m * sensor.max_range / 2.0).max(FINEST_CELL_M);
+    let area = (width + 2.0 * MAP_MARGIN_M) * (height + 2.0 * MAP_MARGIN_M);
+    let within_budget = (area / MAX_MAP_CELLS).sqrt();
+    seen.max(within_budget).min(COARSEST_CELL_M)
+}
+
 #[derive(Clone, Debug, PartialEq)]
 pub struct FilterConfig {
     pub particles: usize,
@@ -47,7 +76,9 @@ pub struct FilterConfig {
     pub score_stride: usize,
     /// Map with every n-th beam.
     pub map_stride: usize,
-    pub cell_size: f64,
+    /// The occupancy grid's cell, metres; none: [`cell_for`], as fine as
+    /// the sensor can tell, the map kept within [`MAX_MAP_CELLS`].
+    pub cell_size: Option<f64>,
     pub learning: bool,
     /// The learning window k.
     pub window: usize,
@@ -113,7 +144,7 @@ impl Default for FilterConfig {
             particles: 50,
             score_stride: 2,
             map_stride: 2,
-            cell_size: 0.05,
+            cell_size: None,
             learning: true,
             window: 8,
             explore: 0.2,
@@ -157,6 +188,8 @@ pub struct ParticleFilter {
     model: MotionModel,
     learners: Vec<[MixtureLearner; 3]>,
     config: FilterConfig,
+    /// The map's cell, metres: the config's, or [`cell_for`] the arena.
+    cell_size: f64,
     rng: StdRng,
     steps: u64,
 }
@@ -173,11 +206,10 @@ impl ParticleFilter {
         seed: u64,
     ) -> Self {
         let margin = DVec2::splat(MAP_MARGIN_M);
-        let map = TiledGrid::covering(
-            -margin,
-            DVec2::new(width, height) + margin,
-            config.cell_size,
-        );
+        let cell_size = config
+            .cell_size
+            .unwrap_or_else(|| cell_for(&config.sensor, width, height));
+        let map = TiledGrid::covering(-margin, DVec2::new(width, height) + margin, cell_size);
         let weight = 1.0 / config.particles.max(1) as f64;
         let particles = (0..config.particles.max(1))
             .map(|_| Particle {
@@ -197,6 +229,7 @@ impl ParticleFilter {
             model,
             learners,
             config,
+            cell_size,
             rng: StdRng::seed_from_u64(seed),
             steps: 0,
         }
@@ -204,6 +237,11 @@ impl ParticleFilter {
 
     pub fn model(&self) -> &MotionModel {
         &self.model
+    }
+
+    /// The map's cell, metres.
+    pub fn cell_size(&self) -> f64 {
+        self.cell_size
     }
 
     /// Weighted mean of the particles (circular mean for the heading).
@@ -268,7 +306,7 @@ impl ParticleFilter {
         let draws = self.draws();
         // The first n draws are the particles' own (draw k is particle k's).
         let drawn = self.draw_motions(command, bumped, draws);
-        let (beams, information) = scored_beams(ranges, &self.config);
+        let (beams, information) = scored_beams(ranges, &self.config, self.cell_size);
         // The learner judges each motion drawn from the model (and each
         // explorer's) by the whole scan at the pose it leads to. It never
         // sees where the scan matcher then puts the particle: the matcher's
@@ -692,10 +730,10 @@ impl PositionsByTick {
 /// The beams a step scores with (every `score_stride`-th that returned a
 /// range), and the share of those scored that returned: how much the
 /// step knew.
-fn scored_beams(ranges: &[f64], config: &FilterConfig) -> (ScoredBeams, f64) {
+fn scored_beams(ranges: &[f64], config: &FilterConfig, cell_size: f64) -> (ScoredBeams, f64) {
     let stride = config.score_stride.max(1);
     let scored = ranges.len().min(config.sensor.beams).div_ceil(stride);
-    let beams = ScoredBeams::of_scan(ranges, &config.sensor, stride, config.cell_size);
+    let beams = ScoredBeams::of_scan(ranges, &config.sensor, stride, cell_size);
     let information = if scored == 0 {
         0.0
     } else {
@@ -740,6 +778,44 @@ fn beam_end(pose: &Pose, bearing: f64, range: f64) -> DVec2 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn cells_follow_what_the_sensor_can_tell_within_a_bounded_map() {
+        let short = RangeSensor::default();
+        assert!((short.max_range - 4.0).abs() < 1e-12 && (short.noise_per_m - 0.01).abs() < 1e-12);
+        // 4 m beams, 2 cm of noise half way: the finest cell, in a room.
+        assert_eq!(cell_for(&short, 6.0, 5.0), FINEST_CELL_M);
+        // The demo's 10 m beams, 5 cm of noise half way.
+        let long = RangeSensor {
+            max_range: 10.0,
+            ..short.clone()
+        };
+        assert!((cell_for(&long, 20.0, 20.0) - 0.05).abs() < 1e-12);
+        // Short beams in a 12 x 12 m arena: 2.5 cm cells would make each
+        // particle's map 2.2 times the budget; coarsened to it.
+        let wide = cell_for(&short, 12.0, 12.0);
+        assert!(wide > FINEST_CELL_M && wide < COARSEST_CELL_M, "{wide}");
+        assert!((169.0 / (wide * wide) - MAX_MAP_CELLS).abs() < 1.0);
+        // Never coarser than 5 cm, however large the arena (the demo's
+        // default 20 x 20 m arena with 4 m beams stays on 5 cm).
+        assert_eq!(cell_for(&short, 20.0, 20.0), COARSEST_CELL_M);
+        assert_eq!(cell_for(&short, 500.0, 500.0), COARSEST_CELL_M);
+        // A filter without a cell of its own takes the rule's; one given
+        // keeps it.
+        let start = Pose::new(1.0, 1.0, 0.0);
+        let model = MotionModel::legged_default();
+        let derived =
+            ParticleFilter::new(start, model.clone(), FilterConfig::default(), 6.0, 5.0, 1);
+        assert_eq!(derived.cell_size(), FINEST_CELL_M);
+        let given = FilterConfig {
+            cell_size: Some(0.1),
+            ..FilterConfig::default()
+        };
+        assert_eq!(
+            ParticleFilter::new(start, model, given, 6.0, 5.0, 1).cell_size(),
+            0.1
+        );
+    }
 
     #[test]
     fn the_body_of_a_robot_that_fell_silent_is_forgotten() {

@@ -46,9 +46,11 @@ struct Args {
     /// The model to start from (TOML, per command: d, c, t mixtures); default: the swarm's.
     #[arg(long)]
     initial_model: Option<PathBuf>,
-    /// Occupancy grid cell size, metres.
-    #[arg(long, default_value_t = 0.05)]
-    grid: f64,
+    /// Occupancy grid cell size, metres (default: as wide as the sensor's
+    /// range noise at half its reach, 2.5-5 cm, coarser where the arena
+    /// would make the map too large).
+    #[arg(long)]
+    grid: Option<f64>,
     /// Where particles go each step: `matched` (GMapping's improved
     /// proposal: scan-matched, then drawn around the match; the default) or
     /// `motion` (drawn from the motion model, weighted by the scan; needs
@@ -192,11 +194,10 @@ fn run(args: Args) -> Result<()> {
     let initial = from_file.unwrap_or_else(|| scenario.motion.clone());
     // The map has (arena / grid)^2 cells per particle: a cell far below a
     // centimetre would ask for more memory than any machine has.
-    if !(MIN_GRID_M..=MAX_GRID_M).contains(&args.grid) {
-        bail!(
-            "--grid {} is outside [{MIN_GRID_M}, {MAX_GRID_M}] metres per cell",
-            args.grid
-        );
+    if let Some(grid) = args.grid
+        && !(MIN_GRID_M..=MAX_GRID_M).contains(&grid)
+    {
+        bail!("--grid {grid} is outside [{MIN_GRID_M}, {MAX_GRID_M}] metres per cell");
     }
     let (bus, roster) = shoal_broker::roster::join_reader(
         &args.swarm,
@@ -213,7 +214,10 @@ fn run(args: Args) -> Result<()> {
     for &id in args.follow.named() {
         followed.insert(id, setup.follow(&bus, id)?);
     }
-    tracing::info!(follow = %args.follow, learning = ?args.learning, "SLAM following");
+    let cell_m = setup.config.cell_size.unwrap_or_else(|| {
+        shoal_slam::filter::cell_for(&setup.config.sensor, setup.arena[0], setup.arena[1])
+    });
+    tracing::info!(follow = %args.follow, learning = ?args.learning, cell_m, "SLAM following");
     let mut newest_roster: u64 = 0;
     let mut last_report = std::time::Instant::now();
     let mut report_failing = false;

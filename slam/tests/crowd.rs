@@ -357,7 +357,7 @@ fn the_demo_offline_on_a_finer_grid() {
             &short,
             Crowd {
                 config: FilterConfig {
-                    cell_size: 0.025,
+                    cell_size: Some(0.025),
                     ..FilterConfig::default()
                 },
                 ..Crowd::new(450, seed, Judged::Every)
