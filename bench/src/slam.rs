@@ -84,9 +84,7 @@ impl World {
             }
         })
     }
-}
 
-impl World {
     /// The cell the filter maps with.
     fn cell_m(&self) -> f64 {
         self.grid

@@ -133,6 +133,15 @@ struct Drawn {
 /// learned stride where it started.
 const MIN_LEARNING_DRAWS: usize = 250;
 
+impl FilterConfig {
+    /// The cell a filter of this config maps `width` x `height` metres
+    /// with: its own, or [`cell_for`] its sensor there.
+    pub fn cell_in(&self, width: f64, height: f64) -> f64 {
+        self.cell_size
+            .unwrap_or_else(|| cell_for(&self.sensor, width, height))
+    }
+}
+
 impl Default for FilterConfig {
     fn default() -> Self {
         Self {
@@ -206,9 +215,7 @@ impl ParticleFilter {
         seed: u64,
     ) -> Self {
         let margin = DVec2::splat(MAP_MARGIN_M);
-        let cell_size = config
-            .cell_size
-            .unwrap_or_else(|| cell_for(&config.sensor, width, height));
+        let cell_size = config.cell_in(width, height);
         let map = TiledGrid::covering(-margin, DVec2::new(width, height) + margin, cell_size);
         let weight = 1.0 / config.particles.max(1) as f64;
         let particles = (0..config.particles.max(1))

@@ -214,9 +214,7 @@ fn run(args: Args) -> Result<()> {
     for &id in args.follow.named() {
         followed.insert(id, setup.follow(&bus, id)?);
     }
-    let cell_m = setup.config.cell_size.unwrap_or_else(|| {
-        shoal_slam::filter::cell_for(&setup.config.sensor, setup.arena[0], setup.arena[1])
-    });
+    let cell_m = setup.config.cell_in(setup.arena[0], setup.arena[1]);
     tracing::info!(follow = %args.follow, learning = ?args.learning, cell_m, "SLAM following");
     let mut newest_roster: u64 = 0;
     let mut last_report = std::time::Instant::now();
