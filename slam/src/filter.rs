@@ -397,6 +397,24 @@ impl ParticleFilter {
         }
     }
 
+    /// Moves every particle by one motion drawn from the model for
+    /// `command`, with no scan: where a scan was not stepped (a SLAM
+    /// process behind its robots), its command still moved the robot. No
+    /// scan is scored, nothing is learned and no map is written; the spread
+    /// the draws add is what the next scored step's proposal searches.
+    pub fn coast(&mut self, command: Command, bumped: bool) {
+        for particle in &mut self.particles {
+            let motion = self.model.sample(command, &mut self.rng);
+            particle.pose = if bumped {
+                particle.pose.advanced(0.0, 0.0, motion.turn)
+            } else {
+                particle
+                    .pose
+                    .advanced(motion.along, motion.across, motion.turn)
+            };
+        }
+    }
+
     /// `count` motions drawn from the model, from the particles in turn
     /// (draw k from particle k mod n), some scaled at random (explorers)
     /// while learning.

@@ -77,6 +77,9 @@ pub struct Follower {
     /// stepped: lost on the bus (a follower too slow for its buffer), so
     /// their motion is missing from the filter.
     scans_missed: u64,
+    /// Scans whose command moved the particles without their scan being
+    /// scored ([`Follower::coast`]): a follower catching up.
+    scans_coasted: u64,
     /// How many of the shared first looks the filter has mapped.
     looks_mapped: usize,
 }
@@ -103,6 +106,7 @@ impl Follower {
             steps: 0,
             stepped_tick: None,
             scans_missed: 0,
+            scans_coasted: 0,
             looks_mapped: 0,
         }
     }
@@ -119,6 +123,33 @@ impl Follower {
     /// filter (see the field).
     pub fn scans_missed(&self) -> u64 {
         self.scans_missed
+    }
+
+    /// Scans coasted through while catching up (see the field).
+    pub fn scans_coasted(&self) -> u64 {
+        self.scans_coasted
+    }
+
+    /// Moves the filter through `scan`'s command without scoring its
+    /// ranges (`ParticleFilter::coast`): what a follower that has fallen
+    /// behind does with the scans before its newest, so that no command's
+    /// motion goes missing while it catches up. False (nothing done) before
+    /// the filter started, or for a scan without a command or not newer
+    /// than the last one stepped: `on_scans` takes those.
+    pub fn coast(&mut self, scan: &Scan) -> bool {
+        let (Some(filter), Some(command)) = (&mut self.filter, scan.command) else {
+            return false;
+        };
+        if self.stepped_tick.is_some_and(|t| scan.tick <= t) {
+            return false;
+        }
+        if let Some(previous) = self.stepped_tick {
+            self.scans_missed += self.announced.range(previous + 1..scan.tick).count() as u64;
+        }
+        filter.coast(command, scan.bumped);
+        self.stepped_tick = Some(scan.tick);
+        self.scans_coasted += 1;
+        true
     }
 
     /// The tick of the newest scan the filter stepped: the tick its
@@ -378,6 +409,51 @@ mod tests {
         assert_eq!(steps, vec![3]);
         assert_eq!(follower.steps(), 1);
         assert_eq!(follower.newest_announced(), Some(2));
+    }
+
+    #[test]
+    fn a_follower_behind_moves_through_a_waiting_scans_command_without_scoring_it() {
+        let (mut follower, scenario) = follower();
+        let beams = scenario.sensor.beams;
+        let bodies = Bodies::new(3);
+        let walk = |tick| Scan {
+            command: Some(Command::Walk(3)),
+            ..scan(tick, beams)
+        };
+        assert!(!follower.coast(&walk(1)), "no filter to move yet");
+        let start = Pose::new(4.0, 3.0, 0.0);
+        follower.announced(1, start);
+        follower
+            .on_scans(
+                vec![scan(1, beams)],
+                &bodies,
+                &mut FirstLooks::default(),
+                |_| Ok::<(), ()>(()),
+            )
+            .unwrap();
+        let model = follower.filter().expect("started").model().clone();
+        for tick in 2..=4 {
+            follower.announced(tick, start);
+            assert!(follower.coast(&walk(tick)));
+        }
+        assert!(
+            !follower.coast(&walk(3)),
+            "an older scan is not moved through again"
+        );
+        let filter = follower.filter().expect("started");
+        // Three full strides forward, by the model alone: learned nothing.
+        let stride = model.full_stride();
+        let moved = filter.estimate().x - start.x;
+        assert!(
+            (moved - 3.0 * stride).abs() < 0.5 * stride,
+            "{moved} for {stride}"
+        );
+        assert_eq!(filter.model(), &model);
+        assert_eq!(
+            (follower.stepped_tick(), follower.scans_coasted()),
+            (Some(4), 3)
+        );
+        assert_eq!((follower.steps(), follower.scans_missed()), (0, 0));
     }
 
     #[test]

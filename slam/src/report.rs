@@ -42,6 +42,10 @@ pub struct FollowedReport {
     /// (lost on the bus while it fell behind): their motion is missing.
     #[serde(default)]
     pub scans_missed: u64,
+    /// Scans whose command moved the filter without their ranges being
+    /// scored, while it caught up with its robot.
+    #[serde(default)]
+    pub scans_coasted: u64,
 }
 
 impl HelperReport for SlamReport {
