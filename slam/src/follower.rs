@@ -59,6 +59,22 @@ struct Look {
     ranges: Vec<f64>,
 }
 
+/// Scans a follower may have waiting before the older ones are coasted
+/// through ([`Follower::catch_up`]): 0.6 s at 5 Hz.
+pub const CATCH_UP_AFTER_SCANS: usize = 3;
+
+/// The ticks the robot was announced on after `stepped` (the last scan
+/// stepped) and before `tick`: scans that never reached the filter.
+fn missed_between(announced: &BTreeMap<u64, Pose>, stepped: Option<u64>, tick: u64) -> u64 {
+    // A scan older than the last stepped (out of order on the bus) misses
+    // nothing, and an empty range must not be asked for backwards.
+    stepped
+        .filter(|&previous| tick > previous + 1)
+        .map_or(0, |previous| {
+            announced.range(previous + 1..tick).count() as u64
+        })
+}
+
 pub struct Follower {
     id: u32,
     seed: u64,
@@ -130,6 +146,25 @@ impl Follower {
         self.scans_coasted
     }
 
+    /// Behind its robot, moves the filter through the oldest of `pending`'s
+    /// scans ([`Follower::coast`]) until at most [`CATCH_UP_AFTER_SCANS`]
+    /// wait, for the newest to be scored: a scan stepped late is worth less
+    /// than keeping up, and a command dropped would leave its motion out of
+    /// the filter for good (EXPERIMENTS.md 10: on a machine at 40% of its
+    /// speed the demo's filters fell 17 s behind and ended 2.8 m off). A
+    /// scan it cannot coast through stays first in `pending`.
+    pub fn catch_up(&mut self, pending: &mut std::collections::VecDeque<Scan>) {
+        while pending.len() > CATCH_UP_AFTER_SCANS {
+            let Some(scan) = pending.pop_front() else {
+                break;
+            };
+            if !self.coast(&scan) {
+                pending.push_front(scan);
+                break;
+            }
+        }
+    }
+
     /// Moves the filter through `scan`'s command without scoring its
     /// ranges (`ParticleFilter::coast`): what a follower that has fallen
     /// behind does with the scans before its newest, so that no command's
@@ -143,9 +178,7 @@ impl Follower {
         if self.stepped_tick.is_some_and(|t| scan.tick <= t) {
             return false;
         }
-        if let Some(previous) = self.stepped_tick {
-            self.scans_missed += self.announced.range(previous + 1..scan.tick).count() as u64;
-        }
+        self.scans_missed += missed_between(&self.announced, self.stepped_tick, scan.tick);
         filter.coast(command, scan.bumped);
         self.stepped_tick = Some(scan.tick);
         self.scans_coasted += 1;
@@ -233,9 +266,7 @@ impl Follower {
             let Some(command) = scan.command else {
                 continue;
             };
-            if let Some(previous) = self.stepped_tick {
-                self.scans_missed += self.announced.range(previous + 1..scan.tick).count() as u64;
-            }
+            self.scans_missed += missed_between(&self.announced, self.stepped_tick, scan.tick);
             let report = filter.step(command, scan.bumped, &scan.ranges);
             self.steps += 1;
             self.stepped_tick = Some(scan.tick);
@@ -454,6 +485,14 @@ mod tests {
             (Some(4), 3)
         );
         assert_eq!((follower.steps(), follower.scans_missed()), (0, 0));
+        // Five waiting: the oldest two are coasted through, three wait.
+        let mut pending: std::collections::VecDeque<Scan> = (5..=9).map(walk).collect();
+        follower.catch_up(&mut pending);
+        assert_eq!(
+            pending.iter().map(|s| s.tick).collect::<Vec<_>>(),
+            [7, 8, 9]
+        );
+        assert_eq!(follower.scans_coasted(), 5);
     }
 
     #[test]

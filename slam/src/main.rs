@@ -331,21 +331,7 @@ fn step_followed(
         while robot.pending.len() > MAX_PENDING_SCANS {
             robot.pending.pop_front();
         }
-        // Behind its robot, a filter moves through the waiting scans'
-        // commands by its motion model alone and scores only the newest:
-        // a scan stepped late is worth less than keeping up, and a command
-        // dropped would leave its motion out of the filter for good
-        // (EXPERIMENTS.md 10: on a machine at 40% of its speed the demo's
-        // filters fell 17 s behind and ended 2.8 m off).
-        while robot.pending.len() > CATCH_UP_AFTER_SCANS {
-            let Some(scan) = robot.pending.pop_front() else {
-                break;
-            };
-            if !robot.follower.coast(&scan) {
-                robot.pending.push_front(scan);
-                break;
-            }
-        }
+        robot.follower.catch_up(&mut robot.pending);
         let Some(scan) = robot.pending.pop_front() else {
             continue;
         };
@@ -394,10 +380,6 @@ fn write_report(runtime: &SwarmRuntime, report: &SlamReport, failing: &mut bool)
 
 /// Scans a followed robot may have waiting: 13 s at 5 Hz.
 const MAX_PENDING_SCANS: usize = 64;
-
-/// Scans a followed robot may have waiting before the older ones are
-/// coasted through (`Follower::coast`): half a second at 5 Hz.
-const CATCH_UP_AFTER_SCANS: usize = 3;
 
 /// How often `shoal status` learns what SLAM knows.
 const REPORT_EVERY: Duration = Duration::from_secs(1);
