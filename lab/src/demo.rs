@@ -87,6 +87,11 @@ pub struct SlamProgress {
     /// the robot's scans it never stepped: whether SLAM kept up.
     pub most_behind_s: f64,
     pub scans_missed: u64,
+    /// Scans the filter moved through without scoring them, catching up,
+    /// and the fewest particles it held (read once a second): what it gave
+    /// up to keep up.
+    pub scans_coasted: u64,
+    pub fewest_particles: Option<usize>,
 }
 
 #[derive(Debug, Serialize)]
@@ -268,6 +273,8 @@ fn slam_progress(
         stride_true_m: truth.full_stride() * floor,
         most_behind_s: 0.0,
         scans_missed: followed.map_or(0, |f| f.scans_missed),
+        scans_coasted: followed.map_or(0, |f| f.scans_coasted),
+        fewest_particles: None,
     }
 }
 
@@ -389,6 +396,7 @@ pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
                 floor,
             );
             progress.most_behind_s = watched.most_behind_s.get(id).copied().unwrap_or(0.0);
+            progress.fewest_particles = watched.fewest_particles.get(id).copied();
             progress
         })
         .collect();
@@ -419,6 +427,8 @@ struct Watched {
     truth: PositionsByTick,
     /// The most each followed robot's filter trailed it, seconds.
     most_behind_s: BTreeMap<u32, f64>,
+    /// The fewest particles each followed robot's filter held.
+    fewest_particles: BTreeMap<u32, usize>,
 }
 
 /// Runs the swarm for `seconds`: kills and restarts robots as `Healing`
@@ -437,6 +447,7 @@ fn watch(
         slam_errors: Vec::new(),
         truth: PositionsByTick::new(TRUTH_TICKS),
         most_behind_s: BTreeMap::new(),
+        fewest_particles: BTreeMap::new(),
     };
     let mut last_tick = 0;
     let mut last_line = std::time::Instant::now();
@@ -470,6 +481,10 @@ fn watch(
                 for followed in &report.followed {
                     let most = watched.most_behind_s.entry(followed.id).or_default();
                     *most = most.max(followed.behind_s.unwrap_or(0.0));
+                    if let Some(held) = followed.particles {
+                        let fewest = watched.fewest_particles.entry(followed.id).or_insert(held);
+                        *fewest = (*fewest).min(held);
+                    }
                 }
             }
         }
@@ -603,10 +618,16 @@ fn print_slam_overall(out: &mut dyn Write, slam: &[SlamProgress]) -> io::Result<
     .unwrap_or(0.0);
     writeln!(
         out,
-        "  SLAM followed {} robots at once: each filter at most {:.1} s behind its robot, {} scans missed in all",
+        "  SLAM followed {} robots at once: each filter at most {:.1} s behind its robot, {} scans missed and {} coasted through in all{}",
         slam.len(),
         slam.iter().map(|s| s.most_behind_s).fold(0.0, f64::max),
-        slam.iter().map(|s| s.scans_missed).sum::<u64>()
+        slam.iter().map(|s| s.scans_missed).sum::<u64>(),
+        slam.iter().map(|s| s.scans_coasted).sum::<u64>(),
+        slam.iter()
+            .filter_map(|s| s.fewest_particles)
+            .min()
+            .map(|fewest| format!(", as few as {fewest} particles to keep up"))
+            .unwrap_or_default(),
     )?;
     writeln!(
         out,

@@ -245,8 +245,10 @@ pub fn print_table(out: &mut dyn Write, report: &StatusReport) -> io::Result<()>
         let slam = a.slam.as_ref().map_or_else(
             || "-".to_owned(),
             |f| {
-                let keeping_up = match (f.steps_per_s, f.behind_s) {
-                    (Some(rate), Some(behind)) => format!(" ({rate:.1}/s, {behind:.1} s behind)"),
+                let keeping_up = match (f.steps_per_s, f.behind_s, f.particles) {
+                    (Some(rate), Some(behind), Some(particles)) => {
+                        format!(" ({rate:.1}/s, {behind:.1} s behind, {particles} particles)")
+                    }
                     _ => String::new(),
                 };
                 let missed = if f.scans_missed > 0 {

@@ -72,6 +72,10 @@ pub fn cell_for(sensor: &RangeSensor, width: f64, height: f64) -> f64 {
 #[derive(Clone, Debug, PartialEq)]
 pub struct FilterConfig {
     pub particles: usize,
+    /// The fewest particles a follower short of time sheds to
+    /// ([`crate::follower::Follower::catch_up`]); none: a fifth of
+    /// `particles`. As many as `particles` never sheds.
+    pub fewest_particles: Option<usize>,
     /// Score every n-th beam (scoring every beam adds little but time).
     pub score_stride: usize,
     /// Map with every n-th beam.
@@ -134,6 +138,15 @@ struct Drawn {
 const MIN_LEARNING_DRAWS: usize = 250;
 
 impl FilterConfig {
+    /// The fewest particles a follower sheds to: `fewest_particles`, or a
+    /// fifth of `particles` (below that, coasting through scans is what is
+    /// left), never more than `particles` nor fewer than one.
+    pub fn fewest_particles(&self) -> usize {
+        self.fewest_particles
+            .unwrap_or(self.particles / 5)
+            .clamp(1, self.particles.max(1))
+    }
+
     /// The cell a filter of this config maps `width` x `height` metres
     /// with: its own, or [`cell_for`] its sensor there.
     pub fn cell_in(&self, width: f64, height: f64) -> f64 {
@@ -151,6 +164,7 @@ impl Default for FilterConfig {
             // which is what lets one SLAM process follow all 20 of its
             // robots on two cores (EXPERIMENTS.md 8b, BENCHMARKS.md 4).
             particles: 50,
+            fewest_particles: None,
             score_stride: 2,
             map_stride: 2,
             cell_size: None,
@@ -201,6 +215,8 @@ pub struct ParticleFilter {
     cell_size: f64,
     rng: StdRng,
     steps: u64,
+    /// Steps' worth of learning owed (see [`ParticleFilter::learning_due`]).
+    learning_credit: f64,
 }
 
 impl ParticleFilter {
@@ -239,6 +255,7 @@ impl ParticleFilter {
             cell_size,
             rng: StdRng::seed_from_u64(seed),
             steps: 0,
+            learning_credit: 0.0,
         }
     }
 
@@ -310,33 +327,37 @@ impl ParticleFilter {
     /// translation if `bumped`), then its sensor read `ranges`.
     pub fn step(&mut self, command: Command, bumped: bool, ranges: &[f64]) -> StepReport {
         let n = self.particles.len();
-        let draws = self.draws();
+        let learns = self.config.learning && self.steps > 0 && self.learning_due();
+        let draws = if learns { self.draws() } else { n };
         // The first n draws are the particles' own (draw k is particle k's).
         let drawn = self.draw_motions(command, bumped, draws);
         let (beams, information) = scored_beams(ranges, &self.config, self.cell_size);
+        let matched = self.config.proposal == Proposal::ScanMatched
+            && self.steps > 0
+            && !bumped
+            && beams.len() >= MIN_MATCHED_BEAMS;
         // The learner judges each motion drawn from the model (and each
         // explorer's) by the whole scan at the pose it leads to. It never
         // sees where the scan matcher then puts the particle: the matcher's
         // correction is the scan's knowledge, not the motion's, and learned
         // from it the model would learn the map's pull instead of the robot.
-        let at_drawn: Vec<f64> = if self.steps == 0 {
-            vec![0.0; draws]
-        } else {
+        // The motion model's proposal weighs its particles by the same
+        // scores; the matched one needs them only to learn.
+        let scored = self.steps > 0 && (learns || !matched);
+        let at_drawn: Vec<f64> = if scored {
             // Each draw is scored against its particle's own map, shared
             // out over the cores.
             drawn
                 .par_iter()
                 .map(|d| beams.log_likelihood(&self.particles[d.particle].map, &d.pose))
                 .collect()
+        } else {
+            vec![0.0; draws]
         };
-        if self.config.learning && self.steps > 0 {
+        if learns {
             self.learn(command, bumped, &drawn, &at_drawn, information);
         }
-        let matched = self.config.proposal == Proposal::ScanMatched
-            && self.steps > 0
-            && !bumped
-            && beams.len() >= MIN_MATCHED_BEAMS;
-        let mut poses_scored = if self.steps == 0 { 0 } else { draws };
+        let mut poses_scored = if scored { draws } else { 0 };
         let mut beam_evaluations = poses_scored * beams.len();
         let (drawn, at_drawn) = (&drawn[..n], &at_drawn[..n]);
         let log_weights = if matched {
@@ -384,6 +405,56 @@ impl ParticleFilter {
             beam_evaluations,
             scored_beams: beams.len(),
         }
+    }
+
+    /// How many particles the filter holds now: the config's, or fewer
+    /// while a follower short of time sheds them ([`ParticleFilter::resize`]).
+    pub fn particle_count(&self) -> usize {
+        self.particles.len()
+    }
+
+    /// Holds `n` particles (at least one) from now on. Fewer are drawn by
+    /// weight (systematic resampling); more come from splitting the
+    /// heaviest in two, each half its weight, which leaves what the filter
+    /// believes exactly as it was (the halves part at the next step's
+    /// draws). Maps are shared tile by tile, so a split copies none.
+    pub fn resize(&mut self, n: usize) {
+        let n = n.max(1);
+        if n < self.particles.len() {
+            self.resample_to(n);
+        }
+        while self.particles.len() < n {
+            let mut heaviest: Vec<usize> = (0..self.particles.len()).collect();
+            heaviest.sort_by(|&a, &b| {
+                self.particles[b]
+                    .weight
+                    .total_cmp(&self.particles[a].weight)
+            });
+            heaviest.truncate(n - self.particles.len());
+            for i in heaviest {
+                self.particles[i].weight /= 2.0;
+                let half = self.particles[i].clone();
+                self.particles.push(half);
+            }
+        }
+    }
+
+    /// Whether this step learns. With its configured particles, every
+    /// step does; with fewer (a follower shedding work to keep up,
+    /// [`ParticleFilter::resize`]), steps in proportion do. The learner's
+    /// draws are a fixed cost, at least [`MIN_LEARNING_DRAWS`] poses scored
+    /// a step: beside 10 matched particles, about 40% of a step's work.
+    /// Each learning step keeps its full draws, which a learner needs
+    /// (with 50 a crowd's learned stride stayed where it started); it only
+    /// learns on fewer steps.
+    fn learning_due(&mut self) -> bool {
+        let share = self.particles.len() as f64 / self.config.particles.max(1) as f64;
+        self.learning_credit += share.min(1.0);
+        let due = self.learning_credit >= 1.0 - 1e-9;
+        if due {
+            self.learning_credit = (self.learning_credit - 1.0).max(0.0);
+        }
+        due
     }
 
     /// How many motions a step draws: one per particle, and while learning
@@ -578,14 +649,20 @@ impl ParticleFilter {
     /// Low-variance resampling: one random offset, evenly spaced picks, so
     /// particles survive in proportion to their weight without needless loss.
     fn resample(&mut self) {
-        let n = self.particles.len();
+        self.resample_to(self.particles.len());
+    }
+
+    /// Draws `n` particles by weight (systematic resampling), each then
+    /// weighing `1/n`.
+    fn resample_to(&mut self, n: usize) {
+        let held = self.particles.len();
         let step = 1.0 / n as f64;
         let mut target = self.rng.random::<f64>() * step;
         let mut cumulative = self.particles[0].weight;
         let mut i = 0;
         let mut next = Vec::with_capacity(n);
         for _ in 0..n {
-            while target > cumulative && i + 1 < n {
+            while target > cumulative && i + 1 < held {
                 i += 1;
                 cumulative += self.particles[i].weight;
             }
@@ -840,6 +917,79 @@ mod tests {
             ParticleFilter::new(start, model, given, 6.0, 5.0, 1).cell_size(),
             0.1
         );
+    }
+
+    #[test]
+    fn a_filter_resized_keeps_what_it_believes() {
+        let start = Pose::new(1.0, 1.0, 0.0);
+        let mut filter = ParticleFilter::new(
+            start,
+            MotionModel::legged_default(),
+            FilterConfig::default(),
+            6.0,
+            5.0,
+            3,
+        );
+        filter.coast(Command::ALL[1], false);
+        // Unequal weights, as a step leaves them.
+        let n = filter.particle_count();
+        for (i, p) in filter.particles.iter_mut().enumerate() {
+            p.weight = (i + 1) as f64 / (n * (n + 1) / 2) as f64;
+        }
+        let before = filter.estimate();
+        let total = |f: &ParticleFilter| f.particles.iter().map(|p| p.weight).sum::<f64>();
+        // Grown by splitting: the estimate and the weights' total stay.
+        filter.resize(n + 7);
+        assert_eq!(filter.particle_count(), n + 7);
+        assert!((total(&filter) - 1.0).abs() < 1e-12);
+        let grown = filter.estimate();
+        assert!(grown.position().distance(before.position()) < 1e-12);
+        assert!((grown.theta - before.theta).abs() < 1e-12);
+        // Shrunk by drawing by weight: equal weights, every pose one the
+        // filter held.
+        let held: Vec<Pose> = filter.particles.iter().map(|p| p.pose).collect();
+        filter.resize(10);
+        assert_eq!(filter.particle_count(), 10);
+        assert!((total(&filter) - 1.0).abs() < 1e-12);
+        assert!(filter.particles.iter().all(|p| held.contains(&p.pose)));
+        // Grown past twice its size in one go, and never below one.
+        filter.resize(45);
+        assert_eq!(filter.particle_count(), 45);
+        filter.resize(0);
+        assert_eq!(filter.particle_count(), 1);
+    }
+
+    #[test]
+    fn a_filter_holding_a_fifth_of_its_particles_learns_on_a_fifth_of_its_steps() {
+        let mut filter = ParticleFilter::new(
+            Pose::new(1.0, 1.0, 0.0),
+            MotionModel::legged_default(),
+            FilterConfig::default(),
+            6.0,
+            5.0,
+            3,
+        );
+        let beams = vec![f64::NAN; filter.config.sensor.beams];
+        filter.observe_start(&beams);
+        let draws_per_step = |filter: &mut ParticleFilter, steps: usize| -> Vec<usize> {
+            (0..steps)
+                .map(|_| filter.step(Command::ALL[1], false, &beams).poses_scored)
+                .collect()
+        };
+        // No beam returned: the motion model's proposal, every draw scored.
+        assert!(
+            draws_per_step(&mut filter, 3)
+                .iter()
+                .all(|&d| d == MIN_LEARNING_DRAWS)
+        );
+        filter.resize(FilterConfig::default().particles / 5);
+        let drawn = draws_per_step(&mut filter, 10);
+        assert_eq!(
+            drawn.iter().filter(|&&d| d == MIN_LEARNING_DRAWS).count(),
+            2,
+            "{drawn:?}"
+        );
+        assert!(drawn.iter().all(|&d| d == MIN_LEARNING_DRAWS || d == 10));
     }
 
     #[test]

@@ -63,6 +63,20 @@ struct Look {
 /// through ([`Follower::catch_up`]): 0.6 s at 5 Hz.
 pub const CATCH_UP_AFTER_SCANS: usize = 3;
 
+/// Scans waiting at which a follower sheds particles, so that it scores
+/// more of its scans ([`Follower::catch_up`]).
+pub const SHED_AT_SCANS: usize = 3;
+
+/// What a shedding follower keeps of its particles.
+const SHED_KEEPS: f64 = 0.8;
+
+/// A follower that has kept up (nothing waiting beside the scan it steps)
+/// for this many steps in a row takes back a tenth of its configured
+/// particles: slowly, as each step shed and taken back at once cost
+/// accuracy (the filter resampled every few steps).
+const TAKE_BACK_AFTER_STEPS: u32 = 10;
+const TAKE_BACK_SHARE: usize = 10;
+
 /// The ticks the robot was announced on after `stepped` (the last scan
 /// stepped) and before `tick`: scans that never reached the filter.
 fn missed_between(announced: &BTreeMap<u64, Pose>, stepped: Option<u64>, tick: u64) -> u64 {
@@ -98,6 +112,10 @@ pub struct Follower {
     scans_coasted: u64,
     /// How many of the shared first looks the filter has mapped.
     looks_mapped: usize,
+    /// Scans that waited after the last catch-up, and steps in a row taken
+    /// with nothing else waiting: how the follower judges its pace.
+    backlog_before: usize,
+    kept_up_steps: u32,
 }
 
 impl Follower {
@@ -124,6 +142,8 @@ impl Follower {
             scans_missed: 0,
             scans_coasted: 0,
             looks_mapped: 0,
+            backlog_before: 0,
+            kept_up_steps: 0,
         }
     }
 
@@ -146,14 +166,40 @@ impl Follower {
         self.scans_coasted
     }
 
-    /// Behind its robot, moves the filter through the oldest of `pending`'s
-    /// scans ([`Follower::coast`]) until at most [`CATCH_UP_AFTER_SCANS`]
-    /// wait, for the newest to be scored: a scan stepped late is worth less
-    /// than keeping up, and a command dropped would leave its motion out of
-    /// the filter for good (EXPERIMENTS.md 10: on a machine at 40% of its
-    /// speed the demo's filters fell 17 s behind and ended 2.8 m off). A
-    /// scan it cannot coast through stays first in `pending`.
+    /// Fits the follower's work to the time it has, before it steps the
+    /// first of `pending`'s scans. With [`SHED_AT_SCANS`] or more waiting it
+    /// sheds a quarter of its particles (down to a fifth of the configured
+    /// count), and with at most one waiting it takes back a tenth: a filter
+    /// short of time does better with fewer particles than with fewer
+    /// scans (the demo offline: 25 particles on every scan 0.20-0.25 m,
+    /// 50 on every other scan 0.40-0.47 m, at the same cost; EXPERIMENTS.md
+    /// 10). Still behind, it moves the filter through the oldest scans
+    /// ([`Follower::coast`]) until at most [`CATCH_UP_AFTER_SCANS`] wait:
+    /// a scan stepped late is worth less than keeping up, and a command
+    /// dropped would leave its motion out of the filter for good (on a
+    /// machine at 40% of its speed the demo's filters fell 17 s behind and
+    /// ended 2.8 m off). A scan it cannot coast through stays first in
+    /// `pending`.
     pub fn catch_up(&mut self, pending: &mut std::collections::VecDeque<Scan>) {
+        let configured = self.config.particles.max(1);
+        let waiting = pending.len();
+        if let Some(filter) = &mut self.filter {
+            let held = filter.particle_count();
+            if waiting >= SHED_AT_SCANS && waiting >= self.backlog_before {
+                // Behind, and not catching up since the last look.
+                let fewest = self.config.fewest_particles();
+                filter.resize(((held as f64 * SHED_KEEPS) as usize).max(fewest).min(held));
+                self.kept_up_steps = 0;
+            } else if waiting == 1 {
+                self.kept_up_steps += 1;
+                if self.kept_up_steps >= TAKE_BACK_AFTER_STEPS && held < configured {
+                    filter.resize((held + (configured / TAKE_BACK_SHARE).max(1)).min(configured));
+                    self.kept_up_steps = 0;
+                }
+            } else if waiting > 1 {
+                self.kept_up_steps = 0;
+            }
+        }
         while pending.len() > CATCH_UP_AFTER_SCANS {
             let Some(scan) = pending.pop_front() else {
                 break;
@@ -163,6 +209,7 @@ impl Follower {
                 break;
             }
         }
+        self.backlog_before = pending.len();
     }
 
     /// Moves the filter through `scan`'s command without scoring its
@@ -493,6 +540,59 @@ mod tests {
             [7, 8, 9]
         );
         assert_eq!(follower.scans_coasted(), 5);
+    }
+
+    #[test]
+    fn a_follower_behind_sheds_particles_and_takes_them_back_when_it_keeps_up() {
+        let (mut follower, scenario) = follower();
+        let beams = scenario.sensor.beams;
+        let walk = |tick| Scan {
+            command: Some(Command::Walk(3)),
+            ..scan(tick, beams)
+        };
+        let start = Pose::new(4.0, 3.0, 0.0);
+        follower.announced(0, start);
+        follower
+            .on_scans(
+                vec![scan(0, beams)],
+                &Bodies::new(3),
+                &mut FirstLooks::default(),
+                |_| Ok::<(), ()>(()),
+            )
+            .unwrap();
+        let count = |f: &Follower| f.filter().map(ParticleFilter::particle_count);
+        // `follower_of`'s filter holds 20.
+        let configured = 20;
+        assert_eq!(count(&follower), Some(configured));
+        // Two waiting: neither sheds nor takes back.
+        let mut pending: std::collections::VecDeque<Scan> = (1..=2).map(walk).collect();
+        follower.catch_up(&mut pending);
+        assert_eq!((count(&follower), pending.len()), (Some(configured), 2));
+        // Three waiting, step after step: a fifth shed each time, down to
+        // a fifth of the configured count and no further.
+        let mut held = Vec::new();
+        for tick in 3..12 {
+            let mut pending: std::collections::VecDeque<Scan> =
+                (tick * 10..tick * 10 + 3).map(walk).collect();
+            follower.catch_up(&mut pending);
+            held.extend(count(&follower));
+        }
+        assert_eq!(held[..5], [16, 12, 9, 7, 5]);
+        assert_eq!(held.last(), Some(&(configured / 5)));
+        // Catching up (fewer waiting than at the last look): nothing shed.
+        let mut pending: std::collections::VecDeque<Scan> = (100..102).map(walk).collect();
+        follower.catch_up(&mut pending);
+        assert_eq!(count(&follower), Some(configured / 5));
+        // Caught up (only the scan about to be stepped waits): a tenth of
+        // the configured count back every tenth step, up to it and no further.
+        let mut held = Vec::new();
+        for tick in 200..300 {
+            let mut pending: std::collections::VecDeque<Scan> = [walk(tick)].into();
+            follower.catch_up(&mut pending);
+            held.extend(count(&follower));
+        }
+        assert_eq!(held[..10], [4, 4, 4, 4, 4, 4, 4, 4, 4, 6]);
+        assert_eq!(held.last(), Some(&configured));
     }
 
     #[test]

@@ -18,7 +18,7 @@ use shoal_broker::{
 use shoal_physics::legged::Param;
 use shoal_physics::{Command, MotionModel, Pose};
 use shoal_runtime::SwarmRuntime;
-use shoal_slam::filter::{Bodies, FilterConfig, Proposal};
+use shoal_slam::filter::{Bodies, FilterConfig, ParticleFilter, Proposal};
 use shoal_slam::follow::Follow;
 use shoal_slam::follower::{FirstLooks, Follower, Scan, Stepped};
 use shoal_slam::report::{FollowedReport, SlamReport};
@@ -422,6 +422,7 @@ fn report(
                         .map(|ticks| ticks as f64 * period_s),
                     scans_missed: robot.follower.scans_missed(),
                     scans_coasted: robot.follower.scans_coasted(),
+                    particles: filter.map(ParticleFilter::particle_count),
                 }
             })
             .collect(),

@@ -46,6 +46,10 @@ pub struct FollowedReport {
     /// scored, while it caught up with its robot.
     #[serde(default)]
     pub scans_coasted: u64,
+    /// Particles the filter holds now: fewer than configured while it
+    /// sheds work to keep up with its robot.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub particles: Option<usize>,
 }
 
 impl HelperReport for SlamReport {
