@@ -215,8 +215,6 @@ pub struct ParticleFilter {
     cell_size: f64,
     rng: StdRng,
     steps: u64,
-    /// Steps' worth of learning owed (see [`ParticleFilter::learning_due`]).
-    learning_credit: f64,
 }
 
 impl ParticleFilter {
@@ -255,7 +253,6 @@ impl ParticleFilter {
             cell_size,
             rng: StdRng::seed_from_u64(seed),
             steps: 0,
-            learning_credit: 0.0,
         }
     }
 
@@ -327,7 +324,7 @@ impl ParticleFilter {
     /// translation if `bumped`), then its sensor read `ranges`.
     pub fn step(&mut self, command: Command, bumped: bool, ranges: &[f64]) -> StepReport {
         let n = self.particles.len();
-        let learns = self.config.learning && self.steps > 0 && self.learning_due();
+        let learns = self.config.learning && self.steps > 0;
         let draws = if learns { self.draws() } else { n };
         // The first n draws are the particles' own (draw k is particle k's).
         let drawn = self.draw_motions(command, bumped, draws);
@@ -437,24 +434,6 @@ impl ParticleFilter {
                 self.particles.push(half);
             }
         }
-    }
-
-    /// Whether this step learns. With its configured particles, every
-    /// step does; with fewer (a follower shedding work to keep up,
-    /// [`ParticleFilter::resize`]), steps in proportion do. The learner's
-    /// draws are a fixed cost, at least [`MIN_LEARNING_DRAWS`] poses scored
-    /// a step: beside 10 matched particles, about 40% of a step's work.
-    /// Each learning step keeps its full draws, which a learner needs
-    /// (with 50 a crowd's learned stride stayed where it started); it only
-    /// learns on fewer steps.
-    fn learning_due(&mut self) -> bool {
-        let share = self.particles.len() as f64 / self.config.particles.max(1) as f64;
-        self.learning_credit += share.min(1.0);
-        let due = self.learning_credit >= 1.0 - 1e-9;
-        if due {
-            self.learning_credit = (self.learning_credit - 1.0).max(0.0);
-        }
-        due
     }
 
     /// How many motions a step draws: one per particle, and while learning
@@ -957,39 +936,6 @@ mod tests {
         assert_eq!(filter.particle_count(), 45);
         filter.resize(0);
         assert_eq!(filter.particle_count(), 1);
-    }
-
-    #[test]
-    fn a_filter_holding_a_fifth_of_its_particles_learns_on_a_fifth_of_its_steps() {
-        let mut filter = ParticleFilter::new(
-            Pose::new(1.0, 1.0, 0.0),
-            MotionModel::legged_default(),
-            FilterConfig::default(),
-            6.0,
-            5.0,
-            3,
-        );
-        let beams = vec![f64::NAN; filter.config.sensor.beams];
-        filter.observe_start(&beams);
-        let draws_per_step = |filter: &mut ParticleFilter, steps: usize| -> Vec<usize> {
-            (0..steps)
-                .map(|_| filter.step(Command::ALL[1], false, &beams).poses_scored)
-                .collect()
-        };
-        // No beam returned: the motion model's proposal, every draw scored.
-        assert!(
-            draws_per_step(&mut filter, 3)
-                .iter()
-                .all(|&d| d == MIN_LEARNING_DRAWS)
-        );
-        filter.resize(FilterConfig::default().particles / 5);
-        let drawn = draws_per_step(&mut filter, 10);
-        assert_eq!(
-            drawn.iter().filter(|&&d| d == MIN_LEARNING_DRAWS).count(),
-            2,
-            "{drawn:?}"
-        );
-        assert!(drawn.iter().all(|&d| d == MIN_LEARNING_DRAWS || d == 10));
     }
 
     #[test]

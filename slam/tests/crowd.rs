@@ -658,7 +658,7 @@ fn what_a_filter_short_of_time_should_give_up() {
 /// their waiting scans in turn as `shoal-slam` does: shedding particles
 /// first, coasting through scans when that is not enough, against coasting
 /// alone. `cargo test --release -p shoal-slam --test crowd -- --ignored
-/// --nocapture short_of_time`.
+/// --nocapture --exact the_demo_offline_on_a_machine_short_of_time`.
 #[test]
 #[ignore = "an experiment: six minutes of filtering"]
 fn the_demo_offline_on_a_machine_short_of_time() {
