@@ -167,13 +167,14 @@ impl Follower {
     }
 
     /// Fits the follower's work to the time it has, before it steps the
-    /// first of `pending`'s scans. With [`SHED_AT_SCANS`] or more waiting it
-    /// sheds a quarter of its particles (down to a fifth of the configured
-    /// count), and with at most one waiting it takes back a tenth: a filter
-    /// short of time does better with fewer particles than with fewer
-    /// scans (the demo offline: 25 particles on every scan 0.20-0.25 m,
-    /// 50 on every other scan 0.40-0.47 m, at the same cost; EXPERIMENTS.md
-    /// 10). Still behind, it moves the filter through the oldest scans
+    /// first of `pending`'s scans. With [`SHED_AT_SCANS`] or more waiting,
+    /// and no fewer than at the last look, it sheds a fifth of its
+    /// particles (down to [`FilterConfig::fewest_particles`]); after
+    /// [`TAKE_BACK_AFTER_STEPS`] steps in a row with nothing else waiting
+    /// it takes back a tenth of the configured count. A filter short of
+    /// time does better with fewer particles than with fewer scans (the
+    /// demo offline: 25 particles on every scan 0.20-0.25 m, 50 on every
+    /// other scan 0.40-0.47 m, at about the same cost; EXPERIMENTS.md 10). Still behind, it moves the filter through the oldest scans
     /// ([`Follower::coast`]) until at most [`CATCH_UP_AFTER_SCANS`] wait:
     /// a scan stepped late is worth less than keeping up, and a command
     /// dropped would leave its motion out of the filter for good (on a

@@ -38,6 +38,11 @@ struct Args {
     /// Particles per followed robot (default: the filter's, 50).
     #[arg(long, default_value_t = FilterConfig::default().particles)]
     particles: usize,
+    /// The fewest particles a filter behind its robot sheds to before it
+    /// coasts through scans (default: a fifth of --particles; as many as
+    /// --particles never sheds).
+    #[arg(long)]
+    fewest_particles: Option<usize>,
     /// The learning window k (5..=10).
     #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u64).range(5..=10))]
     window: u64,
@@ -149,6 +154,7 @@ impl Setup {
         Self {
             config: FilterConfig {
                 particles: args.particles.max(1),
+                fewest_particles: args.fewest_particles,
                 cell_size: args.grid,
                 learning: args.learning == Learning::On,
                 window: args.window as usize,

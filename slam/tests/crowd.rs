@@ -90,7 +90,10 @@ impl Followed {
                 mean(&late)
             })
             .collect();
-        (mean(&per_robot), per_robot.iter().copied().fold(0.0, f64::max))
+        (
+            mean(&per_robot),
+            per_robot.iter().copied().fold(0.0, f64::max),
+        )
     }
 
     fn error_at_end(&self) -> f64 {
@@ -244,7 +247,10 @@ fn follow_in_crowd(model: &MotionModel, crowd: Crowd) -> Followed {
             bodies.saw(i as u32, robot.body.pose.position(), tick);
         }
         if let Some(share) = machine_share {
-            assert!(judged == Judged::Every, "a slow machine follows every robot");
+            assert!(
+                judged == Judged::Every,
+                "a slow machine follows every robot"
+            );
             for (i, scan) in scans.into_iter().enumerate() {
                 followers[i].announced(tick, robots[i].body.pose);
                 stood[i].push(robots[i].body.pose.position());
@@ -665,7 +671,10 @@ fn the_demo_offline_on_a_machine_short_of_time() {
     let short = demo().motion.scaled(0.75, 1.0, 1.0);
     let default = FilterConfig::default();
     for share in [0.5, 0.3] {
-        for (label, fewest) in [("coasting alone", default.particles), ("shedding particles", 10)] {
+        for (label, fewest) in [
+            ("coasting alone", default.particles),
+            ("shedding particles", 10),
+        ] {
             for seed in [0, 100] {
                 let started = std::time::Instant::now();
                 let followed = follow_in_crowd(
