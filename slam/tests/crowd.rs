@@ -564,78 +564,29 @@ fn what_the_demos_error_is_made_of() {
     }
 }
 
-/// The demo offline on a machine too slow to score every scan: each filter
-/// scores one scan in `k` and coasts through the others' commands, as
-/// `shoal-slam` catching up does (EXPERIMENTS.md 10): `cargo test
-/// --release -p shoal-slam --test crowd -- --ignored --nocapture one_scan_in_k`.
+/// What a filter short of time should give up (EXPERIMENTS.md 10), on the
+/// demo offline: scans (one in two or three scored, the rest coasted
+/// through, as `shoal-slam` catching up does) against particles or beams
+/// (every scan scored by a cheaper filter): `cargo test --release -p
+/// shoal-slam --test crowd -- --ignored --nocapture give_up`.
 #[test]
-#[ignore = "an experiment: four minutes of filtering"]
-fn the_demo_offline_on_a_machine_that_scores_one_scan_in_k() {
-    let short = demo().motion.scaled(0.75, 1.0, 1.0);
-    for scored_every in [1, 2, 3, 4] {
-        for seed in [0, 100] {
-            let started = std::time::Instant::now();
-            let followed = follow_in_crowd(
-                &short,
-                Crowd {
-                    scored_every,
-                    ..Crowd::new(450, seed, Judged::Every)
-                },
-            );
-            // The last 10 s hold 50 ticks, of which one in k was scored.
-            let last_10_s = (50 / scored_every) as usize;
-            eprintln!(
-                "one scan in {scored_every} scored, seed {seed}: mean over 20 robots, first 10 s {:.3} m, last 10 s {:.3} m, worst robot over the last 10 s {:.3} m; stride at the end {:.3} m; {:.1} s",
-                followed.error_over_first(last_10_s),
-                followed.error_over_last(last_10_s),
-                followed.worst_over_last(last_10_s),
-                followed.stride_after(usize::MAX),
-                started.elapsed().as_secs_f64(),
-            );
-        }
-    }
-}
-
-/// What a filter short of time should give up (EXPERIMENTS.md 10): scans
-/// (one in two or three scored, the rest coasted) against particles or
-/// beams (every scan scored by a cheaper filter), on the demo offline:
-/// `cargo test --release -p shoal-slam --test crowd -- --ignored
-/// --nocapture give_up`.
-#[test]
-#[ignore = "an experiment: eight minutes of filtering"]
+#[ignore = "an experiment: twelve minutes of filtering"]
 fn what_a_filter_short_of_time_should_give_up() {
     let short = demo().motion.scaled(0.75, 1.0, 1.0);
     let default = FilterConfig::default();
-    for (label, config) in [
-        (
-            "25 particles",
-            FilterConfig {
-                particles: 25,
-                ..default.clone()
-            },
-        ),
-        (
-            "every 4th beam scored",
-            FilterConfig {
-                score_stride: 4,
-                ..default.clone()
-            },
-        ),
-        (
-            "15 particles",
-            FilterConfig {
-                particles: 15,
-                ..default.clone()
-            },
-        ),
-        (
-            "25 particles, every 4th beam scored",
-            FilterConfig {
-                particles: 25,
-                score_stride: 4,
-                ..default.clone()
-            },
-        ),
+    let cheaper = |particles, score_stride| FilterConfig {
+        particles,
+        score_stride,
+        ..default.clone()
+    };
+    for (label, config, scored_every) in [
+        ("50 particles, every scan", default.clone(), 1),
+        ("50 particles, one scan in 2", default.clone(), 2),
+        ("50 particles, one scan in 3", default.clone(), 3),
+        ("25 particles", cheaper(25, 2), 1),
+        ("every 4th beam scored", cheaper(50, 4), 1),
+        ("15 particles", cheaper(15, 2), 1),
+        ("25 particles, every 4th beam scored", cheaper(25, 4), 1),
     ] {
         for seed in [0, 100] {
             let started = std::time::Instant::now();
@@ -643,14 +594,17 @@ fn what_a_filter_short_of_time_should_give_up() {
                 &short,
                 Crowd {
                     config: config.clone(),
+                    scored_every,
                     ..Crowd::new(450, seed, Judged::Every)
                 },
             );
+            // The last 10 s hold 50 ticks, of which one in k was scored.
+            let last_10_s = (50 / scored_every) as usize;
             eprintln!(
                 "{label}, seed {seed}: mean over 20 robots, first 10 s {:.3} m, last 10 s {:.3} m, worst robot over the last 10 s {:.3} m; stride at the end {:.3} m; {:.0} M particle-beam evaluations in {:.1} s",
-                followed.error_over_first(50),
-                followed.error_over_last(50),
-                followed.worst_over_last(50),
+                followed.error_over_first(last_10_s),
+                followed.error_over_last(last_10_s),
+                followed.worst_over_last(last_10_s),
                 followed.stride_after(usize::MAX),
                 followed.beam_evaluations as f64 / 1e6,
                 started.elapsed().as_secs_f64(),
