@@ -245,9 +245,13 @@ pub fn print_table(out: &mut dyn Write, report: &StatusReport) -> io::Result<()>
         let slam = a.slam.as_ref().map_or_else(
             || "-".to_owned(),
             |f| {
-                let keeping_up = match (f.steps_per_s, f.behind_s, f.particles) {
-                    (Some(rate), Some(behind), Some(particles)) => {
-                        format!(" ({rate:.1}/s, {behind:.1} s behind, {particles} particles)")
+                let particles = f
+                    .particles
+                    .map(|n| format!(", {n} particles"))
+                    .unwrap_or_default();
+                let keeping_up = match (f.steps_per_s, f.behind_s) {
+                    (Some(rate), Some(behind)) => {
+                        format!(" ({rate:.1}/s, {behind:.1} s behind{particles})")
                     }
                     _ => String::new(),
                 };

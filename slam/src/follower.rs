@@ -174,7 +174,8 @@ impl Follower {
     /// it takes back a tenth of the configured count. A filter short of
     /// time does better with fewer particles than with fewer scans (the
     /// demo offline: 25 particles on every scan 0.20-0.25 m, 50 on every
-    /// other scan 0.40-0.47 m, at about the same cost; EXPERIMENTS.md 10). Still behind, it moves the filter through the oldest scans
+    /// other scan 0.40-0.47 m, at about the same cost; EXPERIMENTS.md 10).
+    /// Still behind, it moves the filter through the oldest scans
     /// ([`Follower::coast`]) until at most [`CATCH_UP_AFTER_SCANS`] wait:
     /// a scan stepped late is worth less than keeping up, and a command
     /// dropped would leave its motion out of the filter for good (on a
