@@ -444,6 +444,29 @@ mod tests {
         )
     }
 
+    /// A walk of full strides, scanned on `tick`.
+    fn walk(tick: u64, beams: usize) -> Scan {
+        Scan {
+            command: Some(Command::Walk(3)),
+            ..scan(tick, beams)
+        }
+    }
+
+    /// Starts `follower`'s filter at `start`, announced for `tick`, on
+    /// that tick's scan.
+    fn start_at(follower: &mut Follower, tick: u64, start: Pose, beams: usize) {
+        follower.announced(tick, start);
+        follower
+            .on_scans(
+                vec![scan(tick, beams)],
+                &Bodies::new(3),
+                &mut FirstLooks::default(),
+                |_| Ok::<(), ()>(()),
+            )
+            .unwrap();
+        assert!(follower.filter().is_some(), "started");
+    }
+
     fn scan(tick: u64, beams: usize) -> Scan {
         Scan {
             tick,
@@ -495,22 +518,10 @@ mod tests {
     fn a_follower_behind_moves_through_a_waiting_scans_command_without_scoring_it() {
         let (mut follower, scenario) = follower();
         let beams = scenario.sensor.beams;
-        let bodies = Bodies::new(3);
-        let walk = |tick| Scan {
-            command: Some(Command::Walk(3)),
-            ..scan(tick, beams)
-        };
+        let walk = |tick| walk(tick, beams);
         assert!(!follower.coast(&walk(1)), "no filter to move yet");
         let start = Pose::new(4.0, 3.0, 0.0);
-        follower.announced(1, start);
-        follower
-            .on_scans(
-                vec![scan(1, beams)],
-                &bodies,
-                &mut FirstLooks::default(),
-                |_| Ok::<(), ()>(()),
-            )
-            .unwrap();
+        start_at(&mut follower, 1, start, beams);
         let model = follower.filter().expect("started").model().clone();
         for tick in 2..=4 {
             follower.announced(tick, start);
@@ -548,20 +559,8 @@ mod tests {
     fn a_follower_behind_sheds_particles_and_takes_them_back_when_it_keeps_up() {
         let (mut follower, scenario) = follower();
         let beams = scenario.sensor.beams;
-        let walk = |tick| Scan {
-            command: Some(Command::Walk(3)),
-            ..scan(tick, beams)
-        };
-        let start = Pose::new(4.0, 3.0, 0.0);
-        follower.announced(0, start);
-        follower
-            .on_scans(
-                vec![scan(0, beams)],
-                &Bodies::new(3),
-                &mut FirstLooks::default(),
-                |_| Ok::<(), ()>(()),
-            )
-            .unwrap();
+        let walk = |tick| walk(tick, beams);
+        start_at(&mut follower, 0, Pose::new(4.0, 3.0, 0.0), beams);
         let count = |f: &Follower| f.filter().map(ParticleFilter::particle_count);
         // `follower_of`'s filter holds 20.
         let configured = 20;

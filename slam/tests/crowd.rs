@@ -10,7 +10,7 @@ use shoal_agent::robot::Robot;
 use shoal_physics::{MotionModel, Neighbour};
 use shoal_scenario::Scenario;
 use shoal_slam::filter::{Bodies, FilterConfig, Proposal};
-use shoal_slam::follower::{FirstLooks, Follower, Scan};
+use shoal_slam::follower::{FirstLooks, Follower, Scan, Stepped};
 
 fn demo() -> Scenario {
     let text = include_str!("../../scenarios/demo.toml");
@@ -50,6 +50,15 @@ fn last(series: &[f64], steps: usize) -> &[f64] {
 }
 
 impl Followed {
+    /// Notes judged robot `i`'s step, its estimate held against `truth`,
+    /// where the robot stood at the step's tick.
+    fn record(&mut self, i: usize, step: &Stepped<'_>, truth: DVec2) {
+        self.errors[i].push(step.report.estimate.position().distance(truth));
+        self.error_ticks[i].push(step.tick);
+        self.strides[i].push(step.filter.model().full_stride());
+        self.beam_evaluations += step.report.beam_evaluations;
+    }
+
     /// The mean over the judged robots of `of` each robot's series.
     fn mean(series: &[Vec<f64>], of: impl Fn(&[f64]) -> f64) -> f64 {
         series.iter().map(|s| of(s)).sum::<f64>() / series.len() as f64
@@ -205,12 +214,13 @@ fn follow_in_crowd(model: &MotionModel, crowd: Crowd) -> Followed {
     let mut looks: Vec<FirstLooks> = (0..count).map(|_| FirstLooks::default()).collect();
     let mut bodies = Bodies::new(3);
     let judged_count = if judged == Judged::Every { count } else { 1 };
-    let (mut errors, mut error_ticks, mut strides) = (
-        vec![Vec::new(); judged_count],
-        vec![Vec::new(); judged_count],
-        vec![Vec::new(); judged_count],
-    );
-    let mut beam_evaluations = 0;
+    let mut followed = Followed {
+        errors: vec![Vec::new(); judged_count],
+        error_ticks: vec![Vec::new(); judged_count],
+        strides: vec![Vec::new(); judged_count],
+        beam_evaluations: 0,
+        particles: Vec::new(),
+    };
     // With a machine short of time: each robot's waiting scans, where each
     // stood by tick (a scan is judged against its own tick), the budget
     // left and whose turn it is.
@@ -273,10 +283,7 @@ fn follow_in_crowd(model: &MotionModel, crowd: Crowd) -> Followed {
                 let truth = stood[i][scan.tick as usize];
                 follower
                     .on_scans(vec![scan], &bodies, &mut looks[0], |step| {
-                        errors[i].push(step.report.estimate.position().distance(truth));
-                        error_ticks[i].push(step.tick);
-                        strides[i].push(step.filter.model().full_stride());
-                        beam_evaluations += step.report.beam_evaluations;
+                        followed.record(i, &step, truth);
                         budget -= step.report.beam_evaluations as f64;
                         Ok::<(), ()>(())
                     })
@@ -300,10 +307,7 @@ fn follow_in_crowd(model: &MotionModel, crowd: Crowd) -> Followed {
             let looks = &mut looks[if share { 0 } else { i }];
             follower
                 .on_scans(vec![scan], &bodies, looks, |step| {
-                    errors[i].push(step.report.estimate.position().distance(truth));
-                    error_ticks[i].push(step.tick);
-                    strides[i].push(step.filter.model().full_stride());
-                    beam_evaluations += step.report.beam_evaluations;
+                    followed.record(i, &step, truth);
                     Ok::<(), ()>(())
                 })
                 .expect("the callback never fails");
@@ -313,16 +317,11 @@ fn follow_in_crowd(model: &MotionModel, crowd: Crowd) -> Followed {
         followers.iter().all(|f| f.filter().is_some()),
         "every filter started"
     );
-    Followed {
-        errors,
-        error_ticks,
-        strides,
-        beam_evaluations,
-        particles: followers
-            .iter()
-            .filter_map(|f| f.filter().map(|f| f.particle_count()))
-            .collect(),
-    }
+    followed.particles = followers
+        .iter()
+        .filter_map(|f| f.filter().map(|f| f.particle_count()))
+        .collect();
+    followed
 }
 
 #[test]
