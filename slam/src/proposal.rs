@@ -119,6 +119,10 @@ pub fn match_scan(score: &impl Fn(&Pose) -> f64, start: Pose) -> (Pose, f64, usi
     let mut scored = 1;
     let (mut linear, mut angular) = (MATCH_STEP_M, MATCH_STEP_RAD);
     for _ in 0..=MATCH_HALVINGS {
+        // Moves come in opposite pairs (k and k ^ 1). The move back along
+        // the one just taken leads to the pose left, which scored less:
+        // it is not scored again (a sixth of the search after each move).
+        let mut came_by: Option<usize> = None;
         for _ in 0..MATCH_MOVES_PER_STEP {
             let moves = [
                 (linear, 0.0, 0.0),
@@ -128,21 +132,24 @@ pub fn match_scan(score: &impl Fn(&Pose) -> f64, start: Pose) -> (Pose, f64, usi
                 (0.0, 0.0, angular),
                 (0.0, 0.0, -angular),
             ];
-            scored += moves.len();
-            let Some((pose, value)) = moves
+            let back = came_by.map(|k| k ^ 1);
+            let Some((taken, pose, value)) = moves
                 .iter()
-                .map(|(along, across, turn)| {
+                .enumerate()
+                .filter(|(k, _)| Some(*k) != back)
+                .map(|(k, (along, across, turn))| {
+                    scored += 1;
                     let pose = best.advanced(*along, *across, *turn);
-                    (pose, score(&pose))
+                    (k, pose, score(&pose))
                 })
-                .max_by(|a, b| a.1.total_cmp(&b.1))
+                .max_by(|a, b| a.2.total_cmp(&b.2))
             else {
                 break;
             };
             if value <= best_score {
                 break;
             }
-            (best, best_score) = (pose, value);
+            (best, best_score, came_by) = (pose, value, Some(taken));
         }
         linear /= 2.0;
         angular /= 2.0;
