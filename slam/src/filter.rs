@@ -341,27 +341,12 @@ impl ParticleFilter {
         // The motion model's proposal weighs its particles by the same
         // scores; the matched one needs them only to learn.
         let scored = self.steps > 0 && (learns || !matched);
-        // With the matched proposal the draws are scored only for the
-        // learner, on every other beam counted twice, as the matcher's
-        // search: a draw's score only ranks it against the others, and
-        // the learner's 250 draws were half the work of a filter shed to
-        // 10 particles. On the lone robot's twelve seeds it learned the
-        // stride as well (EXPERIMENTS.md 10). The motion model's proposal
-        // weighs its particles by these scores: every beam.
-        let draw_beams = if matched {
-            beams.every(MATCH_BEAM_STRIDE)
-        } else {
-            beams.every(1)
-        };
-        let draw_scale = beams.len() as f64 / draw_beams.len().max(1) as f64;
         let at_drawn: Vec<f64> = if scored {
             // Each draw is scored against its particle's own map, shared
             // out over the cores.
             drawn
                 .par_iter()
-                .map(|d| {
-                    draw_scale * draw_beams.log_likelihood(&self.particles[d.particle].map, &d.pose)
-                })
+                .map(|d| beams.log_likelihood(&self.particles[d.particle].map, &d.pose))
                 .collect()
         } else {
             vec![0.0; draws]
@@ -370,7 +355,7 @@ impl ParticleFilter {
             self.learn(command, bumped, &drawn, &at_drawn, information);
         }
         let mut poses_scored = if scored { draws } else { 0 };
-        let mut beam_evaluations = poses_scored * draw_beams.len();
+        let mut beam_evaluations = poses_scored * beams.len();
         let (drawn, at_drawn) = (&drawn[..n], &at_drawn[..n]);
         let log_weights = if matched {
             let matching = self.propose_by_matching(command, &beams, drawn);
