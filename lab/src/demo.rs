@@ -244,20 +244,22 @@ pub fn demo_scenario(path: Option<&Path>) -> Result<Scenario> {
 }
 
 /// How SLAM did for robot `id`: its mean error over the first and last
-/// seconds of a run ending at `end` (from `errors`: sim time, robot,
-/// error), and the full stride it started from, learned, and the truth on
-/// a floor that scales strides by `floor`.
+/// seconds of a run ending at `end`, how far its filter fell behind and
+/// the fewest particles it held (all as `watched` noted them), and the
+/// full stride it started from, learned, and the truth on a floor that
+/// scales strides by `floor`.
 fn slam_progress(
     id: u32,
     followed: Option<&shoal_slam::report::FollowedReport>,
-    errors: &[(f64, u32, f64)],
+    watched: &Watched,
     end: f64,
     truth: &MotionModel,
     floor: f64,
 ) -> SlamProgress {
     let mean_error = |from: f64, to: f64| {
         mean_of(
-            errors
+            watched
+                .slam_errors
                 .iter()
                 .filter(|(t, r, _)| *r == id && *t >= from && *t <= to)
                 .map(|(_, _, e)| *e),
@@ -271,10 +273,10 @@ fn slam_progress(
         stride_start_m: short_strides(truth, STRIDE_ERROR).full_stride(),
         stride_learned_m: followed.and_then(|f| f.stride_m),
         stride_true_m: truth.full_stride() * floor,
-        most_behind_s: 0.0,
+        most_behind_s: watched.most_behind_s.get(&id).copied().unwrap_or(0.0),
         scans_missed: followed.map_or(0, |f| f.scans_missed),
         scans_coasted: followed.map_or(0, |f| f.scans_coasted),
-        fewest_particles: None,
+        fewest_particles: watched.fewest_particles.get(&id).copied(),
     }
 }
 
@@ -387,17 +389,7 @@ pub fn run(options: &DemoOptions) -> Result<DemoSummary> {
                 .as_ref()
                 .and_then(|r| r.followed.iter().find(|f| f.id == *id));
             let floor = floor_scale.get(id).copied().unwrap_or(1.0);
-            let mut progress = slam_progress(
-                *id,
-                followed,
-                &watched.slam_errors,
-                end,
-                &scenario.motion,
-                floor,
-            );
-            progress.most_behind_s = watched.most_behind_s.get(id).copied().unwrap_or(0.0);
-            progress.fewest_particles = watched.fewest_particles.get(id).copied();
-            progress
+            slam_progress(*id, followed, &watched, end, &scenario.motion, floor)
         })
         .collect();
     let mut walkers: Vec<(u32, f64)> = watched
