@@ -111,6 +111,19 @@ const MATCH_HALVINGS: usize = 3;
 /// At most this many moves per step size, so a match costs a bounded time.
 const MATCH_MOVES_PER_STEP: usize = 3;
 
+/// The matcher's moves at one step size (along, across, turn), in
+/// opposite pairs: move `k ^ 1` undoes move `k`.
+fn search_moves(linear: f64, angular: f64) -> [(f64, f64, f64); 6] {
+    [
+        (linear, 0.0, 0.0),
+        (-linear, 0.0, 0.0),
+        (0.0, linear, 0.0),
+        (0.0, -linear, 0.0),
+        (0.0, 0.0, angular),
+        (0.0, 0.0, -angular),
+    ]
+}
+
 /// Hill-climbs `start` to the pose from which `beams` best fit `map`
 /// (coordinate ascent with halving steps, as GMapping's matcher): returns
 /// the pose, its score and how many poses were scored.
@@ -119,21 +132,13 @@ pub fn match_scan(score: &impl Fn(&Pose) -> f64, start: Pose) -> (Pose, f64, usi
     let mut scored = 1;
     let (mut linear, mut angular) = (MATCH_STEP_M, MATCH_STEP_RAD);
     for _ in 0..=MATCH_HALVINGS {
-        // Moves come in opposite pairs (k and k ^ 1). The move back along
-        // the one just taken leads to the pose left, which scored less:
-        // it is not scored again (a sixth of the search after each move).
+        // The move back along the one just taken leads to the pose left,
+        // which scored less: it is not scored again (a sixth of the search
+        // after each move).
         let mut came_by: Option<usize> = None;
         for _ in 0..MATCH_MOVES_PER_STEP {
-            let moves = [
-                (linear, 0.0, 0.0),
-                (-linear, 0.0, 0.0),
-                (0.0, linear, 0.0),
-                (0.0, -linear, 0.0),
-                (0.0, 0.0, angular),
-                (0.0, 0.0, -angular),
-            ];
             let back = came_by.map(|k| k ^ 1);
-            let Some((taken, pose, value)) = moves
+            let Some((taken, pose, value)) = search_moves(linear, angular)
                 .iter()
                 .enumerate()
                 .filter(|(k, _)| Some(*k) != back)
@@ -382,6 +387,64 @@ mod tests {
             found.position().distance(truth.position()) < 0.035
                 && (found.theta - truth.theta).abs() < 0.02,
             "{found:?} against {truth:?}"
+        );
+    }
+
+    /// The matcher as it was before it skipped the move back: every move
+    /// of every round scored.
+    fn match_scoring_every_move(score: &impl Fn(&Pose) -> f64, start: Pose) -> (Pose, usize) {
+        let (mut best, mut best_score, mut scored) = (start, score(&start), 1);
+        let (mut linear, mut angular) = (MATCH_STEP_M, MATCH_STEP_RAD);
+        for _ in 0..=MATCH_HALVINGS {
+            for _ in 0..MATCH_MOVES_PER_STEP {
+                let moves = search_moves(linear, angular);
+                scored += moves.len();
+                let (pose, value) = moves
+                    .iter()
+                    .map(|(a, c, t)| {
+                        let pose = best.advanced(*a, *c, *t);
+                        (pose, score(&pose))
+                    })
+                    .max_by(|a, b| a.1.total_cmp(&b.1))
+                    .expect("six moves");
+                if value <= best_score {
+                    break;
+                }
+                (best, best_score) = (pose, value);
+            }
+            linear /= 2.0;
+            angular /= 2.0;
+        }
+        (best, scored)
+    }
+
+    #[test]
+    fn the_matcher_skips_the_move_back_and_finds_what_scoring_every_move_finds() {
+        use rand::Rng;
+        let truth = Pose::new(1.7, 2.4, 0.3);
+        let (map, beams) = room_and_scan(truth);
+        let score = |p: &Pose| beams.log_likelihood(&map, p);
+        let mut rng = rand::rngs::StdRng::seed_from_u64(11);
+        let (mut skipping, mut every) = (0, 0);
+        for _ in 0..50 {
+            let start = truth.advanced(
+                rng.random_range(-0.12..0.12),
+                rng.random_range(-0.12..0.12),
+                rng.random_range(-0.1..0.1),
+            );
+            let (found, _, scored) = match_scan(&score, start);
+            let (reference, reference_scored) = match_scoring_every_move(&score, start);
+            assert!(
+                found.position().distance(reference.position()) < 1e-9
+                    && (found.theta - reference.theta).abs() < 1e-9,
+                "from {start:?}: {found:?} against {reference:?}"
+            );
+            skipping += scored;
+            every += reference_scored;
+        }
+        assert!(
+            skipping < every,
+            "the move back is never scored: {skipping} poses against {every}"
         );
     }
 
