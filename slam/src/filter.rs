@@ -92,6 +92,11 @@ pub struct FilterConfig {
     pub explore: f64,
     pub sensor: RangeSensor,
     pub proposal: Proposal,
+    /// Resample when the effective sample size falls below this share of
+    /// the particles (GMapping's `resampleThreshold`, 0.5). A quarter and
+    /// three quarters were both further off in the demo's crowd
+    /// (EXPERIMENTS.md 8b).
+    pub resample_below: f64,
 }
 
 /// Where a particle's next pose comes from.
@@ -173,6 +178,7 @@ impl Default for FilterConfig {
             explore: 0.2,
             sensor: RangeSensor::default(),
             proposal: Proposal::ScanMatched,
+            resample_below: 0.5,
         }
     }
 }
@@ -383,7 +389,7 @@ impl ParticleFilter {
         };
         let effective_particles = self.reweigh(&log_weights);
         let estimate = self.estimate();
-        let resampled = effective_particles < n as f64 / 2.0;
+        let resampled = effective_particles < n as f64 * self.config.resample_below;
         if resampled {
             self.resample();
         }
