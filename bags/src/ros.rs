@@ -14,6 +14,19 @@ pub const POSE_TYPES: [&str; 5] = [
     "tf2_msgs/msg/TFMessage",
 ];
 
+/// A type's name as ROS 2 spells it, `package/msg/Type`. Writers outside
+/// ROS (the `mcap` Python examples, `mcap-ros2-support`'s own README)
+/// often register `package/Type`, the ROS 1 spelling, for the same
+/// message; both name one layout.
+pub fn full_type_name(name: &str) -> String {
+    match name.split('/').collect::<Vec<_>>()[..] {
+        [package, message] if !package.is_empty() && !message.is_empty() => {
+            format!("{package}/msg/{message}")
+        }
+        _ => name.to_owned(),
+    }
+}
+
 /// A pose on the floor: x, y and yaw.
 pub type PlanarPose = (f64, f64, f64);
 
@@ -321,5 +334,25 @@ pub mod msg {
     #[derive(Deserialize, Serialize)]
     pub struct Clock {
         pub clock: Time,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::full_type_name;
+
+    #[test]
+    fn a_ros_1_spelling_names_the_ros_2_type() {
+        assert_eq!(
+            full_type_name("geometry_msgs/Twist"),
+            "geometry_msgs/msg/Twist"
+        );
+        assert_eq!(
+            full_type_name("nav_msgs/msg/Odometry"),
+            "nav_msgs/msg/Odometry"
+        );
+        // Not a type name: left as written, for the error to quote.
+        assert_eq!(full_type_name("(no schema)"), "(no schema)");
+        assert_eq!(full_type_name("/Twist"), "/Twist");
     }
 }

@@ -116,7 +116,7 @@ impl Bag {
                 .entry(m.topic.to_owned())
                 .or_insert_with(|| Topic {
                     name: m.topic.to_owned(),
-                    message_type: m.message_type.to_owned(),
+                    message_type: crate::ros::full_type_name(m.message_type),
                     messages: 0,
                 })
                 .messages += 1;
@@ -150,7 +150,7 @@ impl Bag {
             };
             out.push(RawMessage {
                 topic: m.topic.to_owned(),
-                message_type: m.message_type.to_owned(),
+                message_type: crate::ros::full_type_name(m.message_type),
                 encoding: m.encoding.to_owned(),
                 log_time_ns: m.log_time_ns,
                 data,

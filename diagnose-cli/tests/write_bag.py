@@ -8,6 +8,9 @@ log times). Poses go, by the last argument, to /mocap/pose as
 geometry_msgs/msg/PoseStamped, to /tf as tf2_msgs/msg/TFMessage (odom ->
 base_link, beside a camera transform that must be ignored), or to /odom as
 nav_msgs/msg/Odometry. Times start at 1.7e9 s, as a wall clock would.
+With odometry, the schemas are registered by their ROS 1 spelling
+(`nav_msgs/Odometry`, `geometry_msgs/Twist`), as mcap-ros2-support's own
+README does: the same layouts, named as many writers outside ROS name them.
 """
 
 import csv
@@ -91,7 +94,8 @@ def quaternion(theta: float) -> dict:
 def main(run: str, out: str, poses_as: str) -> None:
     with open(out, "wb") as f:
         writer = Writer(f)
-        twist = writer.register_msgdef("geometry_msgs/msg/Twist", TWIST_DEF)
+        short = poses_as == "odometry"
+        twist = writer.register_msgdef("geometry_msgs/Twist" if short else "geometry_msgs/msg/Twist", TWIST_DEF)
         # Messages are written in time order, as a recorder would.
         messages = []
         for r in rows(f"{run}/commands.csv"):
@@ -107,7 +111,7 @@ def main(run: str, out: str, poses_as: str) -> None:
             schema = writer.register_msgdef("tf2_msgs/msg/TFMessage", TF_DEF)
             topic = "/tf"
         else:
-            schema = writer.register_msgdef("nav_msgs/msg/Odometry", ODOMETRY_DEF)
+            schema = writer.register_msgdef("nav_msgs/Odometry", ODOMETRY_DEF)
             topic = "/odom"
         for r in rows(f"{run}/poses.csv"):
             position = {"x": r["x"], "y": r["y"], "z": 0.0}
