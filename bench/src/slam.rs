@@ -127,14 +127,14 @@ fn cost_per_step(world: &World, proposal: Proposal, particles: usize, steps: usi
     };
     let mut filter = ParticleFilter::new(start, model, config, arena.width, arena.height, 3);
     let mut rng = rand::rngs::StdRng::seed_from_u64(9);
-    let mut ranges = sensor.read(&arena, &body.pose, &[], 0.15, &mut rng);
+    let mut ranges = sensor.read(arena, &body.pose, &[], 0.15, &mut rng);
     filter.observe_start(&ranges);
     let mut command = Command::Stand;
     let (mut elapsed, mut evaluations, mut poses, mut scored) = (0.0, 0.0, 0.0, 0.0);
     for step in 0..steps {
         command = wander_command(step as u64 + 1, range_ahead(&ranges, &sensor), command);
-        let outcome = body.step(command, &arena, &[], &mut rng);
-        ranges = sensor.read(&arena, &body.pose, &[], 0.15, &mut rng);
+        let outcome = body.step(command, arena, &[], &mut rng);
+        ranges = sensor.read(arena, &body.pose, &[], 0.15, &mut rng);
         let started = Instant::now();
         let report = filter.step(command, outcome.bumped, &ranges);
         elapsed += started.elapsed().as_secs_f64();

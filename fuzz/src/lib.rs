@@ -208,7 +208,7 @@ fn text_outcome<E: std::fmt::Display>(result: Result<(), E>) -> Outcome {
         Ok(()) => Outcome::Accepted,
         Err(e) => {
             let message = e.to_string();
-            let file = format!("{}", Target::FILE);
+            let file = Target::FILE.to_string();
             let after_file = message.strip_prefix(&file);
             Outcome::Rejected {
                 clear: after_file.is_some_and(|rest| rest.len() > 2),
