@@ -707,7 +707,7 @@ mod tests {
             assert_eq!(error.field.as_deref(), Some(field), "{error}");
             assert_eq!(error.line, Some(line), "{error}");
         }
-        let many = format!("{base}").replace("count = 3", "count = 100000000");
+        let many = base.replace("count = 3", "count = 100000000");
         let error = Scenario::from_toml(&many, "s.toml").unwrap_err();
         assert_eq!(error.field.as_deref(), Some("agents.count"), "{error}");
     }
