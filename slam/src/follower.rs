@@ -70,14 +70,6 @@ pub const SHED_AT_SCANS: usize = 3;
 /// What a shedding follower keeps of its particles.
 const SHED_KEEPS: f64 = 0.8;
 
-/// Steps a follower that shed lets pass before it sheds again while its
-/// backlog holds (a backlog that grows sheds at once). A shed makes each
-/// step cheaper at once, but the backlog drains only as the whole pass
-/// over the robots speeds up: shedding at every step while it held took
-/// the live demo's filters from 50 particles to 10 within about a second
-/// of a brief overload at full speed, and then 16 s to take them back.
-const SHED_SETTLE_STEPS: u32 = 5;
-
 /// A follower that has kept up (nothing waiting beside the scan it steps)
 /// for this many steps in a row takes back a tenth of its configured
 /// particles: slowly, as each step shed and taken back at once cost
@@ -124,8 +116,6 @@ pub struct Follower {
     /// with nothing else waiting: how the follower judges its pace.
     backlog_before: usize,
     kept_up_steps: u32,
-    /// Steps since the follower last shed particles.
-    steps_since_shed: u32,
 }
 
 impl Follower {
@@ -154,7 +144,6 @@ impl Follower {
             looks_mapped: 0,
             backlog_before: 0,
             kept_up_steps: 0,
-            steps_since_shed: SHED_SETTLE_STEPS,
         }
     }
 
@@ -179,9 +168,8 @@ impl Follower {
 
     /// Fits the follower's work to the time it has, before it steps the
     /// first of `pending`'s scans. With [`SHED_AT_SCANS`] or more waiting,
-    /// and more than at the last look (or as many, [`SHED_SETTLE_STEPS`]
-    /// after it last shed), it sheds a fifth of its particles (down to
-    /// [`FilterConfig::fewest_particles`]); after
+    /// and no fewer than at the last look, it sheds a fifth of its
+    /// particles (down to [`FilterConfig::fewest_particles`]); after
     /// [`TAKE_BACK_AFTER_STEPS`] steps in a row with nothing else waiting
     /// it takes back a tenth of the configured count. A filter short of
     /// time does better with fewer particles than with fewer scans (the
@@ -199,14 +187,11 @@ impl Follower {
         let waiting = pending.len();
         if let Some(filter) = &mut self.filter {
             let held = filter.particle_count();
-            let falling_behind = waiting > self.backlog_before
-                || (waiting == self.backlog_before && self.steps_since_shed >= SHED_SETTLE_STEPS);
-            if waiting >= SHED_AT_SCANS && falling_behind {
+            if waiting >= SHED_AT_SCANS && waiting >= self.backlog_before {
                 // Behind, and not catching up since the last look.
                 let fewest = self.config.fewest_particles();
                 filter.resize(((held as f64 * SHED_KEEPS) as usize).max(fewest).min(held));
                 self.kept_up_steps = 0;
-                self.steps_since_shed = 0;
             } else if waiting == 1 {
                 self.kept_up_steps += 1;
                 if self.kept_up_steps >= TAKE_BACK_AFTER_STEPS && held < configured {
@@ -216,7 +201,6 @@ impl Follower {
             } else if waiting > 1 {
                 self.kept_up_steps = 0;
             }
-            self.steps_since_shed = self.steps_since_shed.saturating_add(1);
         }
         while pending.len() > CATCH_UP_AFTER_SCANS {
             let Some(scan) = pending.pop_front() else {
@@ -585,19 +569,17 @@ mod tests {
         let mut pending: std::collections::VecDeque<Scan> = (1..=2).map(walk).collect();
         follower.catch_up(&mut pending);
         assert_eq!((count(&follower), pending.len()), (Some(configured), 2));
-        // Three waiting, step after step: a fifth shed, and again each
-        // time the backlog has held for five steps since, down to a fifth
-        // of the configured count and no further.
+        // Three waiting, step after step: a fifth shed each time, down to
+        // a fifth of the configured count and no further.
         let mut held = Vec::new();
-        for tick in 3..40 {
+        for tick in 3..12 {
             let mut pending: std::collections::VecDeque<Scan> =
                 (tick * 10..tick * 10 + 3).map(walk).collect();
             follower.catch_up(&mut pending);
             held.extend(count(&follower));
         }
-        assert_eq!(held[..11], [16, 16, 16, 16, 16, 12, 12, 12, 12, 12, 9]);
+        assert_eq!(held[..5], [16, 12, 9, 7, 5]);
         assert_eq!(held.last(), Some(&(configured / 5)));
-
         // Catching up (fewer waiting than at the last look): nothing shed.
         let mut pending: std::collections::VecDeque<Scan> = (100..102).map(walk).collect();
         follower.catch_up(&mut pending);
@@ -612,18 +594,6 @@ mod tests {
         }
         assert_eq!(held[..10], [4, 4, 4, 4, 4, 4, 4, 4, 4, 6]);
         assert_eq!(held.last(), Some(&configured));
-        // A backlog that grows sheds at once, however lately it shed:
-        // three waiting shed a fifth, and five at the next step another
-        // (two of them coasted through, three left).
-        let mut held = Vec::new();
-        for (tick, waiting) in [(400, 3), (410, 5)] {
-            let mut pending: std::collections::VecDeque<Scan> =
-                (tick..tick + waiting).map(walk).collect();
-            follower.catch_up(&mut pending);
-            held.extend(count(&follower));
-            assert_eq!(pending.len(), 3);
-        }
-        assert_eq!(held, [16, 12]);
     }
 
     #[test]
