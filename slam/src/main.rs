@@ -230,6 +230,7 @@ fn run(args: Args) -> Result<()> {
     // for longer than the swarm's staleness is gone, and so is its body.
     let mut bodies = Bodies::new((scenario.timing.stale_periods.ceil() as u64).max(1) + 1);
     let mut first_looks = FirstLooks::default();
+    let mut pass_begins_at = 0;
     while !bus.termination_requested() {
         newest_roster = newest_roster.max(hear_roster(
             &roster,
@@ -238,7 +239,13 @@ fn run(args: Args) -> Result<()> {
             (&setup, &bus, &args.follow),
         )?);
         bodies.forget_gone();
-        let idle = !step_followed(&mut followed, &bodies, &mut first_looks, &views)?;
+        let idle = !step_followed(
+            &mut followed,
+            &bodies,
+            &mut first_looks,
+            &views,
+            &mut pass_begins_at,
+        )?;
         progress.publish(&HelperProgress {
             tick: done_up_to(&followed, newest_roster),
         })?;
@@ -317,15 +324,24 @@ fn done_up_to(followed: &BTreeMap<u32, Followed>, newest_roster: u64) -> u64 {
 /// roster and its scans between steps (stepping one robot's whole backlog
 /// at a time left the others' scans to overflow their buffers, lost). Each
 /// filter shares its robot's first scan with the others and maps theirs.
-/// False when no robot had a scan to step.
+/// Each pass begins one robot further on than the last (`begins_at`;
+/// [`shoal_slam::follower::pass_order`] says why). False when no robot had
+/// a scan to step.
 fn step_followed(
     followed: &mut BTreeMap<u32, Followed>,
     bodies: &Bodies,
     first_looks: &mut FirstLooks,
     views: &Views,
+    begins_at: &mut u32,
 ) -> Result<bool> {
     let mut stepped = false;
-    for (&id, robot) in followed.iter_mut() {
+    let (order, next) =
+        shoal_slam::follower::pass_order(&followed.keys().copied().collect(), *begins_at);
+    *begins_at = next;
+    for id in order {
+        let Some(robot) = followed.get_mut(&id) else {
+            continue;
+        };
         let mut samples = Vec::new();
         robot.scans.receive(|scan| samples.push(scan))?;
         if !samples.is_empty() {
