@@ -394,9 +394,9 @@ impl Follower {
 /// last in the pass found one more scan waiting at their turn (theirs
 /// arrived while the others stepped), reached the backlog that sheds
 /// particles first and held the fewest: in twelve demos at full speed
-/// robots 14-19 went down to 10 particles in most runs and robots 0-13
-/// rarely, and in six with the pass turning 2 of 120 filters did
-/// (EXPERIMENTS.md 10).
+/// robots 16-19 went down to 10 particles in half the runs or more and
+/// robots 0-13 in 0-3 each (55 filters of 240 in all); in twelve with
+/// the pass turning, 6 of 240 did (EXPERIMENTS.md 10).
 pub fn pass_order(ids: &std::collections::BTreeSet<u32>, begins_at: u32) -> (Vec<u32>, u32) {
     let order: Vec<u32> = ids
         .range(begins_at..)
