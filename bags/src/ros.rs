@@ -19,8 +19,10 @@ pub const POSE_TYPES: [&str; 5] = [
 /// often register `package/Type`, the ROS 1 spelling, for the same
 /// message; both name one layout.
 pub fn full_type_name(name: &str) -> String {
-    match name.split('/').collect::<Vec<_>>()[..] {
-        [package, message] if !package.is_empty() && !message.is_empty() => {
+    match name.split_once('/') {
+        Some((package, message))
+            if !package.is_empty() && !message.is_empty() && !message.contains('/') =>
+        {
             format!("{package}/msg/{message}")
         }
         _ => name.to_owned(),
