@@ -37,6 +37,10 @@ fn l_shaped_room() -> Arena {
 struct Run {
     errors: Vec<f64>,
     learned: MotionModel,
+    /// How far each walk(2) the robot took carried it (steps that hit a
+    /// wall left out), and the walk(2) stride the filter held after each step.
+    walked: Vec<f64>,
+    stride_held: Vec<f64>,
 }
 
 /// The robot's true model: strides 25% longer and turns 30% larger than
@@ -75,17 +79,24 @@ fn wander_from(model: MotionModel, config: FilterConfig, seed: u64, steps: usize
     let mut ranges = sensor.read(&arena, &body.pose, &[], 0.15, &mut rng);
     filter.observe_start(&ranges);
     let mut command = Command::Stand;
-    let mut errors = Vec::new();
+    let (mut errors, mut walked, mut stride_held) = (Vec::new(), Vec::new(), Vec::new());
     for step in 0..steps {
         command = wander_command(step as u64 + 1, range_ahead(&ranges, &sensor), command);
+        let before = body.pose;
         let outcome = body.step(command, &arena, &[], &mut rng);
+        if command == Command::Walk(2) && !outcome.bumped {
+            walked.push(body.pose.relative_to(&before).x);
+        }
         ranges = sensor.read(&arena, &body.pose, &[], 0.15, &mut rng);
         let report = filter.step(command, outcome.bumped, &ranges);
         errors.push(report.estimate.position().distance(body.pose.position()));
+        stride_held.push(filter.model().mean(Command::Walk(2)).along);
     }
     Run {
         errors,
         learned: filter.model().clone(),
+        walked,
+        stride_held,
     }
 }
 
@@ -314,6 +325,44 @@ fn twenty_four_seeds_of_the_default() {
             rmses,
         );
     }
+}
+
+/// The walk(2) stride the filter holds against the one its robot walks,
+/// seeds 0-11 (EXPERIMENTS.md 8b, "A learned component narrows no
+/// further than half its start"): `cargo test --release -p shoal-slam
+/// --test unseen -- --ignored --nocapture the_learned_stride` (1 min).
+#[test]
+#[ignore = "an experiment: a minute of filtering"]
+fn the_learned_stride_against_the_robots() {
+    let mean = |values: &[f64]| values.iter().sum::<f64>() / values.len().max(1) as f64;
+    let (mut walked, mut held) = (Vec::new(), Vec::new());
+    for seed in 0..12 {
+        let run = wander_from(
+            MotionModel::legged_default(),
+            FilterConfig::default(),
+            seed,
+            600,
+        );
+        let stride = run.learned.command(Command::Walk(2)).d;
+        walked.push(mean(&run.walked));
+        // From step 100 on: after the first 20 s of learning.
+        held.push(mean(&run.stride_held[100..]));
+        eprintln!(
+            "seed {seed}: walked {:.4} m a walk(2) on average, held {:.4} m on average from step 100; at the end {:.4} m (weights {:.2?}, means {:.3?} m, spreads {:.4?} m)",
+            walked[walked.len() - 1],
+            held[held.len() - 1],
+            stride.mean(),
+            stride.weights,
+            stride.means,
+            stride.variances.map(f64::sqrt),
+        );
+    }
+    eprintln!(
+        "seeds 0-11: walked {:.4} m, held {:.4} m ({:+.1}%)",
+        mean(&walked),
+        mean(&held),
+        100.0 * (mean(&held) / mean(&walked) - 1.0)
+    );
 }
 
 /// How far the scan's peak lies from the truth when nothing but the map's
