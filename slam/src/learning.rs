@@ -37,13 +37,13 @@ pub struct Update {
 }
 
 /// How narrow a component may become, as a share of the narrower
-/// component's spread at the start. A component the scans stop giving
-/// draws to shrinks with every step (its draws all lie at its mean), and
-/// once narrow it is given none: with a floor of a hundredth of a
+/// component's spread at the start. A component given only draws near its
+/// mean narrows step by step, and once narrow it is given no draws at all,
+/// so it stays where it narrowed: with a floor of a hundredth of a
 /// millimetre, 8 of 12 lone robots (`slam/tests/unseen.rs`) ended with a
 /// walk component 0.0001 m wide, stuck at a stride of 0.11-0.14 m with a
 /// third to two thirds of the weight, and the learned stride 5% short of
-/// the robot's on average over the run (0.174 m against 0.182 m); with
+/// the robot's on average over the run (0.173 m against 0.182 m); with
 /// half the start's spread, 2% short (EXPERIMENTS.md 8b).
 pub const NARROWEST_SPREAD_OF_START: f64 = 0.5;
 
