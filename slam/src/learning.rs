@@ -46,6 +46,9 @@ pub struct Update {
 /// the robot's on average over the run (0.173 m against 0.182 m); with
 /// half the start's spread, 2% short (EXPERIMENTS.md 8b).
 pub const NARROWEST_SPREAD_OF_START: f64 = 0.5;
+/// And never narrower than this (a tenth of a millimetre or of a
+/// milliradian), whatever a model file starts from.
+const NARROWEST_VARIANCE: f64 = 1e-8;
 
 impl MixtureLearner {
     /// Starts as if `mixture` had been seen for a full window of fully
@@ -58,8 +61,9 @@ impl MixtureLearner {
             mixture,
             window,
             history,
-            min_variance: mixture.variances[0].min(mixture.variances[1])
-                * NARROWEST_SPREAD_OF_START.powi(2),
+            min_variance: (mixture.variances[0].min(mixture.variances[1])
+                * NARROWEST_SPREAD_OF_START.powi(2))
+            .max(NARROWEST_VARIANCE),
         }
     }
 
