@@ -40,11 +40,12 @@ pub struct Update {
 /// component's spread at the start. A component given only draws near its
 /// mean narrows step by step, and once narrow it is given no draws at all,
 /// so it stays where it narrowed: with a floor of a tenth of a
-/// millimetre (a variance of 1e-8), 8 of 12 lone robots (`slam/tests/unseen.rs`) ended with a
-/// walk component 0.0001 m wide, stuck at a stride of 0.11-0.14 m with a
-/// third to two thirds of the weight, and the learned stride 5% short of
-/// the robot's on average over the run (0.173 m against 0.182 m); with
-/// half the start's spread, 2% short (EXPERIMENTS.md 8b).
+/// millimetre (a variance of 1e-8), 8 of 12 lone robots
+/// (`slam/tests/unseen.rs`) ended with a walk component 0.0001 m wide,
+/// stuck at a stride of 0.11-0.14 m with a third to two thirds of the
+/// weight, and the learned stride 5% short of the robot's on average over
+/// the run (0.173 m against 0.182 m); with half the start's spread, 1.5%
+/// short (EXPERIMENTS.md 8b).
 pub const NARROWEST_SPREAD_OF_START: f64 = 0.5;
 /// And never narrower than this (a tenth of a millimetre or of a
 /// milliradian), whatever a model file starts from.
