@@ -982,9 +982,9 @@ mod tests {
     }
 
     #[test]
-    fn the_start_is_mapped_with_every_beam_and_a_step_with_every_other() {
+    fn the_start_and_first_looks_are_mapped_with_every_beam_and_a_step_with_every_other() {
         // Three beams at -90, 0 and +90 degrees; only the middle one (odd,
-        // so skipped by a map stride of 2) returns, from a wall 2 m ahead.
+        // so skipped by a map stride of 2) returns a range.
         let sensor = RangeSensor {
             beams: 3,
             ..RangeSensor::default()
@@ -997,37 +997,40 @@ mod tests {
             ..FilterConfig::default()
         };
         let mut filter = ParticleFilter::new(
-            Pose::new(1.0, 3.0, 0.0),
+            Pose::new(1.0, 3.0125, 0.0),
             MotionModel::legged_default(),
             config,
             6.0,
             6.0,
             0,
         );
-        let far = sensor.max_range;
-        filter.observe_start(&[far, 2.0, far]);
         let occupied = |filter: &ParticleFilter, at: DVec2| {
             filter.particles.iter().all(|p| {
                 let map = &p.map;
                 map.occupancy(map.cell_of(at).expect("inside the map")) > 0.6
             })
         };
+        let far = sensor.max_range;
+        // The start's scan sees a wall 2 m ahead, another robot's first
+        // look (from 2 m to the south) one 2 m ahead of it; each ends in a
+        // cell's middle.
+        filter.observe_start(&[far, 2.0, far]);
+        filter.observe_from(Pose::new(1.0, 1.0125, 0.0), &[far, 2.0, far]);
         assert!(
-            occupied(&filter, DVec2::new(3.0, 3.0)),
+            occupied(&filter, DVec2::new(3.0125, 3.0125)),
             "the start's beam 1"
         );
-        // A step maps every other beam (0 and 2): beam 1's wall, now at
-        // 1 m to the left, is not mapped from there.
-        filter
-            .particles
-            .iter_mut()
-            .for_each(|p| p.pose = Pose::new(1.0, 1.0, 0.0));
-        let mapped = mapped_beams(&[far, 1.0, far], &sensor, filter.config.map_stride);
-        filter
-            .particles
-            .iter_mut()
-            .for_each(|p| integrate(p, &mapped));
-        assert!(!occupied(&filter, DVec2::new(2.0, 1.0)), "a step's beam 1");
+        assert!(
+            occupied(&filter, DVec2::new(3.0125, 1.0125)),
+            "the look's beam 1"
+        );
+        // A step (standing still, a few millimetres of noise) maps every
+        // other beam, 0 and 2: beam 1's obstacle, 0.3 m ahead, is not mapped.
+        filter.step(Command::Stand, false, &[far, 0.3, far]);
+        assert!(
+            !occupied(&filter, DVec2::new(1.3125, 3.0125)),
+            "a step's beam 1"
+        );
     }
 
     #[test]
