@@ -235,36 +235,34 @@ fn set_aside_text(glitches: &[Glitch]) -> Option<String> {
         return None;
     }
     let mut parts = Vec::new();
-    for kind in [
-        GlitchKind::JumpAndReturn,
-        GlitchKind::JumpWithoutReturn,
-        GlitchKind::PoseGap,
-        GlitchKind::CommandStall,
-    ] {
+    for kind in GlitchKind::ALL {
         let of: Vec<&Glitch> = glitches.iter().filter(|g| g.kind == kind).collect();
         let (Some(first), Some(last)) = (of.first(), of.last()) else {
             continue;
         };
         let frames: usize = of.iter().map(|g| g.frames).sum();
-        let largest = of.iter().map(|g| g.size_m).fold(0.0_f64, f64::max);
+        let largest = of
+            .iter()
+            .max_by(|a, b| a.size_m.total_cmp(&b.size_m))
+            .map(|g| g.size_text())
+            .unwrap_or_default();
         let times: Vec<String> = of
             .iter()
             .take(5)
             .map(|g| format!("{:.1} s", g.t_start))
             .collect();
         parts.push(format!(
-            "{} {} ({}{}, from {:.1} to {:.1} s: {}{})",
-            of.len(),
-            kind.describe(),
+            "{} ({}{}, from {:.1} to {:.1} s: {}{})",
+            kind.describe(of.len()),
             if frames > 0 {
                 format!("{frames} poses")
             } else {
                 "no poses".to_owned()
             },
-            if largest > 0.0 {
-                format!(", up to {largest:.2} m")
+            if largest.is_empty() {
+                largest
             } else {
-                String::new()
+                format!(", up to {largest}")
             },
             first.t_start,
             last.t_end,
@@ -273,7 +271,7 @@ fn set_aside_text(glitches: &[Glitch]) -> Option<String> {
         ));
     }
     Some(format!(
-        "Set aside before fitting, as no body's motion: {}.",
+        "Set aside before fitting, as not the body's own motion: {}.",
         parts.join("; ")
     ))
 }

@@ -211,7 +211,7 @@ fn observed_over(recording: &Recording, segment: &SegmentReplay) -> Vec<[f32; 2]
         .collect()
 }
 
-/// What was set aside as no body's motion: an event on the time timeline
+/// What was set aside as not the body's own motion: an event on the time timeline
 /// where each stretch starts, and where the robot was then, in red.
 fn log_glitches(
     rec: &RecordingStream,
@@ -228,10 +228,9 @@ fn log_glitches(
                 glitch.t_start,
                 glitch.t_end,
                 glitch.frames,
-                if glitch.size_m > 0.0 {
-                    format!(", {:.2} m from the track", glitch.size_m)
-                } else {
-                    String::new()
+                match glitch.size_text() {
+                    size if size.is_empty() => size,
+                    size => format!(", {size}"),
                 }
             ))
             .with_level(rerun::TextLogLevel::WARN),

@@ -91,7 +91,7 @@ pub struct Diagnosis {
     pub operating_point: OperatingPoint,
     /// Observed poses set aside as gross outliers (see `Poses::without_outliers`).
     pub pose_outliers: usize,
-    /// What was set aside as no body's motion before anything was fitted:
+    /// What was set aside as not the body's own motion before anything was fitted:
     /// jumps and returns, jumps without a return, pose gaps, command stalls.
     pub glitches: Vec<crate::glitches::Glitch>,
     /// Candidates that passed BIC but did not improve held-out prediction,

@@ -18,10 +18,18 @@
 //!   backlog, not commands given then, and what the robot did meanwhile is
 //!   unknown. No comparison spans the stall or the burst. (A stream that
 //!   only pauses is a robot holding its last command, and is compared.)
+//! - Held in place: a robot that was driving as commanded stops dead while
+//!   its command goes on (a wall, an obstacle, another robot in its way).
+//!   Contact is the world's doing, not the body's: fitted, one bump of 0.8 s
+//!   against an obstacle held a wandering robot's true speed scale of 1.2
+//!   out of its diagnosis (EXPERIMENTS.md 7, "Contact set aside"). Only a
+//!   stop from motion counts: a robot that does not start (a deadband, a
+//!   latency, an acceleration limit) or slows as it goes (slip, a fading
+//!   battery) is physics of its body, and is fitted.
 
 use serde::Serialize;
 
-use crate::recording::{MAX_OBSERVATION_GAP_S, Poses, Recording};
+use crate::recording::{Commands, MAX_OBSERVATION_GAP_S, Poses, Recording};
 
 /// A stretch set aside, in the run's seconds.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -31,7 +39,8 @@ pub struct Glitch {
     pub t_end: f64,
     /// Observed poses set aside in it.
     pub frames: usize,
-    /// How far the pose jumped from the track, metres (jumps only).
+    /// How far the pose jumped from the track, metres (jumps); the
+    /// commanded travel not made (held in place).
     pub size_m: f64,
 }
 
@@ -42,19 +51,82 @@ pub enum GlitchKind {
     JumpWithoutReturn,
     PoseGap,
     CommandStall,
+    HeldInPlace,
 }
 
 impl GlitchKind {
-    pub fn describe(self) -> &'static str {
-        match self {
-            GlitchKind::JumpAndReturn => "pose jumps and returns (faster than any body moves)",
-            GlitchKind::JumpWithoutReturn => {
-                "pose jumps that never came back (the track resumed elsewhere)"
+    /// `count` of this kind, in words: "3 pose jumps and returns (...)".
+    pub fn describe(self, count: usize) -> String {
+        let one = count == 1;
+        let (what, why) = match self {
+            GlitchKind::JumpAndReturn => (
+                if one {
+                    "pose jump and return"
+                } else {
+                    "pose jumps and returns"
+                },
+                "faster than any body moves",
+            ),
+            GlitchKind::JumpWithoutReturn => (
+                if one {
+                    "pose jump that never came back"
+                } else {
+                    "pose jumps that never came back"
+                },
+                "the track resumed elsewhere",
+            ),
+            GlitchKind::PoseGap => (
+                if one {
+                    "gap without observed poses"
+                } else {
+                    "gaps without observed poses"
+                },
+                "",
+            ),
+            GlitchKind::CommandStall => (
+                if one {
+                    "command stall"
+                } else {
+                    "command stalls"
+                },
+                "the stream stopped, then resumed in a burst",
+            ),
+            GlitchKind::HeldInPlace => (
+                if one {
+                    "stop while driving"
+                } else {
+                    "stops while driving"
+                },
+                "held in place against the command: contact with a wall, an obstacle, another robot",
+            ),
+        };
+        if why.is_empty() {
+            format!("{count} {what}")
+        } else {
+            format!("{count} {what} ({why})")
+        }
+    }
+
+    /// Every kind, in the order a report lists them.
+    pub const ALL: [GlitchKind; 5] = [
+        GlitchKind::JumpAndReturn,
+        GlitchKind::JumpWithoutReturn,
+        GlitchKind::PoseGap,
+        GlitchKind::CommandStall,
+        GlitchKind::HeldInPlace,
+    ];
+}
+
+impl Glitch {
+    /// Its size in words: how far the pose jumped, or how far the robot
+    /// was commanded to drive and did not; empty for the others.
+    pub fn size_text(&self) -> String {
+        match self.kind {
+            _ if self.size_m <= 0.0 => String::new(),
+            GlitchKind::HeldInPlace => {
+                format!("{:.2} m of commanded travel not made", self.size_m)
             }
-            GlitchKind::PoseGap => "gaps without observed poses",
-            GlitchKind::CommandStall => {
-                "command stalls (the stream stopped, then resumed in a burst)"
-            }
+            _ => format!("{:.2} m from the track", self.size_m),
         }
     }
 }
@@ -83,6 +155,21 @@ const BURST_SHARE: f64 = 0.2;
 /// that paused: a robot holds its last command (MRCLAM's log pauses for up
 /// to a second while its robots drive on), and that is what is compared.
 const MIN_BURST: usize = 3;
+/// Held in place: over a stretch commanded to drive at least
+/// `HELD_MIN_TRAVEL_M` (one way), the robot stayed within this share of the
+/// commanded travel of where it stood (plus the tracker's noise, at most
+/// `HELD_NOISE_CAP_M`: at a few hertz the second differences hold the
+/// gait's own variation, not the tracker's)...
+const HELD_SHARE: f64 = 0.1;
+const HELD_MIN_TRAVEL_M: f64 = 0.2;
+const HELD_NOISE_SIGMAS: f64 = 3.0;
+const HELD_NOISE_CAP_M: f64 = 0.01;
+/// ... having driven, just before and for as long, at least this share of
+/// what it was commanded (as the crow flies, so turns count against it),
+/// commanded the same way at a speed within this ratio of the stretch's: a
+/// robot that slows to a crawl and stops may be meeting its deadband.
+const HELD_MOVING_SHARE: f64 = 0.5;
+const HELD_SPEED_RATIO: f64 = 2.0;
 
 /// The recording with its glitches set aside, and the glitches.
 pub fn set_aside(recording: &Recording) -> (Recording, Vec<Glitch>) {
@@ -95,6 +182,10 @@ pub fn set_aside(recording: &Recording) -> (Recording, Vec<Glitch>) {
         glitches.push(stall);
     }
     glitches.extend(pose_gaps(&recording.poses));
+    for held in held_in_place(&recording.commands, &poses) {
+        poses = without_span(&poses, held.t_start, held.t_end);
+        glitches.push(held);
+    }
     glitches.sort_by(|a, b| a.t_start.total_cmp(&b.t_start));
     (
         Recording {
@@ -302,10 +393,111 @@ fn command_stalls(recording: &Recording) -> Vec<Glitch> {
     out
 }
 
+/// The commanded travel from `a` to `b` (metres, signed), each command held
+/// until the next; nothing before the first.
+fn commanded_travel(commands: &Commands, a: f64, b: f64) -> f64 {
+    let t = &commands.t;
+    let first = t.partition_point(|&s| s <= a).saturating_sub(1);
+    let mut travel = 0.0;
+    for k in first..t.len() {
+        let from = t[k].max(a);
+        let to = t.get(k + 1).copied().unwrap_or(f64::INFINITY).min(b);
+        if to > from {
+            travel += commands.v[k] * (to - from);
+        }
+        if t[k] >= b {
+            break;
+        }
+    }
+    travel
+}
+
+/// Stretches in which the robot, driving as commanded, stopped dead while
+/// its command went on (see the module's notes and the `HELD_` constants).
+fn held_in_place(commands: &Commands, poses: &Poses) -> Vec<Glitch> {
+    let n = poses.len();
+    let noise = (HELD_NOISE_SIGMAS * frame_noise(&poses.x).hypot(frame_noise(&poses.y)))
+        .min(HELD_NOISE_CAP_M);
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i + 1 < n {
+        let (t0, x0, y0) = (poses.t[i], poses.x[i], poses.y[i]);
+        // Extend while the robot stays put and the command drives on, one way.
+        let mut end = i;
+        let mut travel = 0.0;
+        let mut first_speed: Option<f64> = None;
+        for j in i + 1..n {
+            if poses.t[j] - poses.t[j - 1] > MAX_OBSERVATION_GAP_S {
+                break;
+            }
+            let dt = poses.t[j] - poses.t[j - 1];
+            let step = commanded_travel(commands, poses.t[j - 1], poses.t[j]);
+            // One command held on: the same way, at about the first
+            // interval's speed (a command that jumps is met late by an
+            // acceleration limit or a lag, and that is the body's).
+            let speed = step / dt;
+            if step == 0.0 || dt <= 0.0 {
+                break;
+            }
+            if let Some(first) = first_speed
+                && !(1.0 / HELD_SPEED_RATIO..=HELD_SPEED_RATIO).contains(&(speed / first))
+            {
+                break;
+            }
+            first_speed.get_or_insert(speed);
+            let so_far = travel + step;
+            let away = (poses.x[j] - x0).hypot(poses.y[j] - y0);
+            if away > HELD_SHARE * so_far.abs() + noise {
+                break;
+            }
+            (end, travel) = (j, so_far);
+        }
+        // The share of travel allowed lets the stretch run on into the
+        // first moments of driving again: those are motion, not contact.
+        while end > i {
+            let moved = (poses.x[end] - poses.x[end - 1]).hypot(poses.y[end] - poses.y[end - 1]);
+            let step = commanded_travel(commands, poses.t[end - 1], poses.t[end]);
+            if moved < HELD_MOVING_SHARE * step.abs() {
+                break;
+            }
+            travel -= step;
+            end -= 1;
+        }
+        if end == i {
+            i += 1;
+            continue;
+        }
+        let t1 = poses.t[end];
+        let held = travel.abs() >= HELD_MIN_TRAVEL_M && {
+            // Just before, for as long: driving the same way at about the
+            // same speed, and the robot went at least half as far as that.
+            let before = t0 - (t1 - t0);
+            let commanded = commanded_travel(commands, before, t0);
+            let ratio = commanded / travel;
+            (1.0 / HELD_SPEED_RATIO..=HELD_SPEED_RATIO).contains(&ratio)
+                && poses.at(before).is_some_and(|p| {
+                    (x0 - p.x).hypot(y0 - p.y) >= HELD_MOVING_SHARE * commanded.abs()
+                })
+        };
+        if held {
+            out.push(Glitch {
+                kind: GlitchKind::HeldInPlace,
+                t_start: t0,
+                t_end: t1,
+                frames: end - i + 1,
+                size_m: travel.abs(),
+            });
+        }
+        // A later start within the same still stretch has a shorter
+        // stretch and a still robot before it: no better.
+        i = end.max(i + 1);
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::recording::Commands;
 
     /// A robot driving at 0.3 m/s, observed at 67 Hz with 1 mm noise.
     fn run(seconds: f64) -> Recording {
@@ -323,6 +515,105 @@ mod tests {
             poses.push(t, 0.3 * t + 0.002 * noise, 0.001 * noise, 0.0);
         }
         Recording::of(commands, poses)
+    }
+
+    /// Commands `command(t)` held at 20 Hz, and a robot driving straight
+    /// along x at `speed(t)`, observed at 67 Hz with 1 mm noise.
+    fn driven(seconds: f64, command: impl Fn(f64) -> f64, speed: impl Fn(f64) -> f64) -> Recording {
+        let mut commands = Commands::default();
+        let mut k = 0.0;
+        while k <= seconds {
+            commands.hold(k, command(k), 0.0);
+            k += 0.05;
+        }
+        let mut poses = Poses::default();
+        let dt = 1.0 / 67.0;
+        let mut x = 0.0;
+        for i in 0..(seconds / dt) as usize {
+            let t = i as f64 * dt;
+            let noise = ((i * 7919) % 13) as f64 / 13.0 - 0.5;
+            poses.push(t, x + 0.002 * noise, 0.001 * noise, 0.0);
+            x += speed(t) * dt;
+        }
+        Recording::of(commands, poses)
+    }
+
+    fn held_stops(recording: &Recording) -> Vec<Glitch> {
+        set_aside(recording)
+            .1
+            .into_iter()
+            .filter(|g| g.kind == GlitchKind::HeldInPlace)
+            .collect()
+    }
+
+    #[test]
+    fn a_robot_that_stops_dead_while_driving_is_set_aside_as_held_in_place() {
+        // Driving at 0.3 m/s as commanded, held against a wall from 20 s
+        // to 21.5 s while the command goes on, then driving again.
+        let r = driven(
+            60.0,
+            |_| 0.3,
+            |t| if (20.0..21.5).contains(&t) { 0.0 } else { 0.3 },
+        );
+        let (kept, glitches) = set_aside(&r);
+        let held: Vec<&Glitch> = glitches
+            .iter()
+            .filter(|g| g.kind == GlitchKind::HeldInPlace)
+            .collect();
+        assert_eq!(held.len(), 1, "{glitches:?}");
+        assert!(
+            (held[0].t_start - 20.0).abs() < 0.05 && (held[0].t_end - 21.5).abs() < 0.05,
+            "{held:?}"
+        );
+        // The commanded travel it did not make: 1.5 s at 0.3 m/s.
+        assert!((held[0].size_m - 0.45).abs() < 0.03, "{held:?}");
+        assert!(held[0].size_text().contains("commanded travel not made"));
+        assert!(!kept.poses.t.iter().any(|t| (20.0..21.5).contains(t)));
+        // A stop half as long (0.23 m commanded) is found too.
+        let short = driven(
+            60.0,
+            |_| 0.3,
+            |t| if (30.0..30.75).contains(&t) { 0.0 } else { 0.3 },
+        );
+        assert_eq!(held_stops(&short).len(), 1);
+    }
+
+    #[test]
+    fn a_robot_that_starts_late_crawls_or_fades_is_fitted_not_set_aside() {
+        // From rest, a command met 0.6 s late (a latency, an actuator lag).
+        let late = driven(
+            60.0,
+            |t| if t < 10.0 { 0.0 } else { 0.3 },
+            |t| if t < 10.6 { 0.0 } else { 0.3 },
+        );
+        assert!(held_stops(&late).is_empty(), "{:?}", held_stops(&late));
+        // Slowed to a crawl below its deadband: commanded 0.02 m/s for 20 s
+        // after driving at 0.3, it does not move.
+        let crawl = driven(
+            60.0,
+            |t| if (20.0..40.0).contains(&t) { 0.02 } else { 0.3 },
+            |t| if (20.0..40.0).contains(&t) { 0.0 } else { 0.3 },
+        );
+        assert!(held_stops(&crawl).is_empty(), "{:?}", held_stops(&crawl));
+        // A battery that fades to nothing under a steady command.
+        let fading = driven(60.0, |_| 0.3, |t| 0.3 * (1.0 - t / 40.0).max(0.0));
+        assert!(held_stops(&fading).is_empty(), "{:?}", held_stops(&fading));
+        // A command that jumps from slow to fast, met by an acceleration
+        // limit after a stretch the noise held still.
+        let jump = driven(
+            60.0,
+            |t| if t < 20.0 { 0.05 } else { 0.3 },
+            |t| {
+                if t < 19.0 {
+                    0.05
+                } else if t < 20.5 {
+                    0.0
+                } else {
+                    0.3
+                }
+            },
+        );
+        assert!(held_stops(&jump).is_empty(), "{:?}", held_stops(&jump));
     }
 
     #[test]

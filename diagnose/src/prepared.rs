@@ -89,7 +89,7 @@ pub struct Prepared {
     pub segments: Vec<Segment>,
     /// Observed poses set aside as gross outliers before segmenting.
     pub pose_outliers: usize,
-    /// Stretches set aside as no body's motion (`glitches::set_aside`).
+    /// Stretches set aside as not the body's own motion (`glitches::set_aside`).
     pub glitches: Vec<crate::glitches::Glitch>,
     /// The held-out blocks, as ranges of `segments`: one per recording
     /// joined, or `Options::folds` equal stretches of time.
@@ -99,7 +99,7 @@ pub struct Prepared {
     pub pose_period_s: f64,
 }
 
-/// The run as diagnosis compares it: what no body's motion explains set
+/// The run as diagnosis compares it: what not the body's own motion explains set
 /// aside (`glitches::set_aside`), then gross pose outliers (see
 /// `Poses::without_outliers`), commands on a grid, segments started at the
 /// observed poses.
