@@ -13,7 +13,7 @@ use anyhow::{Context, Result, bail};
 use glam::DVec2;
 use serde::Serialize;
 use shoal_physics::metrics::{centroid, formation_metrics};
-use shoal_physics::{MotionModel, Pose, Surface};
+use shoal_physics::{Command, MotionModel, Pose, Surface};
 use shoal_scenario::Scenario;
 
 use shoal_slam::filter::PositionsByTick;
@@ -78,8 +78,11 @@ pub struct SlamProgress {
     /// How far the learned model moved from where SLAM started (in starting
     /// standard deviations).
     pub model_distance: Option<f64>,
-    /// A full stride (`walk(3)`): what SLAM started from, what it learned,
-    /// and the truth on the floor the robot ended on, metres.
+    /// The stride of the walk command the robot was given most
+    /// (`stride_walk`, 1-3; 3 is the full stride): what SLAM started from,
+    /// what it learned, and the truth on the floor the robot ended on,
+    /// metres.
+    pub stride_walk: u8,
     pub stride_start_m: f64,
     pub stride_learned_m: Option<f64>,
     pub stride_true_m: f64,
@@ -246,8 +249,8 @@ pub fn demo_scenario(path: Option<&Path>) -> Result<Scenario> {
 /// How SLAM did for robot `id`: its mean error over the first and last
 /// seconds of a run ending at `end`, how far its filter fell behind and
 /// the fewest particles it held (all as `watched` noted them), and the
-/// full stride it started from, learned, and the truth on a floor that
-/// scales strides by `floor`.
+/// stride of the walk it was given most: where SLAM started, what it
+/// learned, and the truth on a floor that scales strides by `floor`.
 fn slam_progress(
     id: u32,
     followed: Option<&shoal_slam::report::FollowedReport>,
@@ -256,6 +259,8 @@ fn slam_progress(
     truth: &MotionModel,
     floor: f64,
 ) -> SlamProgress {
+    let walk = followed.map_or(3, |f| f.stride_walk);
+    let stride = Command::Walk(walk);
     let mean_error = |from: f64, to: f64| {
         mean_of(
             watched
@@ -270,9 +275,10 @@ fn slam_progress(
         early_error_m: mean_error(0.0, SLAM_WINDOW_S),
         late_error_m: mean_error(end - SLAM_WINDOW_S, end),
         model_distance: followed.map(|f| f.model_distance),
-        stride_start_m: short_strides(truth, STRIDE_ERROR).full_stride(),
+        stride_walk: walk,
+        stride_start_m: short_strides(truth, STRIDE_ERROR).mean(stride).along,
         stride_learned_m: followed.and_then(|f| f.stride_m),
-        stride_true_m: truth.full_stride() * floor,
+        stride_true_m: truth.mean(stride).along * floor,
         most_behind_s: watched.most_behind_s.get(&id).copied().unwrap_or(0.0),
         scans_missed: followed.map_or(0, |f| f.scans_missed),
         scans_coasted: followed.map_or(0, |f| f.scans_coasted),
@@ -575,7 +581,8 @@ fn print_slam_robot(out: &mut dyn Write, s: &SlamProgress) -> io::Result<()> {
         STRIDE_ERROR * 100.0,
         s.stride_learned_m
             .map(|learned| format!(
-                ": a full stride {:.0} mm at the start, {learned_mm:.0} mm learned, {:.0} mm true on its floor",
+                ": a walk({}) stride {:.0} mm at the start, {learned_mm:.0} mm learned, {:.0} mm true on its floor",
+                s.stride_walk,
                 s.stride_start_m * 1e3,
                 s.stride_true_m * 1e3,
                 learned_mm = learned * 1e3

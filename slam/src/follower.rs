@@ -116,6 +116,9 @@ pub struct Follower {
     /// with nothing else waiting: how the follower judges its pace.
     backlog_before: usize,
     kept_up_steps: u32,
+    /// Steps stepped under each walk command (`walk(1)` to `walk(3)`):
+    /// the stride a report holds against the truth is the one walked most.
+    walks: [u64; 3],
 }
 
 impl Follower {
@@ -144,6 +147,7 @@ impl Follower {
             looks_mapped: 0,
             backlog_before: 0,
             kept_up_steps: 0,
+            walks: [0; 3],
         }
     }
 
@@ -157,6 +161,18 @@ impl Follower {
 
     /// Scans of ticks the robot was announced on that never reached the
     /// filter (see the field).
+    /// The speed (1-3) of the walk command the filter stepped most (3, the
+    /// full stride, before any): a wandering robot walks at `walk(2)`
+    /// only, and a stride it never walked is never learned.
+    pub fn most_walked(&self) -> u8 {
+        (1..=3u8)
+            .zip(self.walks)
+            .rev()
+            .max_by_key(|(_, count)| *count)
+            .filter(|(_, count)| *count > 0)
+            .map_or(3, |(speed, _)| speed)
+    }
+
     pub fn scans_missed(&self) -> u64 {
         self.scans_missed
     }
@@ -317,6 +333,9 @@ impl Follower {
             };
             self.scans_missed += missed_between(&self.announced, self.stepped_tick, scan.tick);
             let report = filter.step(command, scan.bumped, &scan.ranges);
+            if let Command::Walk(speed @ 1..=3) = command {
+                self.walks[usize::from(speed - 1)] += 1;
+            }
             self.steps += 1;
             self.stepped_tick = Some(scan.tick);
             stepped(Stepped {
@@ -496,6 +515,32 @@ mod tests {
             bumped: false,
             ranges: vec![2.0; beams],
         }
+    }
+
+    #[test]
+    fn the_stride_reported_is_of_the_walk_stepped_most() {
+        let (mut follower, scenario) = follower();
+        let beams = scenario.sensor.beams;
+        assert_eq!(follower.most_walked(), 3, "the full stride before any walk");
+        start_at(&mut follower, 1, Pose::new(4.0, 3.0, 0.0), beams);
+        // A wandering robot: walk(2) and turns, one full stride.
+        let command = |tick: u64| match tick % 3 {
+            0 => Command::Turn(1),
+            _ if tick == 4 => Command::Walk(3),
+            _ => Command::Walk(2),
+        };
+        let scans: Vec<Scan> = (2..12)
+            .map(|tick| Scan {
+                command: Some(command(tick)),
+                ..scan(tick, beams)
+            })
+            .collect();
+        follower
+            .on_scans(scans, &Bodies::new(3), &mut FirstLooks::default(), |_| {
+                Ok::<(), ()>(())
+            })
+            .unwrap();
+        assert_eq!(follower.most_walked(), 2);
     }
 
     #[test]

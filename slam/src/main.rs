@@ -426,6 +426,7 @@ fn report(
                 let rate = (steps - robot.steps_reported.min(steps)) as f64 / since.max(1e-3);
                 robot.steps_reported = steps;
                 let filter = robot.follower.filter();
+                let walked = robot.follower.most_walked();
                 FollowedReport {
                     id: *id,
                     steps,
@@ -436,7 +437,8 @@ fn report(
                         [p.x, p.y, p.theta]
                     }),
                     estimate_tick: filter.and(robot.follower.stepped_tick()),
-                    stride_m: filter.map(|f| f.model().full_stride()),
+                    stride_m: filter.map(|f| f.model().mean(Command::Walk(walked)).along),
+                    stride_walk: walked,
                     steps_per_s: filter.map(|_| rate),
                     behind_s: robot
                         .follower

@@ -26,10 +26,14 @@ pub struct FollowedReport {
     /// holds it against where the robot stood then, not now.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub estimate_tick: Option<u64>,
-    /// How far the learned model says a full stride (`walk(3)`) carries,
+    /// How far the learned model says a stride of `stride_walk` carries,
     /// metres: the scalar a reader can hold against the truth.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stride_m: Option<f64>,
+    /// The walk command (1-3) of `stride_m`: the one the robot was
+    /// commanded most (3, the full stride, before it walked).
+    #[serde(default = "full_stride_walk")]
+    pub stride_walk: u8,
     /// Filter steps per second since the report before: a robot at 5 Hz
     /// needs 5 to keep up.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -50,6 +54,10 @@ pub struct FollowedReport {
     /// sheds work to keep up with its robot.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub particles: Option<usize>,
+}
+
+fn full_stride_walk() -> u8 {
+    3
 }
 
 impl HelperReport for SlamReport {
