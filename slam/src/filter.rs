@@ -6,6 +6,7 @@ use std::collections::BTreeMap;
 use glam::DVec2;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
+use rand_distr::{Distribution, StandardNormal};
 use rayon::prelude::*;
 use shoal_physics::legged::Param;
 use shoal_physics::range::RangeSensor;
@@ -189,6 +190,30 @@ pub struct Particle {
     pub pose: Pose,
     pub map: TiledGrid,
     pub weight: f64,
+    /// How much farther than the model this particle's robot steps (along
+    /// and across), held from step to step: see [`STRIDE_SCALE_SPREAD`].
+    pub stride_scale: f64,
+}
+
+/// Each particle holds its own guess of how far the model's steps carry,
+/// spread this much about 1 (a standard deviation, in shares of a step)
+/// and relaxing back to 1 by [`STRIDE_SCALE_MEMORY`] a step. A model that
+/// is wrong is wrong the same way at every step: where the scan says
+/// nothing along the path (a corridor longer than the sensor's reach) the
+/// particles then spread along it in proportion to the distance walked,
+/// and the one whose guess was right is there when the scan speaks again.
+/// Redrawn at every step, as the explorers are, guesses average out
+/// and the cloud spreads with the square root of the steps only.
+const STRIDE_SCALE_SPREAD: f64 = 0.15;
+const STRIDE_SCALE_MEMORY: f64 = 0.98;
+
+/// A stride guess drawn from its spread about 1, within three spreads.
+fn stride_scale_drawn(rng: &mut impl Rng) -> f64 {
+    let z: f64 = StandardNormal.sample(rng);
+    (1.0 + STRIDE_SCALE_SPREAD * z).clamp(
+        1.0 - 3.0 * STRIDE_SCALE_SPREAD,
+        1.0 + 3.0 * STRIDE_SCALE_SPREAD,
+    )
 }
 
 /// What one step concluded.
@@ -239,11 +264,13 @@ impl ParticleFilter {
         let cell_size = config.cell_in(width, height);
         let map = TiledGrid::covering(-margin, DVec2::new(width, height) + margin, cell_size);
         let weight = 1.0 / config.particles.max(1) as f64;
+        let mut rng = StdRng::seed_from_u64(seed);
         let particles = (0..config.particles.max(1))
             .map(|_| Particle {
                 pose: start,
                 map: map.clone(),
                 weight,
+                stride_scale: stride_scale_drawn(&mut rng),
             })
             .collect();
         let learners = Command::ALL
@@ -258,7 +285,7 @@ impl ParticleFilter {
             learners,
             config,
             cell_size,
-            rng: StdRng::seed_from_u64(seed),
+            rng,
             steps: 0,
         }
     }
@@ -335,6 +362,7 @@ impl ParticleFilter {
     /// One step: the robot executed `command` (a wall or robot stopped its
     /// translation if `bumped`), then its sensor read `ranges`.
     pub fn step(&mut self, command: Command, bumped: bool, ranges: &[f64]) -> StepReport {
+        self.wander_stride_scales();
         let n = self.particles.len();
         let learns = self.config.learning && self.steps > 0;
         let draws = if learns { self.draws() } else { n };
@@ -416,6 +444,20 @@ impl ParticleFilter {
         }
     }
 
+    /// Each particle's stride guess relaxes towards 1 and wanders, so that
+    /// its spread stays [`STRIDE_SCALE_SPREAD`] (a first-order
+    /// autoregression): resampling keeps the guesses the scan bears out.
+    fn wander_stride_scales(&mut self) {
+        let rho = STRIDE_SCALE_MEMORY;
+        let step_spread = STRIDE_SCALE_SPREAD * (1.0 - rho * rho).sqrt();
+        let bound = 3.0 * STRIDE_SCALE_SPREAD;
+        for p in &mut self.particles {
+            let z: f64 = StandardNormal.sample(&mut self.rng);
+            p.stride_scale = (1.0 + rho * (p.stride_scale - 1.0) + step_spread * z)
+                .clamp(1.0 - bound, 1.0 + bound);
+        }
+    }
+
     /// How many particles the filter holds now: the config's, or fewer
     /// while a follower short of time sheds them ([`ParticleFilter::resize`]).
     pub fn particle_count(&self) -> usize {
@@ -465,14 +507,16 @@ impl ParticleFilter {
     /// scan is scored, nothing is learned and no map is written; the spread
     /// the draws add is what the next scored step's proposal searches.
     pub fn coast(&mut self, command: Command, bumped: bool) {
+        self.wander_stride_scales();
         for particle in &mut self.particles {
             let motion = self.model.sample(command, &mut self.rng);
+            let scale = particle.stride_scale;
             particle.pose = if bumped {
                 particle.pose.advanced(0.0, 0.0, motion.turn)
             } else {
                 particle
                     .pose
-                    .advanced(motion.along, motion.across, motion.turn)
+                    .advanced(scale * motion.along, scale * motion.across, motion.turn)
             };
         }
     }
@@ -568,9 +612,7 @@ impl ParticleFilter {
         beams: &ScoredBeams,
         drawn: &[Drawn],
     ) -> Matching {
-        let prior = MotionPrior {
-            model: self.model.command(command),
-        };
+        let model = self.model.command(command);
         let seeds: Vec<u64> = (0..self.particles.len())
             .map(|_| self.rng.random())
             .collect();
@@ -588,6 +630,15 @@ impl ParticleFilter {
             .map(|((p, d), seed)| {
                 let score = |pose: &Pose| BEAM_TEMPERING * beams.log_likelihood(&p.map, pose);
                 let from = p.pose;
+                // The particle's own stride guess: the learner judged the
+                // draw as the model made it (`d.motion`); the particle
+                // starts its search where its guess takes that motion.
+                let prior = MotionPrior {
+                    model,
+                    stride_scale: p.stride_scale,
+                };
+                let [along, across, turn] = d.motion;
+                let start = from.advanced(p.stride_scale * along, p.stride_scale * across, turn);
                 // Each particle matches from its own draw: a model that is
                 // still wrong puts its mean beyond the matcher's reach, and
                 // the draws (the explorers' above all) keep the truth within it.
@@ -595,7 +646,7 @@ impl ParticleFilter {
                     search_scale * BEAM_TEMPERING * search_beams.log_likelihood(&p.map, pose)
                         + prior.log_density(&from, pose)
                 };
-                let (matched, _, scored) = match_scan(&posterior, d.pose);
+                let (matched, _, scored) = match_scan(&posterior, start);
                 let mut rng = StdRng::seed_from_u64(seed);
                 let proposed = improved_proposal(&score, &prior, &from, matched, &mut rng);
                 p.pose = proposed.pose;
@@ -908,6 +959,47 @@ mod tests {
             ParticleFilter::new(start, model, given, 6.0, 5.0, 1).cell_size(),
             0.1
         );
+    }
+
+    #[test]
+    fn where_the_scan_says_nothing_particles_spread_with_the_distance_walked() {
+        // A model with almost no noise of its own, walked with no scan:
+        // the particles part only by their stride guesses, which are held
+        // from step to step, so the spread along the path grows with the
+        // distance (a tenth to a sixth of it), not with its square root.
+        let mut model = MotionModel::legged_default();
+        for command in Command::ALL {
+            for param in Param::ALL {
+                let m = model.command_mut(command).param_mut(param);
+                *m = shoal_physics::Mixture2::gaussian(m.mean(), 1e-4);
+            }
+        }
+        let config = FilterConfig {
+            particles: 400,
+            ..FilterConfig::default()
+        };
+        let start = Pose::new(1.0, 10.0, 0.0);
+        let mut filter = ParticleFilter::new(start, model.clone(), config, 60.0, 20.0, 5);
+        let stride = model.mean(Command::Walk(3)).along;
+        let along_spread = |filter: &ParticleFilter| {
+            let xs: Vec<f64> = filter.particles.iter().map(|p| p.pose.x).collect();
+            let mean = xs.iter().sum::<f64>() / xs.len() as f64;
+            (xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / xs.len() as f64).sqrt()
+        };
+        let mut spreads = Vec::new();
+        for steps in [10, 40] {
+            while filter.steps < steps {
+                filter.coast(Command::Walk(3), false);
+                filter.steps += 1;
+            }
+            spreads.push(along_spread(&filter) / (steps as f64 * stride));
+        }
+        for share in &spreads {
+            assert!(
+                (0.08..0.17).contains(share),
+                "spread a share of the distance: {spreads:?}"
+            );
+        }
     }
 
     #[test]

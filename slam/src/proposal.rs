@@ -171,6 +171,9 @@ pub fn match_scan(score: &impl Fn(&Pose) -> f64, start: Pose) -> (Pose, f64, usi
 /// (the explorers' among them) instead.
 pub struct MotionPrior<'a> {
     pub model: &'a CommandModel,
+    /// How much farther than the model this particle believes a step
+    /// carries (along and across; see `filter::STRIDE_SCALE_SPREAD`).
+    pub stride_scale: f64,
 }
 
 impl MotionPrior<'_> {
@@ -201,7 +204,10 @@ impl MotionPrior<'_> {
     fn seen_from(&self, from: &Pose, at: &Pose) -> ([f64; 3], [f64; 3]) {
         let variance = |mixture: &Mixture2| mixture.variance();
         let (d, c, t) = (&self.model.d, &self.model.c, &self.model.t);
-        let mean = from.advanced(d.mean(), c.mean(), t.mean()).relative_to(at);
+        let scale = self.stride_scale;
+        let mean = from
+            .advanced(scale * d.mean(), scale * c.mean(), t.mean())
+            .relative_to(at);
         let (sin, cos) = (at.theta - from.theta).sin_cos();
         let (along, across) = (variance(d), variance(c));
         (
@@ -467,7 +473,10 @@ mod tests {
         let (matched, _, _) = match_scan(&score, from);
         let near = improved_proposal(
             &score,
-            &MotionPrior { model: &agreeing },
+            &MotionPrior {
+                model: &agreeing,
+                stride_scale: 1.0,
+            },
             &from,
             matched,
             &mut rng,
@@ -476,6 +485,7 @@ mod tests {
             &score,
             &MotionPrior {
                 model: &disagreeing,
+                stride_scale: 1.0,
             },
             &from,
             matched,
