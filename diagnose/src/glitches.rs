@@ -432,13 +432,13 @@ fn held_in_place(commands: &Commands, poses: &Poses) -> Vec<Glitch> {
             }
             let dt = poses.t[j] - poses.t[j - 1];
             let step = commanded_travel(commands, poses.t[j - 1], poses.t[j]);
+            if step == 0.0 || dt <= 0.0 {
+                break;
+            }
             // One command held on: the same way, at about the first
             // interval's speed (a command that jumps is met late by an
             // acceleration limit or a lag, and that is the body's).
             let speed = step / dt;
-            if step == 0.0 || dt <= 0.0 {
-                break;
-            }
             if let Some(first) = first_speed
                 && !(1.0 / HELD_SPEED_RATIO..=HELD_SPEED_RATIO).contains(&(speed / first))
             {
