@@ -166,8 +166,9 @@ const HELD_NOISE_SIGMAS: f64 = 3.0;
 const HELD_NOISE_CAP_M: f64 = 0.01;
 /// ... having driven, just before and for as long, at least this share of
 /// what it was commanded (as the crow flies, so turns count against it),
-/// commanded the same way at a speed within this ratio of the stretch's: a
-/// robot that slows to a crawl and stops may be meeting its deadband.
+/// commanded the same way, at least half `HELD_MIN_TRAVEL_M`, at a speed
+/// (while the command drove) within this ratio of the stretch's: a robot
+/// that slows to a crawl and stops may be meeting its deadband.
 const HELD_MOVING_SHARE: f64 = 0.5;
 const HELD_SPEED_RATIO: f64 = 2.0;
 
@@ -394,22 +395,28 @@ fn command_stalls(recording: &Recording) -> Vec<Glitch> {
 }
 
 /// The commanded travel from `a` to `b` (metres, signed), each command held
-/// until the next; nothing before the first.
-fn commanded_travel(commands: &Commands, a: f64, b: f64) -> f64 {
+/// until the next, nothing before the first; and for how long of it the
+/// command drove (seconds).
+fn commanded(commands: &Commands, a: f64, b: f64) -> (f64, f64) {
     let t = &commands.t;
     let first = t.partition_point(|&s| s <= a).saturating_sub(1);
-    let mut travel = 0.0;
+    let (mut travel, mut driving) = (0.0, 0.0);
     for k in first..t.len() {
         let from = t[k].max(a);
         let to = t.get(k + 1).copied().unwrap_or(f64::INFINITY).min(b);
-        if to > from {
+        if to > from && commands.v[k] != 0.0 {
             travel += commands.v[k] * (to - from);
+            driving += to - from;
         }
         if t[k] >= b {
             break;
         }
     }
-    travel
+    (travel, driving)
+}
+
+fn commanded_travel(commands: &Commands, a: f64, b: f64) -> f64 {
+    commanded(commands, a, b).0
 }
 
 /// Stretches in which the robot, driving as commanded, stopped dead while
@@ -470,13 +477,17 @@ fn held_in_place(commands: &Commands, poses: &Poses) -> Vec<Glitch> {
         let t1 = poses.t[end];
         let held = travel.abs() >= HELD_MIN_TRAVEL_M && {
             // Just before, for as long: driving the same way at about the
-            // same speed, and the robot went at least half as far as that.
+            // same speed while it drove (a robot that walks and turns in
+            // place drives part of the time), at least half the stretch's
+            // least travel, and the robot went at least half as far.
             let before = t0 - (t1 - t0);
-            let commanded = commanded_travel(commands, before, t0);
-            let ratio = commanded / travel;
-            (1.0 / HELD_SPEED_RATIO..=HELD_SPEED_RATIO).contains(&ratio)
+            let (travel_before, driving_before) = commanded(commands, before, t0);
+            let speed_ratio =
+                (travel_before / driving_before.max(f64::MIN_POSITIVE)) / (travel / (t1 - t0));
+            travel_before * travel.signum() >= 0.5 * HELD_MIN_TRAVEL_M
+                && (1.0 / HELD_SPEED_RATIO..=HELD_SPEED_RATIO).contains(&speed_ratio)
                 && poses.at(before).is_some_and(|p| {
-                    (x0 - p.x).hypot(y0 - p.y) >= HELD_MOVING_SHARE * commanded.abs()
+                    (x0 - p.x).hypot(y0 - p.y) >= HELD_MOVING_SHARE * travel_before.abs()
                 })
         };
         if held {
