@@ -587,6 +587,24 @@ mod tests {
             |t| if (30.0..30.75).contains(&t) { 0.0 } else { 0.3 },
         );
         assert_eq!(held_stops(&short).len(), 1);
+        // A robot that drives and stands by turns (a legged robot walking
+        // and turning in place, 0.2 s each) is judged by its speed while
+        // it drove: held 1.2 s from 30 s, it was driving before.
+        let by_turns = |t: f64| ((t * 5.0) as i64 % 2 == 0) || (30.0..31.2).contains(&t);
+        let alternating = driven(
+            60.0,
+            |t| if by_turns(t) { 0.3 } else { 0.0 },
+            |t| {
+                if by_turns(t) && !(30.0..31.2).contains(&t) {
+                    0.3
+                } else {
+                    0.0
+                }
+            },
+        );
+        let stops = held_stops(&alternating);
+        assert_eq!(stops.len(), 1, "{stops:?}");
+        assert!((stops[0].t_start - 30.0).abs() < 0.05, "{stops:?}");
     }
 
     #[test]
