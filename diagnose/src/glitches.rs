@@ -57,49 +57,32 @@ pub enum GlitchKind {
 impl GlitchKind {
     /// `count` of this kind, in words: "3 pose jumps and returns (...)".
     pub fn describe(self, count: usize) -> String {
-        let one = count == 1;
-        let (what, why) = match self {
+        let ((one, many), why) = match self {
             GlitchKind::JumpAndReturn => (
-                if one {
-                    "pose jump and return"
-                } else {
-                    "pose jumps and returns"
-                },
+                ("pose jump and return", "pose jumps and returns"),
                 "faster than any body moves",
             ),
             GlitchKind::JumpWithoutReturn => (
-                if one {
-                    "pose jump that never came back"
-                } else {
-                    "pose jumps that never came back"
-                },
+                (
+                    "pose jump that never came back",
+                    "pose jumps that never came back",
+                ),
                 "the track resumed elsewhere",
             ),
             GlitchKind::PoseGap => (
-                if one {
-                    "gap without observed poses"
-                } else {
-                    "gaps without observed poses"
-                },
+                ("gap without observed poses", "gaps without observed poses"),
                 "",
             ),
             GlitchKind::CommandStall => (
-                if one {
-                    "command stall"
-                } else {
-                    "command stalls"
-                },
+                ("command stall", "command stalls"),
                 "the stream stopped, then resumed in a burst",
             ),
             GlitchKind::HeldInPlace => (
-                if one {
-                    "stop while driving"
-                } else {
-                    "stops while driving"
-                },
+                ("stop while driving", "stops while driving"),
                 "held in place against the command: contact with a wall, an obstacle, another robot",
             ),
         };
+        let what = if count == 1 { one } else { many };
         if why.is_empty() {
             format!("{count} {what}")
         } else {

@@ -259,7 +259,7 @@ fn slam_progress(
     truth: &MotionModel,
     floor: f64,
 ) -> SlamProgress {
-    let walk = followed.map_or(3, |f| f.stride_walk);
+    let walk = followed.map_or(shoal_slam::report::FULL_STRIDE_WALK, |f| f.stride_walk);
     let stride = Command::Walk(walk);
     let mean_error = |from: f64, to: f64| {
         mean_of(

@@ -203,17 +203,23 @@ pub struct Particle {
 /// particles then spread along it in proportion to the distance walked,
 /// and the one whose guess was right is there when the scan speaks again.
 /// Redrawn at every step, as the explorers are, guesses average out
-/// and the cloud spreads with the square root of the steps only.
+/// and the cloud spreads with the square root of the steps only. The
+/// guesses move the scan-matched proposal's particles (the default) and
+/// coasting; the motion model's proposal (the thesis's filter) places its
+/// particles where the learner's draws lead, unscaled.
 const STRIDE_SCALE_SPREAD: f64 = 0.15;
 const STRIDE_SCALE_MEMORY: f64 = 0.98;
 
-/// A stride guess drawn from its spread about 1, within three spreads.
+/// A stride guess drawn from its spread about 1.
 fn stride_scale_drawn(rng: &mut impl Rng) -> f64 {
     let z: f64 = StandardNormal.sample(rng);
-    (1.0 + STRIDE_SCALE_SPREAD * z).clamp(
-        1.0 - 3.0 * STRIDE_SCALE_SPREAD,
-        1.0 + 3.0 * STRIDE_SCALE_SPREAD,
-    )
+    stride_scale_within_bounds(1.0 + STRIDE_SCALE_SPREAD * z)
+}
+
+/// A stride guess kept within three spreads of 1: never a step backwards.
+fn stride_scale_within_bounds(scale: f64) -> f64 {
+    let bound = 3.0 * STRIDE_SCALE_SPREAD;
+    scale.clamp(1.0 - bound, 1.0 + bound)
 }
 
 /// What one step concluded.
@@ -450,11 +456,10 @@ impl ParticleFilter {
     fn wander_stride_scales(&mut self) {
         let rho = STRIDE_SCALE_MEMORY;
         let step_spread = STRIDE_SCALE_SPREAD * (1.0 - rho * rho).sqrt();
-        let bound = 3.0 * STRIDE_SCALE_SPREAD;
         for p in &mut self.particles {
             let z: f64 = StandardNormal.sample(&mut self.rng);
-            p.stride_scale = (1.0 + rho * (p.stride_scale - 1.0) + step_spread * z)
-                .clamp(1.0 - bound, 1.0 + bound);
+            p.stride_scale =
+                stride_scale_within_bounds(1.0 + rho * (p.stride_scale - 1.0) + step_spread * z);
         }
     }
 

@@ -170,7 +170,7 @@ impl Follower {
             .rev()
             .max_by_key(|(_, count)| *count)
             .filter(|(_, count)| *count > 0)
-            .map_or(3, |(speed, _)| speed)
+            .map_or(crate::report::FULL_STRIDE_WALK, |(speed, _)| speed)
     }
 
     pub fn scans_missed(&self) -> u64 {

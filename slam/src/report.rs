@@ -56,8 +56,12 @@ pub struct FollowedReport {
     pub particles: Option<usize>,
 }
 
+/// The walk command of the full stride (`walk(3)`): the stride reported
+/// before a robot has walked.
+pub const FULL_STRIDE_WALK: u8 = 3;
+
 fn full_stride_walk() -> u8 {
-    3
+    FULL_STRIDE_WALK
 }
 
 impl HelperReport for SlamReport {
