@@ -67,7 +67,7 @@ fn no_generators_run_is_taken_for_a_robot_held_in_place() {
 
 /// The same over the seeds EXPERIMENTS.md 7 reports (13 500 runs):
 /// `cargo test --release -p shoal-diagnose-lab --test contact -- --ignored`
-/// (4 min).
+/// (6.3 min).
 #[test]
 #[ignore = "an experiment: four minutes of generating runs"]
 fn no_generators_run_over_36_seeds_is_taken_for_a_robot_held_in_place() {

@@ -26,6 +26,12 @@
 //!   stop from motion counts: a robot that does not start (a deadband, a
 //!   latency, an acceleration limit) or slows as it goes (slip, a fading
 //!   battery) is physics of its body, and is fitted.
+//! - Stuck: a robot that stays where it is over a long drive at speeds it
+//!   makes elsewhere in the recording, while it still turns as commanded
+//!   (a robot pushing into its neighbours, walking and turning by turns,
+//!   held from its first stride). Its turning says the body answers its
+//!   commands; its speed, made elsewhere, says no deadband holds it; and a
+//!   battery that fades to nothing stops the turns too.
 
 use serde::Serialize;
 
@@ -154,6 +160,20 @@ const HELD_NOISE_CAP_M: f64 = 0.01;
 /// that slows to a crawl and stops may be meeting its deadband.
 const HELD_MOVING_SHARE: f64 = 0.5;
 const HELD_SPEED_RATIO: f64 = 2.0;
+/// Stuck: within `HELD_SHARE * HELD_MIN_TRAVEL_M` of where it stood (plus
+/// the tracker's noise) over at least this much commanded travel and
+/// driving time, far beyond what a latency, a lag or an acceleration limit
+/// holds a robot still for...
+const STUCK_MIN_TRAVEL_M: f64 = 1.0;
+const STUCK_MIN_DRIVING_S: f64 = 2.0;
+/// ... commanded to turn and turning, at least this much...
+const STUCK_MIN_TURN_RAD: f64 = 0.3;
+/// ... at a speed (while driving) no less than the slowest at which it made
+/// `HELD_MOVING_SHARE` of its commanded travel over `MADE_WINDOW_S`
+/// somewhere, over this ratio: a deadband that lets the robot make half of
+/// a speed lets it move at two thirds of that speed.
+const STUCK_SPEED_RATIO: f64 = 1.5;
+const MADE_WINDOW_S: f64 = 1.0;
 
 /// The recording with its glitches set aside, and the glitches.
 pub fn set_aside(recording: &Recording) -> (Recording, Vec<Glitch>) {
@@ -166,7 +186,9 @@ pub fn set_aside(recording: &Recording) -> (Recording, Vec<Glitch>) {
         glitches.push(stall);
     }
     glitches.extend(pose_gaps(&recording.poses));
-    for held in held_in_place(&recording.commands, &poses) {
+    let mut held = held_in_place(&recording.commands, &poses);
+    held.extend(stuck(&recording.commands, &poses));
+    for held in merged(held, &recording.commands, &poses) {
         poses = without_span(&poses, held.t_start, held.t_end);
         glitches.push(held);
     }
@@ -377,29 +399,45 @@ fn command_stalls(recording: &Recording) -> Vec<Glitch> {
     out
 }
 
-/// The commanded travel from `a` to `b` (metres, signed), each command held
-/// until the next, nothing before the first; and for how long of it the
-/// command drove (seconds).
-fn commanded(commands: &Commands, a: f64, b: f64) -> (f64, f64) {
+/// What the commands asked from `a` to `b`, each command held until the
+/// next, nothing before the first.
+#[derive(Clone, Copy, Default)]
+struct Commanded {
+    /// Travel, metres, signed.
+    travel: f64,
+    /// Travel, metres, each way counted.
+    travel_abs: f64,
+    /// For how long the command drove, seconds.
+    driving: f64,
+    /// Turn, radians, each way counted.
+    turn_abs: f64,
+}
+
+fn commanded(commands: &Commands, a: f64, b: f64) -> Commanded {
     let t = &commands.t;
     let first = t.partition_point(|&s| s <= a).saturating_sub(1);
-    let (mut travel, mut driving) = (0.0, 0.0);
+    let mut asked = Commanded::default();
     for k in first..t.len() {
         let from = t[k].max(a);
         let to = t.get(k + 1).copied().unwrap_or(f64::INFINITY).min(b);
-        if to > from && commands.v[k] != 0.0 {
-            travel += commands.v[k] * (to - from);
-            driving += to - from;
+        if to > from {
+            let dt = to - from;
+            if commands.v[k] != 0.0 {
+                asked.travel += commands.v[k] * dt;
+                asked.travel_abs += commands.v[k].abs() * dt;
+                asked.driving += dt;
+            }
+            asked.turn_abs += commands.omega[k].abs() * dt;
         }
         if t[k] >= b {
             break;
         }
     }
-    (travel, driving)
+    asked
 }
 
 fn commanded_travel(commands: &Commands, a: f64, b: f64) -> f64 {
-    commanded(commands, a, b).0
+    commanded(commands, a, b).travel
 }
 
 /// Stretches in which the robot, driving as commanded, stopped dead while
@@ -464,7 +502,11 @@ fn held_in_place(commands: &Commands, poses: &Poses) -> Vec<Glitch> {
             // place drives part of the time), at least half the stretch's
             // least travel, and the robot went at least half as far.
             let before = t0 - (t1 - t0);
-            let (travel_before, driving_before) = commanded(commands, before, t0);
+            let Commanded {
+                travel: travel_before,
+                driving: driving_before,
+                ..
+            } = commanded(commands, before, t0);
             let speed_ratio =
                 (travel_before / driving_before.max(f64::MIN_POSITIVE)) / (travel / (t1 - t0));
             travel_before * travel.signum() >= 0.5 * HELD_MIN_TRAVEL_M
@@ -485,6 +527,217 @@ fn held_in_place(commands: &Commands, poses: &Poses) -> Vec<Glitch> {
         // A later start within the same still stretch has a shorter
         // stretch and a still robot before it: no better.
         i = end.max(i + 1);
+    }
+    out
+}
+
+/// The slowest commanded speed (while driving) at which the robot made at
+/// least `HELD_MOVING_SHARE` of its commanded travel over `MADE_WINDOW_S`;
+/// `None` if it never did.
+fn slowest_speed_made(commands: &Commands, poses: &Poses) -> Option<f64> {
+    let mut slowest: Option<f64> = None;
+    let mut j = 0;
+    for i in 0..poses.len() {
+        j = j.max(i);
+        while j < poses.len() && poses.t[j] < poses.t[i] + MADE_WINDOW_S {
+            j += 1;
+        }
+        if j == poses.len() {
+            break;
+        }
+        if (i + 1..=j).any(|k| poses.t[k] - poses.t[k - 1] > MAX_OBSERVATION_GAP_S) {
+            continue;
+        }
+        let asked = commanded(commands, poses.t[i], poses.t[j]);
+        let moved = (poses.x[j] - poses.x[i]).hypot(poses.y[j] - poses.y[i]);
+        if asked.travel.abs() >= 0.5 * HELD_MIN_TRAVEL_M
+            && moved >= HELD_MOVING_SHARE * asked.travel.abs()
+        {
+            let speed = asked.travel.abs() / asked.driving;
+            slowest = Some(slowest.map_or(speed, |s| s.min(speed)));
+        }
+    }
+    slowest
+}
+
+/// Stretches in which the robot, turning as commanded, stayed where it was
+/// over a long drive at speeds it makes elsewhere (see the module's notes
+/// and the `STUCK_` constants). Each still stretch is the longest run of
+/// poses whose bounding box fits within the tolerance.
+fn stuck(commands: &Commands, poses: &Poses) -> Vec<Glitch> {
+    let n = poses.len();
+    let Some(slowest_made) = slowest_speed_made(commands, poses) else {
+        return Vec::new();
+    };
+    let noise = (HELD_NOISE_SIGMAS * frame_noise(&poses.x).hypot(frame_noise(&poses.y)))
+        .min(HELD_NOISE_CAP_M);
+    let tolerance = HELD_SHARE * HELD_MIN_TRAVEL_M + noise;
+    // What the commands asked up to each pose, to judge any stretch at once.
+    let mut asked_to = vec![Commanded::default(); n];
+    for j in 1..n {
+        let step = commanded(commands, poses.t[j - 1], poses.t[j]);
+        let before = asked_to[j - 1];
+        asked_to[j] = Commanded {
+            travel: before.travel + step.travel,
+            travel_abs: before.travel_abs + step.travel_abs,
+            driving: before.driving + step.driving,
+            turn_abs: before.turn_abs + step.turn_abs,
+        };
+    }
+    let heading = unwrapped(&poses.theta);
+    let judge = |a: usize, b: usize| -> Option<Glitch> {
+        let travel = asked_to[b].travel_abs - asked_to[a].travel_abs;
+        let driving = asked_to[b].driving - asked_to[a].driving;
+        let turn = asked_to[b].turn_abs - asked_to[a].turn_abs;
+        let span = &heading[a..=b];
+        let turned = span.iter().copied().fold(f64::NEG_INFINITY, f64::max)
+            - span.iter().copied().fold(f64::INFINITY, f64::min);
+        let held = travel >= STUCK_MIN_TRAVEL_M
+            && driving >= STUCK_MIN_DRIVING_S
+            && travel / driving >= slowest_made / STUCK_SPEED_RATIO
+            && turn >= STUCK_MIN_TURN_RAD
+            && turned >= STUCK_MIN_TURN_RAD;
+        if !held {
+            return None;
+        }
+        // From the first pose after which it was commanded to drive, to
+        // the last before which it was: standing and turning around the
+        // drive is no contact.
+        let first = (a..b).find(|&k| asked_to[k + 1].travel_abs > asked_to[k].travel_abs)?;
+        let last = (first + 1..=b)
+            .rev()
+            .find(|&k| asked_to[k].travel_abs > asked_to[k - 1].travel_abs)?;
+        Some(Glitch {
+            kind: GlitchKind::HeldInPlace,
+            t_start: poses.t[first],
+            t_end: poses.t[last],
+            frames: last - first + 1,
+            size_m: asked_to[last].travel_abs - asked_to[first].travel_abs,
+        })
+    };
+    // The longest still stretch ending at each pose, by a sliding window
+    // with its bounding box kept in monotonic queues; a stretch is judged
+    // when the next pose would shorten it from the start.
+    let mut out = Vec::new();
+    let mut box_ = StillBox::default();
+    let mut start = 0;
+    for end in 0..n {
+        let gap = end > 0 && poses.t[end] - poses.t[end - 1] > MAX_OBSERVATION_GAP_S;
+        box_.push(end, poses);
+        let new_start = if gap {
+            end
+        } else {
+            let mut s = start;
+            while box_.diagonal(s, poses) > tolerance {
+                s += 1;
+            }
+            s
+        };
+        if new_start > start && end > start + 1 {
+            out.extend(judge(start, end - 1));
+        }
+        start = new_start;
+        box_.forget_before(start);
+    }
+    if n > start + 1 {
+        out.extend(judge(start, n - 1));
+    }
+    out
+}
+
+/// Monotonic queues of pose indices over a sliding window, for its bounding
+/// box.
+#[derive(Default)]
+struct StillBox {
+    x_min: std::collections::VecDeque<usize>,
+    x_max: std::collections::VecDeque<usize>,
+    y_min: std::collections::VecDeque<usize>,
+    y_max: std::collections::VecDeque<usize>,
+}
+
+impl StillBox {
+    fn push(&mut self, k: usize, poses: &Poses) {
+        let keep = |q: &mut std::collections::VecDeque<usize>, v: &[f64], below: bool| {
+            while q
+                .back()
+                .is_some_and(|&j| if below { v[j] >= v[k] } else { v[j] <= v[k] })
+            {
+                q.pop_back();
+            }
+            q.push_back(k);
+        };
+        keep(&mut self.x_min, &poses.x, true);
+        keep(&mut self.x_max, &poses.x, false);
+        keep(&mut self.y_min, &poses.y, true);
+        keep(&mut self.y_max, &poses.y, false);
+    }
+
+    fn forget_before(&mut self, start: usize) {
+        for q in [
+            &mut self.x_min,
+            &mut self.x_max,
+            &mut self.y_min,
+            &mut self.y_max,
+        ] {
+            while q.front().is_some_and(|&j| j < start) {
+                q.pop_front();
+            }
+        }
+    }
+
+    /// The box's diagonal over the window from `start`.
+    fn diagonal(&mut self, start: usize, poses: &Poses) -> f64 {
+        self.forget_before(start);
+        let first = |q: &std::collections::VecDeque<usize>, v: &[f64]| q.front().map(|&j| v[j]);
+        match (
+            first(&self.x_min, &poses.x),
+            first(&self.x_max, &poses.x),
+            first(&self.y_min, &poses.y),
+            first(&self.y_max, &poses.y),
+        ) {
+            (Some(x0), Some(x1), Some(y0), Some(y1)) => (x1 - x0).hypot(y1 - y0),
+            _ => 0.0,
+        }
+    }
+}
+
+/// Headings without their wraps, so that a range measures how far it turned.
+fn unwrapped(theta: &[f64]) -> Vec<f64> {
+    let mut out = Vec::with_capacity(theta.len());
+    for (k, &th) in theta.iter().enumerate() {
+        out.push(match k {
+            0 => th,
+            _ => {
+                let last = out[k - 1];
+                let step = (th - theta[k - 1] + std::f64::consts::PI)
+                    .rem_euclid(std::f64::consts::TAU)
+                    - std::f64::consts::PI;
+                last + step
+            }
+        });
+    }
+    out
+}
+
+/// Held stretches found by either rule, overlapping ones made one.
+fn merged(mut held: Vec<Glitch>, commands: &Commands, poses: &Poses) -> Vec<Glitch> {
+    held.sort_by(|a, b| a.t_start.total_cmp(&b.t_start));
+    let mut out: Vec<Glitch> = Vec::new();
+    for g in held {
+        match out.last_mut() {
+            Some(last) if g.t_start <= last.t_end => last.t_end = last.t_end.max(g.t_end),
+            _ => out.push(g),
+        }
+    }
+    for g in &mut out {
+        g.frames = poses
+            .t
+            .iter()
+            .filter(|t| (g.t_start..=g.t_end).contains(*t))
+            .count();
+        g.size_m = g
+            .size_m
+            .max(commanded(commands, g.t_start, g.t_end).travel_abs);
     }
     out
 }
@@ -590,6 +843,61 @@ mod tests {
         assert!((stops[0].t_start - 30.0).abs() < 0.05, "{stops:?}");
     }
 
+    /// A legged robot walking (0.4 s at `speed(t)` m/s) and turning in
+    /// place (0.4 s at 1 rad/s) by turns, commands at 20 Hz, observed at 67
+    /// Hz with 1 mm noise; where `goes(t)` is false it still turns but its
+    /// strides take it nowhere.
+    fn walking_and_turning(
+        seconds: f64,
+        speed: impl Fn(f64) -> f64,
+        goes: impl Fn(f64) -> bool,
+    ) -> Recording {
+        let walking = |t: f64| (t / 0.4) as i64 % 2 == 0;
+        let mut commands = Commands::default();
+        let mut k = 0.0;
+        while k <= seconds {
+            if walking(k) {
+                commands.hold(k, speed(k), 0.0);
+            } else {
+                commands.hold(k, 0.0, 1.0);
+            }
+            k += 0.05;
+        }
+        let mut poses = Poses::default();
+        let dt = 1.0 / 67.0;
+        let (mut x, mut y, mut theta) = (0.0, 0.0, 0.0_f64);
+        for i in 0..(seconds / dt) as usize {
+            let t = i as f64 * dt;
+            let noise = ((i * 7919) % 13) as f64 / 13.0 - 0.5;
+            poses.push(t, x + 0.002 * noise, y + 0.001 * noise, theta);
+            if walking(t) {
+                if goes(t) {
+                    x += speed(t) * theta.cos() * dt;
+                    y += speed(t) * theta.sin() * dt;
+                }
+            } else {
+                theta += dt;
+            }
+        }
+        Recording::of(commands, poses)
+    }
+
+    #[test]
+    fn a_robot_that_turns_but_goes_nowhere_for_long_is_set_aside_however_it_got_there() {
+        // Held from 30 s to the end, each stride after a turn in place: no
+        // free driving just before any of its stops.
+        let held = held_stops(&walking_and_turning(60.0, |_| 0.3, |t| t < 30.0));
+        assert_eq!(held.len(), 1, "{held:?}");
+        assert!(
+            (held[0].t_start - 30.0).abs() < 0.5 && held[0].t_end > 59.0,
+            "{held:?}"
+        );
+        // Half of 30 s at 0.3 m/s.
+        assert!((held[0].size_m - 4.5).abs() < 0.3, "{held:?}");
+        // Walking and turning freely, nothing is set aside.
+        assert!(held_stops(&walking_and_turning(60.0, |_| 0.3, |_| true)).is_empty());
+    }
+
     #[test]
     fn a_robot_that_starts_late_crawls_or_fades_is_fitted_not_set_aside() {
         // From rest, a command met 0.6 s late (a latency, an actuator lag).
@@ -610,6 +918,16 @@ mod tests {
         // A battery that fades to nothing under a steady command.
         let fading = driven(60.0, |_| 0.3, |t| 0.3 * (1.0 - t / 40.0).max(0.0));
         assert!(held_stops(&fading).is_empty(), "{:?}", held_stops(&fading));
+        // Walking and turning, commanded 0.1 m/s from 20 s to 60 s (2 m),
+        // below its deadband: it turns, but the slowest speed it made is
+        // 0.3 m/s.
+        let slow = |t: f64| (20.0..60.0).contains(&t);
+        let deadband = walking_and_turning(60.0, |t| if slow(t) { 0.1 } else { 0.3 }, |t| !slow(t));
+        assert!(
+            held_stops(&deadband).is_empty(),
+            "{:?}",
+            held_stops(&deadband)
+        );
         // A command that jumps from slow to fast, met by an acceleration
         // limit after a stretch the noise held still.
         let jump = driven(

@@ -432,7 +432,7 @@ fn robots_held_by_walls_are_set_aside_and_the_floor_named() {
 /// horizon, so the sand must be confirmed on one command period; and over
 /// the whole run its mismatch is diluted by the carpet before, so it must be
 /// tried over the part of the run after the robot stepped on it. Measured
-/// on this recording (`--slam none`, deterministic): 5 robots name it; 1
+/// on this recording (`--slam none`, deterministic): 6 robots name it; 1
 /// when nothing was tried over part of the run unless located in time
 /// first, none when the feedback stage also scored each model with its
 /// own noise (EXPERIMENTS.md 7, "The demo's sand").
@@ -493,7 +493,8 @@ fn the_demos_sand_is_named_for_robots_whose_commands_change_every_step() {
         );
     }
     // Several robots walk into each other at the goal and do not move
-    // whatever they are commanded: those cannot show the sand.
+    // whatever they are commanded: that is set aside as contact, and what
+    // is left of them is too short to show the sand.
     assert!(
         named.len() >= 4,
         "the sand is named and confirmed for robots {named:?} only"
