@@ -11,8 +11,11 @@ pub const POSE_TYPES: [&str; 5] = [
     "geometry_msgs/msg/TransformStamped",
     "geometry_msgs/msg/PoseWithCovarianceStamped",
     "nav_msgs/msg/Odometry",
-    "tf2_msgs/msg/TFMessage",
+    TF_TYPE,
 ];
+/// Poses as transforms between named frames (`/tf`): the robot's is chosen
+/// by its child frame.
+pub const TF_TYPE: &str = "tf2_msgs/msg/TFMessage";
 
 /// A type's name as ROS 2 spells it, `package/msg/Type`. Writers outside
 /// ROS (the `mcap` Python examples, `mcap-ros2-support`'s own README)
@@ -137,7 +140,7 @@ pub fn decode_poses(
             let m = decode::<msg::TransformStamped>(data)?;
             Ok(vec![transformed(&m, log_time)?])
         }
-        "tf2_msgs/msg/TFMessage" => {
+        TF_TYPE => {
             let frame = tf
                 .child
                 .ok_or("a TF topic needs --frame CHILD: the robot's frame (e.g. base_link)")?;
@@ -155,6 +158,16 @@ pub fn decode_poses(
             POSE_TYPES.join(", ")
         )),
     }
+}
+
+/// The (parent, child) frames of each transform a TF message holds, as
+/// written (a leading `/` kept).
+pub fn tf_frames(data: &[u8]) -> Result<Vec<(String, String)>, String> {
+    Ok(decode::<msg::TfMessage>(data)?
+        .transforms
+        .into_iter()
+        .map(|t| (t.header.frame_id, t.child_frame_id))
+        .collect())
 }
 
 /// The pose a stamped transform gives its child frame.

@@ -1,6 +1,8 @@
 //! A bag read for diagnosis: velocity commands from one topic, observed
 //! poses from another, both on the one clock `clock::choose` picks.
 
+use std::collections::BTreeMap;
+
 use crate::BagError;
 use crate::clock::{ClockChoice, LogToClock, StampsPreference, Timing};
 use crate::ros::{self, Stamped};
@@ -46,6 +48,9 @@ pub fn read_run(
     let mut poses: Vec<Stamped<(f64, f64, f64)>> = Vec::new();
     let mut clock: Vec<(i64, i64)> = Vec::new();
     let mut seen = [0_u64; 2];
+    // A TF topic's transforms, (parent, child) -> messages holding it: what
+    // the user may choose from when the robot's frame is not found.
+    let mut tf_frames: BTreeMap<(String, String), u64> = BTreeMap::new();
     let read = bag.messages(Some(&wanted))?;
     for message in read.found {
         let RawMessage {
@@ -85,13 +90,23 @@ pub fn read_run(
         }
         if index == 0 {
             commands.push(ros::decode_command(&message_type, &data, log_time_ns).map_err(at)?);
+        } else if message_type == ros::TF_TYPE {
+            for pair in ros::tf_frames(&data).map_err(at)? {
+                *tf_frames.entry(pair).or_default() += 1;
+            }
+            if selection.tf.child.is_some() {
+                poses.extend(
+                    ros::decode_poses(&message_type, &data, log_time_ns, selection.tf)
+                        .map_err(at)?,
+                );
+            }
         } else {
             poses.extend(
                 ros::decode_poses(&message_type, &data, log_time_ns, selection.tf).map_err(at)?,
             );
         }
     }
-    check_found(bag, selection, seen, poses.is_empty())?;
+    check_found(bag, selection, seen, poses.is_empty(), &tf_frames)?;
     let (choice, map) = crate::clock::choose(&times(&commands), &times(&poses), &clock, preference)
         .map_err(|e| BagError::new(&bag.path, e))?;
     let commands = on_clock(commands, choice.commands, map.as_ref());
@@ -120,6 +135,7 @@ fn check_found(
     selection: &Selection,
     seen: [u64; 2],
     no_poses: bool,
+    tf_frames: &BTreeMap<(String, String), u64>,
 ) -> Result<(), BagError> {
     for (index, topic, types) in [
         (0, selection.commands_topic, &ros::COMMAND_TYPES[..]),
@@ -138,17 +154,34 @@ fn check_found(
         }
     }
     if no_poses {
-        return Err(BagError::new(
-            &bag.path,
-            format!(
-                "topic {} has no transform to child frame {}{}",
-                selection.poses_topic,
-                selection.tf.child.unwrap_or("?"),
+        let held = tf_frames
+            .iter()
+            .map(|((parent, child), n)| format!("{parent} -> {child} ({n} messages)"))
+            .collect::<Vec<_>>()
+            .join(", ");
+        let what = match selection.tf.child {
+            None => "is a TF topic: choose the robot's frame with --frame CHILD (and \
+                     --parent PARENT where several parents hold it)"
+                .to_owned(),
+            Some(child) => format!(
+                "has no transform to child frame {child}{}",
                 selection
                     .tf
                     .parent
                     .map(|p| format!(" from parent {p}"))
                     .unwrap_or_default()
+            ),
+        };
+        return Err(BagError::new(
+            &bag.path,
+            format!(
+                "topic {} {what}; it holds {}",
+                selection.poses_topic,
+                if held.is_empty() {
+                    "no transforms"
+                } else {
+                    &held
+                }
             ),
         ));
     }

@@ -444,7 +444,7 @@ fn bad_bags_are_refused_naming_the_file_topic_and_message() {
         "--frame",
         "base_link",
     ];
-    let cases: [(&Path, &[&str], &str); 5] = [
+    let cases: [(&Path, &[&str], &str); 6] = [
         (
             &csv,
             &topics,
@@ -466,7 +466,19 @@ fn bad_bags_are_refused_naming_the_file_topic_and_message() {
         (
             &bag,
             &["--commands-topic", "/cmd_vel", "--poses-topic", "/tf"],
-            "tf.mcap: topic /tf, message 1 (tf2_msgs/msg/TFMessage): a TF topic needs --frame",
+            "tf.mcap: topic /tf is a TF topic: choose the robot's frame with --frame CHILD",
+        ),
+        (
+            &bag,
+            &[
+                "--commands-topic",
+                "/cmd_vel",
+                "--poses-topic",
+                "/tf",
+                "--frame",
+                "base_footprint",
+            ],
+            "tf.mcap: topic /tf has no transform to child frame base_footprint; it holds base_link -> camera (",
         ),
         (
             &bag,
