@@ -201,16 +201,16 @@ fn csv_fields(
     let header_line = line_of(header.position()).unwrap_or(1);
     let mut positions = Vec::with_capacity(columns.len());
     for column in columns {
-        let Some(p) = header.iter().position(|n| n == *column) else {
-            return Err(error(
+        let p = column_position(&header, column).map_err(|message| {
+            error(
                 Some(header_line),
                 format!(
-                    "missing column `{column}`: the header must name {} (it names {})",
+                    "{message}: the header must name {} (it names {})",
                     columns.join(", "),
                     header.iter().collect::<Vec<_>>().join(", ")
                 ),
-            ));
-        };
+            )
+        })?;
         positions.push(p);
     }
     let mut rows = Vec::new();
@@ -229,6 +229,57 @@ fn csv_fields(
         rows.push((line, fields));
     }
     Ok(rows)
+}
+
+/// Other names tools give a column: PlotJuggler's `__time` and
+/// `/cmd_vel/linear/x`, a ROS message's flattened fields
+/// (`twist.angular.z`, `pose.position.x`), `yaw`. Compared with `.`, `_`
+/// and `/` taken as one separator and case ignored: a name with a separator
+/// matches the end of a header's name, a single word the whole of it.
+fn aliases(column: &str) -> &'static [&'static str] {
+    match column {
+        "t" => &["time", "timestamp", "stamp", "time/s", "t/s"],
+        "v" => &["linear/x", "vx", "v/x"],
+        "omega" => &["angular/z", "wz", "w/z", "yaw/rate"],
+        "x" => &["position/x", "translation/x"],
+        "y" => &["position/y", "translation/y"],
+        "theta" => &["yaw", "heading"],
+        _ => &[],
+    }
+}
+
+/// Where `column` is in `header`: by its own name, else by one of its
+/// aliases if exactly one header name has one.
+fn column_position(header: &csv::StringRecord, column: &str) -> Result<usize, String> {
+    if let Some(p) = header.iter().position(|n| n == column) {
+        return Ok(p);
+    }
+    let separated = |name: &str| name.to_lowercase().replace(['.', '_'], "/");
+    let matches = |name: &str| {
+        let name = separated(name);
+        let name = name.trim_start_matches('/');
+        aliases(column).iter().any(|alias| {
+            name == *alias || (alias.contains('/') && name.ends_with(&format!("/{alias}")))
+        })
+    };
+    let found: Vec<usize> = header
+        .iter()
+        .enumerate()
+        .filter(|(_, name)| matches(name))
+        .map(|(p, _)| p)
+        .collect();
+    match found[..] {
+        [p] => Ok(p),
+        [] => Err(format!("missing column `{column}`")),
+        _ => Err(format!(
+            "column `{column}` is ambiguous: {} could each be it",
+            found
+                .iter()
+                .filter_map(|&p| header.get(p))
+                .collect::<Vec<_>>()
+                .join(", ")
+        )),
+    }
 }
 
 /// The longest run read: the command grid is sized from the time span, so a
@@ -285,6 +336,44 @@ mod tests {
         assert_eq!(commands.t, vec![0.0, 1.0]);
         assert_eq!(commands.v, vec![0.2, 0.3]);
         assert_eq!(commands.omega, vec![0.1, 0.2]);
+    }
+
+    #[test]
+    fn columns_are_found_by_the_names_other_tools_give_them() {
+        // PlotJuggler's CSV export of /cmd_vel.
+        let commands = commands_csv(
+            "__time,/cmd_vel/linear/x,/cmd_vel/linear/y,/cmd_vel/angular/z\n0,0.2,0,0.1\n1,0.3,0,0.2\n",
+            "c.csv",
+        )
+        .expect("PlotJuggler");
+        assert_eq!(commands.v, vec![0.2, 0.3]);
+        assert_eq!(commands.omega, vec![0.1, 0.2]);
+        // A message's flattened fields, and a pose's yaw.
+        let commands = commands_csv(
+            "timestamp,twist.linear.x,twist.angular.z\n0,0.2,0.1\n1,0.2,0.1\n",
+            "c.csv",
+        )
+        .expect("flattened");
+        assert_eq!((commands.v[0], commands.omega[0]), (0.2, 0.1));
+        let poses = poses_csv(
+            "time,pose.position.x,pose.position.y,yaw\n0,1,2,0.5\n1,1.1,2,0.5\n",
+            "p.csv",
+        )
+        .expect("flattened pose");
+        assert_eq!((poses.x[0], poses.y[0], poses.theta[0]), (1.0, 2.0, 0.5));
+        // Two names that could each be one column: refused, both named.
+        let error = commands_csv(
+            "t,cmd.linear.x,odom.linear.x,omega\n0,1,1,0\n1,1,1,0\n",
+            "c.csv",
+        )
+        .expect_err("ambiguous");
+        assert_eq!(error.line, Some(1));
+        assert!(
+            error
+                .to_string()
+                .contains("column `v` is ambiguous: cmd.linear.x, odom.linear.x"),
+            "{error}"
+        );
     }
 
     #[test]
