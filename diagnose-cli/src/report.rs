@@ -270,8 +270,16 @@ fn set_aside_text(glitches: &[Glitch]) -> Option<String> {
             if of.len() > 5 { ", ..." } else { "" }
         ));
     }
+    // Stretches of different kinds may overlap: the time is their union.
+    let mut spans: Vec<(f64, f64)> = glitches.iter().map(|g| (g.t_start, g.t_end)).collect();
+    spans.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (mut total, mut reached) = (0.0, f64::NEG_INFINITY);
+    for (start, end) in spans {
+        total += (end - start.max(reached)).max(0.0);
+        reached = reached.max(end);
+    }
     Some(format!(
-        "Set aside before fitting, as not the body's own motion: {}.",
+        "Set aside before fitting, as not the body's own motion: {}; {total:.1} s in all.",
         parts.join("; ")
     ))
 }
@@ -412,4 +420,32 @@ pub fn experiment_table(out: &mut dyn std::io::Write, rows: &[Row]) -> std::io::
         )?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn glitch(kind: GlitchKind, t_start: f64, t_end: f64) -> Glitch {
+        Glitch {
+            kind,
+            t_start,
+            t_end,
+            frames: 10,
+            size_m: 0.5,
+        }
+    }
+
+    #[test]
+    fn the_time_set_aside_counts_overlapping_stretches_once() {
+        let text = set_aside_text(&[
+            glitch(GlitchKind::PoseGap, 10.0, 14.0),
+            glitch(GlitchKind::HeldInPlace, 12.0, 20.0),
+            glitch(GlitchKind::HeldInPlace, 30.0, 31.5),
+        ])
+        .expect("a sentence");
+        assert!(text.ends_with("; 11.5 s in all."), "{text}");
+        assert!(text.contains("2 stops while driving"), "{text}");
+        assert!(set_aside_text(&[]).is_none());
+    }
 }
