@@ -130,6 +130,9 @@ pub fn read_run(
     })
 }
 
+/// How many of a TF topic's transforms an error lists.
+const TF_FRAMES_LISTED: usize = 20;
+
 fn check_found(
     bag: &Bag,
     selection: &Selection,
@@ -154,11 +157,18 @@ fn check_found(
         }
     }
     if no_poses {
-        let held = tf_frames
+        // The transforms held most first; a swarm's /tf can hold hundreds.
+        let mut by_count: Vec<_> = tf_frames.iter().collect();
+        by_count.sort_by(|a, b| b.1.cmp(a.1));
+        let mut held = by_count
             .iter()
+            .take(TF_FRAMES_LISTED)
             .map(|((parent, child), n)| format!("{parent} -> {child} ({n} messages)"))
             .collect::<Vec<_>>()
             .join(", ");
+        if by_count.len() > TF_FRAMES_LISTED {
+            held += &format!(" and {} more", by_count.len() - TF_FRAMES_LISTED);
+        }
         let what = match selection.tf.child {
             None => "is a TF topic: choose the robot's frame with --frame CHILD (and \
                      --parent PARENT where several parents hold it)"
