@@ -2,7 +2,7 @@
 
 use shoal_diagnose::Diagnosis;
 use shoal_diagnose::diagnosis::FoundEffect;
-use shoal_diagnose::glitches::{Glitch, GlitchKind};
+use shoal_diagnose::glitches::{Glitch, GlitchKind, seconds_set_aside};
 use shoal_diagnose::locate::Located;
 use shoal_diagnose_lab::experiment::Row;
 
@@ -270,17 +270,10 @@ fn set_aside_text(glitches: &[Glitch]) -> Option<String> {
             if of.len() > 5 { ", ..." } else { "" }
         ));
     }
-    // Stretches of different kinds may overlap: the time is their union.
-    let mut spans: Vec<(f64, f64)> = glitches.iter().map(|g| (g.t_start, g.t_end)).collect();
-    spans.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let (mut total, mut reached) = (0.0, f64::NEG_INFINITY);
-    for (start, end) in spans {
-        total += (end - start.max(reached)).max(0.0);
-        reached = reached.max(end);
-    }
     Some(format!(
-        "Set aside before fitting, as not the body's own motion: {}; {total:.1} s in all.",
-        parts.join("; ")
+        "Set aside before fitting, as not the body's own motion: {}; {:.1} s in all.",
+        parts.join("; "),
+        seconds_set_aside(glitches)
     ))
 }
 

@@ -69,7 +69,7 @@ fn no_generators_run_is_taken_for_a_robot_held_in_place() {
 /// `cargo test --release -p shoal-diagnose-lab --test contact -- --ignored`
 /// (6.3 min).
 #[test]
-#[ignore = "an experiment: four minutes of generating runs"]
+#[ignore = "an experiment: six minutes of generating runs"]
 fn no_generators_run_over_36_seeds_is_taken_for_a_robot_held_in_place() {
     let seeds = (1000..1003).chain(2000..2030).chain(5000..5003);
     let (held, runs) = stops_in_generators_runs(seeds);

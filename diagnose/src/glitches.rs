@@ -33,6 +33,8 @@
 //!   commands; its speed, made elsewhere, says no deadband holds it; and a
 //!   battery that fades to nothing stops the turns too.
 
+use std::collections::VecDeque;
+
 use serde::Serialize;
 
 use crate::recording::{Commands, MAX_OBSERVATION_GAP_S, Poses, Recording};
@@ -649,15 +651,15 @@ fn stuck(commands: &Commands, poses: &Poses) -> Vec<Glitch> {
 /// box.
 #[derive(Default)]
 struct StillBox {
-    x_min: std::collections::VecDeque<usize>,
-    x_max: std::collections::VecDeque<usize>,
-    y_min: std::collections::VecDeque<usize>,
-    y_max: std::collections::VecDeque<usize>,
+    x_min: VecDeque<usize>,
+    x_max: VecDeque<usize>,
+    y_min: VecDeque<usize>,
+    y_max: VecDeque<usize>,
 }
 
 impl StillBox {
     fn push(&mut self, k: usize, poses: &Poses) {
-        let keep = |q: &mut std::collections::VecDeque<usize>, v: &[f64], below: bool| {
+        let keep = |q: &mut VecDeque<usize>, v: &[f64], below: bool| {
             while q
                 .back()
                 .is_some_and(|&j| if below { v[j] >= v[k] } else { v[j] <= v[k] })
@@ -688,7 +690,7 @@ impl StillBox {
     /// The box's diagonal over the window from `start`.
     fn diagonal(&mut self, start: usize, poses: &Poses) -> f64 {
         self.forget_before(start);
-        let first = |q: &std::collections::VecDeque<usize>, v: &[f64]| q.front().map(|&j| v[j]);
+        let first = |q: &VecDeque<usize>, v: &[f64]| q.front().map(|&j| v[j]);
         match (
             first(&self.x_min, &poses.x),
             first(&self.x_max, &poses.x),
@@ -719,15 +721,40 @@ fn unwrapped(theta: &[f64]) -> Vec<f64> {
     out
 }
 
-/// Held stretches found by either rule, overlapping ones made one.
-fn merged(mut held: Vec<Glitch>, commands: &Commands, poses: &Poses) -> Vec<Glitch> {
-    held.sort_by(|a, b| a.t_start.total_cmp(&b.t_start));
-    let mut out: Vec<Glitch> = Vec::new();
-    for g in held {
+/// Time spans, overlapping ones joined, in time order.
+fn spans_joined(spans: impl IntoIterator<Item = (f64, f64)>) -> Vec<(f64, f64)> {
+    let mut spans: Vec<(f64, f64)> = spans.into_iter().collect();
+    spans.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut out: Vec<(f64, f64)> = Vec::new();
+    for (start, end) in spans {
         match out.last_mut() {
-            Some(last) if g.t_start <= last.t_end => last.t_end = last.t_end.max(g.t_end),
-            _ => out.push(g),
+            Some(last) if start <= last.1 => last.1 = last.1.max(end),
+            _ => out.push((start, end)),
         }
+    }
+    out
+}
+
+/// How long the glitches set aside in all, seconds: stretches of
+/// different kinds may overlap, and are counted once.
+pub fn seconds_set_aside(glitches: &[Glitch]) -> f64 {
+    spans_joined(glitches.iter().map(|g| (g.t_start, g.t_end)))
+        .iter()
+        .map(|(start, end)| end - start)
+        .sum()
+}
+
+/// Held stretches found by either rule, overlapping ones made one.
+fn merged(held: Vec<Glitch>, commands: &Commands, poses: &Poses) -> Vec<Glitch> {
+    let mut out: Vec<Glitch> = Vec::new();
+    for (start, end) in spans_joined(held.iter().map(|g| (g.t_start, g.t_end))) {
+        let Some(first) = held.iter().find(|g| g.t_start == start) else {
+            continue;
+        };
+        out.push(Glitch {
+            t_end: end,
+            ..first.clone()
+        });
     }
     for g in &mut out {
         g.frames = poses
