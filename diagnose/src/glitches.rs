@@ -537,17 +537,26 @@ fn held_in_place(commands: &Commands, poses: &Poses) -> Vec<Glitch> {
 /// least `HELD_MOVING_SHARE` of its commanded travel over `MADE_WINDOW_S`;
 /// `None` if it never did.
 fn slowest_speed_made(commands: &Commands, poses: &Poses) -> Option<f64> {
+    let gap_before = |k: usize| poses.t[k] - poses.t[k - 1] > MAX_OBSERVATION_GAP_S;
     let mut slowest: Option<f64> = None;
-    let mut j = 0;
+    // The window is poses i..=j; `gaps` counts the gaps within it, kept as
+    // both ends move forward so the scan stays linear in the recording.
+    let (mut j, mut gaps) = (0, 0usize);
     for i in 0..poses.len() {
+        if i > 0 && i <= j && gap_before(i) {
+            gaps -= 1;
+        }
         j = j.max(i);
         while j < poses.len() && poses.t[j] < poses.t[i] + MADE_WINDOW_S {
             j += 1;
+            if j < poses.len() && gap_before(j) {
+                gaps += 1;
+            }
         }
         if j == poses.len() {
             break;
         }
-        if (i + 1..=j).any(|k| poses.t[k] - poses.t[k - 1] > MAX_OBSERVATION_GAP_S) {
+        if gaps > 0 {
             continue;
         }
         let asked = commanded(commands, poses.t[i], poses.t[j]);

@@ -274,14 +274,9 @@ fn a_surface_the_robots_model_lacks_is_diagnosed_from_the_recording_alone() {
     // from a slower body: there, a speed factor of the mud's acting
     // everywhere names it too.
     let mostly_in_mud = |robot: usize| -> bool {
-        let poses = std::fs::read_to_string(run.join(format!("robot-{robot}/poses.csv")))
-            .expect("poses.csv");
-        let xs: Vec<f64> = poses
-            .lines()
-            .skip(1)
-            .filter_map(|l| l.split(',').nth(1).and_then(|x| x.parse().ok()))
-            .collect();
-        xs.iter().filter(|x| **x >= 20.0).count() as f64 >= 0.85 * xs.len() as f64
+        let poses = numeric_rows(&run.join(format!("robot-{robot}/poses.csv")));
+        let in_mud = poses.iter().filter(|p| p[1] >= 20.0).count();
+        in_mud as f64 >= 0.85 * poses.len() as f64
     };
     let slower_body = |e: &Value| {
         e["kind"] == "speed_scale"
@@ -463,12 +458,9 @@ fn the_demos_sand_is_named_for_robots_whose_commands_change_every_step() {
     // The demo's sand: x >= 12 and y >= 11.
     let on_sand = |x: f64, y: f64| x >= 12.0 && y >= 11.0;
     let first_on_sand = |robot: usize| -> Option<f64> {
-        let poses = std::fs::read_to_string(run.join(format!("robot-{robot}/poses.csv")))
-            .expect("poses.csv");
-        poses.lines().skip(1).find_map(|line| {
-            let fields: Vec<f64> = line.split(',').filter_map(|f| f.parse().ok()).collect();
-            (fields.len() == 4 && on_sand(fields[1], fields[2])).then_some(fields[0])
-        })
+        numeric_rows(&run.join(format!("robot-{robot}/poses.csv")))
+            .iter()
+            .find_map(|p| on_sand(p[1], p[2]).then_some(p[0]))
     };
     let sand_factor = |f: &Value| f.as_f64().is_some_and(|f| (0.45..0.75).contains(&f));
     let (mut named, mut stuck) = (Vec::new(), Vec::new());
@@ -545,20 +537,24 @@ fn the_demos_sand_is_named_for_robots_whose_commands_change_every_step() {
     let _ = std::fs::remove_dir_all(dir);
 }
 
+/// The rows of a CSV file Shoal wrote (`commands.csv`: t, v, omega;
+/// `poses.csv`: t, x, y, theta), header skipped, every field a number.
+fn numeric_rows(path: &Path) -> Vec<Vec<f64>> {
+    std::fs::read_to_string(path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').filter_map(|f| f.parse().ok()).collect())
+        .filter(|r: &Vec<f64>| r.len() >= 3)
+        .collect()
+}
+
 /// Over the last `seconds` of a run folder (`commands.csv`, `poses.csv`):
 /// the travel its commands asked (each held until the next) and how far
 /// the robot is from where it stood.
 fn last_seconds_of(robot: &Path, seconds: f64) -> (f64, f64) {
-    let rows = |file: &str| -> Vec<Vec<f64>> {
-        std::fs::read_to_string(robot.join(file))
-            .expect(file)
-            .lines()
-            .skip(1)
-            .map(|l| l.split(',').filter_map(|f| f.parse().ok()).collect())
-            .filter(|r: &Vec<f64>| r.len() >= 3)
-            .collect()
-    };
-    let (commands, poses) = (rows("commands.csv"), rows("poses.csv"));
+    let commands = numeric_rows(&robot.join("commands.csv"));
+    let poses = numeric_rows(&robot.join("poses.csv"));
     let end = poses.last().expect("poses")[0];
     let from = end - seconds;
     let commanded: f64 = commands
