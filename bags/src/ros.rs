@@ -5,17 +5,34 @@
 use serde::Deserialize;
 
 pub const COMMAND_TYPES: [&str; 2] = ["geometry_msgs/msg/Twist", "geometry_msgs/msg/TwistStamped"];
-pub const POSE_TYPES: [&str; 5] = [
+pub const POSE_TYPES: [&str; 8] = [
     "geometry_msgs/msg/PoseStamped",
     // What motion-capture bridges (vicon_bridge) publish per body.
     "geometry_msgs/msg/TransformStamped",
     "geometry_msgs/msg/PoseWithCovarianceStamped",
     "nav_msgs/msg/Odometry",
+    // What `ros_gz_bridge` makes of a Gazebo (gz sim) pose: no header, so
+    // timed by the bag's log times.
+    POSE_TYPE,
     TF_TYPE,
+    MODEL_STATES_TYPE,
+    LINK_STATES_TYPE,
 ];
+/// A pose without a header.
+pub const POSE_TYPE: &str = "geometry_msgs/msg/Pose";
 /// Poses as transforms between named frames (`/tf`): the robot's is chosen
 /// by its child frame.
 pub const TF_TYPE: &str = "tf2_msgs/msg/TFMessage";
+/// Gazebo Classic's ground truth (`gazebo_ros_state`'s `/model_states` and
+/// `/link_states`): every model's (or link's) pose by name, no header.
+pub const MODEL_STATES_TYPE: &str = "gazebo_msgs/msg/ModelStates";
+pub const LINK_STATES_TYPE: &str = "gazebo_msgs/msg/LinkStates";
+
+/// Whether each message of `kind` holds the poses of several named frames
+/// or models, of which the robot's is chosen by name.
+pub fn holds_named_poses(kind: &str) -> bool {
+    matches!(kind, TF_TYPE | MODEL_STATES_TYPE | LINK_STATES_TYPE)
+}
 
 /// A type's name as ROS 2 spells it, `package/msg/Type`. Writers outside
 /// ROS (the `mcap` Python examples, `mcap-ros2-support`'s own README)
@@ -101,11 +118,12 @@ pub fn decode_command(
     })
 }
 
-/// The transform of a TF topic that is the robot's pose: its child frame,
-/// and if given, its parent frame.
+/// Which of the poses a message holds is the robot's, for the types that
+/// hold several (`holds_named_poses`): a TF transform's child frame (and,
+/// if given, its parent frame), or a Gazebo model's or link's name.
 #[derive(Clone, Copy, Debug, Default)]
-pub struct TfFrames<'a> {
-    pub child: Option<&'a str>,
+pub struct PoseName<'a> {
+    pub name: Option<&'a str>,
     pub parent: Option<&'a str>,
 }
 
@@ -113,7 +131,7 @@ pub fn decode_poses(
     kind: &str,
     data: &[u8],
     log_time: i64,
-    tf: TfFrames,
+    which: PoseName,
 ) -> Result<Vec<Stamped<PlanarPose>>, String> {
     let one = |header: msg::Header, pose: msg::Pose| -> Result<Vec<_>, String> {
         Ok(vec![planar(
@@ -140,17 +158,39 @@ pub fn decode_poses(
             let m = decode::<msg::TransformStamped>(data)?;
             Ok(vec![transformed(&m, log_time)?])
         }
+        POSE_TYPE => {
+            let m = decode::<msg::Pose>(data)?;
+            Ok(vec![planar(None, log_time, &m.position, &m.orientation)?])
+        }
         TF_TYPE => {
-            let frame = tf
-                .child
+            let frame = which
+                .name
                 .ok_or("a TF topic needs --frame CHILD: the robot's frame (e.g. base_link)")?;
             let m = decode::<msg::TfMessage>(data)?;
             let same = |a: &str, b: &str| a.trim_start_matches('/') == b.trim_start_matches('/');
             m.transforms
                 .into_iter()
                 .filter(|t| same(&t.child_frame_id, frame))
-                .filter(|t| tf.parent.is_none_or(|p| same(&t.header.frame_id, p)))
+                .filter(|t| which.parent.is_none_or(|p| same(&t.header.frame_id, p)))
                 .map(|t| transformed(&t, log_time))
+                .collect()
+        }
+        MODEL_STATES_TYPE | LINK_STATES_TYPE => {
+            let name = which
+                .name
+                .ok_or("Gazebo's states need --frame NAME: the robot's model (or link)")?;
+            if which.parent.is_some() {
+                return Err(
+                    "--parent chooses among TF transforms; Gazebo's states name each model once"
+                        .to_owned(),
+                );
+            }
+            let m = gazebo_states(data)?;
+            m.name
+                .iter()
+                .zip(&m.pose)
+                .filter(|(n, _)| *n == name)
+                .map(|(_, pose)| planar(None, log_time, &pose.position, &pose.orientation))
                 .collect()
         }
         other => Err(format!(
@@ -160,14 +200,35 @@ pub fn decode_poses(
     }
 }
 
-/// The (parent, child) frames of each transform a TF message holds, as
-/// written (a leading `/` kept).
-pub fn tf_frames(data: &[u8]) -> Result<Vec<(String, String)>, String> {
-    Ok(decode::<msg::TfMessage>(data)?
-        .transforms
+/// The names of the poses a message of a `holds_named_poses` type holds:
+/// each TF transform's (parent, child) frames, as written (a leading `/`
+/// kept), or each Gazebo model's (or link's) name, without a parent.
+pub fn pose_names(kind: &str, data: &[u8]) -> Result<Vec<(Option<String>, String)>, String> {
+    if kind == TF_TYPE {
+        return Ok(decode::<msg::TfMessage>(data)?
+            .transforms
+            .into_iter()
+            .map(|t| (Some(t.header.frame_id), t.child_frame_id))
+            .collect());
+    }
+    Ok(gazebo_states(data)?
+        .name
         .into_iter()
-        .map(|t| (t.header.frame_id, t.child_frame_id))
+        .map(|name| (None, name))
         .collect())
+}
+
+/// A Gazebo states message, its names and poses checked to pair up.
+fn gazebo_states(data: &[u8]) -> Result<msg::GazeboStates, String> {
+    let m = decode::<msg::GazeboStates>(data)?;
+    if m.name.len() != m.pose.len() {
+        return Err(format!(
+            "{} names but {} poses: each name must have its pose",
+            m.name.len(),
+            m.pose.len()
+        ));
+    }
+    Ok(m)
 }
 
 /// The pose a stamped transform gives its child frame.
@@ -346,6 +407,14 @@ pub mod msg {
         pub transforms: Vec<TransformStamped>,
     }
 
+    /// `gazebo_msgs/msg/ModelStates` and `LinkStates`: one layout.
+    #[derive(Deserialize, Serialize)]
+    pub struct GazeboStates {
+        pub name: Vec<String>,
+        pub pose: Vec<Pose>,
+        pub twist: Vec<Twist>,
+    }
+
     #[derive(Deserialize, Serialize)]
     pub struct Clock {
         pub clock: Time,
@@ -354,7 +423,87 @@ pub mod msg {
 
 #[cfg(test)]
 mod tests {
-    use super::full_type_name;
+    use super::msg::{GazeboStates, Pose, Quaternion, Twist, Vector3};
+    use super::{MODEL_STATES_TYPE, PoseName, decode_poses, encode, full_type_name, pose_names};
+
+    fn states() -> GazeboStates {
+        let at = |x: f64| Pose {
+            position: Vector3 { x, y: 2.0, z: 0.0 },
+            orientation: Quaternion {
+                x: 0.0,
+                y: 0.0,
+                z: 0.0,
+                w: 1.0,
+            },
+        };
+        let still = || Twist {
+            linear: Vector3 {
+                x: 0.0,
+                y: 0.0,
+                z: 0.0,
+            },
+            angular: Vector3 {
+                x: 0.0,
+                y: 0.0,
+                z: 0.0,
+            },
+        };
+        GazeboStates {
+            name: vec!["ground_plane".into(), "burger".into()],
+            pose: vec![at(0.0), at(1.5)],
+            twist: vec![still(), still()],
+        }
+    }
+
+    #[test]
+    fn gazebos_states_give_the_named_models_pose_and_list_every_name() {
+        let data = encode(&states()).expect("encode");
+        let burger = PoseName {
+            name: Some("burger"),
+            parent: None,
+        };
+        let poses = decode_poses(MODEL_STATES_TYPE, &data, 7, burger).expect("decode");
+        assert_eq!(poses.len(), 1);
+        assert_eq!(poses[0].value, (1.5, 2.0, 0.0));
+        assert_eq!((poses[0].stamp, poses[0].log_time), (None, 7));
+        let names: Vec<String> = pose_names(MODEL_STATES_TYPE, &data)
+            .expect("names")
+            .into_iter()
+            .map(|(_, name)| name)
+            .collect();
+        assert_eq!(names, ["ground_plane", "burger"]);
+        // A parent frame means nothing to Gazebo's states: refused, not ignored.
+        let with_parent = PoseName {
+            parent: Some("world"),
+            ..burger
+        };
+        assert!(decode_poses(MODEL_STATES_TYPE, &data, 7, with_parent).is_err());
+    }
+
+    #[test]
+    fn gazebos_states_cut_or_corrupted_are_refused_without_a_panic() {
+        let mut unpaired = states();
+        unpaired.pose.pop();
+        let data = encode(&unpaired).expect("encode");
+        let err = pose_names(MODEL_STATES_TYPE, &data).expect_err("names without poses");
+        assert!(err.contains("2 names but 1 poses"), "{err}");
+        let data = encode(&states()).expect("encode");
+        let burger = PoseName {
+            name: Some("burger"),
+            parent: None,
+        };
+        for cut in 0..data.len() {
+            assert!(decode_poses(MODEL_STATES_TYPE, &data[..cut], 0, burger).is_err());
+        }
+        for at in 4..data.len() {
+            let mut corrupted = data.clone();
+            corrupted[at] ^= 0xff;
+            // Either refused or read; never a panic or an allocation the
+            // bytes cannot hold.
+            let _ = decode_poses(MODEL_STATES_TYPE, &corrupted, 0, burger);
+            let _ = pose_names(MODEL_STATES_TYPE, &corrupted);
+        }
+    }
 
     #[test]
     fn a_ros_1_spelling_names_the_ros_2_type() {

@@ -8,13 +8,14 @@ use crate::clock::{ClockChoice, LogToClock, StampsPreference, Timing};
 use crate::ros::{self, Stamped};
 use crate::storage::{Bag, RawMessage};
 
-/// Which topics to read, and for `tf2_msgs/msg/TFMessage` which transform.
+/// Which topics to read, and for poses topics that hold several (TF,
+/// Gazebo's states) which is the robot's.
 #[derive(Clone, Debug, Default)]
 pub struct Selection<'a> {
     pub commands_topic: &'a str,
     pub poses_topic: &'a str,
-    /// For TF topics only: the transform that is the robot's pose.
-    pub tf: ros::TfFrames<'a>,
+    /// For topics that hold several poses only: the robot's.
+    pub pose_name: ros::PoseName<'a>,
 }
 
 /// The topic Gazebo and every ROS 2 simulator publishes simulation time on.
@@ -48,9 +49,11 @@ pub fn read_run(
     let mut poses: Vec<Stamped<(f64, f64, f64)>> = Vec::new();
     let mut clock: Vec<(i64, i64)> = Vec::new();
     let mut seen = [0_u64; 2];
-    // A TF topic's transforms, (parent, child) -> messages holding it: what
-    // the user may choose from when the robot's frame is not found.
-    let mut tf_frames: BTreeMap<(String, String), u64> = BTreeMap::new();
+    // The poses a TF or Gazebo states topic holds, (parent, name) ->
+    // messages holding it: what the user may choose from when the robot's
+    // is not found.
+    let mut pose_names: BTreeMap<(Option<String>, String), u64> = BTreeMap::new();
+    let mut poses_type = String::new();
     let read = bag.messages(Some(&wanted))?;
     for message in read.found {
         let RawMessage {
@@ -90,23 +93,32 @@ pub fn read_run(
         }
         if index == 0 {
             commands.push(ros::decode_command(&message_type, &data, log_time_ns).map_err(at)?);
-        } else if message_type == ros::TF_TYPE {
-            for pair in ros::tf_frames(&data).map_err(at)? {
-                *tf_frames.entry(pair).or_default() += 1;
-            }
-            if selection.tf.child.is_some() {
-                poses.extend(
-                    ros::decode_poses(&message_type, &data, log_time_ns, selection.tf)
-                        .map_err(at)?,
-                );
-            }
         } else {
+            if ros::holds_named_poses(&message_type) {
+                for pair in ros::pose_names(&message_type, &data).map_err(at)? {
+                    *pose_names.entry(pair).or_default() += 1;
+                }
+                if selection.pose_name.name.is_none() {
+                    // Said once all are counted, with what the topic holds.
+                    poses_type = message_type;
+                    continue;
+                }
+            }
             poses.extend(
-                ros::decode_poses(&message_type, &data, log_time_ns, selection.tf).map_err(at)?,
+                ros::decode_poses(&message_type, &data, log_time_ns, selection.pose_name)
+                    .map_err(at)?,
             );
+            poses_type = message_type;
         }
     }
-    check_found(bag, selection, seen, poses.is_empty(), &tf_frames)?;
+    check_found(
+        bag,
+        selection,
+        seen,
+        poses.is_empty(),
+        &poses_type,
+        &pose_names,
+    )?;
     let (choice, map) = crate::clock::choose(&times(&commands), &times(&poses), &clock, preference)
         .map_err(|e| BagError::new(&bag.path, e))?;
     let commands = on_clock(commands, choice.commands, map.as_ref());
@@ -130,15 +142,16 @@ pub fn read_run(
     })
 }
 
-/// How many of a TF topic's transforms an error lists.
-const TF_FRAMES_LISTED: usize = 20;
+/// How many of the poses a TF or Gazebo states topic holds an error lists.
+const POSE_NAMES_LISTED: usize = 20;
 
 fn check_found(
     bag: &Bag,
     selection: &Selection,
     seen: [u64; 2],
     no_poses: bool,
-    tf_frames: &BTreeMap<(String, String), u64>,
+    poses_type: &str,
+    pose_names: &BTreeMap<(Option<String>, String), u64>,
 ) -> Result<(), BagError> {
     for (index, topic, types) in [
         (0, selection.commands_topic, &ros::COMMAND_TYPES[..]),
@@ -157,41 +170,51 @@ fn check_found(
         }
     }
     if no_poses {
-        // The transforms held most first; a swarm's /tf can hold hundreds.
-        let mut by_count: Vec<_> = tf_frames.iter().collect();
+        // The poses held most first; a swarm's /tf can hold hundreds.
+        let mut by_count: Vec<_> = pose_names.iter().collect();
         by_count.sort_by(|a, b| b.1.cmp(a.1));
         let mut held = by_count
             .iter()
-            .take(TF_FRAMES_LISTED)
-            .map(|((parent, child), n)| format!("{parent} -> {child} ({n} messages)"))
+            .take(POSE_NAMES_LISTED)
+            .map(|((parent, name), n)| match parent {
+                Some(parent) => format!("{parent} -> {name} ({n} messages)"),
+                None => format!("{name} ({n} messages)"),
+            })
             .collect::<Vec<_>>()
             .join(", ");
-        if by_count.len() > TF_FRAMES_LISTED {
-            held += &format!(" and {} more", by_count.len() - TF_FRAMES_LISTED);
+        if by_count.len() > POSE_NAMES_LISTED {
+            held += &format!(" and {} more", by_count.len() - POSE_NAMES_LISTED);
         }
-        let what = match selection.tf.child {
-            None => "is a TF topic: choose the robot's frame with --frame CHILD (and \
-                     --parent PARENT where several parents hold it)"
-                .to_owned(),
-            Some(child) => format!(
-                "has no transform to child frame {child}{}",
-                selection
-                    .tf
-                    .parent
-                    .map(|p| format!(" from parent {p}"))
-                    .unwrap_or_default()
-            ),
+        let which = selection.pose_name;
+        let (what, none) = if poses_type == ros::TF_TYPE {
+            let what = match which.name {
+                None => "is a TF topic: choose the robot's frame with --frame CHILD (and \
+                         --parent PARENT where several parents hold it)"
+                    .to_owned(),
+                Some(child) => format!(
+                    "has no transform to child frame {child}{}",
+                    which
+                        .parent
+                        .map(|p| format!(" from parent {p}"))
+                        .unwrap_or_default()
+                ),
+            };
+            (what, "no transforms")
+        } else {
+            let what = match which.name {
+                None => format!(
+                    "holds Gazebo's states ({poses_type}): choose the robot's model with --frame NAME"
+                ),
+                Some(name) => format!("has no model named {name}"),
+            };
+            (what, "no models")
         };
         return Err(BagError::new(
             &bag.path,
             format!(
                 "topic {} {what}; it holds {}",
                 selection.poses_topic,
-                if held.is_empty() {
-                    "no transforms"
-                } else {
-                    &held
-                }
+                if held.is_empty() { none } else { &held }
             ),
         ));
     }

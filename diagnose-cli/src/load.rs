@@ -123,7 +123,8 @@ fn load_bag(path: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
             }
             bail!(
                 "{listing}choose the commands with --commands-topic (Twist or TwistStamped: {}) and the poses with --poses-topic \
-                 (PoseStamped, TransformStamped, PoseWithCovarianceStamped, Odometry, or TFMessage with --frame CHILD: {})",
+                 (PoseStamped, TransformStamped, PoseWithCovarianceStamped, Odometry, Pose, or with --frame NAME \
+                 TFMessage or Gazebo's ModelStates or LinkStates: {})",
                 or_none(&command_topics),
                 or_none(&pose_topics),
             );
@@ -134,8 +135,8 @@ fn load_bag(path: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
         &shoal_bags::Selection {
             commands_topic: &commands_topic,
             poses_topic: &poses_topic,
-            tf: shoal_bags::ros::TfFrames {
-                child: args.frame.as_deref(),
+            pose_name: shoal_bags::ros::PoseName {
+                name: args.frame.as_deref(),
                 parent: args.parent.as_deref(),
             },
         },

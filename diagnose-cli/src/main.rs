@@ -62,8 +62,8 @@ struct DiagnoseArgs {
     commands_topic: Option<String>,
     /// The bag's observed poses: geometry_msgs/msg/PoseStamped,
     /// TransformStamped (motion-capture bridges), PoseWithCovarianceStamped,
-    /// nav_msgs/msg/Odometry, or
-    /// tf2_msgs/msg/TFMessage with --frame.
+    /// Pose (ros_gz_bridge), nav_msgs/msg/Odometry, or with --frame
+    /// tf2_msgs/msg/TFMessage or gazebo_msgs/msg/ModelStates or LinkStates.
     #[arg(long, value_name = "TOPIC")]
     poses_topic: Option<String>,
     /// Which of a bag's clocks times commands and poses: `auto` chooses the
@@ -71,8 +71,9 @@ struct DiagnoseArgs {
     /// times; simulation time through /clock), `header` or `log` insist.
     #[arg(long, value_enum, default_value_t = load::Stamps::Auto)]
     stamps: load::Stamps,
-    /// With a TF poses topic: the robot's frame (the transform's child).
-    #[arg(long, requires = "poses_topic", value_name = "CHILD")]
+    /// With a TF poses topic: the robot's frame (the transform's child);
+    /// with Gazebo's model (or link) states: the robot's model (or link).
+    #[arg(long, requires = "poses_topic", value_name = "NAME")]
     frame: Option<String>,
     /// With a TF poses topic: only transforms from this parent frame.
     #[arg(long, requires = "frame", value_name = "FRAME")]

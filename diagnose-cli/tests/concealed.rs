@@ -656,6 +656,66 @@ fn gazebo_bags_in_sqlite3_mcap_split_and_compressed_are_diagnosed_on_one_clock()
     assert_eq!(d["input"]["clock"]["poses"], "the bag's log times", "{d}");
 }
 
+/// Ground truth as Gazebo users record it, without a header: Gazebo
+/// Classic's `/gazebo/model_states` (every model's pose by name, the robot's
+/// chosen with --frame) in a `.db3`, and `ros_gz_bridge`'s
+/// `geometry_msgs/msg/Pose` in an MCAP bag. Both are timed by the bag's log
+/// times, as the Twist commands are, so the fitted delay is the CSV's plus
+/// the poses' transport less the commands' (4 ms - 2 ms).
+#[test]
+fn gazebo_ground_truth_without_headers_is_read_by_the_robots_name() {
+    let case = case_named(&Generator::bench(), "latency", DURATION_S).expect("latency case");
+    let (from_csv, dir) = diagnose_generated("gazebo-truth", &truth_toml(&case), &[]);
+    let from_csv = first_latency(&from_csv);
+    let diagnose = |bag: &Path, poses_topic: &str, extra: &[&str]| {
+        Command::new(binary())
+            .arg(bag)
+            .args([
+                "--commands-topic",
+                "/cmd_vel",
+                "--poses-topic",
+                poses_topic,
+                "--json",
+            ])
+            .args(extra)
+            .output()
+            .expect("run shoal-diagnose")
+    };
+    let states = write_gazebo_bag(&dir, "states", &["poses=model_states"]);
+    let gz = write_gazebo_bag(&dir, "gz", &["poses=gz_pose", "storage=mcap"]);
+    for (bag, topic, extra) in [
+        (&states, "/gazebo/model_states", &["--frame", "burger"][..]),
+        (&gz, "/model/burger/pose", &[][..]),
+    ] {
+        let output = diagnose(bag, topic, extra);
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(output.status.success(), "{topic}: {stderr}");
+        let d: Value = serde_json::from_slice(&output.stdout).expect("JSON");
+        assert_eq!(d["input"]["clock"]["poses"], "the bag's log times", "{d}");
+        let fitted = first_latency(&d);
+        assert!(
+            (fitted - (from_csv + 0.002)).abs() < 0.003,
+            "{topic}: {fitted} s, the CSV's {from_csv} s"
+        );
+    }
+    // Without --frame, or with a model the topic lacks, the bag is refused
+    // and the models it holds are listed to choose from.
+    for (extra, said) in [
+        (&[][..], "choose the robot's model with --frame NAME"),
+        (&["--frame", "nobody"][..], "has no model named nobody"),
+    ] {
+        let output = diagnose(&states, "/gazebo/model_states", extra);
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(!output.status.success());
+        assert!(
+            stderr.contains(said)
+                && stderr.contains("burger (")
+                && stderr.contains("ground_plane ("),
+            "{stderr}"
+        );
+    }
+}
+
 /// Bags whose recorder was killed before it closed them. An MCAP file then
 /// ends in the middle of a record and has no summary: what came before the
 /// cut is diagnosed (the latency still named), and the cut is said, in the

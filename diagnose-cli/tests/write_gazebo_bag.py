@@ -16,11 +16,17 @@ few milliseconds after it was made. OPTIONS, any of:
   split=N                cut the bag into N files, listed by metadata.yaml
   compression=none|file|message   rosbag2's zstd compression
   version=8|9            rosbag2 metadata version (default 8)
-  poses=odom|vicon       /odom in simulation time (default), or a motion-
+  poses=odom|vicon|model_states|gz_pose
+                         /odom in simulation time (default), or a motion-
                          capture bridge's /vicon/robot/robot
                          (geometry_msgs/msg/TransformStamped) stamped by a
-                         robot clock 2.5 s ahead of the recorder's; with
-                         vicon there is no simulation and no /clock
+                         robot clock 2.5 s ahead of the recorder's (with
+                         vicon there is no simulation and no /clock), or
+                         Gazebo Classic's ground truth /gazebo/model_states
+                         (gazebo_msgs/msg/ModelStates, no header: the
+                         robot "burger" beside two static models), or
+                         ros_gz_bridge's /model/burger/pose
+                         (geometry_msgs/msg/Pose, no header)
   command=twist|stamped|stamped-wall
                          /cmd_vel as geometry_msgs/msg/Twist (default) or
                          TwistStamped stamped in simulation time (ROS 2
@@ -40,7 +46,7 @@ from pathlib import Path
 
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
-from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 WALL_EPOCH_NS = 1_764_000_000 * 1_000_000_000
 # Simulation time at the run's 0 s: Gazebo had been running a little.
@@ -63,10 +69,18 @@ def main(run_dir, out_dir, *options):
     split = int(opts.get("split", "1"))
     compression = opts.get("compression", "none")
     version = int(opts.get("version", "8"))
-    vicon = opts.get("poses", "odom") == "vicon"
+    poses_from = opts.get("poses", "odom")
+    vicon = poses_from == "vicon"
     with_clock = with_clock and not vicon
 
     typestore = get_typestore(Stores.ROS2_HUMBLE)
+    # Not among rosbags' stored types: registered from its .msg, as a user
+    # of rosbags does for any package it lacks.
+    typestore.register(get_types_from_msg(
+        "string[] name\ngeometry_msgs/Pose[] pose\ngeometry_msgs/Twist[] twist\n",
+        "gazebo_msgs/msg/ModelStates",
+    ))
+    ModelStates = typestore.types["gazebo_msgs/msg/ModelStates"]
     Twist = typestore.types["geometry_msgs/msg/Twist"]
     TwistStamped = typestore.types["geometry_msgs/msg/TwistStamped"]
     stamped_commands = opts.get("command", "twist") in ("stamped", "stamped-wall")
@@ -83,8 +97,12 @@ def main(run_dir, out_dir, *options):
     Clock = typestore.types["rosgraph_msgs/msg/Clock"]
     Transform = typestore.types["geometry_msgs/msg/Transform"]
     TransformStamped = typestore.types["geometry_msgs/msg/TransformStamped"]
-    poses_topic = "/vicon/robot/robot" if vicon else "/odom"
-    pose_type = TransformStamped if vicon else Odometry
+    poses_topic, pose_type = {
+        "odom": ("/odom", Odometry),
+        "vicon": ("/vicon/robot/robot", TransformStamped),
+        "model_states": ("/gazebo/model_states", ModelStates),
+        "gz_pose": ("/model/burger/pose", Pose),
+    }[poses_from]
 
     def sim_ns(t):
         return SIM_START_NS + round(t * 1e9)
@@ -122,6 +140,23 @@ def main(run_dir, out_dir, *options):
                 child_frame_id="robot",
                 transform=Transform(translation=Vector3(x=r["x"], y=r["y"], z=0.0), rotation=pose.orientation),
             )
+            messages.append((wall_ns(r["t"]) + POSE_TRANSPORT_NS, poses_topic, msg))
+            continue
+        if poses_from in ("model_states", "gz_pose"):
+            # No header: the bag's log time is all that times them.
+            if poses_from == "model_states":
+                still = Pose(
+                    position=Point(x=0.0, y=0.0, z=0.0),
+                    orientation=Quaternion(x=0.0, y=0.0, z=0.0, w=1.0),
+                )
+                rest = Twist(linear=Vector3(x=0.0, y=0.0, z=0.0), angular=Vector3(x=0.0, y=0.0, z=0.0))
+                msg = ModelStates(
+                    name=["ground_plane", "turtlebot3_world", "burger"],
+                    pose=[still, still, pose],
+                    twist=[rest, rest, rest],
+                )
+            else:
+                msg = pose
             messages.append((wall_ns(r["t"]) + POSE_TRANSPORT_NS, poses_topic, msg))
             continue
         msg = Odometry(
