@@ -259,13 +259,8 @@ fn planar(
         ("orientation.z", q.z),
         ("orientation.w", q.w),
     ])?;
-    let norm = (q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w).sqrt();
-    if !(0.5..=1.5).contains(&norm) {
-        return Err(format!(
-            "orientation is not a rotation: its quaternion has norm {norm:.3}"
-        ));
-    }
-    let yaw = (2.0 * (q.w * q.z + q.x * q.y)).atan2(1.0 - 2.0 * (q.y * q.y + q.z * q.z));
+    let yaw = shoal_physics::yaw_of_quaternion(q.x, q.y, q.z, q.w)
+        .map_err(|why| format!("orientation is {why}"))?;
     Ok(Stamped {
         stamp,
         log_time,

@@ -1129,9 +1129,10 @@ fn a_given_model_that_predicts_worse_than_no_model_is_said_with_what_does_not_ho
 }
 
 /// Files as other tools write them: pandas on a Windows desktop (BOM, CRLF,
-/// an index column, columns reordered and added, scientific notation) and
-/// a `.rrd` written by the Rerun Python SDK in the recorder's layout. Each
-/// is diagnosed as the run it holds.
+/// an index column, columns reordered and added, scientific notation),
+/// a bag's Odometry flattened by pandas (the heading a quaternion), and a
+/// `.rrd` written by the Rerun Python SDK in the recorder's layout. Each is
+/// diagnosed as the run it holds.
 #[test]
 fn runs_written_by_pandas_and_by_the_rerun_python_sdk_are_diagnosed_as_shoal_writes_them() {
     let case = case_named(&Generator::bench(), "speed_scale+external_flow", DURATION_S)
@@ -1162,6 +1163,20 @@ fn runs_written_by_pandas_and_by_the_rerun_python_sdk_are_diagnosed_as_shoal_wri
         "pandas' files diagnose as Shoal's"
     );
     assert_eq!(from_pandas["segments"], from_shoal["segments"]);
+    // The poses as a bag's Odometry flattened by pandas: the heading is a
+    // quaternion's.
+    let odometry = dir.join("odometry");
+    std::fs::create_dir_all(&odometry).expect("odometry folder");
+    python(
+        "write_pandas_csv.py",
+        &[dir.as_os_str(), odometry.as_os_str(), "odometry".as_ref()],
+    );
+    let from_odometry = diagnose_dir(&odometry, &[]);
+    assert_eq!(
+        kinds(&from_odometry),
+        named,
+        "Odometry's fields diagnose as Shoal's"
+    );
 
     let rrd = dir.join("python-sdk.rrd");
     python(

@@ -231,11 +231,13 @@ fn csv_fields(
     Ok(rows)
 }
 
-/// Other names tools give a column: PlotJuggler's `__time` and
-/// `/cmd_vel/linear/x`, a ROS message's flattened fields
-/// (`twist.angular.z`, `pose.position.x`), `yaw`. Compared with `.`, `_`
-/// and `/` taken as one separator and case ignored: a name with a separator
-/// matches the end of a header's name, a single word the whole of it.
+/// Other names tools give a column: PlotJuggler's `__time`,
+/// `/cmd_vel/linear/x` and the yaw it adds beside a quaternion
+/// (`/odom/pose/pose/orientation/yaw`), a ROS message's flattened fields
+/// (`twist.angular.z`, `pose.position.x`, `pose.orientation.w`), `yaw`.
+/// Compared with `.`, `_` and `/` taken as one separator and case ignored:
+/// a name with a separator matches the end of a header's name, a single
+/// word the whole of it.
 fn aliases(column: &str) -> &'static [&'static str] {
     match column {
         "t" => &["time", "timestamp", "stamp", "time/s", "t/s"],
@@ -243,7 +245,11 @@ fn aliases(column: &str) -> &'static [&'static str] {
         "omega" => &["angular/z", "wz", "w/z", "yaw/rate"],
         "x" => &["position/x", "translation/x"],
         "y" => &["position/y", "translation/y"],
-        "theta" => &["yaw", "heading"],
+        "theta" => &["yaw", "heading", "orientation/yaw"],
+        "orientation.x" => &["orientation/x", "rotation/x", "qx"],
+        "orientation.y" => &["orientation/y", "rotation/y", "qy"],
+        "orientation.z" => &["orientation/z", "rotation/z", "qz"],
+        "orientation.w" => &["orientation/w", "rotation/w", "qw"],
         _ => &[],
     }
 }
@@ -308,10 +314,61 @@ pub fn commands_csv(text: &str, file: &str) -> Result<Commands, InputError> {
     read_rows(text, file, Layout::Csv { columns: &columns }).map(commands_from)
 }
 
-/// A poses CSV: header `t,x,y,theta`.
+/// A poses CSV: header `t,x,y,theta`. A pose exported from a ROS message
+/// (a PoseStamped's or an Odometry's flattened fields) holds its heading as
+/// a quaternion: without a heading column, the yaw of the columns
+/// `orientation.x,orientation.y,orientation.z,orientation.w` (or their
+/// aliases) is read.
 pub fn poses_csv(text: &str, file: &str) -> Result<Poses, InputError> {
     let columns = ["t", "x", "y", "theta"];
-    read_rows(text, file, Layout::Csv { columns: &columns }).map(poses_from)
+    let quaternion = [
+        "t",
+        "x",
+        "y",
+        "orientation.x",
+        "orientation.y",
+        "orientation.z",
+        "orientation.w",
+    ];
+    let names_quaternion = csv_header(text).is_some_and(|header| {
+        column_position(&header, "theta").is_err()
+            && column_position(&header, "orientation.z").is_ok()
+    });
+    if !names_quaternion {
+        return read_rows(text, file, Layout::Csv { columns: &columns }).map(poses_from);
+    }
+    let rows = read_rows(
+        text,
+        file,
+        Layout::Csv {
+            columns: &quaternion,
+        },
+    )?;
+    let mut yawed = Vec::with_capacity(rows.len());
+    for (line, row) in rows {
+        let yaw =
+            shoal_physics::yaw_of_quaternion(row[3], row[4], row[5], row[6]).map_err(|why| {
+                InputError {
+                    file: file.to_owned(),
+                    line: Some(line),
+                    message: format!("the orientation (orientation.x, .y, .z, .w) is {why}"),
+                }
+            })?;
+        yawed.push((line, vec![row[0], row[1], row[2], yaw]));
+    }
+    Ok(poses_from(yawed))
+}
+
+/// The header of a CSV file as `csv_fields` reads it, if it has one.
+fn csv_header(text: &str) -> Option<csv::StringRecord> {
+    csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .comment(Some(b'#'))
+        .flexible(true)
+        .from_reader(text.as_bytes())
+        .headers()
+        .ok()
+        .cloned()
 }
 
 /// MRCLAM `Robot{n}_Odometry.dat`: time, v, omega (the commands sent).
@@ -361,6 +418,31 @@ mod tests {
         )
         .expect("flattened pose");
         assert_eq!((poses.x[0], poses.y[0], poses.theta[0]), (1.0, 2.0, 0.5));
+        // An Odometry's flattened fields: the heading as a quaternion.
+        let (s, c) = (0.25_f64.sin(), 0.25_f64.cos());
+        let poses = poses_csv(
+            &format!(
+                "time,pose.pose.position.x,pose.pose.position.y,pose.pose.orientation.x,\
+                 pose.pose.orientation.y,pose.pose.orientation.z,pose.pose.orientation.w\n\
+                 0,1,2,0,0,{s},{c}\n1,1.1,2,0,0,{s},{c}\n"
+            ),
+            "odom.csv",
+        )
+        .expect("a quaternion");
+        assert!((poses.theta[0] - 0.5).abs() < 1e-12, "{}", poses.theta[0]);
+        // PlotJuggler's export of /odom, with the yaw it adds.
+        let poses = poses_csv(
+            "__time,/odom/pose/pose/position/x,/odom/pose/pose/position/y,/odom/pose/pose/orientation/z,\
+             /odom/pose/pose/orientation/w,/odom/pose/pose/orientation/yaw\n0,1,2,0,1,0.3\n1,1,2,0,1,0.3\n",
+            "pj.csv",
+        )
+        .expect("PlotJuggler's yaw");
+        assert_eq!(poses.theta[0], 0.3);
+        // An unset orientation (all zeros) is no heading: refused at its line.
+        let error = poses_csv("t,x,y,qx,qy,qz,qw\n0,1,2,0,0,0,1\n1,1,2,0,0,0,0\n", "p.csv")
+            .expect_err("a zero quaternion");
+        assert_eq!(error.line, Some(3), "{error}");
+        assert!(error.message.contains("not a rotation"), "{error}");
         // Two names that could each be one column: refused, both named.
         let error = commands_csv(
             "t,cmd.linear.x,odom.linear.x,omega\n0,1,1,0\n1,1,1,0\n",

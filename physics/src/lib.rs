@@ -22,6 +22,6 @@ pub use effects::{Effect, ScopedEffect};
 pub use formation::{ForceLaw, FormationParams, Neighbour};
 pub use legged::{Command, MotionModel, MotionSample};
 pub use mixture::Mixture2;
-pub use pose::{Pose, wrap_angle};
+pub use pose::{Pose, wrap_angle, yaw_of_quaternion};
 pub use toml_file::ScenarioError;
 pub use unicycle::{Actuators, CommandGrid, Executed, UnicycleModel};

@@ -50,6 +50,18 @@ impl Pose {
     }
 }
 
+/// The heading about z (yaw) of the rotation a quaternion (x, y, z, w)
+/// holds, as ROS messages carry orientations; or why it holds none: a
+/// quaternion far from unit norm is no rotation (an unset orientation is
+/// written as all zeros).
+pub fn yaw_of_quaternion(x: f64, y: f64, z: f64, w: f64) -> Result<f64, String> {
+    let norm = (x * x + y * y + z * z + w * w).sqrt();
+    if !(0.5..=1.5).contains(&norm) {
+        return Err(format!("not a rotation: its quaternion has norm {norm:.3}"));
+    }
+    Ok((2.0 * (w * z + x * y)).atan2(1.0 - 2.0 * (y * y + z * z)))
+}
+
 /// Wraps an angle into (-pi, pi].
 pub fn wrap_angle(angle: f64) -> f64 {
     let wrapped = angle.rem_euclid(std::f64::consts::TAU);
