@@ -201,7 +201,7 @@ fn csv_fields(
     let header_line = line_of(header.position()).unwrap_or(1);
     let mut positions = Vec::with_capacity(columns.len());
     for column in columns {
-        let p = column_position(&header, column).map_err(|message| {
+        let p = column_source(&header, column).map_err(|message| {
             error(
                 Some(header_line),
                 format!(
@@ -224,7 +224,7 @@ fn csv_fields(
         // A field the row lacks stays missing, reported by name.
         let fields = positions
             .iter()
-            .map_while(|&p| record.get(p).map(str::to_owned))
+            .map_while(|source| source.field(&record))
             .collect();
         rows.push((line, fields));
     }
@@ -250,7 +250,61 @@ fn aliases(column: &str) -> &'static [&'static str] {
         "orientation.y" => &["orientation/y", "rotation/y", "qy"],
         "orientation.z" => &["orientation/z", "rotation/z", "qz"],
         "orientation.w" => &["orientation/w", "rotation/w", "qw"],
+        "stamp.sec" => &["stamp/sec", "stamp/secs"],
+        "stamp.nanosec" => &["stamp/nanosec", "stamp/nsecs"],
         _ => &[],
+    }
+}
+
+/// Where a column's field is in each record.
+enum Source {
+    Column(usize),
+    /// A ROS header stamp's two integer fields, seconds and nanoseconds
+    /// (`header.stamp.sec` and `.nanosec`; ROS 1's `secs` and `nsecs`),
+    /// read as one time in seconds.
+    Stamp {
+        seconds: usize,
+        nanoseconds: usize,
+    },
+}
+
+impl Source {
+    fn field(&self, record: &csv::StringRecord) -> Option<String> {
+        match *self {
+            Source::Column(p) => record.get(p).map(str::to_owned),
+            Source::Stamp {
+                seconds,
+                nanoseconds,
+            } => {
+                let (s, ns) = (record.get(seconds)?, record.get(nanoseconds)?);
+                Some(match (s.parse::<i64>(), ns.parse::<u32>()) {
+                    (Ok(s), Ok(ns)) if ns < 1_000_000_000 => {
+                        (s as f64 + f64::from(ns) * 1e-9).to_string()
+                    }
+                    // Left as written, for the error to quote.
+                    _ => format!("{s} s {ns} ns"),
+                })
+            }
+        }
+    }
+}
+
+/// Where `column`'s field is: the column itself, or for the time `t`
+/// without one, a ROS header stamp's seconds and nanoseconds.
+fn column_source(header: &csv::StringRecord, column: &str) -> Result<Source, String> {
+    let found = column_position(header, column);
+    if column != "t" || found.is_ok() {
+        return found.map(Source::Column);
+    }
+    match (
+        column_position(header, "stamp.sec"),
+        column_position(header, "stamp.nanosec"),
+    ) {
+        (Ok(seconds), Ok(nanoseconds)) => Ok(Source::Stamp {
+            seconds,
+            nanoseconds,
+        }),
+        _ => found.map(Source::Column),
     }
 }
 
@@ -438,6 +492,21 @@ mod tests {
         )
         .expect("PlotJuggler's yaw");
         assert_eq!(poses.theta[0], 0.3);
+        // A header stamp's two fields, as a message flattened holds its time.
+        let poses = poses_csv(
+            "header.stamp.sec,header.stamp.nanosec,pose.position.x,pose.position.y,yaw\n\
+             1764000000,250000000,1,2,0\n1764000001,0,1,2,0\n",
+            "p.csv",
+        )
+        .expect("a header stamp");
+        assert_eq!(poses.t[1] - poses.t[0], 0.75);
+        let error = poses_csv(
+            "header.stamp.sec,header.stamp.nanosec,x,y,theta\n1,0,1,2,0\n2,x,1,2,0\n",
+            "p.csv",
+        )
+        .expect_err("a stamp that is not a number");
+        assert_eq!(error.line, Some(3), "{error}");
+        assert!(error.message.contains("`2 s x ns`"), "{error}");
         // An unset orientation (all zeros) is no heading: refused at its line.
         let error = poses_csv("t,x,y,qx,qy,qz,qw\n0,1,2,0,0,0,1\n1,1,2,0,0,0,0\n", "p.csv")
             .expect_err("a zero quaternion");
