@@ -266,6 +266,9 @@ enum Source {
         seconds: usize,
         nanoseconds: usize,
     },
+    /// A time in integer nanoseconds: ROS 1's `rostopic echo -p` writes its
+    /// `%time` so.
+    Nanoseconds(usize),
 }
 
 impl Source {
@@ -285,16 +288,27 @@ impl Source {
                     _ => format!("{s} s {ns} ns"),
                 })
             }
+            Source::Nanoseconds(p) => {
+                let ns = record.get(p)?;
+                Some(
+                    ns.parse::<i64>()
+                        .map_or_else(|_| format!("{ns} ns"), |ns| (ns as f64 / 1e9).to_string()),
+                )
+            }
         }
     }
 }
 
 /// Where `column`'s field is: the column itself, or for the time `t`
-/// without one, a ROS header stamp's seconds and nanoseconds.
+/// without one, `rostopic echo -p`'s `%time` or a ROS header stamp's
+/// seconds and nanoseconds.
 fn column_source(header: &csv::StringRecord, column: &str) -> Result<Source, String> {
     let found = column_position(header, column);
     if column != "t" || found.is_ok() {
         return found.map(Source::Column);
+    }
+    if let Some(p) = header.iter().position(|name| name == "%time") {
+        return Ok(Source::Nanoseconds(p));
     }
     match (
         column_position(header, "stamp.sec"),
@@ -507,6 +521,15 @@ mod tests {
         .expect_err("a stamp that is not a number");
         assert_eq!(error.line, Some(3), "{error}");
         assert!(error.message.contains("`2 s x ns`"), "{error}");
+        // ROS 1's `rostopic echo -p /cmd_vel`: `%time` in nanoseconds.
+        let commands = commands_csv(
+            "%time,field.linear.x,field.linear.y,field.linear.z,field.angular.x,field.angular.y,field.angular.z\n\
+             1764000000000000000,0.2,0,0,0,0,0.1\n1764000000500000000,0.3,0,0,0,0,0.2\n",
+            "cmd_vel.csv",
+        )
+        .expect("rostopic echo -p");
+        assert_eq!(commands.t[1] - commands.t[0], 0.5);
+        assert_eq!((commands.v[1], commands.omega[1]), (0.3, 0.2));
         // An unset orientation (all zeros) is no heading: refused at its line.
         let error = poses_csv("t,x,y,qx,qy,qz,qw\n0,1,2,0,0,0,1\n1,1,2,0,0,0,0\n", "p.csv")
             .expect_err("a zero quaternion");
