@@ -525,13 +525,18 @@ fn first_latency(diagnosis: &Value) -> f64 {
 /// Diagnoses a Gazebo bag given as a positional argument, as a user types
 /// it, with its /cmd_vel and /odom topics and `extra` arguments.
 fn diagnose_gazebo(bag: &Path, extra: &[&str]) -> std::process::Output {
+    diagnose_gazebo_poses(bag, "/odom", extra)
+}
+
+/// The same with the poses from `poses_topic`.
+fn diagnose_gazebo_poses(bag: &Path, poses_topic: &str, extra: &[&str]) -> std::process::Output {
     Command::new(binary())
         .arg(bag)
         .args([
             "--commands-topic",
             "/cmd_vel",
             "--poses-topic",
-            "/odom",
+            poses_topic,
             "--json",
         ])
         .args(extra)
@@ -667,27 +672,13 @@ fn gazebo_ground_truth_without_headers_is_read_by_the_robots_name() {
     let case = case_named(&Generator::bench(), "latency", DURATION_S).expect("latency case");
     let (from_csv, dir) = diagnose_generated("gazebo-truth", &truth_toml(&case), &[]);
     let from_csv = first_latency(&from_csv);
-    let diagnose = |bag: &Path, poses_topic: &str, extra: &[&str]| {
-        Command::new(binary())
-            .arg(bag)
-            .args([
-                "--commands-topic",
-                "/cmd_vel",
-                "--poses-topic",
-                poses_topic,
-                "--json",
-            ])
-            .args(extra)
-            .output()
-            .expect("run shoal-diagnose")
-    };
     let states = write_gazebo_bag(&dir, "states", &["poses=model_states"]);
     let gz = write_gazebo_bag(&dir, "gz", &["poses=gz_pose", "storage=mcap"]);
     for (bag, topic, extra) in [
         (&states, "/gazebo/model_states", &["--frame", "burger"][..]),
         (&gz, "/model/burger/pose", &[][..]),
     ] {
-        let output = diagnose(bag, topic, extra);
+        let output = diagnose_gazebo_poses(bag, topic, extra);
         let stderr = String::from_utf8_lossy(&output.stderr);
         assert!(output.status.success(), "{topic}: {stderr}");
         let d: Value = serde_json::from_slice(&output.stdout).expect("JSON");
@@ -704,7 +695,7 @@ fn gazebo_ground_truth_without_headers_is_read_by_the_robots_name() {
         (&[][..], "choose the robot's model with --frame NAME"),
         (&["--frame", "nobody"][..], "has no model named nobody"),
     ] {
-        let output = diagnose(&states, "/gazebo/model_states", extra);
+        let output = diagnose_gazebo_poses(&states, "/gazebo/model_states", extra);
         let stderr = String::from_utf8_lossy(&output.stderr);
         assert!(!output.status.success());
         assert!(
