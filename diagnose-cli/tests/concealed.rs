@@ -705,6 +705,12 @@ fn gazebo_ground_truth_without_headers_is_read_by_the_robots_name() {
             "{stderr}"
         );
     }
+    // A name given for a type that holds one pose a message is refused, not
+    // ignored.
+    let output = diagnose_gazebo_poses(&gz, "/model/burger/pose", &["--frame", "burger"]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success());
+    assert!(stderr.contains("leave --frame out"), "{stderr}");
 }
 
 /// Bags whose recorder was killed before it closed them. An MCAP file then
