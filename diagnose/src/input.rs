@@ -173,11 +173,7 @@ fn csv_fields(
         line,
         message,
     };
-    let mut reader = csv::ReaderBuilder::new()
-        .trim(csv::Trim::All)
-        .comment(Some(b'#'))
-        .flexible(true)
-        .from_reader(text.as_bytes());
+    let mut reader = csv_reader(text);
     let mut lines = LineFinder {
         bytes: text.as_bytes(),
         counted: (0, 1),
@@ -429,14 +425,17 @@ pub fn poses_csv(text: &str, file: &str) -> Result<Poses, InputError> {
 
 /// The header of a CSV file as `csv_fields` reads it, if it has one.
 fn csv_header(text: &str) -> Option<csv::StringRecord> {
+    csv_reader(text).headers().ok().cloned()
+}
+
+/// How every CSV file is read: fields trimmed, `#` lines comments, rows of
+/// any length (a field a row lacks is reported by name).
+fn csv_reader(text: &str) -> csv::Reader<&[u8]> {
     csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
         .comment(Some(b'#'))
         .flexible(true)
         .from_reader(text.as_bytes())
-        .headers()
-        .ok()
-        .cloned()
 }
 
 /// MRCLAM `Robot{n}_Odometry.dat`: time, v, omega (the commands sent).
