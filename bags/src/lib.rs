@@ -32,7 +32,8 @@ impl BagError {
 }
 
 /// Whether `path` names a bag: an `.mcap` or `.db3` file (zstd-compressed
-/// or not), or a folder holding `metadata.yaml` or such files.
+/// or not), a folder holding `metadata.yaml` or such files, or a ROS 1
+/// bag (which reading refuses, saying how to convert it).
 pub fn looks_like_bag(path: &std::path::Path) -> bool {
     if path.is_dir() {
         path.join("metadata.yaml").is_file()
@@ -42,6 +43,6 @@ pub fn looks_like_bag(path: &std::path::Path) -> bool {
                     .any(|e| storage::is_bag_file(&e.path()))
             })
     } else {
-        storage::is_bag_file(path)
+        storage::is_bag_file(path) || storage::is_ros1_bag(path)
     }
 }

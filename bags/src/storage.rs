@@ -62,6 +62,9 @@ enum Source {
 /// The zstd frame's first bytes: a file or message rosbag2 compressed.
 const ZSTD_MAGIC: [u8; 4] = [0x28, 0xb5, 0x2f, 0xfd];
 const SQLITE_MAGIC: &[u8] = b"SQLite format 3\0";
+/// How a ROS 1 bag begins (rosbag format 2.0): no shorter than
+/// `SQLITE_MAGIC`, so the bytes read to tell the kind hold it.
+const ROS1_MAGIC: &[u8] = b"#ROSBAG V";
 
 /// rosbag2's `metadata.yaml`: only what locating the files needs.
 #[derive(serde::Deserialize)]
@@ -254,7 +257,7 @@ fn each_in_file(file: &Path, wanted: Wanted, take: &mut Take) -> Ended {
             None => each_in_bytes(&read_file(file)?, file, wanted, take),
         };
     }
-    Err(not_a_bag(file))
+    Err(not_a_bag(file, &magic))
 }
 
 /// A bag file's bytes already in memory (decompressed).
@@ -266,11 +269,23 @@ fn each_in_bytes(bytes: &[u8], file: &Path, wanted: Wanted, take: &mut Take) -> 
     } else if bytes.starts_with(SQLITE_MAGIC) {
         sqlite_messages(&sqlite_in_memory(bytes, file)?, file, wanted, take).map(|()| None)
     } else {
-        Err(not_a_bag(file))
+        Err(not_a_bag(file, bytes))
     }
 }
 
-fn not_a_bag(file: &Path) -> BagError {
+/// Why a file is not read as a bag: what it is, where that is known, and
+/// what to do.
+fn not_a_bag(file: &Path, magic: &[u8]) -> BagError {
+    if magic.starts_with(ROS1_MAGIC) {
+        return BagError::new(
+            file,
+            format!(
+                "is a ROS 1 bag (rosbag format 2.0), not a ROS 2 bag: convert it without ROS \
+                 (pip install rosbags; rosbags-convert --src {} --dst FOLDER), then diagnose FOLDER",
+                file.display()
+            ),
+        );
+    }
     BagError::new(
         file,
         "is neither an MCAP nor a sqlite3 (.db3) ROS 2 bag".to_owned(),
@@ -369,6 +384,15 @@ pub fn is_bag_file(path: &Path) -> bool {
     [".mcap", ".db3", ".mcap.zstd", ".db3.zstd"]
         .iter()
         .any(|ext| name.ends_with(ext))
+}
+
+/// Whether `path` is a ROS 1 bag: read, it is refused with how to convert
+/// it, rather than taken for something else.
+pub fn is_ros1_bag(path: &Path) -> bool {
+    std::fs::File::open(path)
+        .ok()
+        .and_then(|f| first_bytes(f, path).ok())
+        .is_some_and(|magic| magic.starts_with(ROS1_MAGIC))
 }
 
 /// Orders `bag_10.db3` after `bag_9.db3`, as rosbag2 numbers its splits.

@@ -713,6 +713,45 @@ fn gazebo_ground_truth_without_headers_is_read_by_the_robots_name() {
     assert!(stderr.contains("leave --frame out"), "{stderr}");
 }
 
+/// A ROS 1 bag, as a lab that recorded with Noetic has it (written by
+/// `rosbags`): refused with how to convert it without ROS, and once
+/// converted as the refusal says (`rosbags-convert`), diagnosed as the run
+/// it holds. Commands are logged 2 ms after they were sent and the poses
+/// carry their stamps, so the fitted delay is the CSV's less 2 ms.
+#[test]
+fn a_ros1_bag_is_refused_with_how_to_convert_it_and_diagnosed_once_converted() {
+    let case = case_named(&Generator::bench(), "latency", DURATION_S).expect("latency case");
+    let (from_csv, dir) = diagnose_generated("ros1", &truth_toml(&case), &[]);
+    let from_csv = first_latency(&from_csv);
+    let bag = dir.join("noetic.bag");
+    python("write_ros1_bag.py", &[dir.as_os_str(), bag.as_os_str()]);
+    let output = diagnose_gazebo(&bag, &[]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success());
+    assert!(
+        stderr.contains("noetic.bag: is a ROS 1 bag") && stderr.contains("rosbags-convert --src"),
+        "{stderr}"
+    );
+    let converted = dir.join("converted");
+    let status = Command::new("python3")
+        .args(["-m", "rosbags.convert", "--src"])
+        .arg(&bag)
+        .arg("--dst")
+        .arg(&converted)
+        .status()
+        .expect("run rosbags-convert");
+    assert!(status.success(), "rosbags-convert failed");
+    let output = diagnose_gazebo(&converted, &[]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    let d: Value = serde_json::from_slice(&output.stdout).expect("JSON");
+    let fitted = first_latency(&d);
+    assert!(
+        (fitted - (from_csv - 0.002)).abs() < 0.003,
+        "{fitted} s, the CSV's {from_csv} s"
+    );
+}
+
 /// Bags whose recorder was killed before it closed them. An MCAP file then
 /// ends in the middle of a record and has no summary: what came before the
 /// cut is diagnosed (the latency still named), and the cut is said, in the
