@@ -127,6 +127,10 @@ pub struct PoseName<'a> {
     pub parent: Option<&'a str>,
 }
 
+/// The robot's poses in one message of `kind`: its one pose, or those of
+/// the frame or model `which` names. Where a name means nothing to the
+/// type (`--frame` for a type of one pose a message, `--parent` for
+/// Gazebo's states) the message is refused, never read as if unnamed.
 pub fn decode_poses(
     kind: &str,
     data: &[u8],
@@ -141,6 +145,13 @@ pub fn decode_poses(
             &pose.orientation,
         )?])
     };
+    if which.name.is_some() && !holds_named_poses(kind) {
+        return Err(
+            "--frame chooses among the poses a TF or Gazebo states topic holds; \
+             this type holds one pose a message: leave --frame out"
+                .to_owned(),
+        );
+    }
     match kind {
         "geometry_msgs/msg/PoseStamped" => {
             let m = decode::<msg::PoseStamped>(data)?;

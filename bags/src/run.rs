@@ -94,13 +94,6 @@ pub fn read_run(
         if index == 0 {
             commands.push(ros::decode_command(&message_type, &data, log_time_ns).map_err(at)?);
         } else {
-            if !ros::holds_named_poses(&message_type) && selection.pose_name.name.is_some() {
-                return Err(at(
-                    "--frame chooses among the poses a TF or Gazebo states topic holds; \
-                     this type holds one pose a message: leave --frame out"
-                        .to_owned(),
-                ));
-            }
             if ros::holds_named_poses(&message_type) {
                 for pair in ros::pose_names(&message_type, &data).map_err(at)? {
                     *pose_names.entry(pair).or_default() += 1;

@@ -92,6 +92,25 @@ fn load_rrd(path: &Path, robot: Option<u32>) -> Result<Recording> {
     Ok(Recording::from_absolute(commands, poses))
 }
 
+/// The types a topic may have, as a listing names them: without their
+/// package, those whose robot is chosen by name said so.
+fn type_names(types: &[&str]) -> String {
+    let short = |t: &&&str| t.rsplit('/').next().unwrap_or(t).to_owned();
+    let (named, one_pose): (Vec<&&str>, Vec<&&str>) = types
+        .iter()
+        .partition(|t| shoal_bags::ros::holds_named_poses(t));
+    let one_pose: Vec<String> = one_pose.iter().map(short).collect();
+    if named.is_empty() {
+        return one_pose.join(" or ");
+    }
+    let named: Vec<String> = named.iter().map(short).collect();
+    format!(
+        "{}, or with --frame NAME {}",
+        one_pose.join(", "),
+        named.join(", ")
+    )
+}
+
 /// A ROS 2 bag: its topics listed, or the chosen ones read on one clock.
 fn load_bag(path: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
     let bag = Bag::open(path)?;
@@ -122,10 +141,10 @@ fn load_bag(path: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
                 listing.push_str(&format!("  ({note})\n"));
             }
             bail!(
-                "{listing}choose the commands with --commands-topic (Twist or TwistStamped: {}) and the poses with --poses-topic \
-                 (PoseStamped, TransformStamped, PoseWithCovarianceStamped, Odometry, Pose, or with --frame NAME \
-                 TFMessage or Gazebo's ModelStates or LinkStates: {})",
+                "{listing}choose the commands with --commands-topic ({}: {}) and the poses with --poses-topic ({}: {})",
+                type_names(&shoal_bags::ros::COMMAND_TYPES),
                 or_none(&command_topics),
+                type_names(&shoal_bags::ros::POSE_TYPES),
                 or_none(&pose_topics),
             );
         }

@@ -730,41 +730,44 @@ fn unwrapped(theta: &[f64]) -> Vec<f64> {
     out
 }
 
-/// Time spans, overlapping ones joined, in time order.
-fn spans_joined(spans: impl IntoIterator<Item = (f64, f64)>) -> Vec<(f64, f64)> {
-    let mut spans: Vec<(f64, f64)> = spans.into_iter().collect();
-    spans.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let mut out: Vec<(f64, f64)> = Vec::new();
-    for (start, end) in spans {
+/// Time spans, overlapping ones joined, in time order: each joined span
+/// with the index (in `spans`) of the span it starts with.
+fn spans_joined(spans: &[(f64, f64)]) -> Vec<(usize, f64, f64)> {
+    let mut order: Vec<usize> = (0..spans.len()).collect();
+    order.sort_by(|&a, &b| spans[a].0.total_cmp(&spans[b].0));
+    let mut out: Vec<(usize, f64, f64)> = Vec::new();
+    for k in order {
+        let (start, end) = spans[k];
         match out.last_mut() {
-            Some(last) if start <= last.1 => last.1 = last.1.max(end),
-            _ => out.push((start, end)),
+            Some(last) if start <= last.2 => last.2 = last.2.max(end),
+            _ => out.push((k, start, end)),
         }
     }
     out
 }
 
+fn spans_of(glitches: &[Glitch]) -> Vec<(f64, f64)> {
+    glitches.iter().map(|g| (g.t_start, g.t_end)).collect()
+}
+
 /// How long the glitches set aside in all, seconds: stretches of
 /// different kinds may overlap, and are counted once.
 pub fn seconds_set_aside(glitches: &[Glitch]) -> f64 {
-    spans_joined(glitches.iter().map(|g| (g.t_start, g.t_end)))
+    spans_joined(&spans_of(glitches))
         .iter()
-        .map(|(start, end)| end - start)
+        .map(|(_, start, end)| end - start)
         .sum()
 }
 
 /// Held stretches found by either rule, overlapping ones made one.
 fn merged(held: Vec<Glitch>, commands: &Commands, poses: &Poses) -> Vec<Glitch> {
-    let mut out: Vec<Glitch> = Vec::new();
-    for (start, end) in spans_joined(held.iter().map(|g| (g.t_start, g.t_end))) {
-        let Some(first) = held.iter().find(|g| g.t_start == start) else {
-            continue;
-        };
-        out.push(Glitch {
+    let mut out: Vec<Glitch> = spans_joined(&spans_of(&held))
+        .into_iter()
+        .map(|(first, _, end)| Glitch {
             t_end: end,
-            ..first.clone()
-        });
-    }
+            ..held[first].clone()
+        })
+        .collect();
     for g in &mut out {
         g.frames = poses
             .t

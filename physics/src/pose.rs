@@ -55,11 +55,12 @@ impl Pose {
 /// quaternion far from unit norm is no rotation (an unset orientation is
 /// written as all zeros).
 pub fn yaw_of_quaternion(x: f64, y: f64, z: f64, w: f64) -> Result<f64, String> {
-    let norm = (x * x + y * y + z * z + w * w).sqrt();
+    let q = glam::DQuat::from_xyzw(x, y, z, w);
+    let norm = q.length();
     if !(0.5..=1.5).contains(&norm) {
         return Err(format!("not a rotation: its quaternion has norm {norm:.3}"));
     }
-    Ok((2.0 * (w * z + x * y)).atan2(1.0 - 2.0 * (y * y + z * z)))
+    Ok(q.normalize().to_euler(glam::EulerRot::ZYX).0)
 }
 
 /// Wraps an angle into (-pi, pi].
