@@ -173,36 +173,8 @@ pub fn decode_poses(
             let m = decode::<msg::Pose>(data)?;
             Ok(vec![planar(None, log_time, &m.position, &m.orientation)?])
         }
-        TF_TYPE => {
-            let frame = which
-                .name
-                .ok_or("a TF topic needs --frame CHILD: the robot's frame (e.g. base_link)")?;
-            let m = decode::<msg::TfMessage>(data)?;
-            let same = |a: &str, b: &str| a.trim_start_matches('/') == b.trim_start_matches('/');
-            m.transforms
-                .into_iter()
-                .filter(|t| same(&t.child_frame_id, frame))
-                .filter(|t| which.parent.is_none_or(|p| same(&t.header.frame_id, p)))
-                .map(|t| transformed(&t, log_time))
-                .collect()
-        }
-        MODEL_STATES_TYPE | LINK_STATES_TYPE => {
-            let name = which
-                .name
-                .ok_or("Gazebo's states need --frame NAME: the robot's model (or link)")?;
-            if which.parent.is_some() {
-                return Err(
-                    "--parent chooses among TF transforms; Gazebo's states name each model once"
-                        .to_owned(),
-                );
-            }
-            let m = gazebo_states(data)?;
-            m.name
-                .iter()
-                .zip(&m.pose)
-                .filter(|(n, _)| *n == name)
-                .map(|(_, pose)| planar(None, log_time, &pose.position, &pose.orientation))
-                .collect()
+        named if holds_named_poses(named) => {
+            chosen_poses(kind, named_poses(kind, data)?, which, log_time)
         }
         other => Err(format!(
             "poses must be {}, not {other}",
@@ -211,22 +183,82 @@ pub fn decode_poses(
     }
 }
 
-/// The names of the poses a message of a `holds_named_poses` type holds:
-/// each TF transform's (parent, child) frames, as written (a leading `/`
-/// kept), or each Gazebo model's (or link's) name, without a parent.
-pub fn pose_names(kind: &str, data: &[u8]) -> Result<Vec<(Option<String>, String)>, String> {
-    if kind == TF_TYPE {
-        return Ok(decode::<msg::TfMessage>(data)?
+/// One of the poses a message of a `holds_named_poses` type holds, as
+/// written (a leading `/` kept), not yet checked as a pose on the floor.
+pub struct NamedPose {
+    /// A TF transform's parent frame; Gazebo's states have none.
+    pub parent: Option<String>,
+    /// A TF transform's child frame, or a Gazebo model's (or link's) name.
+    pub name: String,
+    stamp: Option<i64>,
+    position: msg::Vector3,
+    orientation: msg::Quaternion,
+}
+
+/// Every pose a message of a `holds_named_poses` type holds: decoded once,
+/// both to list what it holds and to choose the robot's.
+pub fn named_poses(kind: &str, data: &[u8]) -> Result<Vec<NamedPose>, String> {
+    match kind {
+        TF_TYPE => Ok(decode::<msg::TfMessage>(data)?
             .transforms
             .into_iter()
-            .map(|t| (Some(t.header.frame_id), t.child_frame_id))
-            .collect());
+            .map(|t| NamedPose {
+                stamp: t.header.stamp.nanoseconds(),
+                parent: Some(t.header.frame_id),
+                name: t.child_frame_id,
+                position: t.transform.translation,
+                orientation: t.transform.rotation,
+            })
+            .collect()),
+        MODEL_STATES_TYPE | LINK_STATES_TYPE => {
+            let m = gazebo_states(data)?;
+            Ok(m.name
+                .into_iter()
+                .zip(m.pose)
+                .map(|(name, pose)| NamedPose {
+                    parent: None,
+                    name,
+                    stamp: None,
+                    position: pose.position,
+                    orientation: pose.orientation,
+                })
+                .collect())
+        }
+        other => Err(format!("{other} holds one pose a message, none by name")),
     }
-    Ok(gazebo_states(data)?
-        .name
+}
+
+/// The robot's poses among `named` (from a message of `kind`), as `which`
+/// names them: a TF transform's child frame and, if given, its parent;
+/// a Gazebo model's (or link's) name.
+pub fn chosen_poses(
+    kind: &str,
+    named: Vec<NamedPose>,
+    which: PoseName,
+    log_time: i64,
+) -> Result<Vec<Stamped<PlanarPose>>, String> {
+    let is_tf = kind == TF_TYPE;
+    let name = which.name.ok_or(if is_tf {
+        "a TF topic needs --frame CHILD: the robot's frame (e.g. base_link)"
+    } else {
+        "Gazebo's states need --frame NAME: the robot's model (or link)"
+    })?;
+    if !is_tf && which.parent.is_some() {
+        return Err(
+            "--parent chooses among TF transforms; Gazebo's states name each model once".to_owned(),
+        );
+    }
+    let same = |a: &str, b: &str| a.trim_start_matches('/') == b.trim_start_matches('/');
+    named
         .into_iter()
-        .map(|name| (None, name))
-        .collect())
+        .filter(|p| same(&p.name, name))
+        .filter(|p| {
+            which
+                .parent
+                .is_none_or(|wanted| p.parent.as_deref().is_some_and(|had| same(had, wanted)))
+        })
+        .map(|p| planar(p.stamp, log_time, &p.position, &p.orientation))
+        .collect()
 }
 
 /// A Gazebo states message, its names and poses checked to pair up.
@@ -430,7 +462,7 @@ pub mod msg {
 #[cfg(test)]
 mod tests {
     use super::msg::{GazeboStates, Pose, Quaternion, Twist, Vector3};
-    use super::{MODEL_STATES_TYPE, PoseName, decode_poses, encode, full_type_name, pose_names};
+    use super::{MODEL_STATES_TYPE, PoseName, decode_poses, encode, full_type_name, named_poses};
 
     fn states() -> GazeboStates {
         let at = |x: f64| Pose {
@@ -472,10 +504,10 @@ mod tests {
         assert_eq!(poses.len(), 1);
         assert_eq!(poses[0].value, (1.5, 2.0, 0.0));
         assert_eq!((poses[0].stamp, poses[0].log_time), (None, 7));
-        let names: Vec<String> = pose_names(MODEL_STATES_TYPE, &data)
+        let names: Vec<String> = named_poses(MODEL_STATES_TYPE, &data)
             .expect("names")
             .into_iter()
-            .map(|(_, name)| name)
+            .map(|p| p.name)
             .collect();
         assert_eq!(names, ["ground_plane", "burger"]);
         // A parent frame means nothing to Gazebo's states: refused, not ignored.
@@ -491,7 +523,9 @@ mod tests {
         let mut unpaired = states();
         unpaired.pose.pop();
         let data = encode(&unpaired).expect("encode");
-        let err = pose_names(MODEL_STATES_TYPE, &data).expect_err("names without poses");
+        let err = named_poses(MODEL_STATES_TYPE, &data)
+            .err()
+            .expect("names without poses");
         assert!(err.contains("2 names but 1 poses"), "{err}");
         let data = encode(&states()).expect("encode");
         let burger = PoseName {
@@ -507,7 +541,7 @@ mod tests {
             // Either refused or read; never a panic or an allocation the
             // bytes cannot hold.
             let _ = decode_poses(MODEL_STATES_TYPE, &corrupted, 0, burger);
-            let _ = pose_names(MODEL_STATES_TYPE, &corrupted);
+            let _ = named_poses(MODEL_STATES_TYPE, &corrupted);
         }
     }
 

@@ -95,19 +95,26 @@ pub fn read_run(
             commands.push(ros::decode_command(&message_type, &data, log_time_ns).map_err(at)?);
         } else {
             if ros::holds_named_poses(&message_type) {
-                for pair in ros::pose_names(&message_type, &data).map_err(at)? {
-                    *pose_names.entry(pair).or_default() += 1;
+                let named = ros::named_poses(&message_type, &data).map_err(at)?;
+                for pose in &named {
+                    *pose_names
+                        .entry((pose.parent.clone(), pose.name.clone()))
+                        .or_default() += 1;
                 }
-                if selection.pose_name.name.is_none() {
-                    // Said once all are counted, with what the topic holds.
-                    poses_type = message_type;
-                    continue;
+                // Without a name, refused once all are counted, with what
+                // the topic holds.
+                if selection.pose_name.name.is_some() {
+                    poses.extend(
+                        ros::chosen_poses(&message_type, named, selection.pose_name, log_time_ns)
+                            .map_err(at)?,
+                    );
                 }
+            } else {
+                poses.extend(
+                    ros::decode_poses(&message_type, &data, log_time_ns, selection.pose_name)
+                        .map_err(at)?,
+                );
             }
-            poses.extend(
-                ros::decode_poses(&message_type, &data, log_time_ns, selection.pose_name)
-                    .map_err(at)?,
-            );
             poses_type = message_type;
         }
     }
