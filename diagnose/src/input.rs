@@ -43,12 +43,12 @@ fn read_rows(text: &str, file: &str, layout: Layout) -> Result<Vec<(usize, Vec<f
     };
     let (columns, rows_of_fields) = match layout {
         Layout::Csv { columns } => (columns, csv_fields(text, file, columns)?),
-        Layout::Whitespace { columns } => (columns, whitespace_fields(text)),
+        Layout::Whitespace { columns } => (columns, whitespace_fields(text, columns)),
     };
     let mut rows = Vec::new();
     let mut last_time = f64::NEG_INFINITY;
     for (number, fields) in rows_of_fields {
-        let values = numbers(&fields, columns).map_err(|message| error(number, message))?;
+        let values = numbers(fields, columns).map_err(|message| error(number, message))?;
         let first_time = rows
             .first()
             .map_or(values[0], |(_, r): &(usize, Vec<f64>)| r[0]);
@@ -67,37 +67,46 @@ fn read_rows(text: &str, file: &str, layout: Layout) -> Result<Vec<(usize, Vec<f
     Ok(rows)
 }
 
+/// A field of a row, read as a number, or what is wrong with it.
+type Field = Result<f64, String>;
+
 /// A whitespace-separated file's fields, each row with its line number;
 /// blank lines and `#` comments skipped.
-fn whitespace_fields(text: &str) -> Vec<(usize, Vec<String>)> {
+fn whitespace_fields(text: &str, columns: &[&str]) -> Vec<(usize, Vec<Field>)> {
     text.lines()
         .enumerate()
         .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'))
         .map(|(index, line)| {
             (
                 index + 1,
-                line.split_whitespace().map(str::to_owned).collect(),
+                line.split_whitespace()
+                    .zip(columns)
+                    .map(|(field, column)| number(field, column))
+                    .collect(),
             )
         })
         .collect()
 }
 
-/// The finite numbers of a row's `fields`, one per column, or what is wrong.
-fn numbers(fields: &[String], columns: &[&str]) -> Result<Vec<f64>, String> {
-    let mut values = Vec::with_capacity(columns.len());
-    for (position, column) in columns.iter().enumerate() {
-        let Some(field) = fields.get(position) else {
-            return Err(format!("missing field `{column}`"));
-        };
-        let value: f64 = field
-            .parse()
-            .map_err(|_| format!("field `{column}` is not a number: `{field}`"))?;
-        if !value.is_finite() {
-            return Err(format!("field `{column}` is not finite: `{field}`"));
-        }
-        values.push(value);
+/// `field` of `column` as a finite number, or what is wrong with it.
+fn number(field: &str, column: &str) -> Field {
+    let value: f64 = field
+        .parse()
+        .map_err(|_| format!("field `{column}` is not a number: `{field}`"))?;
+    if !value.is_finite() {
+        return Err(format!("field `{column}` is not finite: `{field}`"));
     }
-    Ok(values)
+    Ok(value)
+}
+
+/// A row's numbers, one per column, or the first thing wrong.
+fn numbers(fields: Vec<Field>, columns: &[&str]) -> Result<Vec<f64>, String> {
+    if let Some(column) = columns.get(fields.len()) {
+        // A field the row lacks: the first column past those it has.
+        fields.into_iter().collect::<Result<Vec<f64>, String>>()?;
+        return Err(format!("missing field `{column}`"));
+    }
+    fields.into_iter().collect()
 }
 
 /// A row's time `t` (column `name`) after the last row's and within
@@ -167,7 +176,7 @@ fn csv_fields(
     text: &str,
     file: &str,
     columns: &[&str],
-) -> Result<Vec<(usize, Vec<String>)>, InputError> {
+) -> Result<Vec<(usize, Vec<Field>)>, InputError> {
     let error = |line: Option<usize>, message: String| InputError {
         file: file.to_owned(),
         line,
@@ -220,7 +229,8 @@ fn csv_fields(
         // A field the row lacks stays missing, reported by name.
         let fields = positions
             .iter()
-            .map_while(|source| source.field(&record))
+            .zip(columns)
+            .map_while(|(source, column)| source.field(&record, column))
             .collect();
         rows.push((line, fields));
     }
@@ -268,28 +278,28 @@ enum Source {
 }
 
 impl Source {
-    fn field(&self, record: &csv::StringRecord) -> Option<String> {
+    /// The field of `column` in `record`, read as a number; none if the
+    /// record is too short to hold it.
+    fn field(&self, record: &csv::StringRecord, column: &str) -> Option<Field> {
         match *self {
-            Source::Column(p) => record.get(p).map(str::to_owned),
+            Source::Column(p) => record.get(p).map(|field| number(field, column)),
             Source::Stamp {
                 seconds,
                 nanoseconds,
             } => {
                 let (s, ns) = (record.get(seconds)?, record.get(nanoseconds)?);
                 Some(match (s.parse::<i64>(), ns.parse::<u32>()) {
-                    (Ok(s), Ok(ns)) if ns < 1_000_000_000 => {
-                        (s as f64 + f64::from(ns) * 1e-9).to_string()
-                    }
-                    // Left as written, for the error to quote.
-                    _ => format!("{s} s {ns} ns"),
+                    (Ok(s), Ok(ns)) if ns < 1_000_000_000 => Ok(s as f64 + f64::from(ns) * 1e-9),
+                    _ => Err(format!(
+                        "the header stamp (`{column}`) is not whole seconds and nanoseconds below 10^9: `{s}` s, `{ns}` ns"
+                    )),
                 })
             }
             Source::Nanoseconds(p) => {
                 let ns = record.get(p)?;
-                Some(
-                    ns.parse::<i64>()
-                        .map_or_else(|_| format!("{ns} ns"), |ns| (ns as f64 / 1e9).to_string()),
-                )
+                Some(ns.parse::<i64>().map(|ns| ns as f64 / 1e9).map_err(|_| {
+                    format!("field `{column}` (`%time`) is not whole nanoseconds: `{ns}`")
+                }))
             }
         }
     }
@@ -519,7 +529,7 @@ mod tests {
         )
         .expect_err("a stamp that is not a number");
         assert_eq!(error.line, Some(3), "{error}");
-        assert!(error.message.contains("`2 s x ns`"), "{error}");
+        assert!(error.message.contains("`2` s, `x` ns"), "{error}");
         // ROS 1's `rostopic echo -p /cmd_vel`: `%time` in nanoseconds.
         let commands = commands_csv(
             "%time,field.linear.x,field.linear.y,field.linear.z,field.angular.x,field.angular.y,field.angular.z\n\
