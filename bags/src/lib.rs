@@ -8,6 +8,7 @@ pub mod clock;
 pub mod ros;
 pub mod run;
 pub mod storage;
+pub mod tf;
 pub mod write;
 
 pub use clock::{ClockChoice, StampsPreference, Timing};

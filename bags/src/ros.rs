@@ -195,6 +195,13 @@ pub struct NamedPose {
     orientation: msg::Quaternion,
 }
 
+impl NamedPose {
+    /// The pose on the floor, timed by its stamp (if it has one) and `log_time`.
+    pub fn on_the_floor(&self, log_time: i64) -> Result<Stamped<PlanarPose>, String> {
+        planar(self.stamp, log_time, &self.position, &self.orientation)
+    }
+}
+
 /// Every pose a message of a `holds_named_poses` type holds: decoded once,
 /// both to list what it holds and to choose the robot's.
 pub fn named_poses(kind: &str, data: &[u8]) -> Result<Vec<NamedPose>, String> {
@@ -257,7 +264,7 @@ pub fn chosen_poses(
                 .parent
                 .is_none_or(|wanted| p.parent.as_deref().is_some_and(|had| same(had, wanted)))
         })
-        .map(|p| planar(p.stamp, log_time, &p.position, &p.orientation))
+        .map(|p| p.on_the_floor(log_time))
         .collect()
 }
 

@@ -7,6 +7,8 @@ use crate::BagError;
 use crate::clock::{ClockChoice, LogToClock, StampsPreference, Timing};
 use crate::ros::{self, Stamped};
 use crate::storage::{Bag, RawMessage};
+use crate::tf;
+use shoal_physics::Pose;
 
 /// Which topics to read, and for poses topics that hold several (TF,
 /// Gazebo's states) which is the robot's.
@@ -20,6 +22,10 @@ pub struct Selection<'a> {
 
 /// The topic Gazebo and every ROS 2 simulator publishes simulation time on.
 pub const CLOCK_TOPIC: &str = "/clock";
+
+/// Where ROS 2 publishes the transforms that never change (a robot's
+/// `base_footprint -> base_link`), once, latched.
+pub const TF_STATIC_TOPIC: &str = "/tf_static";
 
 /// What a bag holds for diagnosis. Times are seconds after the first
 /// command, taken in whole nanoseconds: as `f64` seconds since 1970 they
@@ -36,6 +42,9 @@ pub struct BagRun {
     /// Files of the bag its recorder left unfinished, said as sentences
     /// (see `storage::Reading::unfinished`); what they hold was read.
     pub unfinished: Vec<String>,
+    /// Where the poses were composed through a TF tree (no one transform
+    /// from `--parent` to `--frame`), how, in words.
+    pub pose_chain: Option<String>,
 }
 
 /// Reads the selected topics of `bag` (and its `/clock`, if it has one).
@@ -44,7 +53,12 @@ pub fn read_run(
     selection: &Selection,
     preference: StampsPreference,
 ) -> Result<BagRun, BagError> {
-    let wanted = [selection.commands_topic, selection.poses_topic, CLOCK_TOPIC];
+    let wanted = [
+        selection.commands_topic,
+        selection.poses_topic,
+        CLOCK_TOPIC,
+        TF_STATIC_TOPIC,
+    ];
     let mut commands: Vec<Stamped<(f64, f64)>> = Vec::new();
     let mut poses: Vec<Stamped<(f64, f64, f64)>> = Vec::new();
     let mut clock: Vec<(i64, i64)> = Vec::new();
@@ -54,6 +68,9 @@ pub fn read_run(
     // is not found.
     let mut pose_names: BTreeMap<(Option<String>, String), u64> = BTreeMap::new();
     let mut poses_type = String::new();
+    // Decoded only if the poses are composed through the TF tree: a bag
+    // whose /tf_static is broken is still read for what it needs.
+    let mut tf_static: Vec<(i64, Vec<u8>)> = Vec::new();
     let read = bag.messages(Some(&wanted))?;
     for message in read.found {
         let RawMessage {
@@ -68,6 +85,10 @@ pub fn read_run(
         } else if topic == selection.poses_topic {
             1
         } else {
+            if topic == TF_STATIC_TOPIC && message_type == ros::TF_TYPE {
+                tf_static.push((log_time_ns, data));
+                continue;
+            }
             // The bag's own /clock, when it is not one of the chosen topics.
             if message_type == ros::CLOCK_TYPE
                 && let Ok(sim) = ros::decode_clock(&data)
@@ -118,6 +139,22 @@ pub fn read_run(
             poses_type = message_type;
         }
     }
+    let mut pose_chain = None;
+    if poses.is_empty()
+        && poses_type == ros::TF_TYPE
+        && let (Some(leaf), Some(root)) = (selection.pose_name.name, selection.pose_name.parent)
+        && let Some(composed) = composed_through_tree(
+            bag,
+            selection.poses_topic,
+            &pose_names,
+            &tf_static,
+            root,
+            leaf,
+        )?
+    {
+        poses = composed.poses;
+        pose_chain = Some(composed.note);
+    }
     check_found(
         bag,
         selection,
@@ -146,7 +183,132 @@ pub fn read_run(
         t_origin: origin_ns as f64 / 1e9,
         clock: choice,
         unfinished: read.unfinished,
+        pose_chain,
     })
+}
+
+/// A robot's poses composed through a TF tree, and how, in words.
+struct Composed {
+    poses: Vec<Stamped<ros::PlanarPose>>,
+    note: String,
+}
+
+/// The pose of `leaf` in `root`'s frame composed through the TF tree the
+/// poses topic and `/tf_static` hold, where no one transform joins them (a
+/// localised robot: `map -> odom -> base_link`); none where no chain does.
+fn composed_through_tree(
+    bag: &Bag,
+    poses_topic: &str,
+    pose_names: &BTreeMap<(Option<String>, String), u64>,
+    tf_static: &[(i64, Vec<u8>)],
+    root: &str,
+    leaf: &str,
+) -> Result<Option<Composed>, BagError> {
+    let link = |parent: &str, child: &str| tf::Link {
+        parent: tf::frame(parent).to_owned(),
+        child: tf::frame(child).to_owned(),
+    };
+    let pose = |p: Stamped<(f64, f64, f64)>| Stamped {
+        stamp: p.stamp,
+        log_time: p.log_time,
+        value: Pose::new(p.value.0, p.value.1, p.value.2),
+    };
+    let mut statics: BTreeMap<tf::Link, Pose> = BTreeMap::new();
+    for (k, (log_time, data)) in tf_static.iter().enumerate() {
+        let at = |what: String| {
+            BagError::new(
+                &bag.path,
+                format!(
+                    "topic {TF_STATIC_TOPIC}, message {} ({}): {what}",
+                    k + 1,
+                    ros::TF_TYPE
+                ),
+            )
+        };
+        for named in ros::named_poses(ros::TF_TYPE, data).map_err(at)? {
+            if let Some(parent) = &named.parent {
+                let value = named.on_the_floor(*log_time).map_err(at)?;
+                statics.insert(link(parent, &named.name), pose(value).value);
+            }
+        }
+    }
+    let moving: Vec<tf::Link> = pose_names
+        .keys()
+        .filter_map(|(parent, child)| Some(link(parent.as_deref()?, child)))
+        .collect();
+    let all: Vec<tf::Link> = moving.iter().chain(statics.keys()).cloned().collect();
+    let Some(down) = tf::chain(&all, root, leaf) else {
+        return Ok(None);
+    };
+    // Each moving link's samples, read in a second pass over the poses
+    // topic (the first counted the links; holding every link of a swarm's
+    // /tf would take gigabytes).
+    let mut samples: BTreeMap<tf::Link, Vec<Stamped<Pose>>> = down
+        .iter()
+        .filter(|l| moving.contains(l))
+        .map(|l| (l.clone(), Vec::new()))
+        .collect();
+    let read = bag.messages(Some(&[poses_topic]))?;
+    for (k, message) in read.found.into_iter().enumerate() {
+        let at = |what: String| {
+            BagError::new(
+                &bag.path,
+                format!(
+                    "topic {poses_topic}, message {} ({}): {what}",
+                    k + 1,
+                    ros::TF_TYPE
+                ),
+            )
+        };
+        for named in ros::named_poses(&message.message_type, &message.data).map_err(at)? {
+            let into = named
+                .parent
+                .as_deref()
+                .and_then(|parent| samples.get_mut(&link(parent, &named.name)));
+            if let Some(into) = into {
+                into.push(pose(named.on_the_floor(message.log_time_ns).map_err(at)?));
+            }
+        }
+    }
+    let transforms: Vec<tf::Transforms> = down
+        .iter()
+        .map(|l| match samples.remove(l) {
+            Some(moving) => tf::Transforms::Moving(moving),
+            None => tf::Transforms::Static(statics.get(l).copied().unwrap_or_default()),
+        })
+        .collect();
+    let (composed, left_out) = tf::compose(transforms);
+    let names: Vec<String> = down.iter().map(|l| l.to_string()).collect();
+    let fixed: Vec<String> = down
+        .iter()
+        .filter(|l| !moving.contains(l))
+        .map(|l| l.to_string())
+        .collect();
+    let mut note = format!(
+        "{leaf} in {root} composed through the TF tree: {}",
+        names.join(", ")
+    );
+    if !fixed.is_empty() {
+        note += &format!(" ({} from {TF_STATIC_TOPIC})", fixed.join(", "));
+    }
+    if left_out > 0 {
+        note += &format!(
+            "; {left_out} of {} times left out where a transform of the chain has no sample on both sides (as tf2 refuses to extrapolate)",
+            composed.len() + left_out
+        );
+    }
+    let composed = composed
+        .into_iter()
+        .map(|p| Stamped {
+            stamp: p.stamp,
+            log_time: p.log_time,
+            value: (p.value.x, p.value.y, p.value.theta),
+        })
+        .collect();
+    Ok(Some(Composed {
+        poses: composed,
+        note,
+    }))
 }
 
 /// How many of the poses a TF or Gazebo states topic holds an error lists.
@@ -198,13 +360,12 @@ fn check_found(
                 None => "is a TF topic: choose the robot's frame with --frame CHILD (and \
                          --parent PARENT where several parents hold it)"
                     .to_owned(),
-                Some(child) => format!(
-                    "has no transform to child frame {child}{}",
-                    which
-                        .parent
-                        .map(|p| format!(" from parent {p}"))
-                        .unwrap_or_default()
-                ),
+                Some(child) => match which.parent {
+                    Some(parent) => format!(
+                        "has no transform to child frame {child} from parent {parent}, and no chain of its transforms (and {TF_STATIC_TOPIC}'s) leads from {parent} down to {child}"
+                    ),
+                    None => format!("has no transform to child frame {child}"),
+                },
             };
             (what, "no transforms")
         } else {

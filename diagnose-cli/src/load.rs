@@ -41,6 +41,9 @@ pub struct ClockNote {
     pub reason: String,
     /// What it means for a delay fitted between command and motion.
     pub delay: String,
+    /// Where the poses were composed through the TF tree, how.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pose_chain: Option<String>,
 }
 
 /// A run read for diagnosis, with what was decided reading it.
@@ -179,6 +182,7 @@ fn load_bag(path: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
         poses: run.clock.poses.to_string(),
         reason: run.clock.reason.clone(),
         delay: run.clock.delay_note.clone(),
+        pose_chain: run.pose_chain.clone(),
         commands_topic,
         poses_topic,
     };

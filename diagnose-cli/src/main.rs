@@ -75,7 +75,10 @@ struct DiagnoseArgs {
     /// with Gazebo's model (or link) states: the robot's model (or link).
     #[arg(long, requires = "poses_topic", value_name = "NAME")]
     frame: Option<String>,
-    /// With a TF poses topic: only transforms from this parent frame.
+    /// With a TF poses topic: only transforms from this parent frame;
+    /// where none joins it to --frame, the chain of transforms that does
+    /// (with /tf_static's), composed as tf2 looks it up (e.g. --frame
+    /// base_link --parent map through map -> odom -> base_link).
     #[arg(long, requires = "frame", value_name = "FRAME")]
     parent: Option<String>,
     /// The simulation model (TOML); default: the plain unicycle.

@@ -84,8 +84,14 @@ pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
     let mut line = |text: String| {
         let _ = writeln!(out, "{text}");
     };
+    let pose_chain = notes
+        .clock
+        .as_ref()
+        .and_then(|c| c.pose_chain.as_ref())
+        .map(|chain| format!("Poses: {chain}."));
     for text in clock_text(notes)
         .into_iter()
+        .chain(pose_chain)
         .chain(set_aside_text(&d.glitches))
     {
         line(text);

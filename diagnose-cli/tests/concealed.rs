@@ -385,6 +385,22 @@ fn a_ros2_bag_is_diagnosed_from_pose_tf_and_odometry_topics() {
             "odometry",
             &["--commands-topic", "/cmd_vel", "--poses-topic", "/odom"][..],
         ),
+        // A localised robot's tree: no transform from map to base_link,
+        // composed through map -> odom, odom -> base_footprint and
+        // /tf_static's base_footprint -> base_link.
+        (
+            "tf_chain",
+            &[
+                "--commands-topic",
+                "/cmd_vel",
+                "--poses-topic",
+                "/tf",
+                "--frame",
+                "base_link",
+                "--parent",
+                "map",
+            ][..],
+        ),
     ] {
         let bag = write_bag(&dir, poses_as);
         let output = diagnose_bag(&bag, topics);
@@ -395,6 +411,16 @@ fn a_ros2_bag_is_diagnosed_from_pose_tf_and_odometry_topics() {
         let clock = &d["input"]["clock"];
         assert_eq!(clock["commands"], "the bag's log times", "{clock}");
         assert_eq!(clock["poses"], "header stamps", "{clock}");
+        if poses_as == "tf_chain" {
+            let chain = clock["pose_chain"].as_str().unwrap_or_default();
+            assert!(
+                chain.contains("map -> odom, odom -> base_footprint, base_footprint -> base_link")
+                    && chain.contains("base_footprint -> base_link from /tf_static"),
+                "{clock}"
+            );
+        } else {
+            assert!(clock.get("pose_chain").is_none(), "{clock}");
+        }
         assert_eq!(kinds(&d), ["latency"], "{poses_as}: {d}");
         let fitted = first_latency(&d);
         assert!(
@@ -444,7 +470,7 @@ fn bad_bags_are_refused_naming_the_file_topic_and_message() {
         "--frame",
         "base_link",
     ];
-    let cases: [(&Path, &[&str], &str); 6] = [
+    let cases: [(&Path, &[&str], &str); 7] = [
         (
             &csv,
             &topics,
@@ -479,6 +505,20 @@ fn bad_bags_are_refused_naming_the_file_topic_and_message() {
                 "base_footprint",
             ],
             "tf.mcap: topic /tf has no transform to child frame base_footprint; it holds base_link -> camera (",
+        ),
+        (
+            &bag,
+            &[
+                "--commands-topic",
+                "/cmd_vel",
+                "--poses-topic",
+                "/tf",
+                "--frame",
+                "base_link",
+                "--parent",
+                "map",
+            ],
+            "tf.mcap: topic /tf has no transform to child frame base_link from parent map, and no chain of its transforms (and /tf_static's) leads from map down to base_link; it holds",
         ),
         (
             &bag,

@@ -1,13 +1,19 @@
 """Writes a run (commands.csv, poses.csv) as a ROS 2 bag with the official
 Python writer (mcap-ros2-support, which encodes CDR as ROS 2 does).
 
-Usage: write_bag.py RUN_DIR OUT.mcap {pose,tf,odometry}
+Usage: write_bag.py RUN_DIR OUT.mcap {pose,tf,tf_chain,odometry}
 
 Commands go to /cmd_vel as geometry_msgs/msg/Twist (no header: the bag's
 log times). Poses go, by the last argument, to /mocap/pose as
 geometry_msgs/msg/PoseStamped, to /tf as tf2_msgs/msg/TFMessage (odom ->
 base_link, beside a camera transform that must be ignored), or to /odom as
-nav_msgs/msg/Odometry. Times start at 1.7e9 s, as a wall clock would.
+nav_msgs/msg/Odometry. With tf_chain, /tf holds a localised robot's tree
+as navigation stacks publish it and no transform from map to the robot:
+map -> odom at 5 Hz (a localisation that corrects a drifting odometry),
+odom -> base_footprint at every pose (the drifting odometry), and
+/tf_static base_footprint -> base_link, 5 cm ahead and 1 cm left; base_link
+in map, composed, is the run's pose. Times start at 1.7e9 s, as a wall
+clock would.
 With odometry, the schemas are registered by their ROS 1 spelling
 (`nav_msgs/Odometry`, `geometry_msgs/Twist`), as mcap-ros2-support's own
 README does: the same layouts, named as many writers outside ROS name them.
@@ -91,6 +97,37 @@ def quaternion(theta: float) -> dict:
     return {"x": 0.0, "y": 0.0, "z": math.sin(theta / 2), "w": math.cos(theta / 2)}
 
 
+def compose(a, b):
+    """Planar pose b, given in a's frame, in a's parent's frame."""
+    (ax, ay, at), (bx, by, bt) = a, b
+    c, s = math.cos(at), math.sin(at)
+    return (ax + c * bx - s * by, ay + s * bx + c * by, at + bt)
+
+
+def inverse(a):
+    ax, ay, at = a
+    c, s = math.cos(at), math.sin(at)
+    return (-(c * ax + s * ay), s * ax - c * ay, -at)
+
+
+def odometry_drift(t: float):
+    """map -> odom at time t: linear in t, so that tf2's interpolation
+    between its 5 Hz samples is exact."""
+    return (0.3 + 0.002 * t, -0.1 - 0.001 * t, 0.2 + 0.0005 * t)
+
+
+FOOTPRINT_TO_LINK = (0.05, 0.01, 0.0)
+
+
+def transform(parent: str, child: str, t: float, pose) -> dict:
+    x, y, theta = pose
+    return {
+        "header": {"stamp": stamp(t), "frame_id": parent},
+        "child_frame_id": child,
+        "transform": {"translation": {"x": x, "y": y, "z": 0.0}, "rotation": quaternion(theta)},
+    }
+
+
 def main(run: str, out: str, poses_as: str) -> None:
     with open(out, "wb") as f:
         writer = Writer(f)
@@ -107,14 +144,29 @@ def main(run: str, out: str, poses_as: str) -> None:
         if poses_as == "pose":
             schema = writer.register_msgdef("geometry_msgs/msg/PoseStamped", POSE_STAMPED_DEF)
             topic = "/mocap/pose"
-        elif poses_as == "tf":
+        elif poses_as in ("tf", "tf_chain"):
             schema = writer.register_msgdef("tf2_msgs/msg/TFMessage", TF_DEF)
             topic = "/tf"
         else:
             schema = writer.register_msgdef("nav_msgs/Odometry", ODOMETRY_DEF)
             topic = "/odom"
+        if poses_as == "tf_chain":
+            # Latched once at the start, as robot_state_publisher does.
+            static = {"transforms": [transform("base_footprint", "base_link", 0.0, FOOTPRINT_TO_LINK)]}
+            messages.append((0.0, "/tf_static", schema, static))
+            last = max(r["t"] for r in rows(f"{run}/poses.csv"))
+            for k in range(int(last / 0.2) + 2):
+                t = 0.2 * k
+                localisation = {"transforms": [transform("map", "odom", t, odometry_drift(t))]}
+                messages.append((t, "/tf", schema, localisation))
         for r in rows(f"{run}/poses.csv"):
             position = {"x": r["x"], "y": r["y"], "z": 0.0}
+            if poses_as == "tf_chain":
+                truth = (r["x"], r["y"], r["theta"])
+                odometry = compose(inverse(odometry_drift(r["t"])), compose(truth, inverse(FOOTPRINT_TO_LINK)))
+                message = {"transforms": [transform("odom", "base_footprint", r["t"], odometry)]}
+                messages.append((r["t"], topic, schema, message))
+                continue
             header = {"stamp": stamp(r["t"]), "frame_id": "odom"}
             if poses_as == "pose":
                 message = {"header": header, "pose": {"position": position, "orientation": quaternion(r["theta"])}}
