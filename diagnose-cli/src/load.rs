@@ -119,10 +119,12 @@ fn load_bag(path: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
     let bag = Bag::open(path)?;
     let listed = bag.topics()?;
     let topics = listed.found;
+    // /tf_static's transforms never move: read beside /tf, never a robot's poses.
     let of = |types: &[&str]| -> Vec<String> {
         topics
             .iter()
             .filter(|t| types.contains(&t.message_type.as_str()))
+            .filter(|t| t.name != shoal_bags::run::TF_STATIC_TOPIC)
             .map(|t| t.name.clone())
             .collect()
     };
