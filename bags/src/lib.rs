@@ -1,8 +1,9 @@
 //! ROS 2 bags as people record them, read without a ROS 2 installation:
 //! MCAP and sqlite3 (`.db3`) storage, split bags in a folder, compressed
 //! files, chunks and messages (`storage`); the standard messages of velocity
-//! commands and poses (`ros`); the one clock commands and poses are compared
-//! on (`clock`); and a writer of bags Shoal's generator makes (`write`).
+//! commands and poses (`ros`); a robot's pose composed through a TF tree
+//! (`tf`); the one clock commands and poses are compared on (`clock`); and a
+//! writer of bags Shoal's generator makes (`write`).
 
 pub mod clock;
 pub mod ros;

@@ -364,7 +364,9 @@ fn check_found(
                     Some(parent) => format!(
                         "has no transform to child frame {child} from parent {parent}, and no chain of its transforms (and {TF_STATIC_TOPIC}'s) leads from {parent} down to {child}"
                     ),
-                    None => format!("has no transform to child frame {child}"),
+                    None => format!(
+                        "has no transform to child frame {child} (to compose one through the TF tree, name the frame to see it from with --parent, e.g. map or odom)"
+                    ),
                 },
             };
             (what, "no transforms")

@@ -504,7 +504,7 @@ fn bad_bags_are_refused_naming_the_file_topic_and_message() {
                 "--frame",
                 "base_footprint",
             ],
-            "tf.mcap: topic /tf has no transform to child frame base_footprint; it holds base_link -> camera (",
+            "tf.mcap: topic /tf has no transform to child frame base_footprint (to compose one through the TF tree, name the frame to see it from with --parent, e.g. map or odom); it holds base_link -> camera (",
         ),
         (
             &bag,
