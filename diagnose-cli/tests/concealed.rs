@@ -353,6 +353,19 @@ fn diagnose_bag(bag: &Path, topics: &[&str]) -> std::process::Output {
         .expect("run shoal-diagnose")
 }
 
+/// A localised robot's bag: its commands, and base_link seen from map
+/// through its TF tree.
+const LOCALISED_ROBOT_TOPICS: [&str; 8] = [
+    "--commands-topic",
+    "/cmd_vel",
+    "--poses-topic",
+    "/tf",
+    "--frame",
+    "base_link",
+    "--parent",
+    "map",
+];
+
 #[test]
 fn a_ros2_bag_is_diagnosed_from_pose_tf_and_odometry_topics() {
     let case = case_named(&Generator::bench(), "latency", DURATION_S).expect("latency case");
@@ -388,19 +401,7 @@ fn a_ros2_bag_is_diagnosed_from_pose_tf_and_odometry_topics() {
         // A localised robot's tree: no transform from map to base_link,
         // composed through map -> odom, odom -> base_footprint and
         // /tf_static's base_footprint -> base_link.
-        (
-            "tf_chain",
-            &[
-                "--commands-topic",
-                "/cmd_vel",
-                "--poses-topic",
-                "/tf",
-                "--frame",
-                "base_link",
-                "--parent",
-                "map",
-            ][..],
-        ),
+        ("tf_chain", &LOCALISED_ROBOT_TOPICS[..]),
     ] {
         let bag = write_bag(&dir, poses_as);
         let output = diagnose_bag(&bag, topics);
@@ -508,16 +509,7 @@ fn bad_bags_are_refused_naming_the_file_topic_and_message() {
         ),
         (
             &bag,
-            &[
-                "--commands-topic",
-                "/cmd_vel",
-                "--poses-topic",
-                "/tf",
-                "--frame",
-                "base_link",
-                "--parent",
-                "map",
-            ],
+            &LOCALISED_ROBOT_TOPICS,
             "tf.mcap: topic /tf has no transform to child frame base_link from parent map, and no chain of its transforms (and /tf_static's) leads from map down to base_link; it holds",
         ),
         (
