@@ -5,7 +5,7 @@
 use serde::Deserialize;
 
 pub const COMMAND_TYPES: [&str; 2] = ["geometry_msgs/msg/Twist", "geometry_msgs/msg/TwistStamped"];
-pub const POSE_TYPES: [&str; 8] = [
+pub const POSE_TYPES: [&str; 9] = [
     "geometry_msgs/msg/PoseStamped",
     // What motion-capture bridges (vicon_bridge) publish per body.
     "geometry_msgs/msg/TransformStamped",
@@ -14,12 +14,16 @@ pub const POSE_TYPES: [&str; 8] = [
     // What `ros_gz_bridge` makes of a Gazebo (gz sim) pose: no header, so
     // timed by the bag's log times.
     POSE_TYPE,
+    TURTLESIM_POSE_TYPE,
     TF_TYPE,
     MODEL_STATES_TYPE,
     LINK_STATES_TYPE,
 ];
 /// A pose without a header.
 pub const POSE_TYPE: &str = "geometry_msgs/msg/Pose";
+/// turtlesim's pose (`/turtle1/pose`), the robot of ROS 2's own tutorials,
+/// `ros2 bag record`'s among them: x, y and theta as `float32`, no header.
+pub const TURTLESIM_POSE_TYPE: &str = "turtlesim/msg/Pose";
 /// Poses as transforms between named frames (`/tf`): the robot's is chosen
 /// by its child frame.
 pub const TF_TYPE: &str = "tf2_msgs/msg/TFMessage";
@@ -172,6 +176,16 @@ pub fn decode_poses(
         POSE_TYPE => {
             let m = decode::<msg::Pose>(data)?;
             Ok(vec![planar(None, log_time, &m.position, &m.orientation)?])
+        }
+        TURTLESIM_POSE_TYPE => {
+            let m = decode::<msg::TurtlesimPose>(data)?;
+            let (x, y, theta) = (f64::from(m.x), f64::from(m.y), f64::from(m.theta));
+            finite(&[("x", x), ("y", y), ("theta", theta)])?;
+            Ok(vec![Stamped {
+                stamp: None,
+                log_time,
+                value: (x, y, theta),
+            }])
         }
         named if holds_named_poses(named) => {
             chosen_poses(kind, named_poses(kind, data)?, which, log_time)
@@ -460,6 +474,16 @@ pub mod msg {
         pub twist: Vec<Twist>,
     }
 
+    /// `turtlesim/msg/Pose`.
+    #[derive(Deserialize, Serialize)]
+    pub struct TurtlesimPose {
+        pub x: f32,
+        pub y: f32,
+        pub theta: f32,
+        pub linear_velocity: f32,
+        pub angular_velocity: f32,
+    }
+
     #[derive(Deserialize, Serialize)]
     pub struct Clock {
         pub clock: Time,
@@ -468,8 +492,11 @@ pub mod msg {
 
 #[cfg(test)]
 mod tests {
-    use super::msg::{GazeboStates, Pose, Quaternion, Twist, Vector3};
-    use super::{MODEL_STATES_TYPE, PoseName, decode_poses, encode, full_type_name, named_poses};
+    use super::msg::{GazeboStates, Pose, Quaternion, TurtlesimPose, Twist, Vector3};
+    use super::{
+        MODEL_STATES_TYPE, PoseName, TURTLESIM_POSE_TYPE, decode_poses, encode, full_type_name,
+        named_poses,
+    };
 
     fn states() -> GazeboStates {
         let at = |x: f64| Pose {
@@ -565,5 +592,33 @@ mod tests {
         // Not a type name: left as written, for the error to quote.
         assert_eq!(full_type_name("(no schema)"), "(no schema)");
         assert_eq!(full_type_name("/Twist"), "/Twist");
+    }
+
+    #[test]
+    fn turtlesims_pose_is_read_as_written_and_refused_when_cut_or_not_finite() {
+        let turtle = |x: f32| TurtlesimPose {
+            x,
+            y: 5.5,
+            theta: -1.25,
+            linear_velocity: 2.0,
+            angular_velocity: 0.5,
+        };
+        let data = encode(&turtle(3.0)).expect("encode");
+        let poses = decode_poses(TURTLESIM_POSE_TYPE, &data, 42, PoseName::default())
+            .expect("a turtlesim pose");
+        assert_eq!(poses.len(), 1);
+        assert_eq!(poses[0].value, (3.0, 5.5, -1.25));
+        // No header: timed by the log time alone.
+        assert_eq!((poses[0].stamp, poses[0].log_time), (None, 42));
+        for cut in 0..data.len() {
+            assert!(
+                decode_poses(TURTLESIM_POSE_TYPE, &data[..cut], 42, PoseName::default()).is_err()
+            );
+        }
+        let nan = encode(&turtle(f32::NAN)).expect("encode");
+        let error = decode_poses(TURTLESIM_POSE_TYPE, &nan, 42, PoseName::default())
+            .err()
+            .unwrap_or_default();
+        assert!(error.contains("field x is not finite"), "{error}");
     }
 }

@@ -62,7 +62,7 @@ struct DiagnoseArgs {
     commands_topic: Option<String>,
     /// The bag's observed poses: geometry_msgs/msg/PoseStamped,
     /// TransformStamped (motion-capture bridges), PoseWithCovarianceStamped,
-    /// Pose (ros_gz_bridge), nav_msgs/msg/Odometry, or with --frame
+    /// Pose (ros_gz_bridge), nav_msgs/msg/Odometry, turtlesim/msg/Pose, or with --frame
     /// tf2_msgs/msg/TFMessage or gazebo_msgs/msg/ModelStates or LinkStates.
     #[arg(long, value_name = "TOPIC")]
     poses_topic: Option<String>,

@@ -706,9 +706,12 @@ fn gazebo_ground_truth_without_headers_is_read_by_the_robots_name() {
     let from_csv = first_latency(&from_csv);
     let states = write_gazebo_bag(&dir, "states", &["poses=model_states"]);
     let gz = write_gazebo_bag(&dir, "gz", &["poses=gz_pose", "storage=mcap"]);
+    // ROS 2's own tutorial robot: turtlesim's header-less float32 pose.
+    let turtle = write_gazebo_bag(&dir, "turtle", &["poses=turtlesim"]);
     for (bag, topic, extra) in [
         (&states, "/gazebo/model_states", &["--frame", "burger"][..]),
         (&gz, "/model/burger/pose", &[][..]),
+        (&turtle, "/turtle1/pose", &[][..]),
     ] {
         let output = diagnose_gazebo_poses(bag, topic, extra);
         let stderr = String::from_utf8_lossy(&output.stderr);

@@ -16,7 +16,7 @@ few milliseconds after it was made. OPTIONS, any of:
   split=N                cut the bag into N files, listed by metadata.yaml
   compression=none|file|message   rosbag2's zstd compression
   version=8|9            rosbag2 metadata version (default 8)
-  poses=odom|vicon|model_states|gz_pose
+  poses=odom|vicon|model_states|gz_pose|turtlesim
                          /odom in simulation time (default), or a motion-
                          capture bridge's /vicon/robot/robot
                          (geometry_msgs/msg/TransformStamped) stamped by a
@@ -26,7 +26,11 @@ few milliseconds after it was made. OPTIONS, any of:
                          (gazebo_msgs/msg/ModelStates, no header: the
                          robot "burger" beside two static models), or
                          ros_gz_bridge's /model/burger/pose
-                         (geometry_msgs/msg/Pose, no header)
+                         (geometry_msgs/msg/Pose, no header), or
+                         turtlesim's /turtle1/pose (turtlesim/msg/Pose:
+                         float32 x, y, theta, no header; ROS 2's
+                         `ros2 bag record` tutorial bag; wall clock, no
+                         /clock)
   command=twist|stamped|stamped-wall
                          /cmd_vel as geometry_msgs/msg/Twist (default) or
                          TwistStamped stamped in simulation time (ROS 2
@@ -71,7 +75,7 @@ def main(run_dir, out_dir, *options):
     version = int(opts.get("version", "8"))
     poses_from = opts.get("poses", "odom")
     vicon = poses_from == "vicon"
-    with_clock = with_clock and not vicon
+    with_clock = with_clock and poses_from not in ("vicon", "turtlesim")
 
     typestore = get_typestore(Stores.ROS2_HUMBLE)
     # Not among rosbags' stored types: registered from its .msg, as a user
@@ -80,6 +84,11 @@ def main(run_dir, out_dir, *options):
         "string[] name\ngeometry_msgs/Pose[] pose\ngeometry_msgs/Twist[] twist\n",
         "gazebo_msgs/msg/ModelStates",
     ))
+    typestore.register(get_types_from_msg(
+        "float32 x\nfloat32 y\nfloat32 theta\nfloat32 linear_velocity\nfloat32 angular_velocity\n",
+        "turtlesim/msg/Pose",
+    ))
+    TurtlesimPose = typestore.types["turtlesim/msg/Pose"]
     ModelStates = typestore.types["gazebo_msgs/msg/ModelStates"]
     Twist = typestore.types["geometry_msgs/msg/Twist"]
     TwistStamped = typestore.types["geometry_msgs/msg/TwistStamped"]
@@ -102,6 +111,7 @@ def main(run_dir, out_dir, *options):
         "vicon": ("/vicon/robot/robot", TransformStamped),
         "model_states": ("/gazebo/model_states", ModelStates),
         "gz_pose": ("/model/burger/pose", Pose),
+        "turtlesim": ("/turtle1/pose", TurtlesimPose),
     }[poses_from]
 
     def sim_ns(t):
@@ -140,6 +150,10 @@ def main(run_dir, out_dir, *options):
                 child_frame_id="robot",
                 transform=Transform(translation=Vector3(x=r["x"], y=r["y"], z=0.0), rotation=pose.orientation),
             )
+            messages.append((wall_ns(r["t"]) + POSE_TRANSPORT_NS, poses_topic, msg))
+            continue
+        if poses_from == "turtlesim":
+            msg = TurtlesimPose(x=r["x"], y=r["y"], theta=r["theta"], linear_velocity=0.0, angular_velocity=0.0)
             messages.append((wall_ns(r["t"]) + POSE_TRANSPORT_NS, poses_topic, msg))
             continue
         if poses_from in ("model_states", "gz_pose"):
