@@ -1,7 +1,7 @@
 """Writes a run (commands.csv, poses.csv) as a ROS 2 bag with the official
 Python writer (mcap-ros2-support, which encodes CDR as ROS 2 does).
 
-Usage: write_bag.py RUN_DIR OUT.mcap {pose,tf,tf_chain,odometry}
+Usage: write_bag.py RUN_DIR OUT.mcap {pose,tf,tf_chain,amcl,odometry}
 
 Commands go to /cmd_vel as geometry_msgs/msg/Twist (no header: the bag's
 log times). Poses go, by the last argument, to /mocap/pose as
@@ -12,8 +12,13 @@ as navigation stacks publish it and no transform from map to the robot:
 map -> odom at 5 Hz (a localisation that corrects a drifting odometry),
 odom -> base_footprint at every pose (the drifting odometry), and
 /tf_static base_footprint -> base_link, 5 cm ahead and 1 cm left; base_link
-in map, composed, is the run's pose. Times start at 1.7e9 s, as a wall
-clock would.
+in map, composed, is the run's pose. With amcl, the tree as a localised
+robot's really is: odom -> base_link integrates the run's motion with
+strides 3% long and a heading drift of 0.02 rad per metre (wheel
+odometry's errors), and map -> odom is re-estimated every 0.5 s, 1.5 cm
+and 0.01 rad off at random (seeded), and held between estimates (as AMCL
+publishes it): base_link in map jumps back towards the truth at each
+estimate. Times start at 1.7e9 s, as a wall clock would.
 With odometry, the schemas are registered by their ROS 1 spelling
 (`nav_msgs/Odometry`, `geometry_msgs/Twist`), as mcap-ros2-support's own
 README does: the same layouts, named as many writers outside ROS name them.
@@ -21,6 +26,7 @@ README does: the same layouts, named as many writers outside ROS name them.
 
 import csv
 import math
+import random
 import sys
 
 from mcap_ros2.writer import Writer
@@ -128,6 +134,32 @@ def transform(parent: str, child: str, t: float, pose) -> dict:
     }
 
 
+def amcl_transforms(run: str, schema) -> list:
+    """The amcl mode's /tf messages, (t, topic, schema, message)."""
+    rng = random.Random(1)
+    messages, previous, odometry, next_estimate = [], None, None, 0.0
+    for r in rows(f"{run}/poses.csv"):
+        truth = (r["x"], r["y"], r["theta"])
+        if previous is None:
+            odometry = truth
+        else:
+            step = compose(inverse(previous), truth)
+            walked = math.hypot(step[0], step[1])
+            odometry = compose(odometry, (1.03 * step[0], 1.03 * step[1], step[2] + 0.02 * walked))
+        previous = truth
+        if r["t"] >= next_estimate:
+            exact = compose(truth, inverse(odometry))
+            estimate = (
+                exact[0] + rng.gauss(0, 0.015),
+                exact[1] + rng.gauss(0, 0.015),
+                exact[2] + rng.gauss(0, 0.01),
+            )
+            messages.append((r["t"], "/tf", schema, {"transforms": [transform("map", "odom", r["t"], estimate)]}))
+            next_estimate += 0.5
+        messages.append((r["t"], "/tf", schema, {"transforms": [transform("odom", "base_link", r["t"], odometry)]}))
+    return messages
+
+
 def main(run: str, out: str, poses_as: str) -> None:
     with open(out, "wb") as f:
         writer = Writer(f)
@@ -144,12 +176,14 @@ def main(run: str, out: str, poses_as: str) -> None:
         if poses_as == "pose":
             schema = writer.register_msgdef("geometry_msgs/msg/PoseStamped", POSE_STAMPED_DEF)
             topic = "/mocap/pose"
-        elif poses_as in ("tf", "tf_chain"):
+        elif poses_as in ("tf", "tf_chain", "amcl"):
             schema = writer.register_msgdef("tf2_msgs/msg/TFMessage", TF_DEF)
             topic = "/tf"
         else:
             schema = writer.register_msgdef("nav_msgs/Odometry", ODOMETRY_DEF)
             topic = "/odom"
+        if poses_as == "amcl":
+            messages.extend(amcl_transforms(run, schema))
         if poses_as == "tf_chain":
             # Latched once at the start, as robot_state_publisher does.
             static = {"transforms": [transform("base_footprint", "base_link", 0.0, FOOTPRINT_TO_LINK)]}
@@ -159,7 +193,7 @@ def main(run: str, out: str, poses_as: str) -> None:
                 t = 0.2 * k
                 localisation = {"transforms": [transform("map", "odom", t, odometry_drift(t))]}
                 messages.append((t, "/tf", schema, localisation))
-        for r in rows(f"{run}/poses.csv"):
+        for r in rows(f"{run}/poses.csv") if poses_as != "amcl" else []:
             position = {"x": r["x"], "y": r["y"], "z": 0.0}
             if poses_as == "tf_chain":
                 truth = (r["x"], r["y"], r["theta"])
