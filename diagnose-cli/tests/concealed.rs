@@ -353,18 +353,20 @@ fn diagnose_bag(bag: &Path, topics: &[&str]) -> std::process::Output {
         .expect("run shoal-diagnose")
 }
 
-/// A localised robot's bag: its commands, and base_link seen from map
-/// through its TF tree.
-const LOCALISED_ROBOT_TOPICS: [&str; 8] = [
-    "--commands-topic",
-    "/cmd_vel",
-    "--poses-topic",
-    "/tf",
-    "--frame",
-    "base_link",
-    "--parent",
-    "map",
-];
+/// A TF bag's topics: its commands, and base_link seen from `parent`
+/// (through the TF tree where no one transform joins them).
+fn base_link_from(parent: &str) -> [&str; 8] {
+    [
+        "--commands-topic",
+        "/cmd_vel",
+        "--poses-topic",
+        "/tf",
+        "--frame",
+        "base_link",
+        "--parent",
+        parent,
+    ]
+}
 
 #[test]
 fn a_ros2_bag_is_diagnosed_from_pose_tf_and_odometry_topics() {
@@ -381,19 +383,7 @@ fn a_ros2_bag_is_diagnosed_from_pose_tf_and_odometry_topics() {
                 "/mocap/pose",
             ][..],
         ),
-        (
-            "tf",
-            &[
-                "--commands-topic",
-                "/cmd_vel",
-                "--poses-topic",
-                "/tf",
-                "--frame",
-                "base_link",
-                "--parent",
-                "odom",
-            ][..],
-        ),
+        ("tf", &base_link_from("odom")[..]),
         (
             "odometry",
             &["--commands-topic", "/cmd_vel", "--poses-topic", "/odom"][..],
@@ -401,7 +391,7 @@ fn a_ros2_bag_is_diagnosed_from_pose_tf_and_odometry_topics() {
         // A localised robot's tree: no transform from map to base_link,
         // composed through map -> odom, odom -> base_footprint and
         // /tf_static's base_footprint -> base_link.
-        ("tf_chain", &LOCALISED_ROBOT_TOPICS[..]),
+        ("tf_chain", &base_link_from("map")[..]),
     ] {
         let bag = write_bag(&dir, poses_as);
         let output = diagnose_bag(&bag, topics);
@@ -467,9 +457,7 @@ fn a_localised_robot_is_diagnosed_through_its_localisation_not_its_odometry() {
     let true_latency = case.truth[0].effect.params()[0].1;
     let bag = write_bag(&dir, "amcl");
     let seen_from = |parent: &str| -> Value {
-        let mut topics = LOCALISED_ROBOT_TOPICS;
-        topics[7] = parent;
-        let output = diagnose_bag(&bag, &topics);
+        let output = diagnose_bag(&bag, &base_link_from(parent));
         let stderr = String::from_utf8_lossy(&output.stderr);
         assert!(output.status.success(), "{parent}: {stderr}");
         serde_json::from_slice(&output.stdout).expect("JSON")
@@ -545,7 +533,7 @@ fn bad_bags_are_refused_naming_the_file_topic_and_message() {
         ),
         (
             &bag,
-            &LOCALISED_ROBOT_TOPICS,
+            &base_link_from("map"),
             "tf.mcap: topic /tf has no transform to child frame base_link from parent map, and no chain of its transforms (and /tf_static's) leads from map down to base_link; it holds",
         ),
         (
