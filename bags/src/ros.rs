@@ -269,7 +269,7 @@ pub fn chosen_poses(
             "--parent chooses among TF transforms; Gazebo's states name each model once".to_owned(),
         );
     }
-    let same = |a: &str, b: &str| a.trim_start_matches('/') == b.trim_start_matches('/');
+    let same = |a: &str, b: &str| crate::tf::frame(a) == crate::tf::frame(b);
     named
         .into_iter()
         .filter(|p| same(&p.name, name))

@@ -98,15 +98,7 @@ pub fn read_run(
             continue;
         };
         seen[index] += 1;
-        let at = |what: String| {
-            BagError::new(
-                &bag.path,
-                format!(
-                    "topic {topic}, message {} ({message_type}): {what}",
-                    seen[index]
-                ),
-            )
-        };
+        let at = |what: String| message_error(bag, &topic, seen[index], &message_type, what);
         if encoding != "cdr" {
             return Err(at(format!(
                 "messages are encoded as `{encoding}`; ROS 2 bags use `cdr`"
@@ -215,20 +207,11 @@ fn composed_through_tree(
     };
     let mut statics: BTreeMap<tf::Link, Pose> = BTreeMap::new();
     for (k, (log_time, data)) in tf_static.iter().enumerate() {
-        let at = |what: String| {
-            BagError::new(
-                &bag.path,
-                format!(
-                    "topic {TF_STATIC_TOPIC}, message {} ({}): {what}",
-                    k + 1,
-                    ros::TF_TYPE
-                ),
-            )
-        };
+        let at = |what: String| message_error(bag, TF_STATIC_TOPIC, k + 1, ros::TF_TYPE, what);
         for named in ros::named_poses(ros::TF_TYPE, data).map_err(at)? {
             if let Some(parent) = &named.parent {
-                let value = named.on_the_floor(*log_time).map_err(at)?;
-                statics.insert(link(parent, &named.name), pose(value).value);
+                let (x, y, yaw) = named.on_the_floor(*log_time).map_err(at)?.value;
+                statics.insert(link(parent, &named.name), Pose::new(x, y, yaw));
             }
         }
     }
@@ -250,16 +233,7 @@ fn composed_through_tree(
         .collect();
     let read = bag.messages(Some(&[poses_topic]))?;
     for (k, message) in read.found.into_iter().enumerate() {
-        let at = |what: String| {
-            BagError::new(
-                &bag.path,
-                format!(
-                    "topic {poses_topic}, message {} ({}): {what}",
-                    k + 1,
-                    ros::TF_TYPE
-                ),
-            )
-        };
+        let at = |what: String| message_error(bag, poses_topic, k + 1, ros::TF_TYPE, what);
         for named in ros::named_poses(&message.message_type, &message.data).map_err(at)? {
             let into = named
                 .parent
@@ -309,6 +283,20 @@ fn composed_through_tree(
         poses: composed,
         note,
     }))
+}
+
+/// What is wrong with the `number`-th message (from 1) of `topic`.
+fn message_error(
+    bag: &Bag,
+    topic: &str,
+    number: impl std::fmt::Display,
+    message_type: &str,
+    what: String,
+) -> BagError {
+    BagError::new(
+        &bag.path,
+        format!("topic {topic}, message {number} ({message_type}): {what}"),
+    )
 }
 
 /// How many of the poses a TF or Gazebo states topic holds an error lists.

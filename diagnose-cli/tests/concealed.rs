@@ -487,21 +487,16 @@ fn bad_bags_are_refused_naming_the_file_topic_and_message() {
     let cut = dir.join("cut.mcap");
     std::fs::write(&cut, &bytes[..64]).expect("write");
     let csv = dir.join("commands.csv");
-    let topics = [
-        "--commands-topic",
-        "/cmd_vel",
-        "--poses-topic",
-        "/tf",
-        "--frame",
-        "base_link",
-    ];
+    // base_link from any parent: no --parent.
+    let from_any = base_link_from("");
+    let topics = &from_any[..6];
     let cases: [(&Path, &[&str], &str); 7] = [
         (
             &csv,
-            &topics,
+            topics,
             "commands.csv: is neither an MCAP nor a sqlite3 (.db3) ROS 2 bag",
         ),
-        (&cut, &topics, "cut.mcap: the bag is damaged or cut short"),
+        (&cut, topics, "cut.mcap: the bag is damaged or cut short"),
         (
             &bag,
             &[
