@@ -3,6 +3,7 @@
 //! definitions), with the `cdr-encoding` crate.
 
 use serde::Deserialize;
+use shoal_physics::Pose;
 
 pub const COMMAND_TYPES: [&str; 2] = ["geometry_msgs/msg/Twist", "geometry_msgs/msg/TwistStamped"];
 pub const POSE_TYPES: [&str; 9] = [
@@ -52,9 +53,6 @@ pub fn full_type_name(name: &str) -> String {
         _ => name.to_owned(),
     }
 }
-
-/// A pose on the floor: x, y and yaw.
-pub type PlanarPose = (f64, f64, f64);
 
 /// The simulation clock a Gazebo bag records beside its topics.
 pub const CLOCK_TYPE: &str = "rosgraph_msgs/msg/Clock";
@@ -140,7 +138,7 @@ pub fn decode_poses(
     data: &[u8],
     log_time: i64,
     which: PoseName,
-) -> Result<Vec<Stamped<PlanarPose>>, String> {
+) -> Result<Vec<Stamped<Pose>>, String> {
     let one = |header: msg::Header, pose: msg::Pose| -> Result<Vec<_>, String> {
         Ok(vec![planar(
             header.stamp.nanoseconds(),
@@ -184,7 +182,7 @@ pub fn decode_poses(
             Ok(vec![Stamped {
                 stamp: None,
                 log_time,
-                value: (x, y, theta),
+                value: Pose::new(x, y, theta),
             }])
         }
         named if holds_named_poses(named) => {
@@ -211,7 +209,7 @@ pub struct NamedPose {
 
 impl NamedPose {
     /// The pose on the floor, timed by its stamp (if it has one) and `log_time`.
-    pub fn on_the_floor(&self, log_time: i64) -> Result<Stamped<PlanarPose>, String> {
+    pub fn on_the_floor(&self, log_time: i64) -> Result<Stamped<Pose>, String> {
         planar(self.stamp, log_time, &self.position, &self.orientation)
     }
 }
@@ -257,7 +255,7 @@ pub fn chosen_poses(
     named: Vec<NamedPose>,
     which: PoseName,
     log_time: i64,
-) -> Result<Vec<Stamped<PlanarPose>>, String> {
+) -> Result<Vec<Stamped<Pose>>, String> {
     let is_tf = kind == TF_TYPE;
     let name = which.name.ok_or(if is_tf {
         "a TF topic needs --frame CHILD: the robot's frame (e.g. base_link)"
@@ -299,7 +297,7 @@ fn gazebo_states(data: &[u8]) -> Result<msg::GazeboStates, String> {
 fn transformed(
     t: &msg::TransformStamped,
     log_time: i64,
-) -> Result<Stamped<(f64, f64, f64)>, String> {
+) -> Result<Stamped<Pose>, String> {
     planar(
         t.header.stamp.nanoseconds(),
         log_time,
@@ -314,7 +312,7 @@ fn planar(
     log_time: i64,
     p: &msg::Vector3,
     q: &msg::Quaternion,
-) -> Result<Stamped<(f64, f64, f64)>, String> {
+) -> Result<Stamped<Pose>, String> {
     finite(&[
         ("position.x", p.x),
         ("position.y", p.y),
@@ -328,7 +326,7 @@ fn planar(
     Ok(Stamped {
         stamp,
         log_time,
-        value: (p.x, p.y, yaw),
+        value: Pose::new(p.x, p.y, yaw),
     })
 }
 
@@ -536,7 +534,7 @@ mod tests {
         };
         let poses = decode_poses(MODEL_STATES_TYPE, &data, 7, burger).expect("decode");
         assert_eq!(poses.len(), 1);
-        assert_eq!(poses[0].value, (1.5, 2.0, 0.0));
+        assert_eq!(poses[0].value, shoal_physics::Pose::new(1.5, 2.0, 0.0));
         assert_eq!((poses[0].stamp, poses[0].log_time), (None, 7));
         let names: Vec<String> = named_poses(MODEL_STATES_TYPE, &data)
             .expect("names")
@@ -607,7 +605,7 @@ mod tests {
         let poses = decode_poses(TURTLESIM_POSE_TYPE, &data, 42, PoseName::default())
             .expect("a turtlesim pose");
         assert_eq!(poses.len(), 1);
-        assert_eq!(poses[0].value, (3.0, 5.5, -1.25));
+        assert_eq!(poses[0].value, shoal_physics::Pose::new(3.0, 5.5, -1.25));
         // No header: timed by the log time alone.
         assert_eq!((poses[0].stamp, poses[0].log_time), (None, 42));
         for cut in 0..data.len() {

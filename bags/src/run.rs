@@ -60,7 +60,7 @@ pub fn read_run(
         TF_STATIC_TOPIC,
     ];
     let mut commands: Vec<Stamped<(f64, f64)>> = Vec::new();
-    let mut poses: Vec<Stamped<(f64, f64, f64)>> = Vec::new();
+    let mut poses: Vec<Stamped<Pose>> = Vec::new();
     let mut clock: Vec<(i64, i64)> = Vec::new();
     let mut seen = [0_u64; 2];
     // The poses a TF or Gazebo states topic holds, (parent, name) ->
@@ -170,7 +170,7 @@ pub fn read_run(
             .collect(),
         poses: poses
             .into_iter()
-            .map(|(ns, (x, y, yaw))| (seconds(ns), x, y, yaw))
+            .map(|(ns, p)| (seconds(ns), p.x, p.y, p.theta))
             .collect(),
         t_origin: origin_ns as f64 / 1e9,
         clock: choice,
@@ -181,7 +181,7 @@ pub fn read_run(
 
 /// A robot's poses composed through a TF tree, and how, in words.
 struct Composed {
-    poses: Vec<Stamped<ros::PlanarPose>>,
+    poses: Vec<Stamped<Pose>>,
     note: String,
 }
 
@@ -200,18 +200,13 @@ fn composed_through_tree(
         parent: tf::frame(parent).to_owned(),
         child: tf::frame(child).to_owned(),
     };
-    let pose = |p: Stamped<(f64, f64, f64)>| Stamped {
-        stamp: p.stamp,
-        log_time: p.log_time,
-        value: Pose::new(p.value.0, p.value.1, p.value.2),
-    };
     let mut statics: BTreeMap<tf::Link, Pose> = BTreeMap::new();
     for (k, (log_time, data)) in tf_static.iter().enumerate() {
         let at = |what: String| message_error(bag, TF_STATIC_TOPIC, k + 1, ros::TF_TYPE, what);
         for named in ros::named_poses(ros::TF_TYPE, data).map_err(at)? {
             if let Some(parent) = &named.parent {
-                let (x, y, yaw) = named.on_the_floor(*log_time).map_err(at)?.value;
-                statics.insert(link(parent, &named.name), Pose::new(x, y, yaw));
+                let pose = named.on_the_floor(*log_time).map_err(at)?.value;
+                statics.insert(link(parent, &named.name), pose);
             }
         }
     }
@@ -240,7 +235,7 @@ fn composed_through_tree(
                 .as_deref()
                 .and_then(|parent| samples.get_mut(&link(parent, &named.name)));
             if let Some(into) = into {
-                into.push(pose(named.on_the_floor(message.log_time_ns).map_err(at)?));
+                into.push(named.on_the_floor(message.log_time_ns).map_err(at)?);
             }
         }
     }
@@ -271,14 +266,6 @@ fn composed_through_tree(
             composed.len() + left_out
         );
     }
-    let composed = composed
-        .into_iter()
-        .map(|p| Stamped {
-            stamp: p.stamp,
-            log_time: p.log_time,
-            value: (p.value.x, p.value.y, p.value.theta),
-        })
-        .collect();
     Ok(Some(Composed {
         poses: composed,
         note,
