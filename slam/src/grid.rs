@@ -186,6 +186,29 @@ impl TiledGrid {
         }
     }
 
+    /// Marks hit the cells between those of `from` and `to`, a stretch of
+    /// surface between two beams' hits (their own cells are marked by the
+    /// beams that ended there).
+    pub fn mark_between(&mut self, from: DVec2, to: DVec2) {
+        let (Some(a), Some(b)) = (self.cell_of(from), self.cell_of(to)) else {
+            return;
+        };
+        let steps = ((to - from).length() / (0.5 * self.cell_size)).ceil() as usize;
+        let mut last = a;
+        for k in 1..steps {
+            let p = from + (to - from) * (k as f64 / steps as f64);
+            let Some(c) = self.cell_of(p) else { continue };
+            if c == last || c == b || c == a {
+                continue;
+            }
+            last = c;
+            let tile = (c.1 / TILE) * self.tiles_x + c.0 / TILE;
+            let cells = Arc::make_mut(&mut self.tiles[tile]);
+            let offset = (c.1 % TILE) * TILE + c.0 % TILE;
+            cells[offset] = (cells[offset] + HIT).clamp(-CLAMP, CLAMP);
+        }
+    }
+
     /// How many tiles this grid shares with `other` (same allocation).
     /// The map coarsened so neither side exceeds `max_side` cells, as ROS
     /// occupancy (0 free .. 100 occupied, 255 never observed): returns
