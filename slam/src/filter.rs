@@ -327,7 +327,10 @@ impl ParticleFilter {
     /// there kept the lag (EXPERIMENTS.md 8b).
     pub fn observe_start(&mut self, ranges: &[f64]) {
         let mut first = self.particles[0].clone();
-        integrate(&mut first, &mapped_scan(ranges, &self.config.sensor, 1, self.cell_size));
+        integrate(
+            &mut first,
+            &mapped_scan(ranges, &self.config.sensor, 1, self.cell_size),
+        );
         for p in &mut self.particles {
             p.map = first.map.clone();
         }
@@ -433,7 +436,12 @@ impl ParticleFilter {
         if resampled {
             self.resample();
         }
-        let mapped = mapped_scan(ranges, &self.config.sensor, self.config.map_stride, self.cell_size);
+        let mapped = mapped_scan(
+            ranges,
+            &self.config.sensor,
+            self.config.map_stride,
+            self.cell_size,
+        );
         self.particles
             .par_iter_mut()
             .for_each(|p| integrate(p, &mapped));
@@ -1195,7 +1203,11 @@ mod tests {
         let surfaces = surfaces_between(&wall, 0.01, 0.025);
         assert_eq!(
             surfaces,
-            vec![(wall[0].0, wall[1].0), (wall[1].0, wall[2].0), (wall[2].0, wall[3].0)],
+            vec![
+                (wall[0].0, wall[1].0),
+                (wall[1].0, wall[2].0),
+                (wall[2].0, wall[3].0)
+            ],
             "each stretch once"
         );
         // Beyond a 0.6 m gap the next hit lies on the wall's line, but the

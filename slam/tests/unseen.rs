@@ -61,7 +61,36 @@ fn wander(proposal: Proposal, particles: usize, seed: u64, steps: usize) -> Run 
 /// [`wander`] with the filter started from `model` and set up as `config`
 /// (its sensor: the room's).
 fn wander_from(model: MotionModel, config: FilterConfig, seed: u64, steps: usize) -> Run {
-    wander_in(&l_shaped_room(), Pose::new(1.0, 1.0, 0.3), model, config, seed, steps)
+    wander_in(
+        &l_shaped_room(),
+        l_shaped_rooms_start(),
+        model,
+        config,
+        seed,
+        steps,
+    )
+}
+
+fn l_shaped_rooms_start() -> Pose {
+    Pose::new(1.0, 1.0, 0.3)
+}
+
+/// The position RMSE over 2 minutes of the default filter, started from
+/// the wrong model, on `arena` from `start`, one a seed.
+fn rmses_of_the_default(arena: &Arena, start: Pose, seeds: std::ops::Range<u64>) -> Vec<f64> {
+    seeds
+        .map(|seed| {
+            let run = wander_in(
+                arena,
+                start,
+                MotionModel::legged_default(),
+                FilterConfig::default(),
+                seed,
+                600,
+            );
+            rmse(&run.errors)
+        })
+        .collect()
 }
 
 /// [`wander_from`] on `arena`, from `start`.
@@ -335,19 +364,8 @@ fn twelve_seeds_on_the_cells_the_sensor_chooses_and_on_5_cm() {
 #[ignore = "an experiment: two minutes of filtering"]
 fn twenty_four_seeds_of_the_default() {
     for first in [0, 12] {
-        let rmses: Vec<f64> = (first..first + 12)
-            .map(|seed| {
-                rmse(
-                    &wander_from(
-                        MotionModel::legged_default(),
-                        FilterConfig::default(),
-                        seed,
-                        600,
-                    )
-                    .errors,
-                )
-            })
-            .collect();
+        let rmses =
+            rmses_of_the_default(&l_shaped_room(), l_shaped_rooms_start(), first..first + 12);
         eprintln!(
             "default, seeds {first}-{}: position rmse over 2 minutes: {}",
             first + 11,
@@ -408,7 +426,7 @@ fn scan_peak_off_the_truth(seed: u64, cell_size: f64) -> (f64, f64) {
         FilterConfig::default(),
     );
     let mut body = Body {
-        pose: Pose::new(1.0, 1.0, 0.3),
+        pose: l_shaped_rooms_start(),
         radius: 0.15,
         model: true_model(),
         sim_time: 0.0,
@@ -558,22 +576,10 @@ fn rooms_never_tuned_on() -> Vec<(&'static str, Arena, Pose)> {
 #[ignore = "an experiment: two minutes of filtering"]
 fn rooms_never_tuned_on_twelve_seeds_each() {
     for (name, arena, start) in rooms_never_tuned_on() {
-        let rmses: Vec<f64> = (0..12)
-            .map(|seed| {
-                rmse(
-                    &wander_in(
-                        &arena,
-                        start,
-                        MotionModel::legged_default(),
-                        FilterConfig::default(),
-                        seed,
-                        600,
-                    )
-                    .errors,
-                )
-            })
-            .collect();
-        eprintln!("{name}: position rmse over 2 minutes: {}", over_seeds(&rmses));
+        let rmses = rmses_of_the_default(&arena, start, 0..12);
+        eprintln!(
+            "{name}: position rmse over 2 minutes: {}",
+            over_seeds(&rmses)
+        );
     }
 }
-
