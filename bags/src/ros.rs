@@ -294,10 +294,7 @@ fn gazebo_states(data: &[u8]) -> Result<msg::GazeboStates, String> {
 }
 
 /// The pose a stamped transform gives its child frame.
-fn transformed(
-    t: &msg::TransformStamped,
-    log_time: i64,
-) -> Result<Stamped<Pose>, String> {
+fn transformed(t: &msg::TransformStamped, log_time: i64) -> Result<Stamped<Pose>, String> {
     planar(
         t.header.stamp.nanoseconds(),
         log_time,
