@@ -933,7 +933,7 @@ const SURFACE_SPAN_M: f64 = 1.0;
 /// 4 m: drawn from its hits alone it is a dotted line, and the next scan's
 /// beams, landing between the dots, score as if they ended in the open.
 /// The scan then prefers the pose that puts them back on the dots, nearer
-/// where the wall was seen from: the estimate lags, by metres in an empty
+/// where the wall was seen from: the estimate lagged half a metre in an empty
 /// 8 x 6 m room (EXPERIMENTS.md 8b, "Rooms never tuned on"). Where three
 /// neighbouring hits lie on one line (the middle within twice the range
 /// noise and a cell of the line through the other two), span at most

@@ -336,6 +336,21 @@ mod tests {
     }
 
     #[test]
+    fn a_stretch_of_surface_marks_the_cells_between_its_ends_once_each() {
+        let mut grid = TiledGrid::new(2.0, 1.0, 0.05);
+        grid.mark_between(DVec2::new(0.125, 0.525), DVec2::new(0.425, 0.525));
+        let odds = |x: f64| grid.log_odds(grid.cell_of(DVec2::new(x, 0.525)).expect("in map"));
+        assert_eq!(odds(0.125), 0.0, "the ends are the beams' to mark");
+        assert_eq!(odds(0.425), 0.0);
+        for x in [0.175, 0.225, 0.275, 0.325, 0.375] {
+            assert_eq!(odds(x), HIT, "the cell at x = {x}, once");
+        }
+        assert_eq!(odds(0.475), 0.0, "nothing past the end");
+        let above = grid.log_odds(grid.cell_of(DVec2::new(0.275, 0.575)).expect("in map"));
+        assert_eq!(above, 0.0, "nothing beside the line");
+    }
+
+    #[test]
     fn a_beam_grazing_a_wall_does_not_erase_it_near_its_end() {
         let mut grid = TiledGrid::new(2.0, 1.0, 0.05);
         let wall = DVec2::new(1.01, 0.52);
