@@ -908,20 +908,25 @@ struct MappedScan {
     surfaces: Vec<(DVec2, DVec2)>,
 }
 
-/// Every `stride`-th beam of `ranges`, as [`MappedScan`].
+/// Every `stride`-th beam of `ranges`, as [`MappedScan`]; a masked beam
+/// (NaN: it ended on another robot) maps nothing and breaks a surface.
 fn mapped_scan(ranges: &[f64], sensor: &RangeSensor, stride: usize, cell_size: f64) -> MappedScan {
-    let beams: Vec<(DVec2, bool)> = (0..ranges.len().min(sensor.beams))
+    let every: Vec<Option<(DVec2, bool)>> = (0..ranges.len().min(sensor.beams))
         .step_by(stride.max(1))
-        .filter(|&b| !ranges[b].is_nan())
         .map(|b| {
-            (
-                DVec2::from_angle(sensor.bearing(b)) * ranges[b],
-                ranges[b] < sensor.max_range,
-            )
+            (!ranges[b].is_nan()).then(|| {
+                (
+                    DVec2::from_angle(sensor.bearing(b)) * ranges[b],
+                    ranges[b] < sensor.max_range,
+                )
+            })
         })
         .collect();
-    let surfaces = surfaces_between(&beams, sensor.noise_per_m, cell_size);
-    MappedScan { beams, surfaces }
+    let surfaces = surfaces_between(&every, sensor.noise_per_m, cell_size);
+    MappedScan {
+        beams: every.into_iter().flatten().collect(),
+        surfaces,
+    }
 }
 
 /// The most three neighbouring hits may span and still be drawn as one
@@ -941,13 +946,13 @@ const SURFACE_SPAN_M: f64 = 1.0;
 /// meet a plane; a doorway or an edge breaks the spacing), the surface
 /// between them is drawn too.
 fn surfaces_between(
-    beams: &[(DVec2, bool)],
+    beams: &[Option<(DVec2, bool)>],
     noise_per_m: f64,
     cell_size: f64,
 ) -> Vec<(DVec2, DVec2)> {
     let mut surfaces: Vec<(DVec2, DVec2)> = Vec::new();
     for triple in beams.windows(3) {
-        let [(a, true), (b, true), (c, true)] = *triple else {
+        let [Some((a, true)), Some((b, true)), Some((c, true))] = *triple else {
             continue;
         };
         let (ab, bc) = (a.distance(b), b.distance(c));
@@ -1197,33 +1202,37 @@ mod tests {
         // land ever further apart along it (0.43, 0.43, 0.47 m, 2-3.4 m out).
         let on_wall = |bearing_deg: f64| {
             let b = bearing_deg.to_radians();
-            (DVec2::from_angle(b) * (-1.0 / b.sin()), true)
+            Some((DVec2::from_angle(b) * (-1.0 / b.sin()), true))
         };
-        let wall: Vec<(DVec2, bool)> = [-26.0, -22.0, -19.0, -16.5].map(on_wall).to_vec();
+        let end = |beam: Option<(DVec2, bool)>| beam.expect("a hit").0;
+        let wall: Vec<Option<(DVec2, bool)>> = [-26.0, -22.0, -19.0, -16.5].map(on_wall).to_vec();
         let surfaces = surfaces_between(&wall, 0.01, 0.025);
+        let ends: Vec<DVec2> = wall.iter().map(|&beam| end(beam)).collect();
         assert_eq!(
             surfaces,
-            vec![
-                (wall[0].0, wall[1].0),
-                (wall[1].0, wall[2].0),
-                (wall[2].0, wall[3].0)
-            ],
+            vec![(ends[0], ends[1]), (ends[1], ends[2]), (ends[2], ends[3])],
             "each stretch once"
         );
         // Beyond a 0.6 m gap the next hit lies on the wall's line, but the
         // spacing jumps (0.26 m, then 0.6 m): the gap stays open.
         let near = [-60.0, -50.0].map(on_wall);
-        let doorway = vec![near[0], near[1], (near[1].0 + DVec2::new(0.6, 0.0), true)];
-        assert!(surfaces_between(&doorway, 0.01, 0.025).is_empty());
+        let beyond = Some((end(near[1]) + DVec2::new(0.6, 0.0), true));
+        assert!(surfaces_between(&[near[0], near[1], beyond], 0.01, 0.025).is_empty());
         // A corner: the third hit turns off the line.
-        let corner = vec![wall[0], wall[1], (wall[1].0 + DVec2::new(0.0, 0.3), true)];
-        assert!(surfaces_between(&corner, 0.01, 0.025).is_empty());
-        // A beam that returned nothing between two hits breaks the surface,
-        // and hits spanning more than SURFACE_SPAN_M are not joined.
-        let open = vec![wall[0], (wall[1].0, false), wall[2]];
-        assert!(surfaces_between(&open, 0.01, 0.025).is_empty());
-        let far: Vec<(DVec2, bool)> = [-12.0, -10.0, -8.5].map(on_wall).to_vec();
-        assert!(far[0].0.distance(far[2].0) > SURFACE_SPAN_M);
+        let turned = Some((ends[1] + DVec2::new(0.0, 0.3), true));
+        assert!(surfaces_between(&[wall[0], wall[1], turned], 0.01, 0.025).is_empty());
+        // A beam that returned nothing, or one masked because it ended on
+        // another robot, breaks the surface between its neighbours.
+        let open = Some((ends[1], false));
+        assert!(surfaces_between(&[wall[0], open, wall[2]], 0.01, 0.025).is_empty());
+        assert_eq!(
+            surfaces_between(&[wall[0], None, wall[1], wall[2], wall[3]], 0.01, 0.025),
+            vec![(ends[1], ends[2]), (ends[2], ends[3])],
+            "nothing across the masked beam"
+        );
+        // Hits spanning more than SURFACE_SPAN_M are not joined.
+        let far: Vec<Option<(DVec2, bool)>> = [-12.0, -10.0, -8.5].map(on_wall).to_vec();
+        assert!(end(far[0]).distance(end(far[2])) > SURFACE_SPAN_M);
         assert!(surfaces_between(&far, 0.01, 0.025).is_empty());
     }
 
