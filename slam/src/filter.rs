@@ -327,10 +327,7 @@ impl ParticleFilter {
     /// there kept the lag (EXPERIMENTS.md 8b).
     pub fn observe_start(&mut self, ranges: &[f64]) {
         let mut first = self.particles[0].clone();
-        integrate(
-            &mut first,
-            &mapped_scan(ranges, &self.config.sensor, 1, self.cell_size),
-        );
+        integrate(&mut first, &mapped_beams(ranges, &self.config.sensor, 1));
         for p in &mut self.particles {
             p.map = first.map.clone();
         }
@@ -342,11 +339,11 @@ impl ParticleFilter {
     /// particle's map: walls this robot has not seen yet are then known
     /// when it does.
     pub fn observe_from(&mut self, pose: Pose, ranges: &[f64]) {
-        let scan = mapped_scan(ranges, &self.config.sensor, 1, self.cell_size);
+        let beams = mapped_beams(ranges, &self.config.sensor, 1);
         let seer = |p: &mut Particle| {
             let own = p.pose;
             p.pose = pose;
-            integrate(p, &scan);
+            integrate(p, &beams);
             p.pose = own;
         };
         if self.steps <= 1 {
@@ -436,12 +433,7 @@ impl ParticleFilter {
         if resampled {
             self.resample();
         }
-        let mapped = mapped_scan(
-            ranges,
-            &self.config.sensor,
-            self.config.map_stride,
-            self.cell_size,
-        );
+        let mapped = mapped_beams(ranges, &self.config.sensor, self.config.map_stride);
         self.particles
             .par_iter_mut()
             .for_each(|p| integrate(p, &mapped));
@@ -899,90 +891,32 @@ fn scored_beams(ranges: &[f64], config: &FilterConfig, cell_size: f64) -> (Score
     (beams, information)
 }
 
-/// A scan as a step maps it, the same for every particle, so computed
-/// once: where each beam ends in the robot's frame and whether it hit
-/// something, and the stretches of surface between neighbouring hits
-/// ([`surfaces_between`]).
-struct MappedScan {
-    beams: Vec<(DVec2, bool)>,
-    surfaces: Vec<(DVec2, DVec2)>,
-}
-
-/// Every `stride`-th beam of `ranges`, as [`MappedScan`]; a masked beam
-/// (NaN: it ended on another robot) maps nothing and breaks a surface.
-fn mapped_scan(ranges: &[f64], sensor: &RangeSensor, stride: usize, cell_size: f64) -> MappedScan {
-    let every: Vec<Option<(DVec2, bool)>> = (0..ranges.len().min(sensor.beams))
+/// The beams a step maps with (every `stride`-th): where each ends in the
+/// robot's frame, and whether it hit something. The same for every
+/// particle, so computed once.
+fn mapped_beams(ranges: &[f64], sensor: &RangeSensor, stride: usize) -> Vec<(DVec2, bool)> {
+    (0..ranges.len().min(sensor.beams))
         .step_by(stride.max(1))
+        .filter(|&b| !ranges[b].is_nan())
         .map(|b| {
-            (!ranges[b].is_nan()).then(|| {
-                (
-                    DVec2::from_angle(sensor.bearing(b)) * ranges[b],
-                    ranges[b] < sensor.max_range,
-                )
-            })
+            (
+                DVec2::from_angle(sensor.bearing(b)) * ranges[b],
+                ranges[b] < sensor.max_range,
+            )
         })
-        .collect();
-    let surfaces = surfaces_between(&every, sensor.noise_per_m, cell_size);
-    MappedScan {
-        beams: every.into_iter().flatten().collect(),
-        surfaces,
-    }
+        .collect()
 }
 
-/// The most three neighbouring hits may span and still be drawn as one
-/// surface.
-const SURFACE_SPAN_M: f64 = 1.0;
-
-/// The stretches of surface between neighbouring hits. A wall seen at a
-/// grazing angle is hit once every `r dθ / sin(angle)`, 0.3-0.5 m apart at
-/// 4 m: drawn from its hits alone it is a dotted line, and the next scan's
-/// beams, landing between the dots, score as if they ended in the open.
-/// The scan then prefers the pose that puts them back on the dots, nearer
-/// where the wall was seen from: the estimate lagged half a metre in an empty
-/// 8 x 6 m room (EXPERIMENTS.md 8b, "Rooms never tuned on"). Where three
-/// neighbouring hits lie on one line (the middle within twice the range
-/// noise and a cell of the line through the other two), span at most
-/// [`SURFACE_SPAN_M`], and are spaced evenly (as beams at even bearings
-/// meet a plane; a doorway or an edge breaks the spacing), the surface
-/// between them is drawn too.
-fn surfaces_between(
-    beams: &[Option<(DVec2, bool)>],
-    noise_per_m: f64,
-    cell_size: f64,
-) -> Vec<(DVec2, DVec2)> {
-    let mut surfaces: Vec<(DVec2, DVec2)> = Vec::new();
-    for triple in beams.windows(3) {
-        let [Some((a, true)), Some((b, true)), Some((c, true))] = *triple else {
-            continue;
-        };
-        let (ab, bc) = (a.distance(b), b.distance(c));
-        let evenly = ab.max(bc) <= 2.0 * ab.min(bc) + 2.0 * cell_size;
-        let off_line = (b - a).perp_dot((c - a).normalize_or_zero()).abs();
-        let on_line = off_line <= 2.0 * noise_per_m * b.length() + cell_size;
-        if ab + bc > SURFACE_SPAN_M || !evenly || !on_line {
-            continue;
-        }
-        // The previous triple may have drawn a-b already.
-        if surfaces.last() != Some(&(a, b)) {
-            surfaces.push((a, b));
-        }
-        surfaces.push((b, c));
-    }
-    surfaces
-}
-
-/// Marks `scan` (from [`mapped_scan`]) into the particle's map from its pose.
-fn integrate(particle: &mut Particle, scan: &MappedScan) {
+/// Marks `beams` (from [`mapped_beams`]) into the particle's map from its pose.
+fn integrate(particle: &mut Particle, beams: &[(DVec2, bool)]) {
     let (origin, heading) = (
         particle.pose.position(),
         DVec2::from_angle(particle.pose.theta),
     );
-    let at = |local: DVec2| origin + heading.rotate(local);
-    for (local, hit) in &scan.beams {
-        particle.map.integrate_beam(origin, at(*local), *hit);
-    }
-    for (from, to) in &scan.surfaces {
-        particle.map.mark_between(at(*from), at(*to));
+    for (local, hit) in beams {
+        particle
+            .map
+            .integrate_beam(origin, origin + heading.rotate(*local), *hit);
     }
 }
 
@@ -1194,46 +1128,6 @@ mod tests {
             !occupied(&filter, DVec2::new(1.3125, 3.0125)),
             "a step's beam 1"
         );
-    }
-
-    #[test]
-    fn a_wall_seen_at_a_slant_is_drawn_whole_but_not_across_a_doorway_or_a_corner() {
-        // A wall along y = -1 seen from the origin: hits at even bearings
-        // land ever further apart along it (0.43, 0.43, 0.47 m, 2-3.4 m out).
-        let on_wall = |bearing_deg: f64| {
-            let b = bearing_deg.to_radians();
-            Some((DVec2::from_angle(b) * (-1.0 / b.sin()), true))
-        };
-        let end = |beam: Option<(DVec2, bool)>| beam.expect("a hit").0;
-        let wall: Vec<Option<(DVec2, bool)>> = [-26.0, -22.0, -19.0, -16.5].map(on_wall).to_vec();
-        let surfaces = surfaces_between(&wall, 0.01, 0.025);
-        let ends: Vec<DVec2> = wall.iter().map(|&beam| end(beam)).collect();
-        assert_eq!(
-            surfaces,
-            vec![(ends[0], ends[1]), (ends[1], ends[2]), (ends[2], ends[3])],
-            "each stretch once"
-        );
-        // Beyond a 0.6 m gap the next hit lies on the wall's line, but the
-        // spacing jumps (0.26 m, then 0.6 m): the gap stays open.
-        let near = [-60.0, -50.0].map(on_wall);
-        let beyond = Some((end(near[1]) + DVec2::new(0.6, 0.0), true));
-        assert!(surfaces_between(&[near[0], near[1], beyond], 0.01, 0.025).is_empty());
-        // A corner: the third hit turns off the line.
-        let turned = Some((ends[1] + DVec2::new(0.0, 0.3), true));
-        assert!(surfaces_between(&[wall[0], wall[1], turned], 0.01, 0.025).is_empty());
-        // A beam that returned nothing, or one masked because it ended on
-        // another robot, breaks the surface between its neighbours.
-        let open = Some((ends[1], false));
-        assert!(surfaces_between(&[wall[0], open, wall[2]], 0.01, 0.025).is_empty());
-        assert_eq!(
-            surfaces_between(&[wall[0], None, wall[1], wall[2], wall[3]], 0.01, 0.025),
-            vec![(ends[1], ends[2]), (ends[2], ends[3])],
-            "nothing across the masked beam"
-        );
-        // Hits spanning more than SURFACE_SPAN_M are not joined.
-        let far: Vec<Option<(DVec2, bool)>> = [-12.0, -10.0, -8.5].map(on_wall).to_vec();
-        assert!(end(far[0]).distance(end(far[2])) > SURFACE_SPAN_M);
-        assert!(surfaces_between(&far, 0.01, 0.025).is_empty());
     }
 
     #[test]

@@ -186,29 +186,6 @@ impl TiledGrid {
         }
     }
 
-    /// Marks hit the cells between those of `from` and `to`, a stretch of
-    /// surface between two beams' hits (their own cells are marked by the
-    /// beams that ended there).
-    pub fn mark_between(&mut self, from: DVec2, to: DVec2) {
-        let (Some(a), Some(b)) = (self.cell_of(from), self.cell_of(to)) else {
-            return;
-        };
-        let steps = ((to - from).length() / (0.5 * self.cell_size)).ceil() as usize;
-        let mut last = a;
-        for k in 1..steps {
-            let p = from + (to - from) * (k as f64 / steps as f64);
-            let Some(c) = self.cell_of(p) else { continue };
-            if c == last || c == b || c == a {
-                continue;
-            }
-            last = c;
-            let tile = (c.1 / TILE) * self.tiles_x + c.0 / TILE;
-            let cells = Arc::make_mut(&mut self.tiles[tile]);
-            let offset = (c.1 % TILE) * TILE + c.0 % TILE;
-            cells[offset] = (cells[offset] + HIT).clamp(-CLAMP, CLAMP);
-        }
-    }
-
     /// How many tiles this grid shares with `other` (same allocation).
     /// The map coarsened so neither side exceeds `max_side` cells, as ROS
     /// occupancy (0 free .. 100 occupied, 255 never observed): returns
@@ -333,21 +310,6 @@ mod tests {
                 < 1e-6,
             "untouched"
         );
-    }
-
-    #[test]
-    fn a_stretch_of_surface_marks_the_cells_between_its_ends_once_each() {
-        let mut grid = TiledGrid::new(2.0, 1.0, 0.05);
-        grid.mark_between(DVec2::new(0.125, 0.525), DVec2::new(0.425, 0.525));
-        let odds = |x: f64| grid.log_odds(grid.cell_of(DVec2::new(x, 0.525)).expect("in map"));
-        assert_eq!(odds(0.125), 0.0, "the ends are the beams' to mark");
-        assert_eq!(odds(0.425), 0.0);
-        for x in [0.175, 0.225, 0.275, 0.325, 0.375] {
-            assert_eq!(odds(x), HIT, "the cell at x = {x}, once");
-        }
-        assert_eq!(odds(0.475), 0.0, "nothing past the end");
-        let above = grid.log_odds(grid.cell_of(DVec2::new(0.275, 0.575)).expect("in map"));
-        assert_eq!(above, 0.0, "nothing beside the line");
     }
 
     #[test]
