@@ -353,19 +353,25 @@ fn diagnose_bag(bag: &Path, topics: &[&str]) -> std::process::Output {
         .expect("run shoal-diagnose")
 }
 
-/// A TF bag's topics: its commands, and base_link seen from `parent`
-/// (through the TF tree where no one transform joins them).
-fn base_link_from(parent: &str) -> [&str; 8] {
-    [
+/// A TF bag's topics: its commands, and base_link from whichever parent
+/// /tf names it under.
+fn base_link() -> Vec<&'static str> {
+    vec![
         "--commands-topic",
         "/cmd_vel",
         "--poses-topic",
         "/tf",
         "--frame",
         "base_link",
-        "--parent",
-        parent,
     ]
+}
+
+/// [`base_link`] seen from `parent` (through the TF tree where no one
+/// transform joins them).
+fn base_link_from(parent: &str) -> Vec<&str> {
+    let mut topics = base_link();
+    topics.extend(["--parent", parent]);
+    topics
 }
 
 #[test]
@@ -487,9 +493,8 @@ fn bad_bags_are_refused_naming_the_file_topic_and_message() {
     let cut = dir.join("cut.mcap");
     std::fs::write(&cut, &bytes[..64]).expect("write");
     let csv = dir.join("commands.csv");
-    // base_link from any parent: no --parent.
-    let from_any = base_link_from("");
-    let topics = &from_any[..6];
+    let from_any = base_link();
+    let topics = &from_any[..];
     let cases: [(&Path, &[&str], &str); 7] = [
         (
             &csv,
