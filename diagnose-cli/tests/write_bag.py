@@ -193,7 +193,9 @@ def main(run: str, out: str, poses_as: str) -> None:
                 t = 0.2 * k
                 localisation = {"transforms": [transform("map", "odom", t, odometry_drift(t))]}
                 messages.append((t, "/tf", schema, localisation))
-        for r in rows(f"{run}/poses.csv") if poses_as != "amcl" else []:
+        # A localised robot's poses are only its transforms (above).
+        pose_rows = [] if poses_as == "amcl" else rows(f"{run}/poses.csv")
+        for r in pose_rows:
             position = {"x": r["x"], "y": r["y"], "z": 0.0}
             if poses_as == "tf_chain":
                 truth = (r["x"], r["y"], r["theta"])

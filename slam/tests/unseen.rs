@@ -414,6 +414,21 @@ fn the_learned_stride_against_the_robots() {
     );
 }
 
+/// Draws every `stride`-th beam of a scan taken at `pose` into `map`, as
+/// the filter maps a scan from a pose it is sure of.
+fn draw_scan(
+    map: &mut TiledGrid,
+    sensor: &RangeSensor,
+    pose: &Pose,
+    ranges: &[f64],
+    stride: usize,
+) {
+    for b in (0..ranges.len()).step_by(stride) {
+        let end = pose.position() + DVec2::from_angle(pose.theta + sensor.bearing(b)) * ranges[b];
+        map.integrate_beam(pose.position(), end, ranges[b] < sensor.max_range);
+    }
+}
+
 /// How far the scan's peak lies from the truth when nothing but the map's
 /// cells can put it off: the map drawn from the true poses (as the filter
 /// maps: every `map_stride`-th beam), each next scan matched from the true
@@ -436,11 +451,7 @@ fn scan_peak_off_the_truth(seed: u64, cell_size: f64) -> (f64, f64) {
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed + 100);
     let mut map = TiledGrid::covering(DVec2::splat(-0.5), DVec2::new(6.5, 5.5), cell_size);
     let draw = |map: &mut TiledGrid, pose: &Pose, ranges: &[f64]| {
-        for b in (0..ranges.len()).step_by(config.map_stride) {
-            let end =
-                pose.position() + DVec2::from_angle(pose.theta + sensor.bearing(b)) * ranges[b];
-            map.integrate_beam(pose.position(), end, ranges[b] < sensor.max_range);
-        }
+        draw_scan(map, &sensor, pose, ranges, config.map_stride);
     };
     let mut ranges = sensor.read(&arena, &body.pose, &[], 0.15, &mut rng);
     draw(&mut map, &body.pose, &ranges);
@@ -615,11 +626,7 @@ fn along_a_wall_seen_at_a_slant_the_scan_prefers_where_it_was_seen_from() {
         cell_size,
     );
     let draw = |map: &mut TiledGrid, pose: &Pose, ranges: &[f64], stride: usize| {
-        for b in (0..ranges.len()).step_by(stride) {
-            let end =
-                pose.position() + DVec2::from_angle(pose.theta + sensor.bearing(b)) * ranges[b];
-            map.integrate_beam(pose.position(), end, ranges[b] < sensor.max_range);
-        }
+        draw_scan(map, &sensor, pose, ranges, stride);
     };
     // The start mapped with every beam, each step with every other, as
     // the filter maps them.
