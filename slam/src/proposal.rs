@@ -174,6 +174,8 @@ pub struct MotionPrior<'a> {
     /// How much farther than the model this particle believes a step
     /// carries (along and across; see `filter::STRIDE_SCALE_SPREAD`).
     pub stride_scale: f64,
+    /// How much farther than the model this particle believes a turn carries.
+    pub turn_scale: f64,
 }
 
 impl MotionPrior<'_> {
@@ -206,7 +208,11 @@ impl MotionPrior<'_> {
         let (d, c, t) = (&self.model.d, &self.model.c, &self.model.t);
         let scale = self.stride_scale;
         let mean = from
-            .advanced(scale * d.mean(), scale * c.mean(), t.mean())
+            .advanced(
+                scale * d.mean(),
+                scale * c.mean(),
+                self.turn_scale * t.mean(),
+            )
             .relative_to(at);
         let (sin, cos) = (at.theta - from.theta).sin_cos();
         let (along, across) = (variance(d), variance(c));
@@ -476,6 +482,7 @@ mod tests {
             &MotionPrior {
                 model: &agreeing,
                 stride_scale: 1.0,
+                turn_scale: 1.0,
             },
             &from,
             matched,
@@ -486,6 +493,7 @@ mod tests {
             &MotionPrior {
                 model: &disagreeing,
                 stride_scale: 1.0,
+                turn_scale: 1.0,
             },
             &from,
             matched,
