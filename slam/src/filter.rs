@@ -993,11 +993,10 @@ mod tests {
         );
     }
 
-    #[test]
-    fn where_the_scan_says_nothing_particles_spread_in_heading_with_the_turns_made() {
-        // As the strides' test below: the particles part only by their turn
-        // guesses, held from step to step, so the spread in heading grows
-        // with the angle turned (near the guesses' spread of it).
+    /// A filter of 400 particles at `start`, on an arena `width` x 20 m,
+    /// whose model has almost no noise of its own: its particles part only
+    /// by their guesses. Returned with that model.
+    fn guesses_alone(start: Pose, width: f64) -> (ParticleFilter, MotionModel) {
         let mut model = MotionModel::legged_default();
         for command in Command::ALL {
             for param in Param::ALL {
@@ -1009,8 +1008,24 @@ mod tests {
             particles: 400,
             ..FilterConfig::default()
         };
-        let start = Pose::new(10.0, 10.0, 0.0);
-        let mut filter = ParticleFilter::new(start, model.clone(), config, 20.0, 20.0, 5);
+        let filter = ParticleFilter::new(start, model.clone(), config, width, 20.0, 5);
+        (filter, model)
+    }
+
+    /// Coasts `filter` through `command` until it has taken `steps` steps.
+    fn coast_to(filter: &mut ParticleFilter, command: Command, steps: u64) {
+        while filter.steps < steps {
+            filter.coast(command, false);
+            filter.steps += 1;
+        }
+    }
+
+    #[test]
+    fn where_the_scan_says_nothing_particles_spread_in_heading_with_the_turns_made() {
+        // As the strides' test below: the particles part only by their turn
+        // guesses, held from step to step, so the spread in heading grows
+        // with the angle turned (near the guesses' spread of it).
+        let (mut filter, model) = guesses_alone(Pose::new(10.0, 10.0, 0.0), 20.0);
         let turn = model.mean(Command::Turn(1)).turn;
         let heading_spread = |filter: &ParticleFilter| {
             let (sin, cos) = filter.particles.iter().fold((0.0, 0.0), |(s, c), p| {
@@ -1031,10 +1046,7 @@ mod tests {
         };
         let mut spreads = Vec::new();
         for steps in [5, 12] {
-            while filter.steps < steps {
-                filter.coast(Command::Turn(1), false);
-                filter.steps += 1;
-            }
+            coast_to(&mut filter, Command::Turn(1), steps);
             spreads.push(heading_spread(&filter) / (steps as f64 * turn));
         }
         for share in &spreads {
@@ -1051,19 +1063,7 @@ mod tests {
         // the particles part only by their stride guesses, which are held
         // from step to step, so the spread along the path grows with the
         // distance (a tenth to a sixth of it), not with its square root.
-        let mut model = MotionModel::legged_default();
-        for command in Command::ALL {
-            for param in Param::ALL {
-                let m = model.command_mut(command).param_mut(param);
-                *m = shoal_physics::Mixture2::gaussian(m.mean(), 1e-4);
-            }
-        }
-        let config = FilterConfig {
-            particles: 400,
-            ..FilterConfig::default()
-        };
-        let start = Pose::new(1.0, 10.0, 0.0);
-        let mut filter = ParticleFilter::new(start, model.clone(), config, 60.0, 20.0, 5);
+        let (mut filter, model) = guesses_alone(Pose::new(1.0, 10.0, 0.0), 60.0);
         let stride = model.mean(Command::Walk(3)).along;
         let along_spread = |filter: &ParticleFilter| {
             let xs: Vec<f64> = filter.particles.iter().map(|p| p.pose.x).collect();
@@ -1072,10 +1072,7 @@ mod tests {
         };
         let mut spreads = Vec::new();
         for steps in [10, 40] {
-            while filter.steps < steps {
-                filter.coast(Command::Walk(3), false);
-                filter.steps += 1;
-            }
+            coast_to(&mut filter, Command::Walk(3), steps);
             spreads.push(along_spread(&filter) / (steps as f64 * stride));
         }
         for share in &spreads {
