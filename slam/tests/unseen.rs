@@ -701,3 +701,32 @@ fn along_a_wall_seen_at_a_slant_the_scan_prefers_where_it_was_seen_from() {
         draw(&mut map, &truth, &ranges, config.map_stride);
     }
 }
+
+/// [`six_seeds_of_each_filter_learning_and_fixed`]'s four default rows on
+/// seeds 6-17 (EXPERIMENTS.md 8b, "Each particle's own turn guess"): on six
+/// seeds a fixed wrong model can look as good as learning. `cargo test
+/// --release -p shoal-slam --test unseen -- --ignored --nocapture
+/// twelve_more` (5 min).
+#[test]
+#[ignore = "an experiment: five minutes of filtering"]
+fn twelve_more_seeds_learning_and_fixed() {
+    for (start, model) in [
+        ("wrong model", MotionModel::legged_default()),
+        ("true model", true_model()),
+    ] {
+        for learning in [true, false] {
+            let config = FilterConfig {
+                learning,
+                ..FilterConfig::default()
+            };
+            let rmses: Vec<f64> = (6..18)
+                .map(|seed| rmse(&wander_from(model.clone(), config.clone(), seed, 600).errors))
+                .collect();
+            let how = if learning { "learning" } else { "fixed" };
+            eprintln!(
+                "default, {how}, {start}, seeds 6-17: {}",
+                over_seeds(&rmses)
+            );
+        }
+    }
+}
