@@ -220,7 +220,7 @@ const STRIDE_SCALE_MEMORY: f64 = 0.98;
 /// every particle climbed the scan from a turn a third short under a prior
 /// that pulled it back; with guesses spread 0.08 none was. Spread 0.15 as
 /// the strides' held that body too, but put each turn's heading so far
-/// apart that the usual room lost 5 mm on average.
+/// apart that the usual room lost 7 mm on average.
 const TURN_SCALE_SPREAD: f64 = 0.08;
 
 /// A guess of how far the model's steps or turns carry, drawn from

@@ -174,7 +174,8 @@ pub struct MotionPrior<'a> {
     /// How much farther than the model this particle believes a step
     /// carries (along and across; see `filter::STRIDE_SCALE_SPREAD`).
     pub stride_scale: f64,
-    /// How much farther than the model this particle believes a turn carries.
+    /// How much farther than the model this particle believes a turn
+    /// carries (see `filter::TURN_SCALE_SPREAD`).
     pub turn_scale: f64,
 }
 
