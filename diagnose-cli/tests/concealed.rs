@@ -493,8 +493,7 @@ fn bad_bags_are_refused_naming_the_file_topic_and_message() {
     let cut = dir.join("cut.mcap");
     std::fs::write(&cut, &bytes[..64]).expect("write");
     let csv = dir.join("commands.csv");
-    let from_any = base_link();
-    let topics = &from_any[..];
+    let topics: &[&str] = &base_link();
     let cases: [(&Path, &[&str], &str); 7] = [
         (
             &csv,

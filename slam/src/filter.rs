@@ -194,13 +194,13 @@ pub struct Particle {
     /// and across), held from step to step: see [`STRIDE_SCALE_SPREAD`].
     pub stride_scale: f64,
     /// How much farther than the model this particle's robot turns, held
-    /// from step to step as the stride guess is.
+    /// from step to step: see [`TURN_SCALE_SPREAD`].
     pub turn_scale: f64,
 }
 
 /// Each particle holds its own guess of how far the model's steps carry,
 /// spread this much about 1 (a standard deviation, in shares of a step)
-/// and relaxing back to 1 by [`STRIDE_SCALE_MEMORY`] a step. A model that
+/// and relaxing back to 1 by [`GUESS_MEMORY`] a step. A model that
 /// is wrong is wrong the same way at every step: where the scan says
 /// nothing along the path (a corridor longer than the sensor's reach) the
 /// particles then spread along it in proportion to the distance walked,
@@ -211,7 +211,7 @@ pub struct Particle {
 /// coasting; the motion model's proposal (the thesis's filter) places its
 /// particles where the learner's draws lead, unscaled.
 const STRIDE_SCALE_SPREAD: f64 = 0.15;
-const STRIDE_SCALE_MEMORY: f64 = 0.98;
+const GUESS_MEMORY: f64 = 0.98;
 
 /// Each particle also holds its own guess of how far the model's turns
 /// carry, held and relaxing as the stride guess is, narrower: a body that
@@ -230,11 +230,11 @@ fn scale_drawn(spread: f64, rng: &mut impl Rng) -> f64 {
     scale_within_bounds(1.0 + spread * z, spread)
 }
 
-/// A guess one step later: relaxed towards 1 by [`STRIDE_SCALE_MEMORY`]
+/// A guess one step later: relaxed towards 1 by [`GUESS_MEMORY`]
 /// and wandered so that its spread stays `spread` (a first-order
 /// autoregression).
 fn scale_wandered(scale: f64, spread: f64, rng: &mut impl Rng) -> f64 {
-    let rho = STRIDE_SCALE_MEMORY;
+    let rho = GUESS_MEMORY;
     let z: f64 = StandardNormal.sample(rng);
     let wandered = 1.0 + rho * (scale - 1.0) + spread * (1.0 - rho * rho).sqrt() * z;
     scale_within_bounds(wandered, spread)

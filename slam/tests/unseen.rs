@@ -250,33 +250,8 @@ fn the_scan_matched_proposal_against_the_motion_models() {
 #[ignore = "an experiment: two minutes of filtering"]
 fn six_seeds_of_each_filter_learning_and_fixed() {
     let defaults = FilterConfig::default();
-    let runs = [
-        (
-            "default, learning, wrong model",
-            defaults.clone(),
-            MotionModel::legged_default(),
-        ),
-        (
-            "default, fixed, wrong model",
-            FilterConfig {
-                learning: false,
-                ..defaults.clone()
-            },
-            MotionModel::legged_default(),
-        ),
-        (
-            "default, learning, true model",
-            defaults.clone(),
-            true_model(),
-        ),
-        (
-            "default, fixed, true model",
-            FilterConfig {
-                learning: false,
-                ..defaults.clone()
-            },
-            true_model(),
-        ),
+    let mut runs = learning_and_fixed();
+    runs.extend([
         (
             "default on 5 cm cells (the default before cells followed the sensor), learning, wrong model",
             FilterConfig {
@@ -303,13 +278,50 @@ fn six_seeds_of_each_filter_learning_and_fixed() {
             },
             MotionModel::legged_default(),
         ),
-    ];
+    ]);
+    print_over_seeds(&runs, 0..6);
+}
+
+/// The default filter learning and with its model held fixed, from the
+/// wrong model and from the true one: a label, the filter's set-up and the
+/// model it starts from.
+fn learning_and_fixed() -> Vec<(&'static str, FilterConfig, MotionModel)> {
+    let fixed = FilterConfig {
+        learning: false,
+        ..FilterConfig::default()
+    };
+    vec![
+        (
+            "default, learning, wrong model",
+            FilterConfig::default(),
+            MotionModel::legged_default(),
+        ),
+        (
+            "default, fixed, wrong model",
+            fixed.clone(),
+            MotionModel::legged_default(),
+        ),
+        (
+            "default, learning, true model",
+            FilterConfig::default(),
+            true_model(),
+        ),
+        ("default, fixed, true model", fixed, true_model()),
+    ]
+}
+
+/// Prints each run's position RMSE over 2 minutes in the L-shaped room on
+/// `seeds`.
+fn print_over_seeds(runs: &[(&str, FilterConfig, MotionModel)], seeds: std::ops::Range<u64>) {
     for (label, config, model) in runs {
-        let rmses: Vec<f64> = (0..6)
+        let rmses: Vec<f64> = seeds
+            .clone()
             .map(|seed| rmse(&wander_from(model.clone(), config.clone(), seed, 600).errors))
             .collect();
         eprintln!(
-            "{label}: position rmse over 2 minutes, seeds 0-5: {}",
+            "{label}: position rmse over 2 minutes, seeds {}-{}: {}",
+            seeds.start,
+            seeds.end - 1,
             over_seeds(&rmses)
         );
     }
@@ -702,31 +714,13 @@ fn along_a_wall_seen_at_a_slant_the_scan_prefers_where_it_was_seen_from() {
     }
 }
 
-/// [`six_seeds_of_each_filter_learning_and_fixed`]'s four default rows on
-/// seeds 6-17 (EXPERIMENTS.md 8b, "Each particle's own turn guess"): on six
+/// [`learning_and_fixed`], as `six_seeds` runs it on seeds 0-5, on seeds
+/// 6-17 (EXPERIMENTS.md 8b, "Each particle's own turn guess"): on six
 /// seeds a fixed wrong model can look as good as learning. `cargo test
 /// --release -p shoal-slam --test unseen -- --ignored --nocapture
 /// twelve_more` (5 min).
 #[test]
 #[ignore = "an experiment: five minutes of filtering"]
 fn twelve_more_seeds_learning_and_fixed() {
-    for (start, model) in [
-        ("wrong model", MotionModel::legged_default()),
-        ("true model", true_model()),
-    ] {
-        for learning in [true, false] {
-            let config = FilterConfig {
-                learning,
-                ..FilterConfig::default()
-            };
-            let rmses: Vec<f64> = (6..18)
-                .map(|seed| rmse(&wander_from(model.clone(), config.clone(), seed, 600).errors))
-                .collect();
-            let how = if learning { "learning" } else { "fixed" };
-            eprintln!(
-                "default, {how}, {start}, seeds 6-17: {}",
-                over_seeds(&rmses)
-            );
-        }
-    }
+    print_over_seeds(&learning_and_fixed(), 6..18);
 }
