@@ -275,11 +275,44 @@ fn load_positional(run: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
     if !run.exists() {
         bail!("{}: no such file or folder", run.display());
     }
+    let robots = mrclam_robots(run);
+    if !robots.is_empty() {
+        let listed: Vec<String> = robots.iter().map(u32::to_string).collect();
+        bail!(
+            "{}: an MRCLAM dataset of robots {}{}: say which with --robot N",
+            run.display(),
+            listed.join(", "),
+            args.robot
+                .map(|r| format!(" (no Robot{r}_Odometry.dat here)"))
+                .unwrap_or_default()
+        );
+    }
     bail!(
-        "{}: not a Shoal recording (.rrd), a run folder (commands.csv and poses.csv) or a ROS 2 bag \
-         (.mcap, .db3, or a bag folder with metadata.yaml)",
+        "{}: not a Shoal recording (.rrd), a run folder (commands.csv and poses.csv), an MRCLAM \
+         dataset folder (RobotN_Odometry.dat, with --robot N) or a ROS 2 bag (.mcap, .db3, or a \
+         bag folder with metadata.yaml)",
         run.display()
     )
+}
+
+/// The robots of an MRCLAM dataset folder: those with both a
+/// `RobotN_Odometry.dat` and a `RobotN_Groundtruth.dat`, in order.
+fn mrclam_robots(dir: &Path) -> Vec<u32> {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Vec::new();
+    };
+    let mut robots: Vec<u32> = entries
+        .filter_map(|e| e.ok()?.file_name().into_string().ok())
+        .filter_map(|name| {
+            name.strip_prefix("Robot")?
+                .strip_suffix("_Odometry.dat")?
+                .parse()
+                .ok()
+        })
+        .filter(|r| dir.join(format!("Robot{r}_Groundtruth.dat")).is_file())
+        .collect();
+    robots.sort_unstable();
+    robots
 }
 
 /// The user's `--stamps`.

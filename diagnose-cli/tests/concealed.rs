@@ -275,6 +275,17 @@ fn bad_input_names_the_file_and_line_and_exits_non_zero() {
         stderr.contains("model.toml:1") && stderr.contains("latency"),
         "{stderr}"
     );
+    // An MRCLAM folder given as a run without saying which robot.
+    let output = Command::new(binary())
+        .arg(mrclam_d6())
+        .output()
+        .expect("run");
+    assert!(!output.status.success());
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        stderr.contains("an MRCLAM dataset of robots 3") && stderr.contains("--robot N"),
+        "{stderr}"
+    );
 }
 
 /// This package's folder in the checkout under test: `cargo test` says it
