@@ -254,8 +254,8 @@ fn load_mrclam(dir: &Path, robot: u32) -> Result<Recording> {
 }
 
 /// A path given as a positional argument: a Shoal recording, a run folder
-/// (commands.csv and poses.csv), an MRCLAM folder (with --robot), or a ROS 2
-/// bag (file or folder).
+/// (commands.csv and poses.csv), an MRCLAM folder (with --robot, unless it
+/// holds one robot), or a ROS 2 bag (file or folder).
 fn load_positional(run: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
     if run.extension().is_some_and(|e| e == "rrd") {
         return load_rrd(run, args.robot).map(Loaded::from);
@@ -276,6 +276,9 @@ fn load_positional(run: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
         bail!("{}: no such file or folder", run.display());
     }
     let robots = mrclam_robots(run);
+    if let ([robot], None) = (robots.as_slice(), args.robot) {
+        return load_mrclam(run, *robot).map(Loaded::from);
+    }
     if !robots.is_empty() {
         let listed: Vec<String> = robots.iter().map(u32::to_string).collect();
         bail!(

@@ -34,7 +34,7 @@ struct Cli {
 struct DiagnoseArgs {
     /// A Shoal recording (run.rrd, with --robot N), a run directory
     /// holding commands.csv and poses.csv, an MRCLAM dataset folder (with
-    /// --robot N), or a ROS 2 bag (.mcap, .db3, or a bag folder with
+    /// --robot N, unless it holds one robot), or a ROS 2 bag (.mcap, .db3, or a bag folder with
     /// metadata.yaml; as --bag). Several recordings of one
     /// robot are fitted as one: each is a held-out block, and an effect is
     /// kept only if it predicts the recordings it was not fitted on better.

@@ -275,15 +275,23 @@ fn bad_input_names_the_file_and_line_and_exits_non_zero() {
         stderr.contains("model.toml:1") && stderr.contains("latency"),
         "{stderr}"
     );
-    // An MRCLAM folder given as a run without saying which robot.
-    let output = Command::new(binary())
-        .arg(mrclam_d6())
-        .output()
-        .expect("run");
+    // An MRCLAM folder of several robots given as a run without saying
+    // which.
+    let dir = scratch("mrclam-two");
+    for robot in [3, 5] {
+        for file in ["Odometry", "Groundtruth"] {
+            std::fs::copy(
+                mrclam_d6().join(format!("Robot3_{file}.dat")),
+                dir.join(format!("Robot{robot}_{file}.dat")),
+            )
+            .expect("copy");
+        }
+    }
+    let output = Command::new(binary()).arg(&*dir).output().expect("run");
     assert!(!output.status.success());
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(
-        stderr.contains("an MRCLAM dataset of robots 3") && stderr.contains("--robot N"),
+        stderr.contains("an MRCLAM dataset of robots 3, 5") && stderr.contains("--robot N"),
         "{stderr}"
     );
 }
@@ -308,7 +316,11 @@ fn mrclam_d6() -> PathBuf {
 
 #[test]
 fn a_real_mrclam_robot_shows_a_mismatch_that_the_fit_reduces() {
-    let d = diagnose_mrclam(&mrclam_d6(), &[]);
+    // The folder as a user gives it: one robot's files, no --robot.
+    let d: Value = serde_json::from_slice(&succeed(
+        Command::new(binary()).arg(mrclam_d6()).arg("--json"),
+    ))
+    .expect("json");
     assert_eq!(d["mismatch"], true);
     // A response delay: pure latency or a first-order actuator lag.
     assert!(
