@@ -125,7 +125,30 @@ struct Matching {
     /// Poses scored: the matcher's search and the proposal's probes.
     poses_scored: usize,
     beam_evaluations: usize,
+    /// The best particle's fit: its tempered scan score at its match, per
+    /// scored beam.
+    best_fit: f64,
 }
+
+/// A step whose best fit falls this far (tempered log-likelihood per
+/// scored beam) below the usual fit ([`FIT_MEMORY`]) is matched again from
+/// turns the model does not reach. The usual fit of the lone robot's rooms
+/// is -0.14 to -0.26 a beam from step to step; a turn 0.9 rad past the
+/// model's mean (a draw from the body's skewed tail, the two rooms' seed 7
+/// at step 78, EXPERIMENTS.md 8b) left the best particle at -1.64 while the
+/// true pose scored -0.28 on its map.
+const RECOVERY_DROP_PER_BEAM: f64 = 0.5;
+/// How far past the turn the model leads to the second matching reaches,
+/// each way, in steps of [`RECOVERY_STEP_RAD`]: a turn as far past the
+/// model as a leg's turn can go.
+const RECOVERY_REACH_RAD: f64 = 1.2;
+const RECOVERY_STEP_RAD: f64 = 0.2;
+/// The second matching is kept only if its best fit beats the first's by
+/// this much a beam: where nothing fits better (a crowd hiding the walls),
+/// the step stays as the model placed it.
+const RECOVERY_GAIN_PER_BEAM: f64 = 0.25;
+/// How much of the usual fit each matched step keeps: about the last ten.
+const FIT_MEMORY: f64 = 0.9;
 
 /// One particle's drawn step, before the proposal places it.
 struct Drawn {
@@ -266,6 +289,10 @@ pub struct StepReport {
     pub beam_evaluations: usize,
     /// Beams each scored pose was scored with.
     pub scored_beams: usize,
+    /// Whether the scan fitted so much worse than usual from where the
+    /// model's turn led that the particles were matched again from turns
+    /// the model does not reach, and fitted better there.
+    pub recovered: bool,
 }
 
 pub struct ParticleFilter {
@@ -277,6 +304,8 @@ pub struct ParticleFilter {
     cell_size: f64,
     rng: StdRng,
     steps: u64,
+    /// The usual best fit of a matched step (see [`RECOVERY_DROP_PER_BEAM`]).
+    usual_fit: Option<f64>,
 }
 
 impl ParticleFilter {
@@ -318,6 +347,7 @@ impl ParticleFilter {
             cell_size,
             rng,
             steps: 0,
+            usual_fit: None,
         }
     }
 
@@ -428,10 +458,31 @@ impl ParticleFilter {
         let mut poses_scored = if scored { draws } else { 0 };
         let mut beam_evaluations = poses_scored * beams.len();
         let (drawn, at_drawn) = (&drawn[..n], &at_drawn[..n]);
+        let mut recovered = false;
         let log_weights = if matched {
-            let matching = self.propose_by_matching(command, &beams, drawn);
+            let from: Vec<Pose> = self.particles.iter().map(|p| p.pose).collect();
+            let mut matching = self.propose_by_matching(command, &beams, drawn, 0.0);
             poses_scored += matching.poses_scored;
             beam_evaluations += matching.beam_evaluations;
+            if self
+                .usual_fit
+                .is_some_and(|usual| matching.best_fit < usual - RECOVERY_DROP_PER_BEAM)
+            {
+                let placed: Vec<Pose> = self.particles.iter().map(|p| p.pose).collect();
+                self.place(&from);
+                let wide = self.propose_by_matching(command, &beams, drawn, RECOVERY_REACH_RAD);
+                poses_scored += wide.poses_scored;
+                beam_evaluations += wide.beam_evaluations;
+                if wide.best_fit > matching.best_fit + RECOVERY_GAIN_PER_BEAM {
+                    matching = wide;
+                    recovered = true;
+                } else {
+                    self.place(&placed);
+                }
+            }
+            self.usual_fit = Some(self.usual_fit.map_or(matching.best_fit, |usual| {
+                FIT_MEMORY * usual + (1.0 - FIT_MEMORY) * matching.best_fit
+            }));
             matching.log_weights
         } else {
             // The motion model's proposal: each particle goes where its
@@ -472,6 +523,14 @@ impl ParticleFilter {
             poses_scored,
             beam_evaluations,
             scored_beams: beams.len(),
+            recovered,
+        }
+    }
+
+    /// Puts each particle at its pose of `poses`.
+    fn place(&mut self, poses: &[Pose]) {
+        for (p, pose) in self.particles.iter_mut().zip(poses) {
+            p.pose = *pose;
         }
     }
 
@@ -632,12 +691,16 @@ impl ParticleFilter {
 
     /// Moves every particle by the improved proposal (see
     /// [`crate::proposal`]): matched from where its drawn step took it,
-    /// drawn around the match.
+    /// drawn around the match. With `turn_reach` (rad) above 0, each
+    /// particle's search starts from the best of the turns within that
+    /// reach of its drawn one, under a prior whose turn is as wide as the
+    /// reach (see [`RECOVERY_DROP_PER_BEAM`]).
     fn propose_by_matching(
         &mut self,
         command: Command,
         beams: &ScoredBeams,
         drawn: &[Drawn],
+        turn_reach: f64,
     ) -> Matching {
         let model = self.model.command(command);
         let seeds: Vec<u64> = (0..self.particles.len())
@@ -649,7 +712,7 @@ impl ParticleFilter {
         // sets the particle's pose and weight, is scored with every beam.
         let search_beams = beams.every(MATCH_BEAM_STRIDE);
         let search_scale = beams.len() as f64 / search_beams.len().max(1) as f64;
-        let proposed: Vec<(f64, usize)> = self
+        let proposed: Vec<(f64, usize, f64)> = self
             .particles
             .par_iter_mut()
             .zip(drawn)
@@ -664,6 +727,7 @@ impl ParticleFilter {
                     model,
                     stride_scale: p.stride_scale,
                     turn_scale: p.turn_scale,
+                    turn_widening: turn_reach * turn_reach,
                 };
                 let [along, across, turn] = d.motion;
                 let start = from.advanced(
@@ -678,19 +742,46 @@ impl ParticleFilter {
                     search_scale * BEAM_TEMPERING * search_beams.log_likelihood(&p.map, pose)
                         + prior.log_density(&from, pose)
                 };
-                let (matched, _, scored) = match_scan(&posterior, start);
+                let turns = (turn_reach / RECOVERY_STEP_RAD).round() as i32;
+                let (start, tried) = (-turns..=turns)
+                    .filter(|&k| k != 0)
+                    .map(|k| start.advanced(0.0, 0.0, k as f64 * RECOVERY_STEP_RAD))
+                    .fold(
+                        ((start, posterior(&start)), 1),
+                        |((best, value), n), pose| {
+                            let score = posterior(&pose);
+                            (
+                                if score > value {
+                                    (pose, score)
+                                } else {
+                                    (best, value)
+                                },
+                                n + 1,
+                            )
+                        },
+                    );
+                let (matched, _, scored) = match_scan(&posterior, start.0);
                 let mut rng = StdRng::seed_from_u64(seed);
                 let proposed = improved_proposal(&score, &prior, &from, matched, &mut rng);
                 p.pose = proposed.pose;
-                (proposed.log_weight, scored)
+                (
+                    proposed.log_weight,
+                    scored + tried - 1,
+                    proposed.scan_at_match,
+                )
             })
             .collect();
-        let searched: usize = proposed.iter().map(|(_, s)| s).sum();
+        let searched: usize = proposed.iter().map(|(_, s, _)| s).sum();
         let probed = PROPOSAL_POSES_SCORED * proposed.len();
+        let best_match = proposed
+            .iter()
+            .map(|(_, _, at_match)| *at_match)
+            .fold(f64::NEG_INFINITY, f64::max);
         Matching {
-            log_weights: proposed.into_iter().map(|(w, _)| w).collect(),
+            log_weights: proposed.into_iter().map(|(w, _, _)| w).collect(),
             poses_scored: searched + probed,
             beam_evaluations: searched * search_beams.len() + probed * beams.len(),
+            best_fit: best_match / beams.len().max(1) as f64,
         }
     }
 
@@ -991,6 +1082,58 @@ mod tests {
             ParticleFilter::new(start, model, given, 6.0, 5.0, 1).cell_size(),
             0.1
         );
+    }
+
+    /// A robot that turns 0.9 rad further than its model's mean turn, in a
+    /// room with a wall that breaks its symmetry: the scan no longer fits
+    /// from where the model's turn led, the step is matched again from the
+    /// turns the model does not reach, and the filter keeps the heading.
+    /// An ordinary turn is matched once.
+    #[test]
+    fn a_turn_far_past_the_model_is_matched_again_from_turns_it_does_not_reach() {
+        use shoal_physics::{Arena, Wall, wrap_angle};
+        let arena = Arena {
+            width: 5.0,
+            height: 4.0,
+            walls: vec![Wall {
+                from: [3.0, 0.0],
+                to: [3.0, 1.5],
+            }],
+            obstacles: vec![],
+            surfaces: vec![],
+        };
+        let sensor = RangeSensor::default();
+        let config = FilterConfig {
+            sensor: sensor.clone(),
+            learning: false,
+            ..FilterConfig::default()
+        };
+        let model = MotionModel::legged_default();
+        let mut truth = Pose::new(1.5, 2.0, 0.3);
+        let mut filter = ParticleFilter::new(truth, model.clone(), config, 5.0, 4.0, 3);
+        let mut rng = StdRng::seed_from_u64(4);
+        let scan = |at: &Pose, rng: &mut StdRng| sensor.read(&arena, at, &[], 0.15, rng);
+        filter.observe_start(&scan(&truth, &mut rng));
+        let turn = Command::Turn(2);
+        let mean_turn = model.mean(turn).turn;
+        let mut step = |filter: &mut ParticleFilter, truth: &mut Pose, command, turned| {
+            *truth = truth.advanced(0.0, 0.0, turned);
+            let report = filter.step(command, false, &scan(truth, &mut rng));
+            let off = wrap_angle(report.estimate.theta - truth.theta).abs();
+            (report.recovered, off)
+        };
+        for _ in 0..5 {
+            let (recovered, off) = step(&mut filter, &mut truth, Command::Stand, 0.0);
+            assert!(!recovered && off < 0.05, "standing: {off} rad off");
+        }
+        let (recovered, off) = step(&mut filter, &mut truth, turn, mean_turn);
+        assert!(!recovered && off < 0.05, "an ordinary turn: {off} rad off");
+        let (recovered, off) = step(&mut filter, &mut truth, turn, mean_turn + 0.9);
+        assert!(
+            recovered,
+            "a turn 0.9 rad past the model was not matched again"
+        );
+        assert!(off < 0.05, "a turn 0.9 rad past the model: {off} rad off");
     }
 
     /// A filter of 400 particles at `start`, on an arena `width` x 20 m,

@@ -177,6 +177,11 @@ pub struct MotionPrior<'a> {
     /// How much farther than the model this particle believes a turn
     /// carries (see `filter::TURN_SCALE_SPREAD`).
     pub turn_scale: f64,
+    /// Variance (rad^2) added to the model's turn: 0, but for a step whose
+    /// scan no longer fits the map from where the model's turn leads (see
+    /// `filter::RECOVERY_REACH_RAD`), where the model has just been shown
+    /// wrong.
+    pub turn_widening: f64,
 }
 
 impl MotionPrior<'_> {
@@ -222,7 +227,7 @@ impl MotionPrior<'_> {
             [
                 cos * cos * along + sin * sin * across,
                 sin * sin * along + cos * cos * across,
-                variance(t),
+                variance(t) + self.turn_widening,
             ],
         )
     }
@@ -246,6 +251,8 @@ pub const PROPOSAL_POSES_SCORED: usize = 7;
 pub struct Proposed {
     pub pose: Pose,
     pub log_weight: f64,
+    /// The scan's score at the match: how well the scan fits the map there.
+    pub scan_at_match: f64,
 }
 
 /// Draws the particle's next pose from the Gaussian that `score` (the scan)
@@ -304,6 +311,7 @@ pub fn improved_proposal(
     Proposed {
         pose: matched.advanced(offset[0], offset[1], offset[2]),
         log_weight,
+        scan_at_match: here,
     }
 }
 
@@ -484,6 +492,7 @@ mod tests {
                 model: &agreeing,
                 stride_scale: 1.0,
                 turn_scale: 1.0,
+                turn_widening: 0.0,
             },
             &from,
             matched,
@@ -495,6 +504,7 @@ mod tests {
                 model: &disagreeing,
                 stride_scale: 1.0,
                 turn_scale: 1.0,
+                turn_widening: 0.0,
             },
             &from,
             matched,

@@ -41,6 +41,8 @@ struct Run {
     /// wall left out), and the walk(2) stride the filter held after each step.
     walked: Vec<f64>,
     stride_held: Vec<f64>,
+    /// Steps matched again from turns the model does not reach.
+    recoveries: usize,
 }
 
 /// The robot's true model: strides 25% longer and turns 30% larger than
@@ -96,6 +98,9 @@ fn rmses_of_the_default(
                 seed,
                 600,
             );
+            if run.recoveries > 0 {
+                eprintln!("  seed {seed}: {} steps matched again", run.recoveries);
+            }
             rmse(&run.errors)
         })
         .collect()
@@ -130,6 +135,7 @@ fn wander_in(
     filter.observe_start(&ranges);
     let mut command = Command::Stand;
     let (mut errors, mut walked, mut stride_held) = (Vec::new(), Vec::new(), Vec::new());
+    let mut recoveries = 0;
     for step in 0..steps {
         command = wander_command(step as u64 + 1, range_ahead(&ranges, &sensor), command);
         let before = body.pose;
@@ -140,6 +146,7 @@ fn wander_in(
         ranges = sensor.read(arena, &body.pose, &[], 0.15, &mut rng);
         let report = filter.step(command, outcome.bumped, &ranges);
         errors.push(report.estimate.position().distance(body.pose.position()));
+        recoveries += usize::from(report.recovered);
         stride_held.push(filter.model().mean(Command::Walk(2)).along);
     }
     Run {
@@ -147,6 +154,7 @@ fn wander_in(
         learned: filter.model().clone(),
         walked,
         stride_held,
+        recoveries,
     }
 }
 
