@@ -742,33 +742,27 @@ impl ParticleFilter {
                     search_scale * BEAM_TEMPERING * search_beams.log_likelihood(&p.map, pose)
                         + prior.log_density(&from, pose)
                 };
+                // Matched again, the search starts from the best of the
+                // turns within reach; scored here, each is counted.
                 let turns = (turn_reach / RECOVERY_STEP_RAD).round() as i32;
-                let (start, tried) = (-turns..=turns)
-                    .filter(|&k| k != 0)
-                    .map(|k| start.advanced(0.0, 0.0, k as f64 * RECOVERY_STEP_RAD))
-                    .fold(
-                        ((start, posterior(&start)), 1),
-                        |((best, value), n), pose| {
-                            let score = posterior(&pose);
-                            (
-                                if score > value {
-                                    (pose, score)
-                                } else {
-                                    (best, value)
-                                },
-                                n + 1,
-                            )
-                        },
-                    );
-                let (matched, _, scored) = match_scan(&posterior, start.0);
+                let (start, tried) = if turns > 0 {
+                    let mut best = (start, posterior(&start));
+                    for k in (-turns..=turns).filter(|&k| k != 0) {
+                        let pose = start.advanced(0.0, 0.0, k as f64 * RECOVERY_STEP_RAD);
+                        let value = posterior(&pose);
+                        if value > best.1 {
+                            best = (pose, value);
+                        }
+                    }
+                    (best.0, 2 * turns as usize + 1)
+                } else {
+                    (start, 0)
+                };
+                let (matched, _, scored) = match_scan(&posterior, start);
                 let mut rng = StdRng::seed_from_u64(seed);
                 let proposed = improved_proposal(&score, &prior, &from, matched, &mut rng);
                 p.pose = proposed.pose;
-                (
-                    proposed.log_weight,
-                    scored + tried - 1,
-                    proposed.scan_at_match,
-                )
+                (proposed.log_weight, scored + tried, proposed.scan_at_match)
             })
             .collect();
         let searched: usize = proposed.iter().map(|(_, s, _)| s).sum();
