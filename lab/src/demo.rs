@@ -95,6 +95,8 @@ pub struct SlamProgress {
     /// up to keep up.
     pub scans_coasted: u64,
     pub fewest_particles: Option<usize>,
+    /// Steps the filter matched again from turns its model does not reach.
+    pub steps_rematched: u64,
 }
 
 #[derive(Debug, Serialize)]
@@ -283,6 +285,7 @@ fn slam_progress(
         scans_missed: followed.map_or(0, |f| f.scans_missed),
         scans_coasted: followed.map_or(0, |f| f.scans_coasted),
         fewest_particles: watched.fewest_particles.get(&id).copied(),
+        steps_rematched: followed.map_or(0, |f| f.steps_rematched),
     }
 }
 
@@ -617,11 +620,12 @@ fn print_slam_overall(out: &mut dyn Write, slam: &[SlamProgress]) -> io::Result<
     .unwrap_or(0.0);
     writeln!(
         out,
-        "  SLAM followed {} robots at once: each filter at most {:.1} s behind its robot, {} scans missed and {} coasted through in all{}",
+        "  SLAM followed {} robots at once: each filter at most {:.1} s behind its robot, {} scans missed and {} coasted through in all, {} steps matched again from turns past the model{}",
         slam.len(),
         slam.iter().map(|s| s.most_behind_s).fold(0.0, f64::max),
         slam.iter().map(|s| s.scans_missed).sum::<u64>(),
         slam.iter().map(|s| s.scans_coasted).sum::<u64>(),
+        slam.iter().map(|s| s.steps_rematched).sum::<u64>(),
         slam.iter()
             .filter_map(|s| s.fewest_particles)
             .min()

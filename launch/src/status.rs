@@ -255,11 +255,14 @@ pub fn print_table(out: &mut dyn Write, report: &StatusReport) -> io::Result<()>
                     }
                     _ => String::new(),
                 };
-                let missed = if f.scans_missed > 0 {
+                let mut missed = if f.scans_missed > 0 {
                     format!(", {} scans missed", f.scans_missed)
                 } else {
                     String::new()
                 };
+                if f.steps_rematched > 0 {
+                    missed += &format!(", {} steps matched again", f.steps_rematched);
+                }
                 format!(
                     "{} steps{keeping_up}{missed}, model moved {:.2}{}",
                     f.steps,

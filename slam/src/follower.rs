@@ -110,6 +110,10 @@ pub struct Follower {
     /// Scans whose command moved the particles without their scan being
     /// scored ([`Follower::coast`]): a follower catching up.
     scans_coasted: u64,
+    /// Steps whose scan fitted far worse than usual from where the model
+    /// led and that were matched again from turns it does not reach
+    /// ([`crate::filter::StepReport::recovered`]).
+    steps_rematched: u64,
     /// How many of the shared first looks the filter has mapped.
     looks_mapped: usize,
     /// Scans that waited after the last catch-up, and steps in a row taken
@@ -144,6 +148,7 @@ impl Follower {
             stepped_tick: None,
             scans_missed: 0,
             scans_coasted: 0,
+            steps_rematched: 0,
             looks_mapped: 0,
             backlog_before: 0,
             kept_up_steps: 0,
@@ -180,6 +185,12 @@ impl Follower {
     /// Scans coasted through while catching up (see the field).
     pub fn scans_coasted(&self) -> u64 {
         self.scans_coasted
+    }
+
+    /// Steps matched again from turns the model does not reach (see the
+    /// field).
+    pub fn steps_rematched(&self) -> u64 {
+        self.steps_rematched
     }
 
     /// Fits the follower's work to the time it has, before it steps the
@@ -333,6 +344,7 @@ impl Follower {
             };
             self.scans_missed += missed_between(&self.announced, self.stepped_tick, scan.tick);
             let report = filter.step(command, scan.bumped, &scan.ranges);
+            self.steps_rematched += u64::from(report.recovered);
             if let Command::Walk(speed @ 1..=3) = command {
                 self.walks[usize::from(speed - 1)] += 1;
             }

@@ -446,6 +446,7 @@ fn report(
                         .map(|ticks| ticks as f64 * period_s),
                     scans_missed: robot.follower.scans_missed(),
                     scans_coasted: robot.follower.scans_coasted(),
+                    steps_rematched: robot.follower.steps_rematched(),
                     particles: filter.map(ParticleFilter::particle_count),
                 }
             })

@@ -50,6 +50,11 @@ pub struct FollowedReport {
     /// scored, while it caught up with its robot.
     #[serde(default)]
     pub scans_coasted: u64,
+    /// Steps whose scan fitted far worse than usual from where the motion
+    /// model led, matched again from turns the model does not reach: a
+    /// robot that turned far past its model.
+    #[serde(default)]
+    pub steps_rematched: u64,
     /// Particles the filter holds now: fewer than configured while it
     /// sheds work to keep up with its robot.
     #[serde(default, skip_serializing_if = "Option::is_none")]
