@@ -275,7 +275,11 @@ fn load_positional(run: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
     if !run.exists() {
         bail!("{}: no such file or folder", run.display());
     }
-    let robots = mrclam_robots(run);
+    let robots = if run.is_dir() {
+        mrclam_robots(run)?
+    } else {
+        Vec::new()
+    };
     if let ([robot], None) = (robots.as_slice(), args.robot) {
         return load_mrclam(run, *robot).map(Loaded::from);
     }
@@ -300,12 +304,17 @@ fn load_positional(run: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
 
 /// The robots of an MRCLAM dataset folder: those with both a
 /// `RobotN_Odometry.dat` and a `RobotN_Groundtruth.dat`, in order.
-fn mrclam_robots(dir: &Path) -> Vec<u32> {
-    let Ok(entries) = std::fs::read_dir(dir) else {
-        return Vec::new();
-    };
-    let mut robots: Vec<u32> = entries
-        .filter_map(|e| e.ok()?.file_name().into_string().ok())
+fn mrclam_robots(dir: &Path) -> Result<Vec<u32>> {
+    let entries = std::fs::read_dir(dir)
+        .with_context(|| format!("{}: the folder cannot be listed", dir.display()))?;
+    let mut names = Vec::new();
+    for entry in entries {
+        let entry =
+            entry.with_context(|| format!("{}: the folder cannot be listed", dir.display()))?;
+        names.extend(entry.file_name().into_string().ok());
+    }
+    let mut robots: Vec<u32> = names
+        .into_iter()
         .filter_map(|name| {
             name.strip_prefix("Robot")?
                 .strip_suffix("_Odometry.dat")?
@@ -315,7 +324,7 @@ fn mrclam_robots(dir: &Path) -> Vec<u32> {
         .filter(|r| dir.join(format!("Robot{r}_Groundtruth.dat")).is_file())
         .collect();
     robots.sort_unstable();
-    robots
+    Ok(robots)
 }
 
 /// The user's `--stamps`.
