@@ -305,18 +305,18 @@ fn load_positional(run: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
 /// The robots of an MRCLAM dataset folder: those with both a
 /// `RobotN_Odometry.dat` and a `RobotN_Groundtruth.dat`, in order.
 fn mrclam_robots(dir: &Path) -> Result<Vec<u32>> {
-    let entries = std::fs::read_dir(dir)
+    let names = std::fs::read_dir(dir)
+        .and_then(|entries| {
+            entries
+                .map(|entry| entry.map(|e| e.file_name()))
+                .collect::<std::io::Result<Vec<_>>>()
+        })
         .with_context(|| format!("{}: the folder cannot be listed", dir.display()))?;
-    let mut names = Vec::new();
-    for entry in entries {
-        let entry =
-            entry.with_context(|| format!("{}: the folder cannot be listed", dir.display()))?;
-        names.extend(entry.file_name().into_string().ok());
-    }
     let mut robots: Vec<u32> = names
-        .into_iter()
+        .iter()
         .filter_map(|name| {
-            name.strip_prefix("Robot")?
+            name.to_str()?
+                .strip_prefix("Robot")?
                 .strip_suffix("_Odometry.dat")?
                 .parse()
                 .ok()

@@ -255,16 +255,18 @@ pub fn print_table(out: &mut dyn Write, report: &StatusReport) -> io::Result<()>
                     }
                     _ => String::new(),
                 };
-                let mut missed = if f.scans_missed > 0 {
+                let missed = if f.scans_missed > 0 {
                     format!(", {} scans missed", f.scans_missed)
                 } else {
                     String::new()
                 };
-                if f.steps_rematched > 0 {
-                    missed += &format!(", {} steps matched again", f.steps_rematched);
-                }
+                let rematched = if f.steps_rematched > 0 {
+                    format!(", {} steps matched again", f.steps_rematched)
+                } else {
+                    String::new()
+                };
                 format!(
-                    "{} steps{keeping_up}{missed}, model moved {:.2}{}",
+                    "{} steps{keeping_up}{missed}{rematched}, model moved {:.2}{}",
                     f.steps,
                     f.model_distance,
                     if f.paused { ", paused" } else { "" }

@@ -15,7 +15,7 @@ use shoal_physics::{Command, MotionModel, Pose};
 use crate::grid::TiledGrid;
 use crate::learning::{Draw, MixtureLearner};
 use crate::proposal::{
-    MotionPrior, PROPOSAL_POSES_SCORED, ScoredBeams, improved_proposal, match_scan,
+    MotionPrior, PROPOSAL_POSES_SCORED, Proposed, ScoredBeams, improved_proposal, match_scan,
 };
 
 /// The range of scales exploring particles apply to a drawn motion.
@@ -86,6 +86,10 @@ pub struct FilterConfig {
     /// the sensor can tell, the map kept within [`MAX_MAP_CELLS`].
     pub cell_size: Option<f64>,
     pub learning: bool,
+    /// Whether a step that fits far worse than usual is matched again
+    /// from turns the model does not reach ([`REMATCH_DROP_PER_BEAM`]);
+    /// off only to measure what it buys.
+    pub rematch: bool,
     /// The learning window k.
     pub window: usize,
     /// Share of particles whose motion is scaled at random (0.3-1.7x) to
@@ -120,6 +124,8 @@ const MATCH_BEAM_STRIDE: usize = 2;
 
 /// What the improved proposal did in one step.
 struct Matching {
+    /// Each particle's next pose, drawn around its match.
+    poses: Vec<Pose>,
     /// Each particle's log weight update.
     log_weights: Vec<f64>,
     /// Poses scored: the matcher's search and the proposal's probes.
@@ -137,16 +143,16 @@ struct Matching {
 /// model's mean (a draw from the body's skewed tail, the two rooms' seed 7
 /// at step 78, EXPERIMENTS.md 8b) left the best particle at -1.64 while the
 /// true pose scored -0.28 on its map.
-const RECOVERY_DROP_PER_BEAM: f64 = 0.5;
+const REMATCH_DROP_PER_BEAM: f64 = 0.5;
 /// How far past the turn the model leads to the second matching reaches,
-/// each way, in steps of [`RECOVERY_STEP_RAD`]: a turn as far past the
+/// each way, in steps of [`REMATCH_STEP_RAD`]: a turn as far past the
 /// model as a leg's turn can go.
-const RECOVERY_REACH_RAD: f64 = 1.2;
-const RECOVERY_STEP_RAD: f64 = 0.2;
+const REMATCH_REACH_RAD: f64 = 1.2;
+const REMATCH_STEP_RAD: f64 = 0.2;
 /// The second matching is kept only if its best fit beats the first's by
 /// this much a beam: where nothing fits better (a crowd hiding the walls),
 /// the step stays as the model placed it.
-const RECOVERY_GAIN_PER_BEAM: f64 = 0.25;
+const REMATCH_GAIN_PER_BEAM: f64 = 0.25;
 /// How much of the usual fit each matched step keeps: about the last ten.
 const FIT_MEMORY: f64 = 0.9;
 
@@ -199,6 +205,7 @@ impl Default for FilterConfig {
             map_stride: 2,
             cell_size: None,
             learning: true,
+            rematch: true,
             window: 8,
             explore: 0.2,
             sensor: RangeSensor::default(),
@@ -292,9 +299,10 @@ pub struct StepReport {
     /// Whether the scan fitted so much worse than usual from where the
     /// model's turn led that the particles were matched again from turns
     /// the model does not reach, and fitted better there.
-    pub recovered: bool,
+    pub rematched: bool,
 }
 
+#[derive(Clone)]
 pub struct ParticleFilter {
     pub particles: Vec<Particle>,
     model: MotionModel,
@@ -304,7 +312,7 @@ pub struct ParticleFilter {
     cell_size: f64,
     rng: StdRng,
     steps: u64,
-    /// The usual best fit of a matched step (see [`RECOVERY_DROP_PER_BEAM`]).
+    /// The usual best fit of a matched step (see [`REMATCH_DROP_PER_BEAM`]).
     usual_fit: Option<f64>,
 }
 
@@ -458,31 +466,30 @@ impl ParticleFilter {
         let mut poses_scored = if scored { draws } else { 0 };
         let mut beam_evaluations = poses_scored * beams.len();
         let (drawn, at_drawn) = (&drawn[..n], &at_drawn[..n]);
-        let mut recovered = false;
+        let mut rematched = false;
         let log_weights = if matched {
-            let from: Vec<Pose> = self.particles.iter().map(|p| p.pose).collect();
             let mut matching = self.propose_by_matching(command, &beams, drawn, 0.0);
             poses_scored += matching.poses_scored;
             beam_evaluations += matching.beam_evaluations;
-            if self
-                .usual_fit
-                .is_some_and(|usual| matching.best_fit < usual - RECOVERY_DROP_PER_BEAM)
+            if self.config.rematch
+                && self
+                    .usual_fit
+                    .is_some_and(|usual| matching.best_fit < usual - REMATCH_DROP_PER_BEAM)
             {
-                let placed: Vec<Pose> = self.particles.iter().map(|p| p.pose).collect();
-                self.place(&from);
-                let wide = self.propose_by_matching(command, &beams, drawn, RECOVERY_REACH_RAD);
+                let wide = self.propose_by_matching(command, &beams, drawn, REMATCH_REACH_RAD);
                 poses_scored += wide.poses_scored;
                 beam_evaluations += wide.beam_evaluations;
-                if wide.best_fit > matching.best_fit + RECOVERY_GAIN_PER_BEAM {
+                if wide.best_fit > matching.best_fit + REMATCH_GAIN_PER_BEAM {
                     matching = wide;
-                    recovered = true;
-                } else {
-                    self.place(&placed);
+                    rematched = true;
                 }
             }
             self.usual_fit = Some(self.usual_fit.map_or(matching.best_fit, |usual| {
                 FIT_MEMORY * usual + (1.0 - FIT_MEMORY) * matching.best_fit
             }));
+            for (p, pose) in self.particles.iter_mut().zip(&matching.poses) {
+                p.pose = *pose;
+            }
             matching.log_weights
         } else {
             // The motion model's proposal: each particle goes where its
@@ -523,14 +530,7 @@ impl ParticleFilter {
             poses_scored,
             beam_evaluations,
             scored_beams: beams.len(),
-            recovered,
-        }
-    }
-
-    /// Puts each particle at its pose of `poses`.
-    fn place(&mut self, poses: &[Pose]) {
-        for (p, pose) in self.particles.iter_mut().zip(poses) {
-            p.pose = *pose;
+            rematched,
         }
     }
 
@@ -689,12 +689,13 @@ impl ParticleFilter {
         }
     }
 
-    /// Moves every particle by the improved proposal (see
+    /// Each particle's next pose by the improved proposal (see
     /// [`crate::proposal`]): matched from where its drawn step took it,
-    /// drawn around the match. With `turn_reach` (rad) above 0, each
+    /// drawn around the match; the particles stay where they are, so a
+    /// step may be matched twice. With `turn_reach` (rad) above 0, each
     /// particle's search starts from the best of the turns within that
     /// reach of its drawn one, under a prior whose turn is as wide as the
-    /// reach (see [`RECOVERY_DROP_PER_BEAM`]).
+    /// reach (see [`REMATCH_DROP_PER_BEAM`]).
     fn propose_by_matching(
         &mut self,
         command: Command,
@@ -712,9 +713,12 @@ impl ParticleFilter {
         // sets the particle's pose and weight, is scored with every beam.
         let search_beams = beams.every(MATCH_BEAM_STRIDE);
         let search_scale = beams.len() as f64 / search_beams.len().max(1) as f64;
-        let proposed: Vec<(f64, usize, f64)> = self
+        // Matched again, the search starts from the best of the turns
+        // within reach of the drawn one.
+        let turns = (turn_reach / REMATCH_STEP_RAD).round() as i32;
+        let proposed: Vec<(Proposed, usize)> = self
             .particles
-            .par_iter_mut()
+            .par_iter()
             .zip(drawn)
             .zip(seeds)
             .map(|((p, d), seed)| {
@@ -742,13 +746,10 @@ impl ParticleFilter {
                     search_scale * BEAM_TEMPERING * search_beams.log_likelihood(&p.map, pose)
                         + prior.log_density(&from, pose)
                 };
-                // Matched again, the search starts from the best of the
-                // turns within reach; scored here, each is counted.
-                let turns = (turn_reach / RECOVERY_STEP_RAD).round() as i32;
                 let (start, tried) = if turns > 0 {
                     let mut best = (start, posterior(&start));
                     for k in (-turns..=turns).filter(|&k| k != 0) {
-                        let pose = start.advanced(0.0, 0.0, k as f64 * RECOVERY_STEP_RAD);
+                        let pose = start.advanced(0.0, 0.0, k as f64 * REMATCH_STEP_RAD);
                         let value = posterior(&pose);
                         if value > best.1 {
                             best = (pose, value);
@@ -761,18 +762,18 @@ impl ParticleFilter {
                 let (matched, _, scored) = match_scan(&posterior, start);
                 let mut rng = StdRng::seed_from_u64(seed);
                 let proposed = improved_proposal(&score, &prior, &from, matched, &mut rng);
-                p.pose = proposed.pose;
-                (proposed.log_weight, scored + tried, proposed.scan_at_match)
+                (proposed, scored + tried)
             })
             .collect();
-        let searched: usize = proposed.iter().map(|(_, s, _)| s).sum();
+        let searched: usize = proposed.iter().map(|(_, s)| s).sum();
         let probed = PROPOSAL_POSES_SCORED * proposed.len();
         let best_match = proposed
             .iter()
-            .map(|(_, _, at_match)| *at_match)
+            .map(|(p, _)| p.scan_at_match)
             .fold(f64::NEG_INFINITY, f64::max);
         Matching {
-            log_weights: proposed.into_iter().map(|(w, _, _)| w).collect(),
+            poses: proposed.iter().map(|(p, _)| p.pose).collect(),
+            log_weights: proposed.iter().map(|(p, _)| p.log_weight).collect(),
             poses_scored: searched + probed,
             beam_evaluations: searched * search_beams.len() + probed * beams.len(),
             best_fit: best_match / beams.len().max(1) as f64,
@@ -1114,20 +1115,31 @@ mod tests {
             *truth = truth.advanced(0.0, 0.0, turned);
             let report = filter.step(command, false, &scan(truth, &mut rng));
             let off = wrap_angle(report.estimate.theta - truth.theta).abs();
-            (report.recovered, off)
+            (report.rematched, off)
         };
         for _ in 0..5 {
-            let (recovered, off) = step(&mut filter, &mut truth, Command::Stand, 0.0);
-            assert!(!recovered && off < 0.05, "standing: {off} rad off");
+            let (rematched, off) = step(&mut filter, &mut truth, Command::Stand, 0.0);
+            assert!(!rematched && off < 0.05, "standing: {off} rad off");
         }
-        let (recovered, off) = step(&mut filter, &mut truth, turn, mean_turn);
-        assert!(!recovered && off < 0.05, "an ordinary turn: {off} rad off");
-        let (recovered, off) = step(&mut filter, &mut truth, turn, mean_turn + 0.9);
+        let (rematched, off) = step(&mut filter, &mut truth, turn, mean_turn);
+        assert!(!rematched && off < 0.05, "an ordinary turn: {off} rad off");
+        let far = mean_turn + 0.9;
+        let mut without = filter.clone();
+        without.config.rematch = false;
+        let mut truth_without = truth;
+        let (rematched, off) = step(&mut filter, &mut truth, turn, far);
         assert!(
-            recovered,
+            rematched,
             "a turn 0.9 rad past the model was not matched again"
         );
         assert!(off < 0.05, "a turn 0.9 rad past the model: {off} rad off");
+        // The same step on the same filter, not matched again: the heading
+        // is lost (0.83 rad off when measured).
+        let (rematched, off) = step(&mut without, &mut truth_without, turn, far);
+        assert!(
+            !rematched && off > 0.3,
+            "without matching again: {off} rad off"
+        );
     }
 
     /// A filter of 400 particles at `start`, on an arena `width` x 20 m,

@@ -112,7 +112,7 @@ pub struct Follower {
     scans_coasted: u64,
     /// Steps whose scan fitted far worse than usual from where the model
     /// led and that were matched again from turns it does not reach
-    /// ([`crate::filter::StepReport::recovered`]).
+    /// ([`crate::filter::StepReport::rematched`]).
     steps_rematched: u64,
     /// How many of the shared first looks the filter has mapped.
     looks_mapped: usize,
@@ -344,7 +344,7 @@ impl Follower {
             };
             self.scans_missed += missed_between(&self.announced, self.stepped_tick, scan.tick);
             let report = filter.step(command, scan.bumped, &scan.ranges);
-            self.steps_rematched += u64::from(report.recovered);
+            self.steps_rematched += u64::from(report.rematched);
             if let Command::Walk(speed @ 1..=3) = command {
                 self.walks[usize::from(speed - 1)] += 1;
             }

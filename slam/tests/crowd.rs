@@ -38,7 +38,7 @@ struct Followed {
     /// Particle-beam evaluations over every judged robot's steps: the work.
     beam_evaluations: usize,
     /// Steps matched again from turns the model does not reach.
-    recoveries: usize,
+    rematched: usize,
 }
 
 /// The mean of `values` (NaN if there are none).
@@ -59,7 +59,7 @@ impl Followed {
         self.error_ticks[i].push(step.tick);
         self.strides[i].push(step.filter.model().full_stride());
         self.beam_evaluations += step.report.beam_evaluations;
-        self.recoveries += usize::from(step.report.recovered);
+        self.rematched += usize::from(step.report.rematched);
     }
 
     /// The mean over the judged robots of `of` each robot's series.
@@ -217,7 +217,7 @@ fn follow_in_crowd(model: &MotionModel, crowd: Crowd) -> Followed {
         error_ticks: vec![Vec::new(); judged_count],
         strides: vec![Vec::new(); judged_count],
         beam_evaluations: 0,
-        recoveries: 0,
+        rematched: 0,
         particles: Vec::new(),
     };
     // With a machine short of time: each robot's waiting scans, where each
@@ -342,7 +342,7 @@ fn in_a_crowd_filters_started_with_short_strides_hold_every_robot_and_learn_its_
         let (on_carpet, at_end) = (followed.stride_after(49), followed.stride_after(149));
         eprintln!(
             "seed {seed}: mean over 20 robots: error over the last 50 steps {late:.3} m, at the end {last:.3} m; full stride {wrong:.3} -> {on_carpet:.3} m after 50 steps (carpet {right:.3}) -> {at_end:.3} m at the end (sand {sand:.3}); {} steps matched again",
-            followed.recoveries
+            followed.rematched
         );
         // Issue 30's bar: within 0.2 m at the end, now over every robot
         // (this test judged robot 0 alone until the filters shared their
@@ -508,7 +508,7 @@ fn the_demo_offline_with_and_without_the_first_scans_shared() {
                 followed.error_over_first(50),
                 followed.error_over_last(50),
                 followed.worst_over_last(50),
-                followed.recoveries,
+                followed.rematched,
             );
         }
     }
