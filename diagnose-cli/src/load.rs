@@ -98,7 +98,17 @@ fn load_rrd(path: &Path, robot: Option<u32>) -> Result<Recording> {
 /// The types a topic may have, as a listing names them: without their
 /// package, those whose robot is chosen by name said so.
 fn type_names(types: &[&str]) -> String {
-    let short = |t: &&&str| t.rsplit('/').next().unwrap_or(t).to_owned();
+    let last = |t: &str| t.rsplit('/').next().unwrap_or(t).to_owned();
+    // Two packages' types of one name (geometry_msgs' and turtlesim's Pose)
+    // keep their package, so the listing can tell them apart.
+    let short = |t: &&&str| {
+        let name = last(t);
+        let shared = types.iter().filter(|o| last(o) == name).count() > 1;
+        match t.split_once('/') {
+            Some((package, _)) if shared => format!("{package}/{name}"),
+            _ => name,
+        }
+    };
     let (named, one_pose): (Vec<&&str>, Vec<&&str>) = types
         .iter()
         .partition(|t| shoal_bags::ros::holds_named_poses(t));
@@ -146,11 +156,12 @@ fn load_bag(path: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
                 listing.push_str(&format!("  ({note})\n"));
             }
             bail!(
-                "{listing}choose the commands with --commands-topic ({}: {}) and the poses with --poses-topic ({}: {})",
+                "{listing}choose the commands with --commands-topic ({}: {}) and the poses with --poses-topic ({}: {}){}",
                 type_names(&shoal_bags::ros::COMMAND_TYPES),
                 or_none(&command_topics),
                 type_names(&shoal_bags::ros::POSE_TYPES),
                 or_none(&pose_topics),
+                the_one_choice(path, &command_topics, &pose_topics, &topics),
             );
         }
     };
@@ -200,6 +211,29 @@ fn load_bag(path: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
             ..InputNotes::default()
         },
     })
+}
+
+/// Where the bag holds one topic of each kind that needs no `--frame`,
+/// the command that diagnoses them, for the user to run as it is.
+fn the_one_choice(
+    path: &Path,
+    command_topics: &[String],
+    pose_topics: &[String],
+    topics: &[shoal_bags::Topic],
+) -> String {
+    let needs_frame = |name: &String| {
+        topics
+            .iter()
+            .any(|t| &t.name == name && shoal_bags::ros::holds_named_poses(&t.message_type))
+    };
+    let poses: Vec<&String> = pose_topics.iter().filter(|t| !needs_frame(t)).collect();
+    match (command_topics, poses.as_slice()) {
+        ([commands], [poses]) => format!(
+            "; this bag's are:\n  shoal diagnose {} --commands-topic {commands} --poses-topic {poses}",
+            path.display()
+        ),
+        _ => String::new(),
+    }
 }
 
 fn or_none(names: &[String]) -> String {

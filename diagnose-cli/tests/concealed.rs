@@ -733,6 +733,12 @@ fn gazebo_bags_in_sqlite3_mcap_split_and_compressed_are_diagnosed_on_one_clock()
     ] {
         assert!(stderr.contains(listed), "{listed} not in: {stderr}");
     }
+    // One topic of each kind: the command that diagnoses them is given.
+    assert!(
+        stderr.contains("--commands-topic /cmd_vel --poses-topic /odom\n")
+            || stderr.ends_with("--commands-topic /cmd_vel --poses-topic /odom"),
+        "{stderr}"
+    );
     // The user's word on the clock is taken.
     let output = diagnose_gazebo(&dir.join("db3"), &["--stamps", "log"]);
     let d: Value = serde_json::from_slice(&output.stdout).expect("JSON");
