@@ -352,15 +352,12 @@ fn folder_files(dir: &Path) -> Result<Vec<PathBuf>, BagError> {
             .relative_file_paths
             .iter()
             .map(|relative| {
-                let file = dir.join(relative);
-                if file.is_file() {
-                    Ok(file)
-                } else {
-                    Err(BagError::new(
+                listed_file(dir, relative).ok_or_else(|| {
+                    BagError::new(
                         &metadata,
                         format!("lists {relative}, which is not in {}", dir.display()),
-                    ))
-                }
+                    )
+                })
             })
             .collect();
     }
@@ -372,6 +369,22 @@ fn folder_files(dir: &Path) -> Result<Vec<PathBuf>, BagError> {
         .collect();
     files.sort_by_key(|p| natural_key(p));
     Ok(files)
+}
+
+/// A file `metadata.yaml` lists, where rosbag2's versions put it: beside
+/// the metadata; or, as Eloquent and Foxy's compressing writer wrote it
+/// (`bag/bag_0.db3.zstd`), from the folder above; or, in a folder since
+/// renamed, by its name alone.
+fn listed_file(dir: &Path, relative: &str) -> Option<PathBuf> {
+    let by_name = Path::new(relative).file_name().map(|name| dir.join(name));
+    [
+        Some(dir.join(relative)),
+        dir.parent().map(|up| up.join(relative)),
+        by_name,
+    ]
+    .into_iter()
+    .flatten()
+    .find(|file| file.is_file())
 }
 
 /// Whether `path` is named as a bag file: `.mcap` or `.db3`, zstd-compressed
@@ -735,5 +748,24 @@ mod tests {
         let mut names = vec!["run_10.db3", "run_2.db3", "run_0.db3", "run_1.db3"];
         names.sort_by_key(|n| natural_key(Path::new(n)));
         assert_eq!(names, ["run_0.db3", "run_1.db3", "run_2.db3", "run_10.db3"]);
+    }
+
+    #[test]
+    fn files_listed_from_the_folder_above_or_under_an_old_name_are_found() {
+        let root = std::env::temp_dir().join(format!("shoal-listed-{}", std::process::id()));
+        let dir = root.join("renamed");
+        std::fs::create_dir_all(&dir).expect("temporary folder");
+        std::fs::write(dir.join("bag_0.db3"), b"").expect("file");
+        // As rosbag2 writes it today; as Foxy's compressing writer did, with
+        // the folder's name; and after the folder was renamed.
+        for listed in ["bag_0.db3", "renamed/bag_0.db3", "recorded/bag_0.db3"] {
+            assert_eq!(
+                listed_file(&dir, listed),
+                Some(dir.join("bag_0.db3")),
+                "{listed}"
+            );
+        }
+        assert_eq!(listed_file(&dir, "bag_1.db3"), None);
+        std::fs::remove_dir_all(&root).expect("remove the temporary folder");
     }
 }
