@@ -161,7 +161,7 @@ fn load_bag(path: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
                 or_none(&command_topics),
                 type_names(&shoal_bags::ros::POSE_TYPES),
                 or_none(&pose_topics),
-                the_one_choice(path, &command_topics, &pose_topics, &topics),
+                the_choices(path, &command_topics, &pose_topics, &topics),
             );
         }
     };
@@ -213,9 +213,11 @@ fn load_bag(path: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
     })
 }
 
-/// Where the bag holds one topic of each kind that needs no `--frame`,
-/// the command that diagnoses them, for the user to run as it is.
-fn the_one_choice(
+/// The commands that diagnose the bag's robots, where its topics pair up:
+/// one topic of each kind that needs no `--frame` in the whole bag, or in
+/// one namespace (`/robot1/cmd_vel` with `/robot1/odom`), as a swarm's
+/// bag holds each robot's.
+fn the_choices(
     path: &Path,
     command_topics: &[String],
     pose_topics: &[String],
@@ -227,12 +229,35 @@ fn the_one_choice(
             .any(|t| &t.name == name && shoal_bags::ros::holds_named_poses(&t.message_type))
     };
     let poses: Vec<&String> = pose_topics.iter().filter(|t| !needs_frame(t)).collect();
-    match (command_topics, poses.as_slice()) {
-        ([commands], [poses]) => format!(
-            "; this bag's are:\n  shoal diagnose {} --commands-topic {commands} --poses-topic {poses}",
-            path.display()
-        ),
-        _ => String::new(),
+    let namespace = |topic: &str| topic.rsplit_once('/').map_or("", |(ns, _)| ns).to_owned();
+    let pairs: Vec<(&String, &String)> = match (command_topics, poses.as_slice()) {
+        ([commands], [poses]) => vec![(commands, *poses)],
+        _ => command_topics
+            .iter()
+            .filter_map(|commands| {
+                let ns = namespace(commands);
+                let alone = command_topics.iter().filter(|c| namespace(c) == ns).count() == 1;
+                let mut same: Vec<&&String> = poses.iter().filter(|p| namespace(p) == ns).collect();
+                match (alone, same.pop(), same.is_empty()) {
+                    (true, Some(poses), true) => Some((commands, *poses)),
+                    _ => None,
+                }
+            })
+            .collect(),
+    };
+    let lines: Vec<String> = pairs
+        .iter()
+        .map(|(commands, poses)| {
+            format!(
+                "  shoal diagnose {} --commands-topic {commands} --poses-topic {poses}",
+                path.display()
+            )
+        })
+        .collect();
+    match lines.len() {
+        0 => String::new(),
+        1 => format!("; this bag's are:\n{}", lines[0]),
+        _ => format!("; its robots, one at a time:\n{}", lines.join("\n")),
     }
 }
 
@@ -380,5 +405,70 @@ impl From<Stamps> for StampsPreference {
             Stamps::Header => StampsPreference::Header,
             Stamps::Log => StampsPreference::Log,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn topic(name: &str, message_type: &str) -> shoal_bags::Topic {
+        shoal_bags::Topic {
+            name: name.to_owned(),
+            message_type: message_type.to_owned(),
+            messages: 1,
+        }
+    }
+
+    fn choices(topics: &[shoal_bags::Topic]) -> String {
+        let of = |types: &[&str]| -> Vec<String> {
+            topics
+                .iter()
+                .filter(|t| types.contains(&t.message_type.as_str()))
+                .map(|t| t.name.clone())
+                .collect()
+        };
+        the_choices(
+            Path::new("b"),
+            &of(&shoal_bags::ros::COMMAND_TYPES),
+            &of(&shoal_bags::ros::POSE_TYPES),
+            topics,
+        )
+    }
+
+    #[test]
+    fn a_bags_robots_are_paired_by_namespace_and_tf_waits_for_a_frame() {
+        let twist = "geometry_msgs/msg/Twist";
+        let odometry = "nav_msgs/msg/Odometry";
+        let tf = "tf2_msgs/msg/TFMessage";
+        // One of each: paired whatever their names; /tf needs --frame.
+        let one = choices(&[
+            topic("/cmd_vel", twist),
+            topic("/vicon/burger/burger", "geometry_msgs/msg/TransformStamped"),
+            topic("/tf", tf),
+        ]);
+        assert!(
+            one.ends_with("b --commands-topic /cmd_vel --poses-topic /vicon/burger/burger"),
+            "{one}"
+        );
+        // A swarm's bag: each robot's topics in its namespace.
+        let swarm = choices(&[
+            topic("/robot1/cmd_vel", twist),
+            topic("/robot1/odom", odometry),
+            topic("/robot2/cmd_vel", twist),
+            topic("/robot2/odom", odometry),
+            topic("/robot3/cmd_vel", twist),
+            topic("/tf", tf),
+        ]);
+        assert!(swarm.contains("--commands-topic /robot1/cmd_vel --poses-topic /robot1/odom"));
+        assert!(swarm.contains("--commands-topic /robot2/cmd_vel --poses-topic /robot2/odom"));
+        assert!(!swarm.contains("/robot3"), "{swarm}");
+        // Two pose topics beside one command topic: the user chooses.
+        let two = choices(&[
+            topic("/cmd_vel", twist),
+            topic("/odom", odometry),
+            topic("/ground_truth", odometry),
+        ]);
+        assert_eq!(two, "");
     }
 }
