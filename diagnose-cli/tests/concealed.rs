@@ -338,6 +338,49 @@ fn a_real_mrclam_robot_shows_a_mismatch_that_the_fit_reduces() {
     assert!(after < 0.85 * before, "{before} -> {after}");
 }
 
+/// Poses as a localisation or a GPS sends them, at 2 Hz and 1 Hz, of a run
+/// whose commands take effect 0.12 s late: read as sent, not as gaps, and
+/// compared where they were observed. Interpolated on straight lines
+/// between observations so far apart, the poses cut the robot's arcs and a
+/// model compared with them looked slowed: the run at 2 Hz named an
+/// actuator lag and slip instead of the latency, and at 1 Hz nothing could
+/// be compared at all.
+#[test]
+fn poses_a_second_apart_are_compared_where_they_were_observed() {
+    let case = case_named(&Generator::bench(), "latency", DURATION_S).expect("latency case");
+    let (full, dir) = diagnose_generated("slow-poses", &truth_toml(&case), &[]);
+    let poses = std::fs::read_to_string(dir.join("poses.csv")).expect("poses.csv");
+    let commands = std::fs::read_to_string(dir.join("commands.csv")).expect("commands.csv");
+    for hz in [2.0, 1.0] {
+        let slow = scratch(&format!("slow-poses-{hz}"));
+        let mut kept = String::new();
+        let mut next = 0.0;
+        for (i, line) in poses.lines().enumerate() {
+            let t: f64 = line
+                .split(',')
+                .next()
+                .and_then(|t| t.parse().ok())
+                .unwrap_or(-1.0);
+            if i == 0 || t >= next - 1e-9 {
+                kept.push_str(line);
+                kept.push('\n');
+                if i > 0 {
+                    next = t + 1.0 / hz;
+                }
+            }
+        }
+        std::fs::write(slow.join("poses.csv"), kept).expect("write poses");
+        std::fs::write(slow.join("commands.csv"), &commands).expect("write commands");
+        let d = diagnose_dir(&slow, &[]);
+        assert_eq!(kinds(&d), ["latency"], "{hz} Hz: {d}");
+        let (slow_fit, full_fit) = (first_latency(&d), first_latency(&full));
+        assert!(
+            (slow_fit - full_fit).abs() < 0.02,
+            "{hz} Hz: {slow_fit} s against {full_fit} s from every pose"
+        );
+    }
+}
+
 #[test]
 fn too_little_data_is_an_error_not_a_verdict() {
     let (_dir, output) = diagnose_csv("tiny", "t,x,y,theta\n0,0,0,0\n0.9,0.09,0,0\n");

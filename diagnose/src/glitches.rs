@@ -12,7 +12,7 @@
 //! - Jumps without a return: the track resumes elsewhere (the tracker
 //!   re-initialised, the robot was carried); no comparison spans it.
 //! - Pose gaps: stretches without observations longer than
-//!   `MAX_OBSERVATION_GAP_S`; no comparison spans them.
+//!   the poses' gap limit (`Poses::gap_limit`); no comparison spans them.
 //! - Command stalls: the command stream stops for many of its periods and
 //!   resumes with a burst of commands repeated in a few milliseconds: a
 //!   backlog, not commands given then, and what the robot did meanwhile is
@@ -37,7 +37,7 @@ use std::collections::VecDeque;
 
 use serde::Serialize;
 
-use crate::recording::{Commands, MAX_OBSERVATION_GAP_S, Poses, Recording};
+use crate::recording::{Commands, Poses, Recording};
 
 /// A stretch set aside, in the run's seconds.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -263,6 +263,7 @@ fn pose(p: &Poses, i: usize) -> (f64, f64, f64, f64) {
 /// comparison spans the jump.
 fn without_jumps(poses: &Poses, bounds: &Bounds) -> (Poses, Vec<Glitch>) {
     let n = poses.len();
+    let gap_limit = poses.gap_limit();
     let mut keep = vec![true; n];
     let mut glitches = Vec::new();
     let mut last_good = 0;
@@ -306,8 +307,8 @@ fn without_jumps(poses: &Poses, bounds: &Bounds) -> (Poses, Vec<Glitch>) {
             // The track resumed at i: cut it there, wide enough that no
             // comparison interpolates across the jump.
             let (cut_from, cut_to) = (
-                poses.t[last_good] - 0.5 * MAX_OBSERVATION_GAP_S,
-                poses.t[i] + 0.5 * MAX_OBSERVATION_GAP_S,
+                poses.t[last_good] - 0.5 * gap_limit,
+                poses.t[i] + 0.5 * gap_limit,
             );
             let mut frames = 0;
             for (k, flag) in keep.iter_mut().enumerate() {
@@ -337,7 +338,7 @@ fn without_jumps(poses: &Poses, bounds: &Bounds) -> (Poses, Vec<Glitch>) {
 /// The poses outside `[from, to]`, with the span widened so that no
 /// comparison interpolates across it.
 fn without_span(poses: &Poses, from: f64, to: f64) -> Poses {
-    let pad = 0.5 * MAX_OBSERVATION_GAP_S;
+    let pad = 0.5 * poses.gap_limit();
     let mut kept = Poses::default();
     for k in 0..poses.len() {
         if !(from - pad..=to + pad).contains(&poses.t[k]) {
@@ -349,10 +350,11 @@ fn without_span(poses: &Poses, from: f64, to: f64) -> Poses {
 
 /// Stretches without observed poses that no comparison spans.
 fn pose_gaps(poses: &Poses) -> Vec<Glitch> {
+    let gap_limit = poses.gap_limit();
     poses
         .t
         .windows(2)
-        .filter(|w| w[1] - w[0] > MAX_OBSERVATION_GAP_S)
+        .filter(|w| w[1] - w[0] > gap_limit)
         .map(|w| Glitch {
             kind: GlitchKind::PoseGap,
             t_start: w[0],
@@ -446,6 +448,7 @@ fn commanded_travel(commands: &Commands, a: f64, b: f64) -> f64 {
 /// its command went on (see the module's notes and the `HELD_` constants).
 fn held_in_place(commands: &Commands, poses: &Poses) -> Vec<Glitch> {
     let n = poses.len();
+    let gap_limit = poses.gap_limit();
     let noise = (HELD_NOISE_SIGMAS * frame_noise(&poses.x).hypot(frame_noise(&poses.y)))
         .min(HELD_NOISE_CAP_M);
     let mut out = Vec::new();
@@ -457,7 +460,7 @@ fn held_in_place(commands: &Commands, poses: &Poses) -> Vec<Glitch> {
         let mut travel = 0.0;
         let mut first_speed: Option<f64> = None;
         for j in i + 1..n {
-            if poses.t[j] - poses.t[j - 1] > MAX_OBSERVATION_GAP_S {
+            if poses.t[j] - poses.t[j - 1] > gap_limit {
                 break;
             }
             let dt = poses.t[j] - poses.t[j - 1];
@@ -537,7 +540,8 @@ fn held_in_place(commands: &Commands, poses: &Poses) -> Vec<Glitch> {
 /// least `HELD_MOVING_SHARE` of its commanded travel over `MADE_WINDOW_S`;
 /// `None` if it never did.
 fn slowest_speed_made(commands: &Commands, poses: &Poses) -> Option<f64> {
-    let gap_before = |k: usize| poses.t[k] - poses.t[k - 1] > MAX_OBSERVATION_GAP_S;
+    let gap_limit = poses.gap_limit();
+    let gap_before = |k: usize| poses.t[k] - poses.t[k - 1] > gap_limit;
     let mut slowest: Option<f64> = None;
     // The window is poses i..=j; `gaps` counts the gaps within it, kept as
     // both ends move forward so the scan stays linear in the recording.
@@ -577,6 +581,7 @@ fn slowest_speed_made(commands: &Commands, poses: &Poses) -> Option<f64> {
 /// poses whose bounding box fits within the tolerance.
 fn stuck(commands: &Commands, poses: &Poses) -> Vec<Glitch> {
     let n = poses.len();
+    let gap_limit = poses.gap_limit();
     let Some(slowest_made) = slowest_speed_made(commands, poses) else {
         return Vec::new();
     };
@@ -633,7 +638,7 @@ fn stuck(commands: &Commands, poses: &Poses) -> Vec<Glitch> {
     let mut box_ = StillBox::default();
     let mut start = 0;
     for end in 0..n {
-        let gap = end > 0 && poses.t[end] - poses.t[end - 1] > MAX_OBSERVATION_GAP_S;
+        let gap = end > 0 && poses.t[end] - poses.t[end - 1] > gap_limit;
         box_.push(end, poses);
         let new_start = if gap {
             end
@@ -1033,7 +1038,7 @@ mod tests {
             kept.poses
                 .t
                 .windows(2)
-                .any(|w| w[1] - w[0] > MAX_OBSERVATION_GAP_S)
+                .any(|w| w[1] - w[0] > kept.poses.gap_limit())
         );
     }
 

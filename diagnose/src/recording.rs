@@ -31,8 +31,17 @@ pub struct Recording {
     pub joins: Vec<f64>,
 }
 
-/// Observations further apart than this leave a gap that no segment spans.
+/// Observations further apart than this leave a gap that no segment spans
+/// (where poses come faster than `SLOW_STREAM_INTERVALS` to it).
 pub const MAX_OBSERVATION_GAP_S: f64 = 0.5;
+
+/// Poses that come slower than this fraction of `MAX_OBSERVATION_GAP_S`
+/// (a GPS at 1 Hz, a localisation at 2 Hz) leave a gap only past this many
+/// of their usual intervals: such a stream is read as it was sent.
+const SLOW_STREAM_INTERVALS: f64 = 3.0;
+
+/// Intervals sampled, evenly over the recording, for its usual interval.
+const INTERVALS_SAMPLED: usize = 101;
 
 impl Commands {
     /// Each command as (t, v, omega).
@@ -87,6 +96,43 @@ impl Poses {
         self.t.len()
     }
 
+    /// Observations further apart than this leave a gap that no segment
+    /// spans: `MAX_OBSERVATION_GAP_S`, or `SLOW_STREAM_INTERVALS` of the
+    /// poses' usual interval where they come slower. The usual interval is
+    /// the median of intervals sampled evenly, so gaps do not lengthen it.
+    pub fn gap_limit(&self) -> f64 {
+        MAX_OBSERVATION_GAP_S.max(SLOW_STREAM_INTERVALS * self.usual_interval())
+    }
+
+    /// The seconds between consecutive poses, as usual (0 for fewer than
+    /// two).
+    pub fn usual_interval(&self) -> f64 {
+        let n = self.t.len();
+        if n < 2 {
+            return 0.0;
+        }
+        let samples = INTERVALS_SAMPLED.min(n - 1);
+        let mut intervals: Vec<f64> = (0..samples)
+            .map(|k| {
+                let i = k * (n - 2) / samples.saturating_sub(1).max(1);
+                self.t[i + 1] - self.t[i]
+            })
+            .collect();
+        intervals.sort_by(f64::total_cmp);
+        intervals[intervals.len() / 2]
+    }
+
+    /// The observation nearest `t` (ties to the earlier); `None` if empty.
+    pub fn nearest(&self, t: f64) -> Option<f64> {
+        let after = self.t.partition_point(|&s| s < t);
+        let before = after.checked_sub(1).map(|i| self.t[i]);
+        let next = self.t.get(after).copied();
+        match (before, next) {
+            (Some(b), Some(a)) => Some(if t - b <= a - t { b } else { a }),
+            (b, a) => b.or(a),
+        }
+    }
+
     pub fn is_empty(&self) -> bool {
         self.t.is_empty()
     }
@@ -103,7 +149,7 @@ impl Poses {
         }
         let before = after - 1;
         let (t0, t1) = (self.t[before], self.t[after]);
-        if t1 - t0 > MAX_OBSERVATION_GAP_S {
+        if t1 - t0 > self.gap_limit() {
             return None;
         }
         let f = if t1 > t0 { (t - t0) / (t1 - t0) } else { 0.0 };
@@ -221,7 +267,11 @@ impl Recording {
             ..Recording::default()
         };
         // A gap wider than any comparison may span.
-        let gap = 2.0 * MAX_OBSERVATION_GAP_S;
+        let gap = 2.0
+            * runs
+                .iter()
+                .map(|r| r.poses.gap_limit())
+                .fold(MAX_OBSERVATION_GAP_S, f64::max);
         for (k, run) in runs.into_iter().enumerate() {
             let end_so_far = out
                 .commands
@@ -305,6 +355,34 @@ pub mod csv_lines {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn poses_at(times: impl Iterator<Item = f64>) -> Poses {
+        let mut poses = Poses::default();
+        for t in times {
+            poses.observe(t, t, 0.0, 0.0);
+        }
+        poses
+    }
+
+    #[test]
+    fn a_slow_stream_is_read_as_sent_and_a_fast_ones_gap_is_a_gap() {
+        // A GPS at 1 Hz: a second between poses is its rate, not a gap.
+        let gps = poses_at((0..60).map(f64::from));
+        assert!((gps.gap_limit() - 3.0).abs() < 1e-9);
+        assert!(gps.at(10.5).is_some());
+        // Motion capture at 100 Hz that lost the robot for 2 s of 10.
+        let mocap = poses_at(
+            (0..1000)
+                .map(|k| f64::from(k) * 0.01)
+                .filter(|t| !(4.0..6.0).contains(t)),
+        );
+        assert_eq!(mocap.gap_limit(), MAX_OBSERVATION_GAP_S);
+        assert!(mocap.at(5.0).is_none() && mocap.at(3.0).is_some());
+        assert_eq!(gps.nearest(10.4), Some(10.0));
+        assert_eq!(gps.nearest(10.6), Some(11.0));
+        assert_eq!(gps.nearest(-3.0), Some(0.0));
+        assert_eq!(Poses::default().nearest(1.0), None);
+    }
 
     #[test]
     fn a_marker_swap_is_dropped_and_smooth_motion_kept() {

@@ -86,8 +86,29 @@ pub fn moving(grid: &CommandGrid, at: usize) -> bool {
     !same(grid.v[at], 0.0) || !same(grid.omega[at], 0.0)
 }
 
+/// Poses slower than this (a localisation at 2 Hz, a GPS at 1 Hz) are
+/// compared where they were observed: each segment's ends move to the
+/// grid steps of the observations nearest them. Between observations so
+/// far apart, a pose interpolated on a straight line cuts the robot's arc,
+/// and a model compared with it looks slowed, like an actuator lag. Faster
+/// streams are interpolated (within a few milliseconds of an observation).
+pub const SNAPPED_INTERVAL_S: f64 = 0.05;
+
 /// The segment over grid steps `from..to`, if both its ends were observed.
 fn segment(recording: &Recording, grid: &CommandGrid, from: usize, to: usize) -> Option<Segment> {
+    let (from, to) = if recording.poses.usual_interval() > SNAPPED_INTERVAL_S {
+        let snap = |step: usize| {
+            let seen = recording.poses.nearest(grid.time(step))?;
+            let snapped = ((seen - grid.t0) / grid.dt).round();
+            (snapped >= 0.0).then_some((snapped as usize).min(grid.len().saturating_sub(1)))
+        };
+        (snap(from)?, snap(to)?)
+    } else {
+        (from, to)
+    };
+    if to <= from {
+        return None;
+    }
     let (t_start, t_end) = (grid.time(from), grid.time(to));
     let start = recording.poses.at(t_start)?;
     let end = recording.poses.at(t_end)?;
