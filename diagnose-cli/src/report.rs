@@ -96,10 +96,14 @@ pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
     {
         line(text);
     }
-    line(format!(
-        "{} segments of {:.1} s compared.",
-        d.segments, d.horizon_s
-    ));
+    line(if (d.segment_s - d.horizon_s).abs() < 0.05 {
+        format!("{} segments of {:.1} s compared.", d.segments, d.horizon_s)
+    } else {
+        format!(
+            "{} segments of {:.1} s compared (from one observed pose to another, as near {:.1} s apart as the poses allow).",
+            d.segments, d.segment_s, d.horizon_s
+        )
+    });
     if let Some(timeout) = &d.command_timeout {
         line(format!(
             "How the robot took its commands: {}",

@@ -115,6 +115,10 @@ pub struct Diagnosis {
     pub given_model: Option<GivenModel>,
     pub segments: usize,
     pub horizon_s: f64,
+    /// The segments' median length: the horizon, or longer where slow
+    /// poses moved their ends to where they were observed
+    /// (`segments::SNAPPED_INTERVAL_S`).
+    pub segment_s: f64,
     /// Seconds subtracted from the input's times; reported times count from it.
     pub t_origin: f64,
     /// The input model plus what was found, ready to write as model.toml.
@@ -716,6 +720,7 @@ pub fn diagnose(recording: &Recording, given: &UnicycleModel, options: &Options)
         improved,
         segments: segs.len(),
         horizon_s: options.horizon_s,
+        segment_s: median_length(segs).unwrap_or(options.horizon_s),
         t_origin: recording.t_origin,
         model: final_model,
         heldout_errors: plain_errors
@@ -724,4 +729,11 @@ pub fn diagnose(recording: &Recording, given: &UnicycleModel, options: &Options)
             .map(|(&(t, plain), &(_, better))| (t, plain, better))
             .collect(),
     }
+}
+
+/// The median of the segments' lengths, in seconds.
+fn median_length(segments: &[Segment]) -> Option<f64> {
+    let mut lengths: Vec<f64> = segments.iter().map(|s| s.t_end - s.t_start).collect();
+    lengths.sort_by(f64::total_cmp);
+    lengths.get(lengths.len() / 2).copied()
 }
