@@ -8,7 +8,9 @@ use anyhow::{Context, Result, bail};
 use serde::Serialize;
 use shoal_bags::{Bag, StampsPreference};
 use shoal_diagnose::Recording;
-use shoal_diagnose::input::{commands_csv, mrclam_groundtruth, mrclam_odometry, poses_csv};
+use shoal_diagnose::input::{
+    commands_csv, mrclam_groundtruth, mrclam_odometry, poses_csv, time_unit_note,
+};
 
 use crate::DiagnoseArgs;
 
@@ -28,6 +30,9 @@ pub struct InputNotes {
     /// held-out block, in time order: see `blocks`).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub recordings: Vec<String>,
+    /// CSV time columns read in a finer unit than seconds, and why.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub time_units: Vec<String>,
 }
 
 #[derive(Debug, Serialize)]
@@ -61,10 +66,21 @@ impl From<Recording> for Loaded {
     }
 }
 
-pub fn load_csv_pair(commands: &Path, poses: &Path) -> Result<Recording> {
-    let c = commands_csv(&read(commands)?, &commands.display().to_string())?;
-    let p = poses_csv(&read(poses)?, &poses.display().to_string())?;
-    Ok(Recording::from_absolute(c, p))
+pub fn load_csv_pair(commands: &Path, poses: &Path) -> Result<Loaded> {
+    let (commands_file, poses_file) = (commands.display().to_string(), poses.display().to_string());
+    let (commands_text, poses_text) = (read(commands)?, read(poses)?);
+    let c = commands_csv(&commands_text, &commands_file)?;
+    let p = poses_csv(&poses_text, &poses_file)?;
+    Ok(Loaded {
+        recording: Recording::from_absolute(c, p),
+        notes: InputNotes {
+            time_units: [(commands_text, commands_file), (poses_text, poses_file)]
+                .iter()
+                .filter_map(|(text, file)| time_unit_note(text, file))
+                .collect(),
+            ..InputNotes::default()
+        },
+    })
 }
 
 /// One robot of a Shoal recording: its true poses and the commands it
@@ -272,7 +288,7 @@ fn or_none(names: &[String]) -> String {
 /// Reads what the arguments name.
 pub fn load(args: &DiagnoseArgs) -> Result<Loaded> {
     if let (Some(c), Some(p)) = (&args.commands, &args.poses) {
-        return load_csv_pair(c, p).map(Loaded::from);
+        return load_csv_pair(c, p);
     }
     if let Some(bag) = &args.bag {
         return load_bag(bag, args);
@@ -292,6 +308,10 @@ pub fn load(args: &DiagnoseArgs) -> Result<Loaded> {
             let notes = InputNotes {
                 clock: loaded.iter_mut().find_map(|l| l.notes.clock.take()),
                 recordings: runs.iter().map(|r| r.display().to_string()).collect(),
+                time_units: loaded
+                    .iter_mut()
+                    .flat_map(|l| std::mem::take(&mut l.notes.time_units))
+                    .collect(),
             };
             let recording = Recording::joined(loaded.into_iter().map(|l| l.recording).collect());
             return Ok(Loaded { recording, notes });
@@ -326,7 +346,7 @@ fn load_positional(run: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
     }
     let (commands, poses) = (run.join("commands.csv"), run.join("poses.csv"));
     if run.is_dir() && (commands.is_file() || poses.is_file()) {
-        return load_csv_pair(&commands, &poses).map(Loaded::from);
+        return load_csv_pair(&commands, &poses);
     }
     if shoal_bags::looks_like_bag(run) {
         return load_bag(run, args);

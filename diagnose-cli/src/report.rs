@@ -91,6 +91,12 @@ pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
         .map(|chain| format!("Poses: {chain}."));
     for text in clock_text(notes)
         .into_iter()
+        .chain(
+            notes
+                .time_units
+                .iter()
+                .map(|note| format!("Clock: {note}.")),
+        )
         .chain(pose_chain)
         .chain(set_aside_text(&d.glitches))
     {

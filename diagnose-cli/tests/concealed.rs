@@ -1343,6 +1343,28 @@ fn runs_written_by_pandas_and_by_the_rerun_python_sdk_are_diagnosed_as_shoal_wri
         named,
         "Odometry's fields diagnose as Shoal's"
     );
+    // Both files timed in nanoseconds of Unix time, as a bag's messages
+    // are: read so, and said.
+    let nanoseconds = dir.join("odometry-ns");
+    std::fs::create_dir_all(&nanoseconds).expect("odometry-ns folder");
+    python(
+        "write_pandas_csv.py",
+        &[
+            dir.as_os_str(),
+            nanoseconds.as_os_str(),
+            "odometry-ns".as_ref(),
+        ],
+    );
+    let from_nanoseconds = diagnose_dir(&nanoseconds, &[]);
+    assert_eq!(kinds(&from_nanoseconds), named, "{from_nanoseconds}");
+    assert_eq!(from_nanoseconds["segments"], from_shoal["segments"]);
+    let units = from_nanoseconds["input"]["time_units"].to_string();
+    assert!(
+        units.contains("commands.csv")
+            && units.contains("poses.csv")
+            && units.contains("nanoseconds"),
+        "{units}"
+    );
 
     let rrd = dir.join("python-sdk.rrd");
     python(

@@ -5,9 +5,11 @@ poses in scientific notation. `shoal diagnose` must read them as it reads
 its own. With `odometry`, the poses are written instead as a bag's
 nav_msgs/Odometry messages flattened into a data frame (`timestamp` and
 the message's fields, `pose.pose.orientation.x` ... `.w` a quaternion, no
-heading column), as a user exporting `/odom` to pandas has them.
+heading column), as a user exporting `/odom` to pandas has them. With
+`odometry-ns`, both files are timed as a bag's messages are: `timestamp`
+in integer nanoseconds of Unix time (pandas' int64), commands included.
 
-Usage: python3 write_pandas_csv.py FROM_FOLDER TO_FOLDER [odometry]
+Usage: python3 write_pandas_csv.py FROM_FOLDER TO_FOLDER [odometry|odometry-ns]
 """
 
 import sys
@@ -22,11 +24,24 @@ def main():
     poses = pd.read_csv(f"{source}/poses.csv")
     commands["frame_id"] = "base_link"
     poses["quality"] = 1.0
-    commands[["omega", "t", "v", "frame_id"]].to_csv(
-        f"{target}/commands.csv", lineterminator="\r\n", encoding="utf-8-sig")
-    if sys.argv[3:] == ["odometry"]:
+    mode = sys.argv[3] if len(sys.argv) > 3 else ""
+    epoch_ns = 1_700_000_000 * 10**9
+
+    def nanoseconds(t):
+        return (t * 1e9).round().astype("int64") + epoch_ns
+
+    if mode == "odometry-ns":
+        pd.DataFrame({
+            "timestamp": nanoseconds(commands["t"]),
+            "linear.x": commands["v"],
+            "angular.z": commands["omega"],
+        }).to_csv(f"{target}/commands.csv", index=False)
+    else:
+        commands[["omega", "t", "v", "frame_id"]].to_csv(
+            f"{target}/commands.csv", lineterminator="\r\n", encoding="utf-8-sig")
+    if mode.startswith("odometry"):
         odometry = pd.DataFrame({
-            "timestamp": poses["t"],
+            "timestamp": nanoseconds(poses["t"]) if mode == "odometry-ns" else poses["t"],
             "header.frame_id": "odom",
             "child_frame_id": "base_link",
             "pose.pose.position.x": poses["x"],

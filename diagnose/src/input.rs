@@ -219,12 +219,17 @@ fn csv_fields(
         positions.push(p);
     }
     let mut rows = Vec::new();
+    let mut unit_read = columns.first() != Some(&"t");
     for record in reader.records() {
         let record =
             record.map_err(|e| error(line_of(e.position()), format!("not valid CSV: {e}")))?;
         let line = line_of(record.position()).unwrap_or(0);
         if record.iter().all(str::is_empty) {
             continue;
+        }
+        if !unit_read {
+            positions[0] = scaled_by_size(positions[0], &record);
+            unit_read = true;
         }
         // A field the row lacks stays missing, reported by name.
         let fields = positions
@@ -263,6 +268,7 @@ fn aliases(column: &str) -> &'static [&'static str] {
 }
 
 /// Where a column's field is in each record.
+#[derive(Clone, Copy)]
 enum Source {
     Column(usize),
     /// A ROS header stamp's two integer fields, seconds and nanoseconds
@@ -275,6 +281,70 @@ enum Source {
     /// A time in integer nanoseconds: ROS 1's `rostopic echo -p` writes its
     /// `%time` so.
     Nanoseconds(usize),
+    /// A time in a finer unit than seconds, said by the column's name
+    /// (`timestamp_ns`, `time [ms]`) or by the size of its first value.
+    Scaled {
+        position: usize,
+        unit: TimeUnit,
+    },
+}
+
+/// A time column's unit. Loggers, pandas and bag exports write Unix times
+/// in milliseconds, microseconds or nanoseconds as often as in seconds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TimeUnit {
+    Milliseconds,
+    Microseconds,
+    Nanoseconds,
+}
+
+impl TimeUnit {
+    fn per_second(self) -> f64 {
+        match self {
+            TimeUnit::Milliseconds => 1e3,
+            TimeUnit::Microseconds => 1e6,
+            TimeUnit::Nanoseconds => 1e9,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            TimeUnit::Milliseconds => "milliseconds",
+            TimeUnit::Microseconds => "microseconds",
+            TimeUnit::Nanoseconds => "nanoseconds",
+        }
+    }
+
+    /// The unit a column's name ends with (`_ns`, `.us`, ` [ms]`, `(usec)`),
+    /// and the name without it.
+    fn of_name(name: &str) -> Option<(TimeUnit, String)> {
+        let lower = name.to_lowercase();
+        let words: Vec<&str> = lower
+            .split(['.', '_', '-', ' ', '/', '[', ']', '(', ')'])
+            .filter(|w| !w.is_empty())
+            .collect();
+        let (last, stem) = words.split_last()?;
+        let unit = match *last {
+            "ms" | "msec" | "msecs" => TimeUnit::Milliseconds,
+            "us" | "µs" | "usec" | "usecs" => TimeUnit::Microseconds,
+            "ns" | "nsec" | "nsecs" => TimeUnit::Nanoseconds,
+            _ => return None,
+        };
+        (!stem.is_empty()).then(|| (unit, stem.join("_")))
+    }
+
+    /// The unit of a Unix time as large as `first`: past 10^11 (the year
+    /// 5138 in seconds) a time is in milliseconds, past 10^14 in
+    /// microseconds, past 10^17 in nanoseconds. A run's time from its own
+    /// start stays in seconds (and one past a day is refused as such).
+    fn of_unix_time(first: f64) -> Option<TimeUnit> {
+        match first.abs() {
+            t if t >= 1e17 => Some(TimeUnit::Nanoseconds),
+            t if t >= 1e14 => Some(TimeUnit::Microseconds),
+            t if t >= 1e11 => Some(TimeUnit::Milliseconds),
+            _ => None,
+        }
+    }
 }
 
 impl Source {
@@ -295,6 +365,9 @@ impl Source {
                     )),
                 })
             }
+            Source::Scaled { position, unit } => record
+                .get(position)
+                .map(|field| number(field, column).map(|t| t / unit.per_second())),
             Source::Nanoseconds(p) => {
                 let ns = record.get(p)?;
                 Some(ns.parse::<i64>().map(|ns| ns as f64 / 1e9).map_err(|_| {
@@ -324,7 +397,76 @@ fn column_source(header: &csv::StringRecord, column: &str) -> Result<Source, Str
             seconds,
             nanoseconds,
         }),
-        _ => found.map(Source::Column),
+        _ => {
+            // `timestamp_ns`, `time [ms]`: found by the name without its
+            // unit, read in that unit.
+            let units: Vec<Option<(TimeUnit, String)>> =
+                header.iter().map(TimeUnit::of_name).collect();
+            let stems: csv::StringRecord = header
+                .iter()
+                .zip(&units)
+                .map(|(name, unit)| unit.as_ref().map_or(name, |(_, stem)| stem.as_str()))
+                .collect();
+            match column_position(&stems, column) {
+                Ok(position) => match &units[position] {
+                    Some((unit, _)) => Ok(Source::Scaled {
+                        position,
+                        unit: *unit,
+                    }),
+                    None => found.map(Source::Column),
+                },
+                Err(_) => found.map(Source::Column),
+            }
+        }
+    }
+}
+
+/// A time column without a unit in its name, read in the unit its first
+/// value's size says (`TimeUnit::of_unix_time`).
+fn scaled_by_size(source: Source, first: &csv::StringRecord) -> Source {
+    match source {
+        Source::Column(position) => match first
+            .get(position)
+            .and_then(|field| field.parse::<f64>().ok())
+            .and_then(TimeUnit::of_unix_time)
+        {
+            Some(unit) => Source::Scaled { position, unit },
+            None => source,
+        },
+        other => other,
+    }
+}
+
+/// How a CSV file's time column `t` was read, where not in seconds as
+/// written: for the report, since a unit chosen on the user's behalf is
+/// said.
+pub fn time_unit_note(text: &str, file: &str) -> Option<String> {
+    let mut reader = csv_reader(text);
+    let header = reader.headers().ok()?.clone();
+    let named = column_source(&header, "t").ok()?;
+    let first = reader
+        .records()
+        .filter_map(Result::ok)
+        .find(|r| !r.iter().all(str::is_empty))?;
+    let by_name = matches!(named, Source::Scaled { .. });
+    match scaled_by_size(named, &first) {
+        Source::Scaled { position, unit } => {
+            let column = header.get(position).unwrap_or("t");
+            let why = if by_name {
+                "as its name says".to_owned()
+            } else {
+                format!(
+                    "its first value, {}, is a Unix time in {}",
+                    first.get(position).unwrap_or(""),
+                    unit.name()
+                )
+            };
+            Some(format!(
+                "{file}: times in `{column}` read as {} ({why})",
+                unit.name()
+            ))
+        }
+        _ => None,
     }
 }
 
@@ -612,6 +754,33 @@ mod tests {
         assert_eq!(commands.v, vec![1.0, 0.5]);
         let odometry = mrclam_odometry("# a\n1.0 0.1 0.0\n2.0 0.1 0.1", "R.dat").expect("whole");
         assert_eq!(odometry.t.len(), 2);
+    }
+
+    #[test]
+    fn times_in_finer_units_are_read_by_their_name_or_their_size() {
+        let seconds = |text: &str| commands_csv(text, "c.csv").expect("valid").t;
+        // Named: `time_ns`, `t [ms]`, from the run's start.
+        assert_eq!(
+            seconds("time_ns,v,omega\n0,1,0\n500000000,1,0\n"),
+            [0.0, 0.5]
+        );
+        assert_eq!(seconds("t [ms],v,omega\n0,1,0\n250,1,0\n"), [0.0, 0.25]);
+        // Unix times in nanoseconds and milliseconds, as pandas and loggers
+        // write them under a plain `timestamp`.
+        let ns = seconds("timestamp,v,omega\n1700000000000000000,1,0\n1700000000500000000,1,0\n");
+        assert!((ns[1] - ns[0] - 0.5).abs() < 1e-6 && (ns[0] - 1.7e9).abs() < 1.0);
+        let ms = seconds("t,v,omega\n1700000000000,1,0\n1700000000250,1,0\n");
+        assert!((ms[1] - ms[0] - 0.25).abs() < 1e-6);
+        // Said in the report.
+        let note = time_unit_note("t,v,omega\n1700000000000,1,0\n", "c.csv").expect("a note");
+        assert!(
+            note.contains("milliseconds") && note.contains("1700000000000"),
+            "{note}"
+        );
+        assert_eq!(time_unit_note("t,v,omega\n0,1,0\n1,1,0\n", "c.csv"), None);
+        // A run in seconds that runs past a day is still refused as such.
+        let error = commands_csv("t,v,omega\n0,1,0\n100000,1,0\n", "c.csv").expect_err("too long");
+        assert!(error.to_string().contains("wrong unit"), "{error}");
     }
 
     #[test]
