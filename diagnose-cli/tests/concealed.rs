@@ -1365,6 +1365,18 @@ fn runs_written_by_pandas_and_by_the_rerun_python_sdk_are_diagnosed_as_shoal_wri
             && units.contains("nanoseconds"),
         "{units}"
     );
+    // Indexed by pandas datetimes, naive and in UTC.
+    let datetimes = dir.join("datetime");
+    std::fs::create_dir_all(&datetimes).expect("datetime folder");
+    python(
+        "write_pandas_csv.py",
+        &[dir.as_os_str(), datetimes.as_os_str(), "datetime".as_ref()],
+    );
+    let from_datetimes = diagnose_dir(&datetimes, &[]);
+    assert_eq!(kinds(&from_datetimes), named, "{from_datetimes}");
+    assert_eq!(from_datetimes["segments"], from_shoal["segments"]);
+    let units = from_datetimes["input"]["time_units"].to_string();
+    assert!(units.contains("dates and times"), "{units}");
 
     let rrd = dir.join("python-sdk.rrd");
     python(

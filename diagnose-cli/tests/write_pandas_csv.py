@@ -8,8 +8,11 @@ the message's fields, `pose.pose.orientation.x` ... `.w` a quaternion, no
 heading column), as a user exporting `/odom` to pandas has them. With
 `odometry-ns`, both files are timed as a bag's messages are: `timestamp`
 in integer nanoseconds of Unix time (pandas' int64), commands included.
+With `datetime`, each file is indexed by the time as a pandas datetime:
+the commands' naive (`2023-11-14 22:13:20.011100160`), the poses' in UTC
+(`...+00:00`), as a user who parsed a log's times writes them.
 
-Usage: python3 write_pandas_csv.py FROM_FOLDER TO_FOLDER [odometry|odometry-ns]
+Usage: python3 write_pandas_csv.py FROM_FOLDER TO_FOLDER [odometry|odometry-ns|datetime]
 """
 
 import sys
@@ -30,6 +33,14 @@ def main():
     def nanoseconds(t):
         return (t * 1e9).round().astype("int64") + epoch_ns
 
+    if mode == "datetime":
+        commands.index = pd.to_datetime(nanoseconds(commands["t"]).to_numpy(), unit="ns")
+        commands.index.name = "time"
+        commands[["v", "omega"]].to_csv(f"{target}/commands.csv")
+        poses.index = pd.to_datetime(nanoseconds(poses["t"]).to_numpy(), unit="ns", utc=True)
+        poses.index.name = "time"
+        poses[["x", "y", "theta"]].to_csv(f"{target}/poses.csv")
+        return
     if mode == "odometry-ns":
         pd.DataFrame({
             "timestamp": nanoseconds(commands["t"]),

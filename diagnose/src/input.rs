@@ -287,6 +287,25 @@ enum Source {
         position: usize,
         unit: TimeUnit,
     },
+    /// A date and time (`2023-11-14 22:13:20.0111`, RFC 3339's
+    /// `2023-11-14T22:13:20.0111Z`), as pandas writes a datetime index.
+    DateTime(usize),
+}
+
+/// A date and time as seconds of Unix time: RFC 3339 (`T` or a space, `Z`
+/// or an offset), or without an offset, taken as UTC (only differences
+/// between times matter, and both files of a run are written alike).
+fn unix_seconds(field: &str) -> Option<f64> {
+    let seconds = |t: chrono::DateTime<chrono::Utc>| {
+        t.timestamp() as f64 + f64::from(t.timestamp_subsec_nanos()) * 1e-9
+    };
+    if let Ok(t) = chrono::DateTime::parse_from_rfc3339(field) {
+        return Some(seconds(t.to_utc()));
+    }
+    ["%Y-%m-%d %H:%M:%S%.f", "%Y-%m-%dT%H:%M:%S%.f"]
+        .iter()
+        .find_map(|format| chrono::NaiveDateTime::parse_from_str(field, format).ok())
+        .map(|t| seconds(t.and_utc()))
 }
 
 /// A time column's unit. Loggers, pandas and bag exports write Unix times
@@ -368,6 +387,11 @@ impl Source {
             Source::Scaled { position, unit } => record
                 .get(position)
                 .map(|field| number(field, column).map(|t| t / unit.per_second())),
+            Source::DateTime(p) => record.get(p).map(|field| {
+                unix_seconds(field).ok_or_else(|| {
+                    format!("field `{column}` is not a date and time as the first row's: `{field}`")
+                })
+            }),
             Source::Nanoseconds(p) => {
                 let ns = record.get(p)?;
                 Some(ns.parse::<i64>().map(|ns| ns as f64 / 1e9).map_err(|_| {
@@ -421,19 +445,23 @@ fn column_source(header: &csv::StringRecord, column: &str) -> Result<Source, Str
     }
 }
 
-/// A time column without a unit in its name, read in the unit its first
-/// value's size says (`TimeUnit::of_unix_time`).
+/// A time column without a unit in its name, read as its first value
+/// says: in the unit of a Unix time that size (`TimeUnit::of_unix_time`),
+/// or as dates and times.
 fn scaled_by_size(source: Source, first: &csv::StringRecord) -> Source {
-    match source {
-        Source::Column(position) => match first
-            .get(position)
-            .and_then(|field| field.parse::<f64>().ok())
-            .and_then(TimeUnit::of_unix_time)
-        {
+    let Source::Column(position) = source else {
+        return source;
+    };
+    let Some(field) = first.get(position) else {
+        return source;
+    };
+    match field.parse::<f64>() {
+        Ok(value) => match TimeUnit::of_unix_time(value) {
             Some(unit) => Source::Scaled { position, unit },
             None => source,
         },
-        other => other,
+        Err(_) if unix_seconds(field).is_some() => Source::DateTime(position),
+        Err(_) => source,
     }
 }
 
@@ -450,6 +478,11 @@ pub fn time_unit_note(text: &str, file: &str) -> Option<String> {
         .find(|r| !r.iter().all(str::is_empty))?;
     let by_name = matches!(named, Source::Scaled { .. });
     match scaled_by_size(named, &first) {
+        Source::DateTime(position) => Some(format!(
+            "{file}: times in `{}` read as dates and times (the first, `{}`; UTC where no offset is given)",
+            header.get(position).unwrap_or("t"),
+            first.get(position).unwrap_or("")
+        )),
         Source::Scaled { position, unit } => {
             let column = header.get(position).unwrap_or("t");
             let why = if by_name {
@@ -778,6 +811,19 @@ mod tests {
             "{note}"
         );
         assert_eq!(time_unit_note("t,v,omega\n0,1,0\n1,1,0\n", "c.csv"), None);
+        // Dates and times, as pandas writes a datetime index, and RFC 3339.
+        let dates =
+            seconds("time,v,omega\n2023-11-14 22:13:20.0111,1,0\n2023-11-14 22:13:20.5111,1,0\n");
+        assert!((dates[1] - dates[0] - 0.5).abs() < 1e-6, "{dates:?}");
+        let rfc =
+            seconds("t,v,omega\n2023-11-14T22:13:20Z,1,0\n2023-11-14T23:13:20.25+01:00,1,0\n");
+        assert!((rfc[1] - rfc[0] - 0.25).abs() < 1e-6, "{rfc:?}");
+        let note =
+            time_unit_note("time,v,omega\n2023-11-14 22:13:20,1,0\n", "c.csv").expect("note");
+        assert!(note.contains("dates and times"), "{note}");
+        let error = commands_csv("t,v,omega\n2023-11-14T22:13:20Z,1,0\n5,1,0\n", "c.csv")
+            .expect_err("a number among dates");
+        assert!(error.to_string().contains("c.csv:3"), "{error}");
         // A run in seconds that runs past a day is still refused as such.
         let error = commands_csv("t,v,omega\n0,1,0\n100000,1,0\n", "c.csv").expect_err("too long");
         assert!(error.to_string().contains("wrong unit"), "{error}");
