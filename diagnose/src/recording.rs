@@ -35,10 +35,11 @@ pub struct Recording {
 /// (where poses come faster than `SLOW_STREAM_INTERVALS` to it).
 pub const MAX_OBSERVATION_GAP_S: f64 = 0.5;
 
-/// Poses that come slower than this fraction of `MAX_OBSERVATION_GAP_S`
-/// (a GPS at 1 Hz, a localisation at 2 Hz) leave a gap only past this many
-/// of their usual intervals: such a stream is read as it was sent.
-const SLOW_STREAM_INTERVALS: f64 = 3.0;
+/// A gap between poses is at least this many of their usual intervals
+/// (and at least `MAX_OBSERVATION_GAP_S`): a slow stream (a GPS at 1 Hz, a
+/// localisation at 2 Hz) is read as it was sent, and one at 5 Hz or faster
+/// is cut at 0.5 s as before.
+const SLOW_STREAM_INTERVALS: f64 = 2.5;
 
 /// Intervals sampled, evenly over the recording, for its usual interval.
 const INTERVALS_SAMPLED: usize = 101;
@@ -368,7 +369,7 @@ mod tests {
     fn a_slow_stream_is_read_as_sent_and_a_fast_ones_gap_is_a_gap() {
         // A GPS at 1 Hz: a second between poses is its rate, not a gap.
         let gps = poses_at((0..60).map(f64::from));
-        assert!((gps.gap_limit() - 3.0).abs() < 1e-9);
+        assert!((gps.gap_limit() - 2.5).abs() < 1e-9);
         assert!(gps.at(10.5).is_some());
         // Motion capture at 100 Hz that lost the robot for 2 s of 10.
         let mocap = poses_at(

@@ -87,20 +87,40 @@ pub fn moving(grid: &CommandGrid, at: usize) -> bool {
 }
 
 /// Poses slower than this (a localisation at 2 Hz, a GPS at 1 Hz) are
-/// compared where they were observed: each segment's ends move to the
-/// grid steps of the observations nearest them. Between observations so
-/// far apart, a pose interpolated on a straight line cuts the robot's arc,
-/// and a model compared with it looks slowed, like an actuator lag. Faster
-/// streams are interpolated (within a few milliseconds of an observation).
+/// compared where they were observed: the ends of each segment at least
+/// half as long as their usual interval move to the grid steps of the
+/// observations nearest them (so at 0.5 Hz, segments of 1 s become 2 s). Between observations so far apart, a pose
+/// interpolated on a straight line cuts the robot's arc, and a model
+/// compared with it looks slowed, like an actuator lag. Shorter segments
+/// (the feedback stage's, of a few hundredths of a second) would shrink to
+/// nothing: they and faster streams are interpolated.
 pub const SNAPPED_INTERVAL_S: f64 = 0.05;
+
+/// How far, in usual intervals, a segment's end moves to an observation:
+/// half an interval, and a little more for a stream whose intervals vary.
+const SNAP_REACH: f64 = 0.6;
 
 /// The segment over grid steps `from..to`, if both its ends were observed.
 fn segment(recording: &Recording, grid: &CommandGrid, from: usize, to: usize) -> Option<Segment> {
-    let (from, to) = if recording.poses.usual_interval() > SNAPPED_INTERVAL_S {
+    let usual = recording.poses.usual_interval();
+    let snapped =
+        usual > SNAPPED_INTERVAL_S && grid.time(to) - grid.time(from) >= 0.5 * usual - 1e-9;
+    let (from, to) = if snapped {
+        // Never across a gap (a segment's end there is no segment), and
+        // only to an observation about as near as the stream's rate puts
+        // one: where a pose is missing, the end stays and is interpolated,
+        // so a segment that starts where a command was given still does.
         let snap = |step: usize| {
-            let seen = recording.poses.nearest(grid.time(step))?;
-            let snapped = ((seen - grid.t0) / grid.dt).round();
-            (snapped >= 0.0).then_some((snapped as usize).min(grid.len().saturating_sub(1)))
+            let t = grid.time(step);
+            recording.poses.at(t)?;
+            let near = |seen: &f64| (seen - t).abs() <= SNAP_REACH * usual;
+            match recording.poses.nearest(t).filter(near) {
+                Some(seen) => {
+                    let snapped = ((seen - grid.t0) / grid.dt).round().max(0.0) as usize;
+                    Some(snapped.min(grid.len().saturating_sub(1)))
+                }
+                None => Some(step),
+            }
         };
         (snap(from)?, snap(to)?)
     } else {
