@@ -9,7 +9,8 @@ use serde::Serialize;
 use shoal_bags::{Bag, StampsPreference};
 use shoal_diagnose::Recording;
 use shoal_diagnose::input::{
-    commands_csv, mrclam_groundtruth, mrclam_odometry, poses_csv, time_unit_note,
+    commands_csv, commands_unit_notes, mrclam_groundtruth, mrclam_odometry, poses_csv,
+    poses_unit_notes,
 };
 
 use crate::DiagnoseArgs;
@@ -30,9 +31,10 @@ pub struct InputNotes {
     /// held-out block, in time order: see `blocks`).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub recordings: Vec<String>,
-    /// CSV time columns read in a finer unit than seconds, and why.
+    /// CSV columns read in another unit than Shoal's (seconds, metres,
+    /// radians), and why.
     #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub time_units: Vec<String>,
+    pub units: Vec<String>,
 }
 
 #[derive(Debug, Serialize)]
@@ -74,10 +76,11 @@ pub fn load_csv_pair(commands: &Path, poses: &Path) -> Result<Loaded> {
     Ok(Loaded {
         recording: Recording::from_absolute(c, p),
         notes: InputNotes {
-            time_units: [(commands_text, commands_file), (poses_text, poses_file)]
-                .iter()
-                .filter_map(|(text, file)| time_unit_note(text, file))
-                .collect(),
+            units: [
+                commands_unit_notes(&commands_text, &commands_file),
+                poses_unit_notes(&poses_text, &poses_file),
+            ]
+            .concat(),
             ..InputNotes::default()
         },
     })
@@ -308,9 +311,9 @@ pub fn load(args: &DiagnoseArgs) -> Result<Loaded> {
             let notes = InputNotes {
                 clock: loaded.iter_mut().find_map(|l| l.notes.clock.take()),
                 recordings: runs.iter().map(|r| r.display().to_string()).collect(),
-                time_units: loaded
+                units: loaded
                     .iter_mut()
-                    .flat_map(|l| std::mem::take(&mut l.notes.time_units))
+                    .flat_map(|l| std::mem::take(&mut l.notes.units))
                     .collect(),
             };
             let recording = Recording::joined(loaded.into_iter().map(|l| l.recording).collect());

@@ -91,12 +91,7 @@ pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
         .map(|chain| format!("Poses: {chain}."));
     for text in clock_text(notes)
         .into_iter()
-        .chain(
-            notes
-                .time_units
-                .iter()
-                .map(|note| format!("Clock: {note}.")),
-        )
+        .chain(notes.units.iter().map(|note| format!("Units: {note}.")))
         .chain(pose_chain)
         .chain(set_aside_text(&d.glitches))
     {

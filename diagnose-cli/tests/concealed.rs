@@ -1358,7 +1358,7 @@ fn runs_written_by_pandas_and_by_the_rerun_python_sdk_are_diagnosed_as_shoal_wri
     let from_nanoseconds = diagnose_dir(&nanoseconds, &[]);
     assert_eq!(kinds(&from_nanoseconds), named, "{from_nanoseconds}");
     assert_eq!(from_nanoseconds["segments"], from_shoal["segments"]);
-    let units = from_nanoseconds["input"]["time_units"].to_string();
+    let units = from_nanoseconds["input"]["units"].to_string();
     assert!(
         units.contains("commands.csv")
             && units.contains("poses.csv")
@@ -1375,7 +1375,7 @@ fn runs_written_by_pandas_and_by_the_rerun_python_sdk_are_diagnosed_as_shoal_wri
     let from_datetimes = diagnose_dir(&datetimes, &[]);
     assert_eq!(kinds(&from_datetimes), named, "{from_datetimes}");
     assert_eq!(from_datetimes["segments"], from_shoal["segments"]);
-    let units = from_datetimes["input"]["time_units"].to_string();
+    let units = from_datetimes["input"]["units"].to_string();
     assert!(units.contains("dates and times"), "{units}");
 
     let rrd = dir.join("python-sdk.rrd");

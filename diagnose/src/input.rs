@@ -281,11 +281,12 @@ enum Source {
     /// A time in integer nanoseconds: ROS 1's `rostopic echo -p` writes its
     /// `%time` so.
     Nanoseconds(usize),
-    /// A time in a finer unit than seconds, said by the column's name
-    /// (`timestamp_ns`, `time [ms]`) or by the size of its first value.
+    /// A quantity in another unit than Shoal's (seconds, metres, radians),
+    /// said by the column's name (`timestamp_ns`, `yaw_deg`, `x [mm]`) or,
+    /// for a time, by the size of its first value.
     Scaled {
         position: usize,
-        unit: TimeUnit,
+        unit: Unit,
     },
     /// A date and time (`2023-11-14 22:13:20.0111`, RFC 3339's
     /// `2023-11-14T22:13:20.0111Z`), as pandas writes a datetime index.
@@ -308,59 +309,93 @@ fn unix_seconds(field: &str) -> Option<f64> {
         .map(|t| seconds(t.and_utc()))
 }
 
-/// A time column's unit. Loggers, pandas and bag exports write Unix times
-/// in milliseconds, microseconds or nanoseconds as often as in seconds.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum TimeUnit {
-    Milliseconds,
-    Microseconds,
-    Nanoseconds,
+/// A column's unit where it is not Shoal's: what one of it is in Shoal's
+/// units (seconds, metres, radians and their rates), and its name.
+/// Loggers, pandas and bag exports write Unix times in milliseconds,
+/// microseconds or nanoseconds as often as in seconds, and headings in
+/// degrees.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Unit {
+    pub to_shoals: f64,
+    pub name: &'static str,
 }
 
-impl TimeUnit {
-    fn per_second(self) -> f64 {
-        match self {
-            TimeUnit::Milliseconds => 1e3,
-            TimeUnit::Microseconds => 1e6,
-            TimeUnit::Nanoseconds => 1e9,
-        }
-    }
+const fn unit(to_shoals: f64, name: &'static str) -> Unit {
+    Unit { to_shoals, name }
+}
 
-    pub fn name(self) -> &'static str {
-        match self {
-            TimeUnit::Milliseconds => "milliseconds",
-            TimeUnit::Microseconds => "microseconds",
-            TimeUnit::Nanoseconds => "nanoseconds",
-        }
-    }
+const SECONDS: Unit = unit(1.0, "seconds");
+const MILLISECONDS: Unit = unit(1e-3, "milliseconds");
+const MICROSECONDS: Unit = unit(1e-6, "microseconds");
+const NANOSECONDS: Unit = unit(1e-9, "nanoseconds");
+const RADIANS: Unit = unit(1.0, "radians");
+const DEGREES: Unit = unit(std::f64::consts::PI / 180.0, "degrees");
+const RADIANS_PER_SECOND: Unit = unit(1.0, "radians a second");
+const DEGREES_PER_SECOND: Unit = unit(std::f64::consts::PI / 180.0, "degrees a second");
+const METRES: Unit = unit(1.0, "metres");
+const CENTIMETRES: Unit = unit(1e-2, "centimetres");
+const MILLIMETRES: Unit = unit(1e-3, "millimetres");
+const METRES_PER_SECOND: Unit = unit(1.0, "metres a second");
+const MILLIMETRES_PER_SECOND: Unit = unit(1e-3, "millimetres a second");
 
-    /// The unit a column's name ends with (`_ns`, `.us`, ` [ms]`, `(usec)`),
-    /// and the name without it.
-    fn of_name(name: &str) -> Option<(TimeUnit, String)> {
+impl Unit {
+    /// The unit a header name ends with (`_ns`, `.deg`, ` [mm]`,
+    /// `(deg/s)`) for Shoal's column `column`, and the name without it.
+    fn of_name(column: &str, name: &str) -> Option<(Unit, String)> {
         let lower = name.to_lowercase();
         let words: Vec<&str> = lower
             .split(['.', '_', '-', ' ', '/', '[', ']', '(', ')'])
             .filter(|w| !w.is_empty())
             .collect();
-        let (last, stem) = words.split_last()?;
-        let unit = match *last {
-            "ms" | "msec" | "msecs" => TimeUnit::Milliseconds,
-            "us" | "µs" | "usec" | "usecs" => TimeUnit::Microseconds,
-            "ns" | "nsec" | "nsecs" => TimeUnit::Nanoseconds,
-            _ => return None,
+        let suffixes: &[(&[&str], Unit)] = match column {
+            "t" => &[
+                (&["s"], SECONDS),
+                (&["sec"], SECONDS),
+                (&["ms"], MILLISECONDS),
+                (&["msec"], MILLISECONDS),
+                (&["us"], MICROSECONDS),
+                (&["µs"], MICROSECONDS),
+                (&["usec"], MICROSECONDS),
+                (&["ns"], NANOSECONDS),
+                (&["nsec"], NANOSECONDS),
+            ],
+            "theta" => &[
+                (&["rad"], RADIANS),
+                (&["deg"], DEGREES),
+                (&["degrees"], DEGREES),
+            ],
+            "omega" => &[
+                (&["rad", "s"], RADIANS_PER_SECOND),
+                (&["deg", "s"], DEGREES_PER_SECOND),
+                (&["dps"], DEGREES_PER_SECOND),
+            ],
+            "x" | "y" => &[
+                (&["m"], METRES),
+                (&["cm"], CENTIMETRES),
+                (&["mm"], MILLIMETRES),
+            ],
+            "v" => &[
+                (&["m", "s"], METRES_PER_SECOND),
+                (&["mps"], METRES_PER_SECOND),
+                (&["mm", "s"], MILLIMETRES_PER_SECOND),
+            ],
+            _ => &[],
         };
-        (!stem.is_empty()).then(|| (unit, stem.join("_")))
+        suffixes.iter().find_map(|(suffix, unit)| {
+            (words.len() > suffix.len() && words.ends_with(suffix))
+                .then(|| (*unit, words[..words.len() - suffix.len()].join("_")))
+        })
     }
 
     /// The unit of a Unix time as large as `first`: past 10^11 (the year
     /// 5138 in seconds) a time is in milliseconds, past 10^14 in
     /// microseconds, past 10^17 in nanoseconds. A run's time from its own
     /// start stays in seconds (and one past a day is refused as such).
-    fn of_unix_time(first: f64) -> Option<TimeUnit> {
+    fn of_unix_time(first: f64) -> Option<Unit> {
         match first.abs() {
-            t if t >= 1e17 => Some(TimeUnit::Nanoseconds),
-            t if t >= 1e14 => Some(TimeUnit::Microseconds),
-            t if t >= 1e11 => Some(TimeUnit::Milliseconds),
+            t if t >= 1e17 => Some(NANOSECONDS),
+            t if t >= 1e14 => Some(MICROSECONDS),
+            t if t >= 1e11 => Some(MILLISECONDS),
             _ => None,
         }
     }
@@ -386,7 +421,7 @@ impl Source {
             }
             Source::Scaled { position, unit } => record
                 .get(position)
-                .map(|field| number(field, column).map(|t| t / unit.per_second())),
+                .map(|field| number(field, column).map(|value| value * unit.to_shoals)),
             Source::DateTime(p) => record.get(p).map(|field| {
                 unix_seconds(field).ok_or_else(|| {
                     format!("field `{column}` is not a date and time as the first row's: `{field}`")
@@ -402,51 +437,49 @@ impl Source {
     }
 }
 
-/// Where `column`'s field is: the column itself, or for the time `t`
-/// without one, `rostopic echo -p`'s `%time` or a ROS header stamp's
-/// seconds and nanoseconds.
+/// Where `column`'s field is: the column itself; for the time `t` without
+/// one, `rostopic echo -p`'s `%time` or a ROS header stamp's seconds and
+/// nanoseconds; else a column named with its unit (`timestamp_ns`,
+/// `yaw_deg`), read in that unit.
 fn column_source(header: &csv::StringRecord, column: &str) -> Result<Source, String> {
     let found = column_position(header, column);
-    if column != "t" || found.is_ok() {
+    if found.is_ok() {
         return found.map(Source::Column);
     }
-    if let Some(p) = header.iter().position(|name| name == "%time") {
-        return Ok(Source::Nanoseconds(p));
-    }
-    match (
-        column_position(header, "stamp.sec"),
-        column_position(header, "stamp.nanosec"),
-    ) {
-        (Ok(seconds), Ok(nanoseconds)) => Ok(Source::Stamp {
-            seconds,
-            nanoseconds,
-        }),
-        _ => {
-            // `timestamp_ns`, `time [ms]`: found by the name without its
-            // unit, read in that unit.
-            let units: Vec<Option<(TimeUnit, String)>> =
-                header.iter().map(TimeUnit::of_name).collect();
-            let stems: csv::StringRecord = header
-                .iter()
-                .zip(&units)
-                .map(|(name, unit)| unit.as_ref().map_or(name, |(_, stem)| stem.as_str()))
-                .collect();
-            match column_position(&stems, column) {
-                Ok(position) => match &units[position] {
-                    Some((unit, _)) => Ok(Source::Scaled {
-                        position,
-                        unit: *unit,
-                    }),
-                    None => found.map(Source::Column),
-                },
-                Err(_) => found.map(Source::Column),
-            }
+    if column == "t" {
+        if let Some(p) = header.iter().position(|name| name == "%time") {
+            return Ok(Source::Nanoseconds(p));
         }
+        if let (Ok(seconds), Ok(nanoseconds)) = (
+            column_position(header, "stamp.sec"),
+            column_position(header, "stamp.nanosec"),
+        ) {
+            return Ok(Source::Stamp {
+                seconds,
+                nanoseconds,
+            });
+        }
+    }
+    let units: Vec<Option<(Unit, String)>> = header
+        .iter()
+        .map(|name| Unit::of_name(column, name))
+        .collect();
+    let stems: csv::StringRecord = header
+        .iter()
+        .zip(&units)
+        .map(|(name, unit)| unit.as_ref().map_or(name, |(_, stem)| stem.as_str()))
+        .collect();
+    match column_position(&stems, column) {
+        Ok(position) => match units[position] {
+            Some((unit, _)) => Ok(Source::Scaled { position, unit }),
+            None => found.map(Source::Column),
+        },
+        Err(_) => found.map(Source::Column),
     }
 }
 
 /// A time column without a unit in its name, read as its first value
-/// says: in the unit of a Unix time that size (`TimeUnit::of_unix_time`),
+/// says: in the unit of a Unix time that size (`Unit::of_unix_time`),
 /// or as dates and times.
 fn scaled_by_size(source: Source, first: &csv::StringRecord) -> Source {
     let Source::Column(position) = source else {
@@ -456,7 +489,7 @@ fn scaled_by_size(source: Source, first: &csv::StringRecord) -> Source {
         return source;
     };
     match field.parse::<f64>() {
-        Ok(value) => match TimeUnit::of_unix_time(value) {
+        Ok(value) => match Unit::of_unix_time(value) {
             Some(unit) => Source::Scaled { position, unit },
             None => source,
         },
@@ -465,42 +498,68 @@ fn scaled_by_size(source: Source, first: &csv::StringRecord) -> Source {
     }
 }
 
-/// How a CSV file's time column `t` was read, where not in seconds as
-/// written: for the report, since a unit chosen on the user's behalf is
-/// said.
-pub fn time_unit_note(text: &str, file: &str) -> Option<String> {
+/// How a CSV file's columns were read where not as written in Shoal's
+/// units, one sentence each: for the report, since a unit chosen on the
+/// user's behalf is said.
+fn unit_notes(text: &str, file: &str, columns: &[&str]) -> Vec<String> {
     let mut reader = csv_reader(text);
-    let header = reader.headers().ok()?.clone();
-    let named = column_source(&header, "t").ok()?;
-    let first = reader
+    let Ok(header) = reader.headers().cloned() else {
+        return Vec::new();
+    };
+    let Some(first) = reader
         .records()
         .filter_map(Result::ok)
-        .find(|r| !r.iter().all(str::is_empty))?;
-    let by_name = matches!(named, Source::Scaled { .. });
-    match scaled_by_size(named, &first) {
-        Source::DateTime(position) => Some(format!(
-            "{file}: times in `{}` read as dates and times (the first, `{}`; UTC where no offset is given)",
-            header.get(position).unwrap_or("t"),
-            first.get(position).unwrap_or("")
-        )),
-        Source::Scaled { position, unit } => {
-            let column = header.get(position).unwrap_or("t");
-            let why = if by_name {
-                "as its name says".to_owned()
+        .find(|r| !r.iter().all(str::is_empty))
+    else {
+        return Vec::new();
+    };
+    let named = |p: usize| header.get(p).unwrap_or_default();
+    columns
+        .iter()
+        .filter_map(|&column| {
+            let source = column_source(&header, column).ok()?;
+            let by_name = matches!(source, Source::Scaled { .. });
+            let source = if column == "t" {
+                scaled_by_size(source, &first)
             } else {
-                format!(
-                    "its first value, {}, is a Unix time in {}",
-                    first.get(position).unwrap_or(""),
-                    unit.name()
-                )
+                source
             };
-            Some(format!(
-                "{file}: times in `{column}` read as {} ({why})",
-                unit.name()
-            ))
-        }
-        _ => None,
-    }
+            match source {
+                Source::DateTime(p) => Some(format!(
+                    "{file}: `{}` read as dates and times (the first, `{}`; UTC where no offset is given)",
+                    named(p),
+                    first.get(p).unwrap_or_default()
+                )),
+                Source::Scaled { position, unit } if unit.to_shoals != 1.0 => {
+                    let why = if by_name {
+                        "as its name says".to_owned()
+                    } else {
+                        format!(
+                            "its first value, {}, is a Unix time in {}",
+                            first.get(position).unwrap_or_default(),
+                            unit.name
+                        )
+                    };
+                    Some(format!(
+                        "{file}: `{}` read in {} ({why})",
+                        named(position),
+                        unit.name
+                    ))
+                }
+                _ => None,
+            }
+        })
+        .collect()
+}
+
+/// `unit_notes` for a commands CSV.
+pub fn commands_unit_notes(text: &str, file: &str) -> Vec<String> {
+    unit_notes(text, file, &COMMAND_COLUMNS)
+}
+
+/// `unit_notes` for a poses CSV.
+pub fn poses_unit_notes(text: &str, file: &str) -> Vec<String> {
+    unit_notes(text, file, &POSE_COLUMNS)
 }
 
 /// Where `column` is in `header`: by its own name, else by one of its
@@ -537,6 +596,10 @@ fn column_position(header: &csv::StringRecord, column: &str) -> Result<usize, St
     }
 }
 
+/// A commands CSV's columns, and a poses CSV's (with a heading column).
+const COMMAND_COLUMNS: [&str; 3] = ["t", "v", "omega"];
+const POSE_COLUMNS: [&str; 4] = ["t", "x", "y", "theta"];
+
 /// The longest run read: the command grid is sized from the time span, so a
 /// stray time (1e10) must be an error, not an allocation of terabytes.
 const MAX_SPAN_S: f64 = 24.0 * 3600.0;
@@ -559,8 +622,14 @@ fn poses_from(rows: Vec<(usize, Vec<f64>)>) -> Poses {
 
 /// A commands CSV: header `t,v,omega`.
 pub fn commands_csv(text: &str, file: &str) -> Result<Commands, InputError> {
-    let columns = ["t", "v", "omega"];
-    read_rows(text, file, Layout::Csv { columns: &columns }).map(commands_from)
+    read_rows(
+        text,
+        file,
+        Layout::Csv {
+            columns: &COMMAND_COLUMNS,
+        },
+    )
+    .map(commands_from)
 }
 
 /// A poses CSV: header `t,x,y,theta`. A pose exported from a ROS message
@@ -569,7 +638,7 @@ pub fn commands_csv(text: &str, file: &str) -> Result<Commands, InputError> {
 /// `orientation.x,orientation.y,orientation.z,orientation.w` (or their
 /// aliases) is read.
 pub fn poses_csv(text: &str, file: &str) -> Result<Poses, InputError> {
-    let columns = ["t", "x", "y", "theta"];
+    let columns = POSE_COLUMNS;
     let quaternion = [
         "t",
         "x",
@@ -790,7 +859,7 @@ mod tests {
     }
 
     #[test]
-    fn times_in_finer_units_are_read_by_their_name_or_their_size() {
+    fn units_are_read_by_the_columns_names_and_a_unix_times_size() {
         let seconds = |text: &str| commands_csv(text, "c.csv").expect("valid").t;
         // Named: `time_ns`, `t [ms]`, from the run's start.
         assert_eq!(
@@ -805,12 +874,12 @@ mod tests {
         let ms = seconds("t,v,omega\n1700000000000,1,0\n1700000000250,1,0\n");
         assert!((ms[1] - ms[0] - 0.25).abs() < 1e-6);
         // Said in the report.
-        let note = time_unit_note("t,v,omega\n1700000000000,1,0\n", "c.csv").expect("a note");
+        let notes = commands_unit_notes("t,v,omega\n1700000000000,1,0\n", "c.csv");
         assert!(
-            note.contains("milliseconds") && note.contains("1700000000000"),
-            "{note}"
+            notes[0].contains("milliseconds") && notes[0].contains("1700000000000"),
+            "{notes:?}"
         );
-        assert_eq!(time_unit_note("t,v,omega\n0,1,0\n1,1,0\n", "c.csv"), None);
+        assert!(commands_unit_notes("t,v,omega\n0,1,0\n1,1,0\n", "c.csv").is_empty());
         // Dates and times, as pandas writes a datetime index, and RFC 3339.
         let dates =
             seconds("time,v,omega\n2023-11-14 22:13:20.0111,1,0\n2023-11-14 22:13:20.5111,1,0\n");
@@ -818,12 +887,31 @@ mod tests {
         let rfc =
             seconds("t,v,omega\n2023-11-14T22:13:20Z,1,0\n2023-11-14T23:13:20.25+01:00,1,0\n");
         assert!((rfc[1] - rfc[0] - 0.25).abs() < 1e-6, "{rfc:?}");
-        let note =
-            time_unit_note("time,v,omega\n2023-11-14 22:13:20,1,0\n", "c.csv").expect("note");
-        assert!(note.contains("dates and times"), "{note}");
+        let notes = commands_unit_notes("time,v,omega\n2023-11-14 22:13:20,1,0\n", "c.csv");
+        assert!(notes[0].contains("dates and times"), "{notes:?}");
         let error = commands_csv("t,v,omega\n2023-11-14T22:13:20Z,1,0\n5,1,0\n", "c.csv")
             .expect_err("a number among dates");
         assert!(error.to_string().contains("c.csv:3"), "{error}");
+        // A heading in degrees, a turn rate in degrees a second, positions
+        // in millimetres and a speed in millimetres a second, by name.
+        let poses = poses_csv(
+            "t,x_mm,y [mm],yaw_deg\n0,1000,-500,90\n1,1100,-500,-90\n",
+            "p.csv",
+        )
+        .expect("units by name");
+        assert!((poses.x[1] - 1.1).abs() < 1e-12 && (poses.y[0] + 0.5).abs() < 1e-12);
+        assert!((poses.theta[0] - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+        let commands = commands_csv("t,v (mm/s),omega_deg_s\n0,200,45\n1,200,45\n", "c.csv")
+            .expect("rates by name");
+        assert!((commands.v[0] - 0.2).abs() < 1e-12);
+        assert!((commands.omega[0] - std::f64::consts::FRAC_PI_4).abs() < 1e-12);
+        let notes = poses_unit_notes("t,x_mm,y [mm],yaw_deg\n0,1000,-500,90\n", "p.csv");
+        assert_eq!(notes.len(), 3, "{notes:?}");
+        assert!(notes[2].contains("`yaw_deg` read in degrees"), "{notes:?}");
+        // Shoal's own units named are read as they are, and not noted.
+        assert!(poses_unit_notes("time_s,x_m,y_m,yaw_rad\n0,1,2,3\n", "p.csv").is_empty());
+        let si = poses_csv("time_s,x_m,y_m,yaw_rad\n0,1,2,3\n1,1,2,3\n", "p.csv").expect("SI");
+        assert_eq!(si.x, [1.0, 1.0]);
         // A run in seconds that runs past a day is still refused as such.
         let error = commands_csv("t,v,omega\n0,1,0\n100000,1,0\n", "c.csv").expect_err("too long");
         assert!(error.to_string().contains("wrong unit"), "{error}");
