@@ -9,7 +9,7 @@ use serde::Serialize;
 use shoal_bags::{Bag, StampsPreference};
 use shoal_diagnose::Recording;
 use shoal_diagnose::input::{
-    commands_csv, commands_unit_notes, mrclam_groundtruth, mrclam_odometry, poses_csv,
+    commands_csv, commands_unit_notes, mrclam_groundtruth, mrclam_odometry, poses_csv_or_tum,
     poses_unit_notes,
 };
 
@@ -72,7 +72,7 @@ pub fn load_csv_pair(commands: &Path, poses: &Path) -> Result<Loaded> {
     let (commands_file, poses_file) = (commands.display().to_string(), poses.display().to_string());
     let (commands_text, poses_text) = (read(commands)?, read(poses)?);
     let c = commands_csv(&commands_text, &commands_file)?;
-    let p = poses_csv(&poses_text, &poses_file)?;
+    let p = poses_csv_or_tum(&poses_text, &poses_file)?;
     Ok(Loaded {
         recording: Recording::from_absolute(c, p),
         notes: InputNotes {
@@ -348,6 +348,11 @@ fn load_positional(run: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
         return load_mrclam(run, robot).map(Loaded::from);
     }
     let (commands, poses) = (run.join("commands.csv"), run.join("poses.csv"));
+    // Poses kept as a TUM trajectory (evo's) beside the commands.
+    let poses = match run.join("poses.tum") {
+        tum if !poses.is_file() && tum.is_file() => tum,
+        _ => poses,
+    };
     if run.is_dir() && (commands.is_file() || poses.is_file()) {
         return load_csv_pair(&commands, &poses);
     }

@@ -1344,39 +1344,38 @@ fn runs_written_by_pandas_and_by_the_rerun_python_sdk_are_diagnosed_as_shoal_wri
         "Odometry's fields diagnose as Shoal's"
     );
     // Both files timed in nanoseconds of Unix time, as a bag's messages
-    // are: read so, and said.
-    let nanoseconds = dir.join("odometry-ns");
-    std::fs::create_dir_all(&nanoseconds).expect("odometry-ns folder");
+    // are, and indexed by pandas datetimes (naive, and in UTC): read so,
+    // and said.
+    for (mode, said) in [
+        ("odometry-ns", "nanoseconds"),
+        ("datetime", "dates and times"),
+    ] {
+        let written = dir.join(mode);
+        std::fs::create_dir_all(&written).expect("pandas folder");
+        python(
+            "write_pandas_csv.py",
+            &[dir.as_os_str(), written.as_os_str(), mode.as_ref()],
+        );
+        let d = diagnose_dir(&written, &[]);
+        assert_eq!(kinds(&d), named, "{mode}: {d}");
+        assert_eq!(d["segments"], from_shoal["segments"], "{mode}");
+        let units = d["input"]["units"].to_string();
+        assert!(
+            units.contains("commands.csv") && units.contains("poses.csv") && units.contains(said),
+            "{mode}: {units}"
+        );
+    }
+    // The poses as a TUM trajectory written by evo, beside the commands.
+    let tum = dir.join("tum");
+    std::fs::create_dir_all(&tum).expect("tum folder");
+    std::fs::copy(dir.join("commands.csv"), tum.join("commands.csv")).expect("copy commands");
     python(
-        "write_pandas_csv.py",
-        &[
-            dir.as_os_str(),
-            nanoseconds.as_os_str(),
-            "odometry-ns".as_ref(),
-        ],
+        "write_tum.py",
+        &[dir.as_os_str(), tum.join("poses.tum").as_os_str()],
     );
-    let from_nanoseconds = diagnose_dir(&nanoseconds, &[]);
-    assert_eq!(kinds(&from_nanoseconds), named, "{from_nanoseconds}");
-    assert_eq!(from_nanoseconds["segments"], from_shoal["segments"]);
-    let units = from_nanoseconds["input"]["units"].to_string();
-    assert!(
-        units.contains("commands.csv")
-            && units.contains("poses.csv")
-            && units.contains("nanoseconds"),
-        "{units}"
-    );
-    // Indexed by pandas datetimes, naive and in UTC.
-    let datetimes = dir.join("datetime");
-    std::fs::create_dir_all(&datetimes).expect("datetime folder");
-    python(
-        "write_pandas_csv.py",
-        &[dir.as_os_str(), datetimes.as_os_str(), "datetime".as_ref()],
-    );
-    let from_datetimes = diagnose_dir(&datetimes, &[]);
-    assert_eq!(kinds(&from_datetimes), named, "{from_datetimes}");
-    assert_eq!(from_datetimes["segments"], from_shoal["segments"]);
-    let units = from_datetimes["input"]["units"].to_string();
-    assert!(units.contains("dates and times"), "{units}");
+    let from_tum = diagnose_dir(&tum, &[]);
+    assert_eq!(kinds(&from_tum), named, "{from_tum}");
+    assert_eq!(from_tum["segments"], from_shoal["segments"]);
 
     let rrd = dir.join("python-sdk.rrd");
     python(

@@ -662,19 +662,59 @@ pub fn poses_csv(text: &str, file: &str) -> Result<Poses, InputError> {
             columns: &quaternion,
         },
     )?;
+    yawed(rows, file, 3, "orientation.x, .y, .z, .w")
+}
+
+/// Poses from rows of a time, x, y and (from column `quaternion_at` on) a
+/// quaternion x, y, z, w (`named` so), the heading its yaw.
+fn yawed(
+    rows: Vec<(usize, Vec<f64>)>,
+    file: &str,
+    quaternion_at: usize,
+    named: &str,
+) -> Result<Poses, InputError> {
     let mut yawed = Vec::with_capacity(rows.len());
     for (line, row) in rows {
+        let q = &row[quaternion_at..quaternion_at + 4];
         let yaw =
-            shoal_physics::yaw_of_quaternion(row[3], row[4], row[5], row[6]).map_err(|why| {
-                InputError {
-                    file: file.to_owned(),
-                    line: Some(line),
-                    message: format!("the orientation (orientation.x, .y, .z, .w) is {why}"),
-                }
+            shoal_physics::yaw_of_quaternion(q[0], q[1], q[2], q[3]).map_err(|why| InputError {
+                file: file.to_owned(),
+                line: Some(line),
+                message: format!("the orientation ({named}) is {why}"),
             })?;
         yawed.push((line, vec![row[0], row[1], row[2], yaw]));
     }
     Ok(poses_from(yawed))
+}
+
+/// A TUM trajectory, as evo and SLAM benchmarks keep one: `timestamp tx
+/// ty tz qx qy qz qw` a line, separated by spaces, `#` comments, times in
+/// seconds; the heading is the quaternion's yaw.
+pub fn poses_tum(text: &str, file: &str) -> Result<Poses, InputError> {
+    let columns = ["timestamp", "tx", "ty", "tz", "qx", "qy", "qz", "qw"];
+    let rows = read_rows(text, file, Layout::Whitespace { columns: &columns })?;
+    yawed(rows, file, 4, "qx qy qz qw")
+}
+
+/// Whether `text` is a TUM trajectory rather than a CSV file: its first
+/// line that is not a comment holds eight numbers separated by spaces.
+pub fn looks_like_tum(text: &str) -> bool {
+    text.lines()
+        .map(str::trim)
+        .find(|l| !l.is_empty() && !l.starts_with('#'))
+        .is_some_and(|line| {
+            let fields: Vec<&str> = line.split_whitespace().collect();
+            fields.len() == 8 && fields.iter().all(|f| f.parse::<f64>().is_ok())
+        })
+}
+
+/// Poses from a CSV file or a TUM trajectory, whichever `text` is.
+pub fn poses_csv_or_tum(text: &str, file: &str) -> Result<Poses, InputError> {
+    if looks_like_tum(text) {
+        poses_tum(text, file)
+    } else {
+        poses_csv(text, file)
+    }
 }
 
 /// The header of a CSV file as `csv_fields` reads it, if it has one.
@@ -915,6 +955,26 @@ mod tests {
         // A run in seconds that runs past a day is still refused as such.
         let error = commands_csv("t,v,omega\n0,1,0\n100000,1,0\n", "c.csv").expect_err("too long");
         assert!(error.to_string().contains("wrong unit"), "{error}");
+    }
+
+    #[test]
+    fn a_tum_trajectory_is_read_with_its_quaternions_yaw() {
+        let half = std::f64::consts::FRAC_PI_8;
+        let text = format!(
+            "# timestamp tx ty tz qx qy qz qw\n0.0 1 2 0 0 0 {} {}\n0.5 1.1 2 0 0 0 0 1\n",
+            half.sin(),
+            half.cos()
+        );
+        assert!(looks_like_tum(&text) && !looks_like_tum("t,x,y,theta\n0,1,2,3\n"));
+        let poses = poses_csv_or_tum(&text, "gt.tum").expect("TUM");
+        assert_eq!(poses.t, [0.0, 0.5]);
+        assert!((poses.theta[0] - std::f64::consts::FRAC_PI_4).abs() < 1e-12);
+        let cut =
+            poses_csv_or_tum("0.0 1 2 0 0 0 0 1\n0.5 1.1 2 0 0 0\n", "gt.tum").expect_err("cut");
+        assert!(
+            cut.to_string().contains("gt.tum:2") && cut.to_string().contains("qz"),
+            "{cut}"
+        );
     }
 
     #[test]

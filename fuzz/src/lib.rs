@@ -41,6 +41,8 @@ pub enum Target {
     CommandsCsv,
     /// `shoal diagnose --poses`: CSV `t,x,y,theta`.
     PosesCsv,
+    /// `shoal diagnose --poses`: a TUM trajectory (`t x y z qx qy qz qw`).
+    PosesTum,
     /// `shoal diagnose --mrclam`: `RobotN_Odometry.dat`.
     MrclamOdometry,
     /// `shoal diagnose --mrclam`: `RobotN_Groundtruth.dat`.
@@ -64,12 +66,13 @@ pub enum Target {
 }
 
 impl Target {
-    pub const ALL: [Target; 18] = [
+    pub const ALL: [Target; 19] = [
         Target::Scenario,
         Target::MotionModel,
         Target::EffectsModel,
         Target::CommandsCsv,
         Target::PosesCsv,
+        Target::PosesTum,
         Target::MrclamOdometry,
         Target::MrclamGroundtruth,
         Target::Pose,
@@ -116,6 +119,9 @@ impl Target {
                 input::poses_csv(text, file).map(|poses| {
                     let _ = poses.without_outliers();
                 })
+            }),
+            Target::PosesTum => parse_mutated(rng, &seeds.poses_tum, |text, file| {
+                input::poses_csv_or_tum(text, file).map(|_| ())
             }),
             Target::MrclamOdometry => parse_mutated(rng, &seeds.mrclam_odometry, |text, file| {
                 input::mrclam_odometry(text, file).map(|_| ())
@@ -526,6 +532,7 @@ pub struct Seeds {
     effects_model: String,
     commands_csv: String,
     poses_csv: String,
+    poses_tum: String,
     mrclam_odometry: String,
     mrclam_groundtruth: String,
     link_pose: Vec<u8>,
@@ -537,7 +544,7 @@ impl Seeds {
     /// error (fuzzing an empty seed would test nothing and say it passed).
     pub fn new() -> anyhow::Result<Self> {
         use anyhow::Context as _;
-        let (commands, poses, odometry, truth) = run_seeds();
+        let (commands, poses, poses_tum, odometry, truth) = run_seeds();
         // The bag holds the CSV seeds' run; both parse, as the unit tests show.
         let run = shoal_diagnose::input::commands_csv(&commands, "seed")
             .and_then(|c| Ok((c, shoal_diagnose::input::poses_csv(&poses, "seed")?)))
@@ -553,6 +560,7 @@ impl Seeds {
             effects_model: effects_seed().to_toml().context("the effects model seed")?,
             commands_csv: commands,
             poses_csv: poses,
+            poses_tum,
             mrclam_odometry: odometry,
             mrclam_groundtruth: truth,
             link_pose: shoal_link::wire::RemotePose {
@@ -604,9 +612,10 @@ fn effects_seed() -> shoal_physics::UnicycleModel {
 
 /// A short run as CSV commands and poses, and as MRCLAM odometry and
 /// ground truth.
-fn run_seeds() -> (String, String, String, String) {
+fn run_seeds() -> (String, String, String, String, String) {
     let mut commands = String::from("t,v,omega\n");
     let mut poses = String::from("t,x,y,theta\n");
+    let mut tum = String::from("# timestamp tx ty tz qx qy qz qw\n");
     let mut odometry =
         String::from("# Time [s]\tforward velocity [m/s]\tangular velocity[rad/s]\n");
     let mut truth = String::from("# Time [s]\tx [m]\ty [m]\torientation [rad]\n");
@@ -619,6 +628,14 @@ fn run_seeds() -> (String, String, String, String) {
             0.001 * t,
             0.01 * t
         ));
+        let half = 0.005 * t;
+        tum.push_str(&format!(
+            "{t:.2} {:.4} {:.4} 0 0 0 {:.6} {:.6}\n",
+            0.02 * t,
+            0.001 * t,
+            half.sin(),
+            half.cos()
+        ));
         odometry.push_str(&format!("{:.3}\t0.2\t-0.05\n", 1248272272.841 + t));
         truth.push_str(&format!(
             "{:.3}\t{:.4}\t{:.4}\t{:.4}\n",
@@ -628,7 +645,7 @@ fn run_seeds() -> (String, String, String, String) {
             3.1
         ));
     }
-    (commands, poses, odometry, truth)
+    (commands, poses, tum, odometry, truth)
 }
 
 /// A host's summary as the link sends it.
@@ -763,6 +780,7 @@ mod tests {
         shoal_physics::UnicycleModel::from_toml(&seeds.effects_model, file).expect("effects");
         shoal_diagnose::input::commands_csv(&seeds.commands_csv, file).expect("commands");
         shoal_diagnose::input::poses_csv(&seeds.poses_csv, file).expect("poses");
+        shoal_diagnose::input::poses_tum(&seeds.poses_tum, file).expect("TUM poses");
         shoal_diagnose::input::mrclam_odometry(&seeds.mrclam_odometry, file).expect("odometry");
         shoal_diagnose::input::mrclam_groundtruth(&seeds.mrclam_groundtruth, file).expect("truth");
     }
