@@ -43,7 +43,8 @@ struct DiagnoseArgs {
     /// Commands sent: CSV with header t,v,omega (held until the next row).
     #[arg(long, requires = "poses", conflicts_with_all = ["run", "mrclam"])]
     commands: Option<PathBuf>,
-    /// Observed poses: CSV with header t,x,y,theta (any rate).
+    /// Observed poses: CSV with header t,x,y,theta, or a TUM trajectory
+    /// (timestamp tx ty tz qx qy qz qw), at any rate.
     #[arg(long, requires = "commands")]
     poses: Option<PathBuf>,
     /// An MRCLAM dataset directory (e.g. shared/data/mrclam-d6); with --robot.
