@@ -31,8 +31,9 @@ pub struct Recording {
     pub joins: Vec<f64>,
 }
 
-/// Observations further apart than this leave a gap that no segment spans
-/// (where poses come faster than `SLOW_STREAM_INTERVALS` to it).
+/// Observations further apart than this leave a gap that no segment spans,
+/// in a stream at 5 Hz or faster (`Poses::gap_limit` widens it for slower
+/// ones).
 pub const MAX_OBSERVATION_GAP_S: f64 = 0.5;
 
 /// A gap between poses is at least this many of their usual intervals

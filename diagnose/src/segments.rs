@@ -89,11 +89,12 @@ pub fn moving(grid: &CommandGrid, at: usize) -> bool {
 /// Poses slower than this (a localisation at 2 Hz, a GPS at 1 Hz) are
 /// compared where they were observed: the ends of each segment at least
 /// half as long as their usual interval move to the grid steps of the
-/// observations nearest them (so at 0.5 Hz, segments of 1 s become 2 s). Between observations so far apart, a pose
-/// interpolated on a straight line cuts the robot's arc, and a model
-/// compared with it looks slowed, like an actuator lag. Shorter segments
-/// (the feedback stage's, of a few hundredths of a second) would shrink to
-/// nothing: they and faster streams are interpolated.
+/// observations nearest them (so at 0.5 Hz, segments of 1 s become 2 s).
+/// Between observations so far apart, a pose interpolated on a straight
+/// line cuts the robot's arc, and a model compared with it looks slowed,
+/// like an actuator lag. Shorter segments (the feedback stage's, of a few
+/// hundredths of a second) would shrink to nothing: they and faster
+/// streams are interpolated.
 pub const SNAPPED_INTERVAL_S: f64 = 0.05;
 
 /// How far, in usual intervals, a segment's end moves to an observation:
