@@ -378,6 +378,23 @@ fn poses_a_second_apart_are_compared_where_they_were_observed() {
             (slow_fit - full_fit).abs() < 0.02,
             "{hz} Hz: {slow_fit} s against {full_fit} s from every pose"
         );
+        // The same poses as a localisation's PoseStamped in a ROS 2 bag
+        // (mcap-ros2-support's writer): read alike.
+        let bag = write_bag(&slow, "pose");
+        let output = diagnose_bag(
+            &bag,
+            &[
+                "--commands-topic",
+                "/cmd_vel",
+                "--poses-topic",
+                "/mocap/pose",
+            ],
+        );
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(output.status.success(), "{hz} Hz bag: {stderr}");
+        let from_bag: Value = serde_json::from_slice(&output.stdout).expect("JSON");
+        assert_eq!(kinds(&from_bag), ["latency"], "{hz} Hz bag: {from_bag}");
+        assert!((first_latency(&from_bag) - slow_fit).abs() < 0.005);
     }
 }
 
