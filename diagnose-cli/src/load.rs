@@ -68,7 +68,7 @@ impl From<Recording> for Loaded {
     }
 }
 
-pub fn load_csv_pair(commands: &Path, poses: &Path) -> Result<Loaded> {
+pub fn load_commands_and_poses(commands: &Path, poses: &Path) -> Result<Loaded> {
     let (commands_file, poses_file) = (commands.display().to_string(), poses.display().to_string());
     let (commands_text, poses_text) = (read(commands)?, read(poses)?);
     let c = commands_csv(&commands_text, &commands_file)?;
@@ -291,7 +291,7 @@ fn or_none(names: &[String]) -> String {
 /// Reads what the arguments name.
 pub fn load(args: &DiagnoseArgs) -> Result<Loaded> {
     if let (Some(c), Some(p)) = (&args.commands, &args.poses) {
-        return load_csv_pair(c, p);
+        return load_commands_and_poses(c, p);
     }
     if let Some(bag) = &args.bag {
         return load_bag(bag, args);
@@ -354,7 +354,7 @@ fn load_positional(run: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
         _ => poses,
     };
     if run.is_dir() && (commands.is_file() || poses.is_file()) {
-        return load_csv_pair(&commands, &poses);
+        return load_commands_and_poses(&commands, &poses);
     }
     if shoal_bags::looks_like_bag(run) {
         return load_bag(run, args);
@@ -382,7 +382,7 @@ fn load_positional(run: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
         );
     }
     bail!(
-        "{}: not a Shoal recording (.rrd), a run folder (commands.csv and poses.csv), an MRCLAM \
+        "{}: not a Shoal recording (.rrd), a run folder (commands.csv and poses.csv or poses.tum), an MRCLAM \
          dataset folder (RobotN_Odometry.dat, with --robot N) or a ROS 2 bag (.mcap, .db3, or a \
          bag folder with metadata.yaml)",
         run.display()

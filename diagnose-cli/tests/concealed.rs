@@ -349,28 +349,14 @@ fn a_real_mrclam_robot_shows_a_mismatch_that_the_fit_reduces() {
 fn poses_a_second_apart_are_compared_where_they_were_observed() {
     let case = case_named(&Generator::bench(), "latency", DURATION_S).expect("latency case");
     let (full, dir) = diagnose_generated("slow-poses", &truth_toml(&case), &[]);
-    let poses = std::fs::read_to_string(dir.join("poses.csv")).expect("poses.csv");
-    let commands = std::fs::read_to_string(dir.join("commands.csv")).expect("commands.csv");
-    for hz in [2.0, 1.0] {
+    for hz in ["2", "1"] {
+        // Thinned as EXPERIMENTS.md's figures are, by the repository's script.
         let slow = scratch(&format!("slow-poses-{hz}"));
-        let mut kept = String::new();
-        let mut next = 0.0;
-        for (i, line) in poses.lines().enumerate() {
-            let t: f64 = line
-                .split(',')
-                .next()
-                .and_then(|t| t.parse().ok())
-                .unwrap_or(-1.0);
-            if i == 0 || t >= next - 1e-9 {
-                kept.push_str(line);
-                kept.push('\n');
-                if i > 0 {
-                    next = t + 1.0 / hz;
-                }
-            }
-        }
-        std::fs::write(slow.join("poses.csv"), kept).expect("write poses");
-        std::fs::write(slow.join("commands.csv"), &commands).expect("write commands");
+        succeed(
+            Command::new("python3")
+                .arg(package_dir().join("../scripts/thin-poses"))
+                .args([dir.as_os_str(), slow.as_os_str(), hz.as_ref()]),
+        );
         let d = diagnose_dir(&slow, &[]);
         assert_eq!(kinds(&d), ["latency"], "{hz} Hz: {d}");
         let (slow_fit, full_fit) = (first_latency(&d), first_latency(&full));
@@ -381,7 +367,7 @@ fn poses_a_second_apart_are_compared_where_they_were_observed() {
         // The same poses as a localisation's PoseStamped in a ROS 2 bag
         // (mcap-ros2-support's writer): read alike.
         let bag = write_bag(&slow, "pose");
-        let output = diagnose_bag(
+        let from_bag = diagnosed_bag(
             &bag,
             &[
                 "--commands-topic",
@@ -389,10 +375,8 @@ fn poses_a_second_apart_are_compared_where_they_were_observed() {
                 "--poses-topic",
                 "/mocap/pose",
             ],
+            &format!("{hz} Hz bag"),
         );
-        let stderr = String::from_utf8_lossy(&output.stderr);
-        assert!(output.status.success(), "{hz} Hz bag: {stderr}");
-        let from_bag: Value = serde_json::from_slice(&output.stdout).expect("JSON");
         assert_eq!(kinds(&from_bag), ["latency"], "{hz} Hz bag: {from_bag}");
         assert!((first_latency(&from_bag) - slow_fit).abs() < 0.005);
     }
@@ -424,6 +408,15 @@ fn python(script: &str, args: &[&std::ffi::OsStr]) -> Vec<u8> {
             .arg(package_dir().join("tests").join(script))
             .args(args),
     )
+}
+
+/// Diagnoses `bag` with `topics` as JSON; fails the test, saying `what`
+/// and the diagnosis's stderr, if it does not succeed.
+fn diagnosed_bag(bag: &Path, topics: &[&str], what: &str) -> Value {
+    let output = diagnose_bag(bag, topics);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{what}: {stderr}");
+    serde_json::from_slice(&output.stdout).expect("JSON")
 }
 
 fn diagnose_bag(bag: &Path, topics: &[&str]) -> std::process::Output {
@@ -483,10 +476,7 @@ fn a_ros2_bag_is_diagnosed_from_pose_tf_and_odometry_topics() {
         ("tf_chain", &base_link_from("map")[..]),
     ] {
         let bag = write_bag(&dir, poses_as);
-        let output = diagnose_bag(&bag, topics);
-        let stderr = String::from_utf8_lossy(&output.stderr);
-        assert!(output.status.success(), "{poses_as}: {stderr}");
-        let d: Value = serde_json::from_slice(&output.stdout).expect("JSON");
+        let d = diagnosed_bag(&bag, topics, poses_as);
         // Twist has no header; the poses' stamps are on the log clock.
         let clock = &d["input"]["clock"];
         assert_eq!(clock["commands"], "the bag's log times", "{clock}");
@@ -545,12 +535,7 @@ fn a_localised_robot_is_diagnosed_through_its_localisation_not_its_odometry() {
     let (_, dir) = diagnose_generated("amcl", &truth_toml(&case), &[]);
     let true_latency = case.truth[0].effect.params()[0].1;
     let bag = write_bag(&dir, "amcl");
-    let seen_from = |parent: &str| -> Value {
-        let output = diagnose_bag(&bag, &base_link_from(parent));
-        let stderr = String::from_utf8_lossy(&output.stderr);
-        assert!(output.status.success(), "{parent}: {stderr}");
-        serde_json::from_slice(&output.stdout).expect("JSON")
-    };
+    let seen_from = |parent: &str| diagnosed_bag(&bag, &base_link_from(parent), parent);
     let localised = seen_from("map");
     assert_eq!(kinds(&localised), ["latency"], "{localised}");
     let fitted = first_latency(&localised);
@@ -992,7 +977,7 @@ fn a_motion_capture_bridges_bag_with_a_robot_clock_that_is_off_is_diagnosed_on_l
     let (from_csv, dir) = diagnose_generated("vicon", &truth_toml(&case), &[]);
     let from_csv = first_latency(&from_csv);
     let bag = write_gazebo_bag(&dir, "vicon-bag", &["storage=mcap", "poses=vicon"]);
-    let output = diagnose_bag(
+    let d = diagnosed_bag(
         &bag,
         &[
             "--commands-topic",
@@ -1000,10 +985,8 @@ fn a_motion_capture_bridges_bag_with_a_robot_clock_that_is_off_is_diagnosed_on_l
             "--poses-topic",
             "/vicon/robot/robot",
         ],
+        "vicon",
     );
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    assert!(output.status.success(), "{stderr}");
-    let d: Value = serde_json::from_slice(&output.stdout).expect("JSON");
     let clock = &d["input"]["clock"];
     assert_eq!(clock["poses"], "the bag's log times", "{clock}");
     assert_eq!(
