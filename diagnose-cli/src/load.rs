@@ -35,6 +35,9 @@ pub struct InputNotes {
     /// radians), and why.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub units: Vec<String>,
+    /// Rows a file held out of time order, read sorted.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub order: Vec<String>,
 }
 
 #[derive(Debug, Serialize)]
@@ -74,15 +77,16 @@ pub fn load_commands_and_poses(commands: &Path, poses: &Path) -> Result<Loaded> 
     let c = commands_csv(&commands_text, &commands_file)?;
     let p = poses_csv_or_tum(&poses_text, &poses_file)?;
     Ok(Loaded {
-        recording: Recording::from_absolute(c, p),
         notes: InputNotes {
             units: [
                 commands_unit_notes(&commands_text, &commands_file),
                 poses_unit_notes(&poses_text, &poses_file),
             ]
             .concat(),
+            order: [c.order, p.order].into_iter().flatten().collect(),
             ..InputNotes::default()
         },
+        recording: Recording::from_absolute(c.data, p.data),
     })
 }
 
@@ -298,7 +302,7 @@ pub fn load(args: &DiagnoseArgs) -> Result<Loaded> {
     }
     if let Some(dir) = &args.mrclam {
         let robot = args.robot.context("--mrclam needs --robot N")?;
-        return load_mrclam(dir, robot).map(Loaded::from);
+        return load_mrclam(dir, robot);
     }
     match args.run.as_slice() {
         [] => {}
@@ -315,6 +319,10 @@ pub fn load(args: &DiagnoseArgs) -> Result<Loaded> {
                     .iter_mut()
                     .flat_map(|l| std::mem::take(&mut l.notes.units))
                     .collect(),
+                order: loaded
+                    .iter_mut()
+                    .flat_map(|l| std::mem::take(&mut l.notes.order))
+                    .collect(),
             };
             let recording = Recording::joined(loaded.into_iter().map(|l| l.recording).collect());
             return Ok(Loaded { recording, notes });
@@ -327,12 +335,18 @@ pub fn load(args: &DiagnoseArgs) -> Result<Loaded> {
 }
 
 /// Robot `robot` of an MRCLAM dataset folder: its commands and ground truth.
-fn load_mrclam(dir: &Path, robot: u32) -> Result<Recording> {
+fn load_mrclam(dir: &Path, robot: u32) -> Result<Loaded> {
     let odometry = dir.join(format!("Robot{robot}_Odometry.dat"));
     let truth = dir.join(format!("Robot{robot}_Groundtruth.dat"));
     let c = mrclam_odometry(&read(&odometry)?, &odometry.display().to_string())?;
     let p = mrclam_groundtruth(&read(&truth)?, &truth.display().to_string())?;
-    Ok(Recording::from_absolute(c, p))
+    Ok(Loaded {
+        notes: InputNotes {
+            order: [c.order, p.order].into_iter().flatten().collect(),
+            ..InputNotes::default()
+        },
+        recording: Recording::from_absolute(c.data, p.data),
+    })
 }
 
 /// A path given as a positional argument: a Shoal recording, a run folder
@@ -345,7 +359,7 @@ fn load_positional(run: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
     if let Some(robot) = args.robot
         && run.join(format!("Robot{robot}_Odometry.dat")).is_file()
     {
-        return load_mrclam(run, robot).map(Loaded::from);
+        return load_mrclam(run, robot);
     }
     let (commands, poses) = (run.join("commands.csv"), run.join("poses.csv"));
     // Poses kept as a TUM trajectory (evo's) beside the commands.
@@ -368,7 +382,7 @@ fn load_positional(run: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
         Vec::new()
     };
     if let ([robot], None) = (robots.as_slice(), args.robot) {
-        return load_mrclam(run, *robot).map(Loaded::from);
+        return load_mrclam(run, *robot);
     }
     if !robots.is_empty() {
         let listed: Vec<String> = robots.iter().map(u32::to_string).collect();

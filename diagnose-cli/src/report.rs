@@ -92,6 +92,7 @@ pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
     for text in clock_text(notes)
         .into_iter()
         .chain(notes.units.iter().map(|note| format!("Units: {note}.")))
+        .chain(notes.order.iter().map(|note| format!("Order: {note}.")))
         .chain(pose_chain)
         .chain(set_aside_text(&d.glitches))
     {

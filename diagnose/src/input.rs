@@ -21,8 +21,63 @@ enum Layout<'a> {
     Whitespace { columns: &'a [&'a str] },
 }
 
-/// Rows of numbers in the requested column order, with their line numbers.
-fn read_rows(text: &str, file: &str, layout: Layout) -> Result<Vec<(usize, Vec<f64>)>, InputError> {
+/// Rows of numbers in the requested column order, with their line numbers,
+/// in time order, and the rows that came out of it.
+struct Rows {
+    rows: Vec<(usize, Vec<f64>)>,
+    /// Each row that came before a later time in the file: its line and
+    /// how far (seconds) behind the latest time before it.
+    out_of_order: Vec<(usize, f64)>,
+    /// The time column's name.
+    time: String,
+}
+
+/// The furthest a row's time may lie behind an earlier row's and still be
+/// read as a logger's jitter (threads that write as they finish, a
+/// message stamped before one logged ahead of it): such rows are sorted
+/// into time order, and said so. A time further back is a clock reset or
+/// two recordings joined, and is refused at its line.
+const OUT_OF_ORDER_S: f64 = 0.5;
+
+/// What a file held, in time order, and what reading it put in order.
+#[derive(Debug)]
+pub struct Read<T> {
+    pub data: T,
+    /// Rows that came out of time order and were sorted, in words; none
+    /// where the file was in order.
+    pub order: Option<String>,
+}
+
+impl Rows {
+    /// The rows made into `T` by `make`, with what reading put in order.
+    fn read<T>(
+        self,
+        file: &str,
+        make: impl FnOnce(Vec<(usize, Vec<f64>)>) -> Result<T, InputError>,
+    ) -> Result<Read<T>, InputError> {
+        let order = self.order_note(file);
+        Ok(Read {
+            data: make(self.rows)?,
+            order,
+        })
+    }
+
+    /// What reading put in order, in words, if anything.
+    fn order_note(&self, file: &str) -> Option<String> {
+        let (&(first, _), most) = (
+            self.out_of_order.first()?,
+            self.out_of_order.iter().map(|r| r.1).fold(0.0, f64::max),
+        );
+        let rows = self.out_of_order.len();
+        Some(format!(
+            "{file}: {rows} row{} out of time order (the first at line {first}; at most {most:.3} s behind an earlier row), read sorted by `{}`",
+            if rows == 1 { "" } else { "s" },
+            self.time
+        ))
+    }
+}
+
+fn read_rows(text: &str, file: &str, layout: Layout) -> Result<Rows, InputError> {
     let error = |line: usize, message: String| InputError {
         file: file.to_owned(),
         line: Some(line),
@@ -46,15 +101,19 @@ fn read_rows(text: &str, file: &str, layout: Layout) -> Result<Vec<(usize, Vec<f
         Layout::Whitespace { columns } => (columns, whitespace_fields(text, columns)),
     };
     let mut rows = Vec::new();
-    let mut last_time = f64::NEG_INFINITY;
+    let mut out_of_order = Vec::new();
+    let mut latest = f64::NEG_INFINITY;
     for (number, fields) in rows_of_fields {
         let values = numbers(fields, columns).map_err(|message| error(number, message))?;
         let first_time = rows
             .first()
             .map_or(values[0], |(_, r): &(usize, Vec<f64>)| r[0]);
-        check_time(columns[0], values[0], last_time, first_time)
+        check_time(columns[0], values[0], latest, first_time)
             .map_err(|message| error(number, message))?;
-        last_time = values[0];
+        if values[0] < latest {
+            out_of_order.push((number, latest - values[0]));
+        }
+        latest = latest.max(values[0]);
         rows.push((number, values));
     }
     if rows.len() < 2 {
@@ -64,7 +123,13 @@ fn read_rows(text: &str, file: &str, layout: Layout) -> Result<Vec<(usize, Vec<f
             message: format!("needs at least two rows of data, found {}", rows.len()),
         });
     }
-    Ok(rows)
+    // Stable: rows of one time keep the file's order.
+    rows.sort_by(|a, b| a.1[0].total_cmp(&b.1[0]));
+    Ok(Rows {
+        rows,
+        out_of_order,
+        time: columns[0].to_owned(),
+    })
 }
 
 /// A field of a row, read as a number, or what is wrong with it.
@@ -109,12 +174,14 @@ fn numbers(fields: Vec<Field>, columns: &[&str]) -> Result<Vec<f64>, String> {
     fields.into_iter().collect()
 }
 
-/// A row's time `t` (column `name`) after the last row's and within
-/// [`MAX_SPAN_S`] of the first row's, or what is wrong.
-fn check_time(name: &str, t: f64, last_time: f64, first_time: f64) -> Result<(), String> {
-    if t < last_time {
+/// A row's time `t` (column `name`) no more than [`OUT_OF_ORDER_S`] behind
+/// the latest before it and within [`MAX_SPAN_S`] of the first row's, or
+/// what is wrong.
+fn check_time(name: &str, t: f64, latest: f64, first_time: f64) -> Result<(), String> {
+    if latest - t > OUT_OF_ORDER_S {
         return Err(format!(
-            "times go backwards: `{name}` = {t} after {last_time}; rows must be sorted by time"
+            "times go back {:.3} s: `{name}` = {t} after {latest}; rows a little out of order (up to {OUT_OF_ORDER_S} s) are sorted, but this is a clock reset or two recordings joined: split the file there",
+            latest - t
         ));
     }
     if t - first_time > MAX_SPAN_S {
@@ -604,32 +671,32 @@ const POSE_COLUMNS: [&str; 4] = ["t", "x", "y", "theta"];
 /// stray time (1e10) must be an error, not an allocation of terabytes.
 const MAX_SPAN_S: f64 = 24.0 * 3600.0;
 
-fn commands_from(rows: Vec<(usize, Vec<f64>)>) -> Commands {
+fn commands_from(rows: Vec<(usize, Vec<f64>)>) -> Result<Commands, InputError> {
     let mut commands = Commands::default();
     for (_, row) in rows {
         commands.hold(row[0], row[1], row[2]);
     }
-    commands
+    Ok(commands)
 }
 
-fn poses_from(rows: Vec<(usize, Vec<f64>)>) -> Poses {
+fn poses_from(rows: Vec<(usize, Vec<f64>)>) -> Result<Poses, InputError> {
     let mut poses = Poses::default();
     for (_, row) in rows {
         poses.observe(row[0], row[1], row[2], row[3]);
     }
-    poses
+    Ok(poses)
 }
 
 /// A commands CSV: header `t,v,omega`.
-pub fn commands_csv(text: &str, file: &str) -> Result<Commands, InputError> {
+pub fn commands_csv(text: &str, file: &str) -> Result<Read<Commands>, InputError> {
     read_rows(
         text,
         file,
         Layout::Csv {
             columns: &COMMAND_COLUMNS,
         },
-    )
-    .map(commands_from)
+    )?
+    .read(file, commands_from)
 }
 
 /// A poses CSV: header `t,x,y,theta`. A pose exported from a ROS message
@@ -637,7 +704,7 @@ pub fn commands_csv(text: &str, file: &str) -> Result<Commands, InputError> {
 /// a quaternion: without a heading column, the yaw of the columns
 /// `orientation.x,orientation.y,orientation.z,orientation.w` (or their
 /// aliases) is read.
-pub fn poses_csv(text: &str, file: &str) -> Result<Poses, InputError> {
+pub fn poses_csv(text: &str, file: &str) -> Result<Read<Poses>, InputError> {
     let columns = POSE_COLUMNS;
     let quaternion = [
         "t",
@@ -653,16 +720,18 @@ pub fn poses_csv(text: &str, file: &str) -> Result<Poses, InputError> {
             && column_position(&header, "orientation.z").is_ok()
     });
     if !names_quaternion {
-        return read_rows(text, file, Layout::Csv { columns: &columns }).map(poses_from);
+        return read_rows(text, file, Layout::Csv { columns: &columns })?.read(file, poses_from);
     }
-    let rows = read_rows(
+    read_rows(
         text,
         file,
         Layout::Csv {
             columns: &quaternion,
         },
-    )?;
-    yawed(rows, file, 3, "orientation.x, .y, .z, .w")
+    )?
+    .read(file, |rows| {
+        yawed(rows, file, 3, "orientation.x, .y, .z, .w")
+    })
 }
 
 /// Poses from rows of a time, x, y and (from column `quaternion_at` on) a
@@ -684,16 +753,16 @@ fn yawed(
             })?;
         yawed.push((line, vec![row[0], row[1], row[2], yaw]));
     }
-    Ok(poses_from(yawed))
+    poses_from(yawed)
 }
 
 /// A TUM trajectory, as evo and SLAM benchmarks keep one: `timestamp tx
 /// ty tz qx qy qz qw` a line, separated by spaces, `#` comments, times in
 /// seconds; the heading is the quaternion's yaw.
-pub fn poses_tum(text: &str, file: &str) -> Result<Poses, InputError> {
+pub fn poses_tum(text: &str, file: &str) -> Result<Read<Poses>, InputError> {
     let columns = ["timestamp", "tx", "ty", "tz", "qx", "qy", "qz", "qw"];
-    let rows = read_rows(text, file, Layout::Whitespace { columns: &columns })?;
-    yawed(rows, file, 4, "qx qy qz qw")
+    read_rows(text, file, Layout::Whitespace { columns: &columns })?
+        .read(file, |rows| yawed(rows, file, 4, "qx qy qz qw"))
 }
 
 /// Whether `text` is a TUM trajectory rather than a CSV file: its first
@@ -709,7 +778,7 @@ pub fn looks_like_tum(text: &str) -> bool {
 }
 
 /// Poses from a CSV file or a TUM trajectory, whichever `text` is.
-pub fn poses_csv_or_tum(text: &str, file: &str) -> Result<Poses, InputError> {
+pub fn poses_csv_or_tum(text: &str, file: &str) -> Result<Read<Poses>, InputError> {
     if looks_like_tum(text) {
         poses_tum(text, file)
     } else {
@@ -733,15 +802,15 @@ fn csv_reader(text: &str) -> csv::Reader<&[u8]> {
 }
 
 /// MRCLAM `Robot{n}_Odometry.dat`: time, v, omega (the commands sent).
-pub fn mrclam_odometry(text: &str, file: &str) -> Result<Commands, InputError> {
+pub fn mrclam_odometry(text: &str, file: &str) -> Result<Read<Commands>, InputError> {
     let columns = ["time", "forward velocity", "angular velocity"];
-    read_rows(text, file, Layout::Whitespace { columns: &columns }).map(commands_from)
+    read_rows(text, file, Layout::Whitespace { columns: &columns })?.read(file, commands_from)
 }
 
 /// MRCLAM `Robot{n}_Groundtruth.dat`: time, x, y, orientation (motion capture).
-pub fn mrclam_groundtruth(text: &str, file: &str) -> Result<Poses, InputError> {
+pub fn mrclam_groundtruth(text: &str, file: &str) -> Result<Read<Poses>, InputError> {
     let columns = ["time", "x", "y", "orientation"];
-    read_rows(text, file, Layout::Whitespace { columns: &columns }).map(poses_from)
+    read_rows(text, file, Layout::Whitespace { columns: &columns })?.read(file, poses_from)
 }
 
 #[cfg(test)]
@@ -751,9 +820,9 @@ mod tests {
     #[test]
     fn columns_are_found_by_name() {
         let commands = commands_csv("omega,t,v\n0.1,0,0.2\n0.2,1,0.3\n", "c.csv").expect("valid");
-        assert_eq!(commands.t, vec![0.0, 1.0]);
-        assert_eq!(commands.v, vec![0.2, 0.3]);
-        assert_eq!(commands.omega, vec![0.1, 0.2]);
+        assert_eq!(commands.data.t, vec![0.0, 1.0]);
+        assert_eq!(commands.data.v, vec![0.2, 0.3]);
+        assert_eq!(commands.data.omega, vec![0.1, 0.2]);
     }
 
     #[test]
@@ -764,21 +833,24 @@ mod tests {
             "c.csv",
         )
         .expect("PlotJuggler");
-        assert_eq!(commands.v, vec![0.2, 0.3]);
-        assert_eq!(commands.omega, vec![0.1, 0.2]);
+        assert_eq!(commands.data.v, vec![0.2, 0.3]);
+        assert_eq!(commands.data.omega, vec![0.1, 0.2]);
         // A message's flattened fields, and a pose's yaw.
         let commands = commands_csv(
             "timestamp,twist.linear.x,twist.angular.z\n0,0.2,0.1\n1,0.2,0.1\n",
             "c.csv",
         )
         .expect("flattened");
-        assert_eq!((commands.v[0], commands.omega[0]), (0.2, 0.1));
+        assert_eq!((commands.data.v[0], commands.data.omega[0]), (0.2, 0.1));
         let poses = poses_csv(
             "time,pose.position.x,pose.position.y,yaw\n0,1,2,0.5\n1,1.1,2,0.5\n",
             "p.csv",
         )
         .expect("flattened pose");
-        assert_eq!((poses.x[0], poses.y[0], poses.theta[0]), (1.0, 2.0, 0.5));
+        assert_eq!(
+            (poses.data.x[0], poses.data.y[0], poses.data.theta[0]),
+            (1.0, 2.0, 0.5)
+        );
         // An Odometry's flattened fields: the heading as a quaternion.
         let (s, c) = (0.25_f64.sin(), 0.25_f64.cos());
         let poses = poses_csv(
@@ -790,7 +862,11 @@ mod tests {
             "odom.csv",
         )
         .expect("a quaternion");
-        assert!((poses.theta[0] - 0.5).abs() < 1e-12, "{}", poses.theta[0]);
+        assert!(
+            (poses.data.theta[0] - 0.5).abs() < 1e-12,
+            "{}",
+            poses.data.theta[0]
+        );
         // PlotJuggler's export of /odom, with the yaw it adds.
         let poses = poses_csv(
             "__time,/odom/pose/pose/position/x,/odom/pose/pose/position/y,/odom/pose/pose/orientation/z,\
@@ -798,7 +874,7 @@ mod tests {
             "pj.csv",
         )
         .expect("PlotJuggler's yaw");
-        assert_eq!(poses.theta[0], 0.3);
+        assert_eq!(poses.data.theta[0], 0.3);
         // A header stamp's two fields, as a message flattened holds its time.
         let poses = poses_csv(
             "header.stamp.sec,header.stamp.nanosec,pose.position.x,pose.position.y,yaw\n\
@@ -806,7 +882,7 @@ mod tests {
             "p.csv",
         )
         .expect("a header stamp");
-        assert_eq!(poses.t[1] - poses.t[0], 0.75);
+        assert_eq!(poses.data.t[1] - poses.data.t[0], 0.75);
         let error = poses_csv(
             "header.stamp.sec,header.stamp.nanosec,x,y,theta\n1,0,1,2,0\n2,x,1,2,0\n",
             "p.csv",
@@ -821,8 +897,8 @@ mod tests {
             "cmd_vel.csv",
         )
         .expect("rostopic echo -p");
-        assert_eq!(commands.t[1] - commands.t[0], 0.5);
-        assert_eq!((commands.v[1], commands.omega[1]), (0.3, 0.2));
+        assert_eq!(commands.data.t[1] - commands.data.t[0], 0.5);
+        assert_eq!((commands.data.v[1], commands.data.omega[1]), (0.3, 0.2));
         // An unset orientation (all zeros) is no heading: refused at its line.
         let error = poses_csv("t,x,y,qx,qy,qz,qw\n0,1,2,0,0,0,1\n1,1,2,0,0,0,0\n", "p.csv")
             .expect_err("a zero quaternion");
@@ -847,9 +923,9 @@ mod tests {
     fn quoted_fields_crlf_and_a_byte_order_mark_are_read() {
         let text = "\u{feff}\"t\",\"v\",\"omega\"\r\n\"0\",\"0.2\",0.1\r\n# a comment\r\n1,0.3,\"0.2\"\r\n";
         let commands = commands_csv(text, "c.csv").expect("valid");
-        assert_eq!(commands.t, vec![0.0, 1.0]);
-        assert_eq!(commands.v, vec![0.2, 0.3]);
-        assert_eq!(commands.omega, vec![0.1, 0.2]);
+        assert_eq!(commands.data.t, vec![0.0, 1.0]);
+        assert_eq!(commands.data.v, vec![0.2, 0.3]);
+        assert_eq!(commands.data.omega, vec![0.1, 0.2]);
         // Lines are still counted as the file has them, comments included.
         let error = commands_csv("t,v,omega\r\n0,1,0\r\n# c\r\n1,x,0\r\n", "c.csv")
             .expect_err("not a number");
@@ -857,10 +933,46 @@ mod tests {
     }
 
     #[test]
+    fn rows_a_little_out_of_time_order_are_sorted_and_said_and_a_clock_reset_is_refused() {
+        // A logger's jitter: row 3 is 30 ms behind row 2, row 6 ties row 5.
+        let text = "t,x,y,theta\n0,0,0,0\n0.13,0.3,0,0\n0.1,0.2,0,0\n0.2,0.4,0,0\n0.2,0.5,0,0\n";
+        let read = poses_csv(text, "p.csv").expect("sorted");
+        assert_eq!(read.data.t, vec![0.0, 0.1, 0.13, 0.2]);
+        // Rows move whole; of two at one time the first in the file is kept.
+        assert_eq!(read.data.x, vec![0.0, 0.2, 0.3, 0.4]);
+        let note = read.order.expect("said");
+        assert!(
+            note.contains(
+                "p.csv: 1 row out of time order (the first at line 4; at most 0.030 s behind"
+            ) && note.contains("sorted by `t`"),
+            "{note}"
+        );
+        let in_order = poses_csv("t,x,y,theta\n0,0,0,0\n0.1,0.2,0,0\n", "p.csv").expect("read");
+        assert_eq!(in_order.order, None);
+        // MRCLAM's files are read the same way.
+        let swapped =
+            mrclam_groundtruth("1.00 0 0 0\n1.02 0 0 0\n1.01 0 0 0\n", "R.dat").expect("sorted");
+        assert_eq!(swapped.data.t, vec![1.0, 1.01, 1.02]);
+        // Seconds back is no jitter: a clock reset, or two files joined.
+        let error =
+            commands_csv("t,v,omega\n10,1,0\n11,1,0\n3,1,0\n4,1,0\n", "c.csv").expect_err("reset");
+        assert_eq!(error.line, Some(4), "{error}");
+        assert!(
+            error.message.contains("times go back 8.000 s")
+                && error.message.contains("split the file there"),
+            "{error}"
+        );
+    }
+
+    #[test]
     fn bad_input_names_file_and_line() {
         let cases = [
             ("t,v\n0,1\n1,1\n", 1, "missing column `omega`"),
-            ("t,v,omega\n0,1,0\n2,1,0\n1,1,0\n", 4, "times go backwards"),
+            (
+                "t,v,omega\n0,1,0\n2,1,0\n1,1,0\n",
+                4,
+                "times go back 1.000 s",
+            ),
             ("t,v,omega\n0,1,0\n1,NaN,0\n", 3, "not finite"),
             ("t,v,omega\n0,1,0\n1,1\n", 3, "missing field `omega`"),
             (
@@ -890,17 +1002,17 @@ mod tests {
     #[test]
     fn a_whole_last_line_without_a_newline_is_a_row() {
         let commands = commands_csv("t,v,omega\n0,1,0\n1,0.5,0.2", "c.csv").expect("whole");
-        assert_eq!(commands.t, vec![0.0, 1.0]);
-        assert_eq!(commands.omega, vec![0.0, 0.2]);
+        assert_eq!(commands.data.t, vec![0.0, 1.0]);
+        assert_eq!(commands.data.omega, vec![0.0, 0.2]);
         let commands = commands_csv("t,v,omega\r\n0,1,0\r\n1,0.5,0.2", "c.csv").expect("CRLF");
-        assert_eq!(commands.v, vec![1.0, 0.5]);
+        assert_eq!(commands.data.v, vec![1.0, 0.5]);
         let odometry = mrclam_odometry("# a\n1.0 0.1 0.0\n2.0 0.1 0.1", "R.dat").expect("whole");
-        assert_eq!(odometry.t.len(), 2);
+        assert_eq!(odometry.data.t.len(), 2);
     }
 
     #[test]
     fn units_are_read_by_the_columns_names_and_a_unix_times_size() {
-        let seconds = |text: &str| commands_csv(text, "c.csv").expect("valid").t;
+        let seconds = |text: &str| commands_csv(text, "c.csv").expect("valid").data.t;
         // Named: `time_ns`, `t [ms]`, from the run's start.
         assert_eq!(
             seconds("time_ns,v,omega\n0,1,0\n500000000,1,0\n"),
@@ -939,19 +1051,19 @@ mod tests {
             "p.csv",
         )
         .expect("units by name");
-        assert!((poses.x[1] - 1.1).abs() < 1e-12 && (poses.y[0] + 0.5).abs() < 1e-12);
-        assert!((poses.theta[0] - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+        assert!((poses.data.x[1] - 1.1).abs() < 1e-12 && (poses.data.y[0] + 0.5).abs() < 1e-12);
+        assert!((poses.data.theta[0] - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
         let commands = commands_csv("t,v (mm/s),omega_deg_s\n0,200,45\n1,200,45\n", "c.csv")
             .expect("rates by name");
-        assert!((commands.v[0] - 0.2).abs() < 1e-12);
-        assert!((commands.omega[0] - std::f64::consts::FRAC_PI_4).abs() < 1e-12);
+        assert!((commands.data.v[0] - 0.2).abs() < 1e-12);
+        assert!((commands.data.omega[0] - std::f64::consts::FRAC_PI_4).abs() < 1e-12);
         let notes = poses_unit_notes("t,x_mm,y [mm],yaw_deg\n0,1000,-500,90\n", "p.csv");
         assert_eq!(notes.len(), 3, "{notes:?}");
         assert!(notes[2].contains("`yaw_deg` read in degrees"), "{notes:?}");
         // Shoal's own units named are read as they are, and not noted.
         assert!(poses_unit_notes("time_s,x_m,y_m,yaw_rad\n0,1,2,3\n", "p.csv").is_empty());
         let si = poses_csv("time_s,x_m,y_m,yaw_rad\n0,1,2,3\n1,1,2,3\n", "p.csv").expect("SI");
-        assert_eq!(si.x, [1.0, 1.0]);
+        assert_eq!(si.data.x, [1.0, 1.0]);
         // A run in seconds that runs past a day is still refused as such.
         let error = commands_csv("t,v,omega\n0,1,0\n100000,1,0\n", "c.csv").expect_err("too long");
         assert!(error.to_string().contains("wrong unit"), "{error}");
@@ -967,8 +1079,8 @@ mod tests {
         );
         assert!(looks_like_tum(&text) && !looks_like_tum("t,x,y,theta\n0,1,2,3\n"));
         let poses = poses_csv_or_tum(&text, "gt.tum").expect("TUM");
-        assert_eq!(poses.t, [0.0, 0.5]);
-        assert!((poses.theta[0] - std::f64::consts::FRAC_PI_4).abs() < 1e-12);
+        assert_eq!(poses.data.t, [0.0, 0.5]);
+        assert!((poses.data.theta[0] - std::f64::consts::FRAC_PI_4).abs() < 1e-12);
         let cut =
             poses_csv_or_tum("0.0 1 2 0 0 0 0 1\n0.5 1.1 2 0 0 0\n", "gt.tum").expect_err("cut");
         assert!(
@@ -981,7 +1093,7 @@ mod tests {
     fn mrclam_files_skip_their_header() {
         let text = "# a\n# b\n# c\n# d\n1248444187.156 \t  0.086 \t -0.398 \n1248444187.186 \t  0.086 \t -0.398 \n";
         let commands = mrclam_odometry(text, "Robot1_Odometry.dat").expect("valid");
-        assert_eq!(commands.t.len(), 2);
-        assert_eq!(commands.omega[1], -0.398);
+        assert_eq!(commands.data.t.len(), 2);
+        assert_eq!(commands.data.omega[1], -0.398);
     }
 }

@@ -117,7 +117,7 @@ impl Target {
             Target::PosesCsv => parse_mutated(rng, &seeds.poses_csv, |text, file| {
                 // The outlier filter runs on whatever parsed.
                 input::poses_csv(text, file).map(|poses| {
-                    let _ = poses.without_outliers();
+                    let _ = poses.data.without_outliers();
                 })
             }),
             Target::PosesTum => parse_mutated(rng, &seeds.poses_tum, |text, file| {
@@ -548,7 +548,7 @@ impl Seeds {
         // The bag holds the CSV seeds' run; both parse, as the unit tests show.
         let run = shoal_diagnose::input::commands_csv(&commands, "seed")
             .and_then(|c| Ok((c, shoal_diagnose::input::poses_csv(&poses, "seed")?)))
-            .map(|(c, p)| shoal_diagnose::Recording::from_absolute(c, p))
+            .map(|(c, p)| shoal_diagnose::Recording::from_absolute(c.data, p.data))
             .context("the CSV seeds")?;
         Ok(Self {
             ros_bag: shoal_bags::write::write_bag(&run.commands.rows(), &run.poses.rows())
