@@ -38,6 +38,9 @@ pub struct InputNotes {
     /// Rows a file held out of time order, read sorted.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub order: Vec<String>,
+    /// Pose rows without a value (the body not tracked), left out.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub dropouts: Vec<String>,
 }
 
 #[derive(Debug, Serialize)]
@@ -84,6 +87,7 @@ pub fn load_commands_and_poses(commands: &Path, poses: &Path) -> Result<Loaded> 
             ]
             .concat(),
             order: [c.order, p.order].into_iter().flatten().collect(),
+            dropouts: p.dropouts.into_iter().collect(),
             ..InputNotes::default()
         },
         recording: Recording::from_absolute(c.data, p.data),
@@ -323,6 +327,10 @@ pub fn load(args: &DiagnoseArgs) -> Result<Loaded> {
                     .iter_mut()
                     .flat_map(|l| std::mem::take(&mut l.notes.order))
                     .collect(),
+                dropouts: loaded
+                    .iter_mut()
+                    .flat_map(|l| std::mem::take(&mut l.notes.dropouts))
+                    .collect(),
             };
             let recording = Recording::joined(loaded.into_iter().map(|l| l.recording).collect());
             return Ok(Loaded { recording, notes });
@@ -343,6 +351,7 @@ fn load_mrclam(dir: &Path, robot: u32) -> Result<Loaded> {
     Ok(Loaded {
         notes: InputNotes {
             order: [c.order, p.order].into_iter().flatten().collect(),
+            dropouts: p.dropouts.into_iter().collect(),
             ..InputNotes::default()
         },
         recording: Recording::from_absolute(c.data, p.data),

@@ -93,6 +93,12 @@ pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
         .into_iter()
         .chain(notes.units.iter().map(|note| format!("Units: {note}.")))
         .chain(notes.order.iter().map(|note| format!("Order: {note}.")))
+        .chain(
+            notes
+                .dropouts
+                .iter()
+                .map(|note| format!("Dropouts: {note}.")),
+        )
         .chain(pose_chain)
         .chain(set_aside_text(&d.glitches))
     {

@@ -1399,6 +1399,27 @@ fn runs_written_by_pandas_and_by_the_rerun_python_sdk_are_diagnosed_as_shoal_wri
             "{mode}: {units}"
         );
     }
+    // A motion capture that lost the body now and then: its frames' times
+    // with empty fields, left out as dropouts and said.
+    let lost = dir.join("tracking-lost");
+    std::fs::create_dir_all(&lost).expect("pandas folder");
+    python(
+        "write_pandas_csv.py",
+        &[dir.as_os_str(), lost.as_os_str(), "tracking-lost".as_ref()],
+    );
+    let text = std::fs::read_to_string(lost.join("poses.csv")).expect("poses");
+    let empty = text.lines().filter(|l| l.ends_with(",,,")).count();
+    assert!(
+        empty > 100,
+        "pandas writes NaN as empty fields: {empty} rows"
+    );
+    let d = diagnose_dir(&lost, &[]);
+    assert_eq!(kinds(&d), named, "{d}");
+    let dropouts = d["input"]["dropouts"].to_string();
+    assert!(
+        dropouts.contains(&format!("poses.csv: {empty} rows without a pose")),
+        "{dropouts}"
+    );
     // The poses as a TUM trajectory written by evo, beside the commands.
     let tum = dir.join("tum");
     std::fs::create_dir_all(&tum).expect("tum folder");

@@ -11,8 +11,12 @@ in integer nanoseconds of Unix time (pandas' int64), commands included.
 With `datetime`, each file is indexed by the time as a pandas datetime:
 the commands' naive (`2023-11-14 22:13:20.011100160`), the poses' in UTC
 (`...+00:00`), as a user who parsed a log's times writes them.
+With `tracking-lost`, the poses are written as a motion capture that lost
+the body now and then leaves them: every frame's time, and NaN (which
+pandas writes as an empty field) for the position and heading of about
+2% of frames, in stretches of 1 to 30 frames.
 
-Usage: python3 write_pandas_csv.py FROM_FOLDER TO_FOLDER [odometry|odometry-ns|datetime]
+Usage: python3 write_pandas_csv.py FROM_FOLDER TO_FOLDER [odometry|odometry-ns|datetime|tracking-lost]
 """
 
 import sys
@@ -40,6 +44,15 @@ def main():
         poses.index = pd.to_datetime(nanoseconds(poses["t"]).to_numpy(), unit="ns", utc=True)
         poses.index.name = "time"
         poses[["x", "y", "theta"]].to_csv(f"{target}/poses.csv")
+        return
+    if mode == "tracking-lost":
+        commands[["t", "v", "omega"]].to_csv(f"{target}/commands.csv", index=False)
+        rng = np.random.default_rng(7)
+        lost = np.zeros(len(poses), dtype=bool)
+        for start in rng.choice(len(poses), size=len(poses) // 750, replace=False):
+            lost[start:start + rng.integers(1, 31)] = True
+        poses.loc[lost, ["x", "y", "theta"]] = np.nan
+        poses[["t", "x", "y", "theta"]].to_csv(f"{target}/poses.csv", index=False)
         return
     if mode == "odometry-ns":
         pd.DataFrame({

@@ -21,6 +21,17 @@ enum Layout<'a> {
     Whitespace { columns: &'a [&'a str] },
 }
 
+/// What a row that holds no value in a column (empty, or NaN) is.
+#[derive(Clone, Copy, PartialEq)]
+enum Empty {
+    /// A sample not taken: a motion capture that lost the body writes its
+    /// frame's time with empty cells (OptiTrack's and Vicon's exports,
+    /// pandas' NaN). Such a pose is a dropout, left out and said.
+    Dropout,
+    /// Refused at its line: a command row must say what was commanded.
+    Refused,
+}
+
 /// Rows of numbers in the requested column order, with their line numbers,
 /// in time order, and the rows that came out of it.
 struct Rows {
@@ -28,6 +39,8 @@ struct Rows {
     /// Each row that came before a later time in the file: its line and
     /// how far (seconds) behind the latest time before it.
     out_of_order: Vec<(usize, f64)>,
+    /// The lines of rows that held no value in some column ([`Empty::Dropout`]).
+    dropouts: Vec<usize>,
     /// The time column's name.
     time: String,
 }
@@ -39,13 +52,17 @@ struct Rows {
 /// two recordings joined, and is refused at its line.
 const OUT_OF_ORDER_S: f64 = 0.5;
 
-/// What a file held, in time order, and what reading it put in order.
+/// What a file held, in time order, and what reading it put in order or
+/// left out.
 #[derive(Debug)]
 pub struct Read<T> {
     pub data: T,
     /// Rows that came out of time order and were sorted, in words; none
     /// where the file was in order.
     pub order: Option<String>,
+    /// Rows left out as samples not taken (a pose with empty or NaN
+    /// fields), in words; none where every row held its values.
+    pub dropouts: Option<String>,
 }
 
 impl Rows {
@@ -55,11 +72,22 @@ impl Rows {
         file: &str,
         make: impl FnOnce(Vec<(usize, Vec<f64>)>) -> Result<T, InputError>,
     ) -> Result<Read<T>, InputError> {
-        let order = self.order_note(file);
+        let (order, dropouts) = (self.order_note(file), self.dropout_note(file));
         Ok(Read {
             data: make(self.rows)?,
             order,
+            dropouts,
         })
+    }
+
+    /// What reading left out as samples not taken, in words, if anything.
+    fn dropout_note(&self, file: &str) -> Option<String> {
+        let first = self.dropouts.first()?;
+        let rows = self.dropouts.len();
+        Some(format!(
+            "{file}: {rows} row{} without a pose (an empty or NaN field: the body was not tracked; the first at line {first}), left out as dropouts",
+            if rows == 1 { "" } else { "s" },
+        ))
     }
 
     /// What reading put in order, in words, if anything.
@@ -77,7 +105,7 @@ impl Rows {
     }
 }
 
-fn read_rows(text: &str, file: &str, layout: Layout) -> Result<Rows, InputError> {
+fn read_rows(text: &str, file: &str, layout: Layout, empty: Empty) -> Result<Rows, InputError> {
     let error = |line: usize, message: String| InputError {
         file: file.to_owned(),
         line: Some(line),
@@ -102,9 +130,22 @@ fn read_rows(text: &str, file: &str, layout: Layout) -> Result<Rows, InputError>
     };
     let mut rows = Vec::new();
     let mut out_of_order = Vec::new();
+    let mut dropouts = Vec::new();
     let mut latest = f64::NEG_INFINITY;
     for (number, fields) in rows_of_fields {
         let values = numbers(fields, columns).map_err(|message| error(number, message))?;
+        if let Some(k) = values.iter().position(|v| v.is_nan()) {
+            // A sample not taken still has its time; a row cut short (the
+            // last, unterminated) is no dropout.
+            if k == 0 || empty == Empty::Refused || Some(number) == unterminated {
+                return Err(error(
+                    number,
+                    format!("field `{}` is empty or NaN", columns[k]),
+                ));
+            }
+            dropouts.push(number);
+            continue;
+        }
         let first_time = rows
             .first()
             .map_or(values[0], |(_, r): &(usize, Vec<f64>)| r[0]);
@@ -128,6 +169,7 @@ fn read_rows(text: &str, file: &str, layout: Layout) -> Result<Rows, InputError>
     Ok(Rows {
         rows,
         out_of_order,
+        dropouts,
         time: columns[0].to_owned(),
     })
 }
@@ -153,8 +195,14 @@ fn whitespace_fields(text: &str, columns: &[&str]) -> Vec<(usize, Vec<Field>)> {
         .collect()
 }
 
-/// `field` of `column` as a finite number, or what is wrong with it.
+/// `field` of `column` as a finite number, NaN where the row holds no value
+/// there (an empty field, or NaN, as pandas and motion-capture exports
+/// write a sample they do not have: [`read_rows`] decides what such a row
+/// is), or what is wrong with it.
 fn number(field: &str, column: &str) -> Field {
+    if field.is_empty() || field.eq_ignore_ascii_case("nan") {
+        return Ok(f64::NAN);
+    }
     let value: f64 = field
         .parse()
         .map_err(|_| format!("field `{column}` is not a number: `{field}`"))?;
@@ -695,6 +743,7 @@ pub fn commands_csv(text: &str, file: &str) -> Result<Read<Commands>, InputError
         Layout::Csv {
             columns: &COMMAND_COLUMNS,
         },
+        Empty::Refused,
     )?
     .read(file, commands_from)
 }
@@ -720,7 +769,13 @@ pub fn poses_csv(text: &str, file: &str) -> Result<Read<Poses>, InputError> {
             && column_position(&header, "orientation.z").is_ok()
     });
     if !names_quaternion {
-        return read_rows(text, file, Layout::Csv { columns: &columns })?.read(file, poses_from);
+        return read_rows(
+            text,
+            file,
+            Layout::Csv { columns: &columns },
+            Empty::Dropout,
+        )?
+        .read(file, poses_from);
     }
     read_rows(
         text,
@@ -728,6 +783,7 @@ pub fn poses_csv(text: &str, file: &str) -> Result<Read<Poses>, InputError> {
         Layout::Csv {
             columns: &quaternion,
         },
+        Empty::Dropout,
     )?
     .read(file, |rows| {
         yawed(rows, file, 3, "orientation.x, .y, .z, .w")
@@ -761,8 +817,13 @@ fn yawed(
 /// seconds; the heading is the quaternion's yaw.
 pub fn poses_tum(text: &str, file: &str) -> Result<Read<Poses>, InputError> {
     let columns = ["timestamp", "tx", "ty", "tz", "qx", "qy", "qz", "qw"];
-    read_rows(text, file, Layout::Whitespace { columns: &columns })?
-        .read(file, |rows| yawed(rows, file, 4, "qx qy qz qw"))
+    read_rows(
+        text,
+        file,
+        Layout::Whitespace { columns: &columns },
+        Empty::Dropout,
+    )?
+    .read(file, |rows| yawed(rows, file, 4, "qx qy qz qw"))
 }
 
 /// Whether `text` is a TUM trajectory rather than a CSV file: its first
@@ -804,13 +865,25 @@ fn csv_reader(text: &str) -> csv::Reader<&[u8]> {
 /// MRCLAM `Robot{n}_Odometry.dat`: time, v, omega (the commands sent).
 pub fn mrclam_odometry(text: &str, file: &str) -> Result<Read<Commands>, InputError> {
     let columns = ["time", "forward velocity", "angular velocity"];
-    read_rows(text, file, Layout::Whitespace { columns: &columns })?.read(file, commands_from)
+    read_rows(
+        text,
+        file,
+        Layout::Whitespace { columns: &columns },
+        Empty::Refused,
+    )?
+    .read(file, commands_from)
 }
 
 /// MRCLAM `Robot{n}_Groundtruth.dat`: time, x, y, orientation (motion capture).
 pub fn mrclam_groundtruth(text: &str, file: &str) -> Result<Read<Poses>, InputError> {
     let columns = ["time", "x", "y", "orientation"];
-    read_rows(text, file, Layout::Whitespace { columns: &columns })?.read(file, poses_from)
+    read_rows(
+        text,
+        file,
+        Layout::Whitespace { columns: &columns },
+        Empty::Dropout,
+    )?
+    .read(file, poses_from)
 }
 
 #[cfg(test)]
@@ -965,6 +1038,44 @@ mod tests {
     }
 
     #[test]
+    fn poses_not_tracked_are_dropouts_and_said_where_a_command_or_time_without_a_value_is_refused()
+    {
+        // OptiTrack's and pandas' way: the frame's time, its pose empty or NaN.
+        let text = "t,x,y,theta\n0,0,0,0\n0.1,,,\n0.2,NaN,nan,NaN\n0.3,0.3,0,\n0.4,0.4,0,0\n";
+        let read = poses_csv(text, "p.csv").expect("dropouts");
+        assert_eq!(read.data.t, vec![0.0, 0.4]);
+        let note = read.dropouts.expect("said");
+        assert!(
+            note.contains("p.csv: 3 rows without a pose") && note.contains("the first at line 3"),
+            "{note}"
+        );
+        assert_eq!(
+            poses_csv("t,x,y,theta\n0,0,0,0\n1,1,0,0\n", "p.csv")
+                .expect("read")
+                .dropouts,
+            None
+        );
+        let tum = poses_tum(
+            "0 0 0 0 0 0 0 1\n0.1 nan nan 0 0 0 0 1\n0.2 1 0 0 0 0 0 1\n",
+            "gt.tum",
+        )
+        .expect("TUM dropout");
+        assert_eq!(tum.data.t, vec![0.0, 0.2]);
+        // A pose row without its time, and a last line cut short, are refused.
+        let error =
+            poses_csv("t,x,y,theta\n0,0,0,0\n,1,0,0\n2,0,0,0\n", "p.csv").expect_err("time");
+        assert!(
+            error.line == Some(3) && error.message.contains("field `t` is empty or NaN"),
+            "{error}"
+        );
+        let error = poses_csv("t,x,y,theta\n0,0,0,0\n1,1,0,0\n2,1,", "p.csv").expect_err("cut");
+        assert!(
+            error.message.contains("ends in the middle of a line"),
+            "{error}"
+        );
+    }
+
+    #[test]
     fn bad_input_names_file_and_line() {
         let cases = [
             ("t,v\n0,1\n1,1\n", 1, "missing column `omega`"),
@@ -973,7 +1084,13 @@ mod tests {
                 4,
                 "times go back 1.000 s",
             ),
-            ("t,v,omega\n0,1,0\n1,NaN,0\n", 3, "not finite"),
+            (
+                "t,v,omega\n0,1,0\n1,NaN,0\n",
+                3,
+                "field `v` is empty or NaN",
+            ),
+            ("t,v,omega\n0,1,0\n1,,0\n", 3, "field `v` is empty or NaN"),
+            ("t,v,omega\n0,1,0\n1,inf,0\n", 3, "not finite"),
             ("t,v,omega\n0,1,0\n1,1\n", 3, "missing field `omega`"),
             (
                 "t,v,omega\n0,1,0\n1,1,0\n2,1,",
