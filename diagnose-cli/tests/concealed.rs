@@ -770,6 +770,15 @@ fn gazebo_bags_in_sqlite3_mcap_split_and_compressed_are_diagnosed_on_one_clock()
             "the bag's log times",
             0.002,
         ),
+        // `ros2 bag record --use-sim-time`: log times in simulation time
+        // too, at half real time; the commands' log times are their
+        // arrival, 2 ms after the poses' stamps' clock would say.
+        (
+            "sim-recorder",
+            &["recorder=sim", "rtf=0.5"][..],
+            "the bag's log times",
+            -0.002,
+        ),
     ] {
         let bag = write_gazebo_bag(&dir, name, options);
         // The bag as a positional argument, as a user types it.

@@ -37,6 +37,10 @@ few milliseconds after it was made. OPTIONS, any of:
                          Jazzy's controllers take stamped commands), or
                          stamped by a teleop node left on the wall clock
                          (no use_sim_time)
+  recorder=wall|sim      the recorder's clock: the wall clock (default), or
+                         simulation time (`ros2 bag record --use-sim-time`,
+                         Humble on), so that log times and header stamps
+                         are both simulation time
   camera=no|yes          also /camera/image_raw (sensor_msgs/msg/Image,
                          640 x 480 rgb8, 15 Hz): 0.9 MB a message, as a
                          robot's bag is mostly images
@@ -117,8 +121,13 @@ def main(run_dir, out_dir, *options):
     def sim_ns(t):
         return SIM_START_NS + round(t * 1e9)
 
+    sim_recorder = opts.get("recorder", "wall") == "sim"
+
     def wall_ns(t):
-        # Wall time runs 1/rtf as fast as simulation time.
+        # Wall time runs 1/rtf as fast as simulation time. A recorder on
+        # simulation time logs each message at the simulation time it came.
+        if sim_recorder:
+            return sim_ns(t)
         return WALL_EPOCH_NS + round(t * 1e9 / rtf)
 
     def stamp(ns):
