@@ -77,6 +77,102 @@ fn entry_test_text(e: &FoundEffect) -> String {
     )
 }
 
+/// What an effect of `kind` is, as a noun a sentence can list.
+fn effect_noun(kind: &str) -> String {
+    match kind {
+        "latency" => "a response delay (latency)",
+        "actuator_lag" => "an actuator lag",
+        "speed_scale" => "a speed scale",
+        "turn_scale" => "a turn scale",
+        "turn_bias" => "a turn bias",
+        "heading_drift" => "a heading drift",
+        "accel_limit" => "an acceleration limit",
+        "speed_limit" => "a speed limit",
+        "slip" => "slip growing with speed",
+        "battery_fade" => "a fading battery",
+        "surface_zone" => "a surface zone",
+        "external_flow" => "an external flow (wind, current or a slope)",
+        "hysteresis" => "a steering play",
+        "speed_noise" => "noise growing with speed",
+        "turn_speed_loss" => "speed lost in turns",
+        "turn_centre_offset" => "a turning-centre offset",
+        "crab_angle" => "a crab angle",
+        "euler_step" => "an integration step",
+        other => return other.replace('_', " "),
+    }
+    .to_owned()
+}
+
+/// The report's first line: what the diagnosis found, in one sentence, so
+/// that a reader knows before the evidence what it is evidence for.
+fn headline(d: &Diagnosis, motion_differs: bool) -> String {
+    // An effect on the noise alone moves no prediction: said apart.
+    let (moving, noise): (Vec<&FoundEffect>, Vec<&FoundEffect>) = d
+        .effects
+        .iter()
+        .partition(|e| !e.scoped.effect.only_noise());
+    let nouns = |effects: &[&FoundEffect]| -> Vec<String> {
+        effects
+            .iter()
+            .map(|e| {
+                let mut noun = effect_noun(e.kind);
+                if !e.alternatives.is_empty() {
+                    let others: Vec<String> =
+                        e.alternatives.iter().map(|a| effect_noun(a.kind)).collect();
+                    noun.push_str(&format!(
+                        " (or {}: the data cannot tell them apart)",
+                        others.join(" or ")
+                    ));
+                }
+                noun
+            })
+            .collect()
+    };
+    let (named, noise) = (nouns(&moving), nouns(&noise));
+    let and_noise = if noise.is_empty() {
+        String::new()
+    } else {
+        format!("; beside the motion, its noise: {}", noise.join("; "))
+    };
+    let (before, after) = (
+        d.baseline.heldout_rmse_pos_m * 1e3,
+        d.improved.heldout_rmse_pos_m * 1e3,
+    );
+    if !d.mismatch {
+        return "In short: no significant mismatch; the model explains the run within its noise."
+            .into();
+    }
+    if !named.is_empty() {
+        let lower = if before > 0.0 {
+            format!(" ({:.0}% lower)", 100.0 * (1.0 - after / before))
+        } else {
+            String::new()
+        };
+        return format!(
+            "In short: {} named: {}; with {} the held-out position error goes {before:.1} -> {after:.1} mm{lower}{and_noise}.",
+            match named.len() {
+                1 => "one effect".to_owned(),
+                n => format!("{n} effects"),
+            },
+            named.join("; "),
+            if named.len() == 1 { "it" } else { "them" },
+        );
+    }
+    if !noise.is_empty() && !motion_differs {
+        return format!(
+            "In short: the motion matches the model; its noise differs: {}.",
+            noise.join("; ")
+        );
+    }
+    if motion_differs || !d.unexplained.is_empty() {
+        return "In short: the motion differs from the model, but no effect of the library explains it (where, below).".into();
+    }
+    if d.command_timeout.is_some() {
+        return "In short: the robot stops when its commands pause (below); beside that, the motion matches the model.".into();
+    }
+    "In short: the motion matches the model; only the size of its noise differs.".into()
+}
+
 pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
     use std::fmt::Write as _;
     let mut out = String::new();
@@ -84,6 +180,9 @@ pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
     let mut line = |text: String| {
         let _ = writeln!(out, "{text}");
     };
+    let in_motion = |l: &&Located| l.component != "spread";
+    let motion_differs = d.located.iter().any(|l| in_motion(&l));
+    line(headline(d, motion_differs));
     let pose_chain = notes
         .clock
         .as_ref()
@@ -126,19 +225,16 @@ pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
             made.delta_bic
         ));
     }
-    let in_motion = |l: &&Located| l.component != "spread";
-    let motion_differs = d.located.iter().any(|l| in_motion(&l));
     let nothing_more = !motion_differs && d.effects.is_empty() && d.unexplained.is_empty();
-    if !d.mismatch {
-        line("No significant mismatch: the model explains the run within its noise.".into());
-    } else if nothing_more && d.command_timeout.is_some() {
+    // No mismatch is said by the headline alone.
+    if d.mismatch && nothing_more && d.command_timeout.is_some() {
         line(if d.located.is_empty() {
             "Beside the timeout, the model explains the run within its noise.".into()
         } else {
             "Beside the timeout, the motion matches the model. Only the size of its noise differs:"
                 .into()
         });
-    } else if nothing_more {
+    } else if d.mismatch && nothing_more {
         line("The motion matches the model: no difference in where the robot went. Only the size of its noise differs:".into());
     }
     // A difference in the residuals' spread is about the noise, not the
@@ -148,11 +244,15 @@ pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
     for l in motion {
         line(format!("  differs by {}", located_text(l)));
     }
-    for l in noise {
-        line(format!(
-            "  the noise differs (not the motion) by {}",
-            located_text(l)
-        ));
+    // Said before the effects only where nothing else is: beside effects,
+    // the noise's size is the least of what a reader came for.
+    let noise_lines = |line: &mut dyn FnMut(String)| {
+        for l in &noise {
+            line(format!("  by {}", located_text(l)));
+        }
+    };
+    if nothing_more {
+        noise_lines(&mut line);
     }
     if motion_differs && d.effects.is_empty() {
         line("The mismatch is significant but no effect of the library explains it.".into());
@@ -165,6 +265,10 @@ pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
     }
     for text in transfer_text(d).into_iter().chain(feedback_text(d)) {
         line(text);
+    }
+    if !nothing_more && !noise.is_empty() {
+        line("Where the size of the noise differs (not the motion):".into());
+        noise_lines(&mut line);
     }
     line(format!(
         "Held-out position error {:.1} mm -> {:.1} mm, heading {:.2} -> {:.2} deg, NLL {:.2} -> {:.2} per segment.",
