@@ -1429,6 +1429,18 @@ fn runs_written_by_pandas_and_by_the_rerun_python_sdk_are_diagnosed_as_shoal_wri
         dropouts.contains(&format!("poses.csv: {empty} rows without a pose")),
         "{dropouts}"
     );
+    // A spreadsheet in a European locale: semicolons and decimal commas.
+    let excel = dir.join("excel-eu");
+    std::fs::create_dir_all(&excel).expect("pandas folder");
+    python(
+        "write_pandas_csv.py",
+        &[dir.as_os_str(), excel.as_os_str(), "excel-eu".as_ref()],
+    );
+    let head = std::fs::read_to_string(excel.join("poses.csv")).expect("poses");
+    assert!(head.starts_with("\u{feff}t;x;y;theta\n0,"), "{}", &head[..40]);
+    let d = diagnose_dir(&excel, &[]);
+    assert_eq!(kinds(&d), named, "{d}");
+    assert_eq!(d["segments"], from_shoal["segments"]);
     // The poses as a TUM trajectory written by evo, beside the commands.
     let tum = dir.join("tum");
     std::fs::create_dir_all(&tum).expect("tum folder");

@@ -16,7 +16,11 @@ the body now and then leaves them: every frame's time, and NaN (which
 pandas writes as an empty field) for the position and heading of about
 2% of frames, in stretches of 1 to 30 frames.
 
-Usage: python3 write_pandas_csv.py FROM_FOLDER TO_FOLDER [odometry|odometry-ns|datetime|tracking-lost]
+With `excel-eu`, both files are written as a spreadsheet in most of
+Europe's locales keeps them: fields separated by semicolons, decimal
+commas (pandas' `sep=';', decimal=','`), a byte-order mark.
+
+Usage: python3 write_pandas_csv.py FROM_FOLDER TO_FOLDER [odometry|odometry-ns|datetime|tracking-lost|excel-eu]
 """
 
 import sys
@@ -44,6 +48,10 @@ def main():
         poses.index = pd.to_datetime(nanoseconds(poses["t"]).to_numpy(), unit="ns", utc=True)
         poses.index.name = "time"
         poses[["x", "y", "theta"]].to_csv(f"{target}/poses.csv")
+        return
+    if mode == "excel-eu":
+        for frame, name in ((commands[["t", "v", "omega"]], "commands"), (poses[["t", "x", "y", "theta"]], "poses")):
+            frame.to_csv(f"{target}/{name}.csv", sep=";", decimal=",", index=False, encoding="utf-8-sig")
         return
     if mode == "tracking-lost":
         commands[["t", "v", "omega"]].to_csv(f"{target}/commands.csv", index=False)

@@ -203,13 +203,24 @@ fn number(field: &str, column: &str) -> Field {
     if field.is_empty() || field.eq_ignore_ascii_case("nan") {
         return Ok(f64::NAN);
     }
-    let value: f64 = field
-        .parse()
-        .map_err(|_| format!("field `{column}` is not a number: `{field}`"))?;
+    let value: f64 =
+        decimal(field).ok_or_else(|| format!("field `{column}` is not a number: `{field}`"))?;
     if !value.is_finite() {
         return Err(format!("field `{column}` is not finite: `{field}`"));
     }
     Ok(value)
+}
+
+/// `field` as a number: written with a decimal point, or with the decimal
+/// comma of a spreadsheet set to most of Europe's locales (`0,25`; a comma
+/// inside a field is one only where the fields are separated otherwise,
+/// or the field is quoted).
+fn decimal(field: &str) -> Option<f64> {
+    field.parse().ok().or_else(|| {
+        (field.matches(',').count() == 1 && !field.contains('.'))
+            .then(|| field.replace(',', ".").parse().ok())
+            .flatten()
+    })
 }
 
 /// A row's numbers, one per column, or the first thing wrong.
@@ -603,7 +614,7 @@ fn scaled_by_size(source: Source, first: &csv::StringRecord) -> Source {
     let Some(field) = first.get(position) else {
         return source;
     };
-    match field.parse::<f64>() {
+    match decimal(field).ok_or(()) {
         Ok(value) => match Unit::of_unix_time(value) {
             Some(unit) => Source::Scaled { position, unit },
             None => source,
@@ -853,13 +864,49 @@ fn csv_header(text: &str) -> Option<csv::StringRecord> {
 }
 
 /// How every CSV file is read: fields trimmed, `#` lines comments, rows of
-/// any length (a field a row lacks is reported by name).
+/// any length (a field a row lacks is reported by name), separated as the
+/// header is ([`delimiter`]).
 fn csv_reader(text: &str) -> csv::Reader<&[u8]> {
     csv::ReaderBuilder::new()
+        .delimiter(delimiter(text))
         .trim(csv::Trim::All)
         .comment(Some(b'#'))
         .flexible(true)
         .from_reader(text.as_bytes())
+}
+
+/// What a CSV file separates its fields with: of a comma, the semicolon a
+/// spreadsheet with a decimal comma writes (Excel in most of Europe,
+/// pandas' `sep=';'`) and a tab, the one its header holds most of outside
+/// quotes; a comma where it holds none.
+fn delimiter(text: &str) -> u8 {
+    let header = text
+        .trim_start_matches('\u{feff}')
+        .lines()
+        .map(str::trim)
+        .find(|l| !l.is_empty() && !l.starts_with('#'))
+        .unwrap_or_default();
+    let mut quoted = false;
+    let mut counts = [0usize; 3];
+    const CANDIDATES: [u8; 3] = [b',', b';', b'\t'];
+    for byte in header.bytes() {
+        match byte {
+            b'"' => quoted = !quoted,
+            _ if quoted => {}
+            _ => {
+                if let Some(k) = CANDIDATES.iter().position(|&c| c == byte) {
+                    counts[k] += 1;
+                }
+            }
+        }
+    }
+    // Ties go to the earlier candidate: a comma first.
+    let (best, most) =
+        counts.iter().enumerate().fold(
+            (0, 0),
+            |(best, most), (k, &n)| if n > most { (k, n) } else { (best, most) },
+        );
+    if most == 0 { b',' } else { CANDIDATES[best] }
 }
 
 /// MRCLAM `Robot{n}_Odometry.dat`: time, v, omega (the commands sent).
@@ -1073,6 +1120,29 @@ mod tests {
             error.message.contains("ends in the middle of a line"),
             "{error}"
         );
+    }
+
+    #[test]
+    fn a_spreadsheets_semicolons_and_decimal_commas_and_tabs_are_read() {
+        // Excel in a German or French locale, pandas' `sep=';', decimal=','`.
+        let read =
+            commands_csv("t;v;omega\r\n0;0,25;-0,1\r\n0,5;0,3;0\r\n", "c.csv").expect("semicolons");
+        assert_eq!(read.data.t, vec![0.0, 0.5]);
+        assert_eq!(read.data.v, vec![0.25, 0.3]);
+        assert_eq!(read.data.omega, vec![-0.1, 0.0]);
+        let read =
+            poses_csv("t\tx\ty\ttheta\n0\t1.5\t2\t0\n1\t1.6\t2\t0.1\n", "p.tsv").expect("tabs");
+        assert_eq!(read.data.x, vec![1.5, 1.6]);
+        // A comma CSV whose decimal commas are quoted, as pandas writes them.
+        let read = commands_csv("t,v,omega\n0,\"0,25\",0\n1,\"0,5\",0\n", "c.csv").expect("quoted");
+        assert_eq!(read.data.v, vec![0.25, 0.5]);
+        // Commas inside a quoted name do not make the comma the separator.
+        let read = commands_csv(
+            "t;v;omega;\"note, one, two, three\"\n0;1;0;a\n1;1;0;b\n",
+            "c.csv",
+        )
+        .expect("a quoted name");
+        assert_eq!(read.data.v, vec![1.0, 1.0]);
     }
 
     #[test]
