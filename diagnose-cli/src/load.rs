@@ -9,9 +9,10 @@ use serde::Serialize;
 use shoal_bags::{Bag, StampsPreference};
 use shoal_diagnose::Recording;
 use shoal_diagnose::input::{
-    commands_csv, commands_unit_notes, mrclam_groundtruth, mrclam_odometry, poses_csv_or_tum,
+    Read, commands_csv, commands_unit_notes, mrclam_groundtruth, mrclam_odometry, poses_csv_or_tum,
     poses_unit_notes,
 };
+use shoal_diagnose::recording::{Commands, Poses};
 
 use crate::DiagnoseArgs;
 
@@ -77,21 +78,33 @@ impl From<Recording> for Loaded {
 pub fn load_commands_and_poses(commands: &Path, poses: &Path) -> Result<Loaded> {
     let (commands_file, poses_file) = (commands.display().to_string(), poses.display().to_string());
     let (commands_text, poses_text) = (read(commands)?, read(poses)?);
-    let c = commands_csv(&commands_text, &commands_file)?;
-    let p = poses_csv_or_tum(&poses_text, &poses_file)?;
-    Ok(Loaded {
+    let units = [
+        commands_unit_notes(&commands_text, &commands_file),
+        poses_unit_notes(&poses_text, &poses_file),
+    ]
+    .concat();
+    Ok(read_files(
+        commands_csv(&commands_text, &commands_file)?,
+        poses_csv_or_tum(&poses_text, &poses_file)?,
+        units,
+    ))
+}
+
+/// A run of commands and poses files as read, with what reading them put
+/// in order, left out, or read in another unit (`units`).
+fn read_files(commands: Read<Commands>, poses: Read<Poses>, units: Vec<String>) -> Loaded {
+    Loaded {
         notes: InputNotes {
-            units: [
-                commands_unit_notes(&commands_text, &commands_file),
-                poses_unit_notes(&poses_text, &poses_file),
-            ]
-            .concat(),
-            order: [c.order, p.order].into_iter().flatten().collect(),
-            dropouts: p.dropouts.into_iter().collect(),
+            units,
+            order: [commands.order, poses.order]
+                .into_iter()
+                .flatten()
+                .collect(),
+            dropouts: poses.dropouts.into_iter().collect(),
             ..InputNotes::default()
         },
-        recording: Recording::from_absolute(c.data, p.data),
-    })
+        recording: Recording::from_absolute(commands.data, poses.data),
+    }
 }
 
 /// One robot of a Shoal recording: its true poses and the commands it
@@ -346,16 +359,11 @@ pub fn load(args: &DiagnoseArgs) -> Result<Loaded> {
 fn load_mrclam(dir: &Path, robot: u32) -> Result<Loaded> {
     let odometry = dir.join(format!("Robot{robot}_Odometry.dat"));
     let truth = dir.join(format!("Robot{robot}_Groundtruth.dat"));
-    let c = mrclam_odometry(&read(&odometry)?, &odometry.display().to_string())?;
-    let p = mrclam_groundtruth(&read(&truth)?, &truth.display().to_string())?;
-    Ok(Loaded {
-        notes: InputNotes {
-            order: [c.order, p.order].into_iter().flatten().collect(),
-            dropouts: p.dropouts.into_iter().collect(),
-            ..InputNotes::default()
-        },
-        recording: Recording::from_absolute(c.data, p.data),
-    })
+    Ok(read_files(
+        mrclam_odometry(&read(&odometry)?, &odometry.display().to_string())?,
+        mrclam_groundtruth(&read(&truth)?, &truth.display().to_string())?,
+        Vec::new(),
+    ))
 }
 
 /// A path given as a positional argument: a Shoal recording, a run folder

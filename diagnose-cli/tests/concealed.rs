@@ -444,6 +444,18 @@ fn python(script: &str, args: &[&std::ffi::OsStr]) -> Vec<u8> {
     )
 }
 
+/// The run in `dir` rewritten by pandas as `mode` (`write_pandas_csv.py`),
+/// in a folder of `dir` named so.
+fn written_by_pandas(dir: &Path, mode: &str) -> PathBuf {
+    let written = dir.join(mode);
+    std::fs::create_dir_all(&written).expect("pandas folder");
+    python(
+        "write_pandas_csv.py",
+        &[dir.as_os_str(), written.as_os_str(), mode.as_ref()],
+    );
+    written
+}
+
 /// Diagnoses `bag` with `topics` as JSON; fails the test, saying `what`
 /// and the diagnosis's stderr, if it does not succeed.
 fn diagnosed_bag(bag: &Path, topics: &[&str], what: &str) -> Value {
@@ -1374,12 +1386,7 @@ fn runs_written_by_pandas_and_by_the_rerun_python_sdk_are_diagnosed_as_shoal_wri
     assert_eq!(from_pandas["segments"], from_shoal["segments"]);
     // The poses as a bag's Odometry flattened by pandas: the heading is a
     // quaternion's.
-    let odometry = dir.join("odometry");
-    std::fs::create_dir_all(&odometry).expect("odometry folder");
-    python(
-        "write_pandas_csv.py",
-        &[dir.as_os_str(), odometry.as_os_str(), "odometry".as_ref()],
-    );
+    let odometry = written_by_pandas(&dir, "odometry");
     let from_odometry = diagnose_dir(&odometry, &[]);
     assert_eq!(
         kinds(&from_odometry),
@@ -1393,12 +1400,7 @@ fn runs_written_by_pandas_and_by_the_rerun_python_sdk_are_diagnosed_as_shoal_wri
         ("odometry-ns", "nanoseconds"),
         ("datetime", "dates and times"),
     ] {
-        let written = dir.join(mode);
-        std::fs::create_dir_all(&written).expect("pandas folder");
-        python(
-            "write_pandas_csv.py",
-            &[dir.as_os_str(), written.as_os_str(), mode.as_ref()],
-        );
+        let written = written_by_pandas(&dir, mode);
         let d = diagnose_dir(&written, &[]);
         assert_eq!(kinds(&d), named, "{mode}: {d}");
         assert_eq!(d["segments"], from_shoal["segments"], "{mode}");
@@ -1410,12 +1412,7 @@ fn runs_written_by_pandas_and_by_the_rerun_python_sdk_are_diagnosed_as_shoal_wri
     }
     // A motion capture that lost the body now and then: its frames' times
     // with empty fields, left out as dropouts and said.
-    let lost = dir.join("tracking-lost");
-    std::fs::create_dir_all(&lost).expect("pandas folder");
-    python(
-        "write_pandas_csv.py",
-        &[dir.as_os_str(), lost.as_os_str(), "tracking-lost".as_ref()],
-    );
+    let lost = written_by_pandas(&dir, "tracking-lost");
     let text = std::fs::read_to_string(lost.join("poses.csv")).expect("poses");
     let empty = text.lines().filter(|l| l.ends_with(",,,")).count();
     assert!(
@@ -1430,14 +1427,13 @@ fn runs_written_by_pandas_and_by_the_rerun_python_sdk_are_diagnosed_as_shoal_wri
         "{dropouts}"
     );
     // A spreadsheet in a European locale: semicolons and decimal commas.
-    let excel = dir.join("excel-eu");
-    std::fs::create_dir_all(&excel).expect("pandas folder");
-    python(
-        "write_pandas_csv.py",
-        &[dir.as_os_str(), excel.as_os_str(), "excel-eu".as_ref()],
-    );
+    let excel = written_by_pandas(&dir, "excel-eu");
     let head = std::fs::read_to_string(excel.join("poses.csv")).expect("poses");
-    assert!(head.starts_with("\u{feff}t;x;y;theta\n0,"), "{}", &head[..40]);
+    assert!(
+        head.starts_with("\u{feff}t;x;y;theta\n0,"),
+        "{}",
+        &head[..40]
+    );
     let d = diagnose_dir(&excel, &[]);
     assert_eq!(kinds(&d), named, "{d}");
     assert_eq!(d["segments"], from_shoal["segments"]);
