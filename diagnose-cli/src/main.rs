@@ -258,6 +258,7 @@ fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
     ];
     if args.json {
         let mut value = serde_json::to_value(&diagnosis)?;
+        value["summary"] = serde_json::json!(report::headline(&diagnosis));
         value["input"] = serde_json::to_value(&notes)?;
         for (key, _, path) in files {
             value[key] = serde_json::json!(path.as_ref().map(|p| p.display().to_string()));

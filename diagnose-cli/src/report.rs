@@ -103,9 +103,17 @@ fn effect_noun(kind: &str) -> String {
     .to_owned()
 }
 
-/// The report's first line: what the diagnosis found, in one sentence, so
-/// that a reader knows before the evidence what it is evidence for.
-fn headline(d: &Diagnosis, motion_differs: bool) -> String {
+/// Whether a difference was located in the motion (along, across or
+/// heading), not only in the size of the noise.
+fn motion_differs(d: &Diagnosis) -> bool {
+    d.located.iter().any(|l| l.component != "spread")
+}
+
+/// The report's first line, and the JSON's `summary`: what the diagnosis
+/// found, in one sentence, so that a reader knows before the evidence what
+/// it is evidence for.
+pub fn headline(d: &Diagnosis) -> String {
+    let motion_differs = motion_differs(d);
     // An effect on the noise alone moves no prediction: said apart.
     let (moving, noise): (Vec<&FoundEffect>, Vec<&FoundEffect>) = d
         .effects
@@ -181,8 +189,8 @@ pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
         let _ = writeln!(out, "{text}");
     };
     let in_motion = |l: &&Located| l.component != "spread";
-    let motion_differs = d.located.iter().any(|l| in_motion(&l));
-    line(headline(d, motion_differs));
+    let motion_differs = motion_differs(d);
+    line(headline(d));
     let pose_chain = notes
         .clock
         .as_ref()

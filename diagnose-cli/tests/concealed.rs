@@ -115,6 +115,10 @@ fn a_null_run_stays_null() {
     assert_eq!(d["mismatch"], false, "{d}");
     assert!(kinds(&d).is_empty(), "{d}");
     assert_eq!(d["baseline"], d["improved"]);
+    assert_eq!(
+        d["summary"],
+        "In short: no significant mismatch; the model explains the run within its noise."
+    );
 }
 
 #[test]
@@ -332,6 +336,14 @@ fn a_real_mrclam_robot_shows_a_mismatch_that_the_fit_reduces() {
     );
     // Its speed drops in turns, which the plain unicycle leaves out.
     assert!(kinds(&d).iter().any(|k| k == "turn_speed_loss"), "{d}");
+    // The verdict in one line, as the report opens.
+    let summary = d["summary"].as_str().unwrap_or_default();
+    assert!(
+        summary.starts_with("In short: ")
+            && summary.contains("speed lost in turns")
+            && summary.contains("the held-out position error goes"),
+        "{summary}"
+    );
     // Physics that is really there predicts unseen stretches better: at
     // least 15% lower held-out position error (measured: 11.3 -> 5.9 mm).
     let before = d["baseline"]["heldout_rmse_pos_m"].as_f64().expect("rmse");
