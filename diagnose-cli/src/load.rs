@@ -253,50 +253,122 @@ fn load_bag(path: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
     })
 }
 
+/// What a pose topic holds, as its name and type tell, ranked: motion
+/// capture or a simulator's ground truth first, then a localisation or a
+/// fused estimate, then the wheels' odometry, which diagnosis can only
+/// compare with the commands it was computed from.
+fn pose_source(name: &str, message_type: &str) -> (u8, &'static str) {
+    let name = name.to_ascii_lowercase();
+    let any = |words: &[&str]| words.iter().any(|w| name.contains(w));
+    if any(&[
+        "vicon",
+        "mocap",
+        "optitrack",
+        "vrpn",
+        "qualisys",
+        "natnet",
+        "ground_truth",
+        "groundtruth",
+        "gazebo",
+        "model_states",
+        "/model/",
+    ]) {
+        (0, "ground truth")
+    } else if any(&["amcl", "localiz", "localis", "filtered", "slam", "map"])
+        || message_type.ends_with("PoseWithCovarianceStamped")
+    {
+        (
+            1,
+            "a localisation: its corrections jump, which costs power, not truth",
+        )
+    } else if any(&["odom"]) {
+        (
+            2,
+            "wheel odometry: the robot's own estimate, blind to what its wheels do not feel (slip)",
+        )
+    } else {
+        (1, "")
+    }
+}
+
 /// The commands that diagnose the bag's robots, where its topics pair up:
-/// one topic of each kind that needs no `--frame` in the whole bag, or in
-/// one namespace (`/robot1/cmd_vel` with `/robot1/odom`), as a swarm's
-/// bag holds each robot's.
+/// in the whole bag, or in one namespace (`/robot1/cmd_vel` with
+/// `/robot1/odom`), as a swarm's bag holds each robot's. Of several command
+/// topics in one namespace, a navigation stack's chain (`cmd_vel_nav`,
+/// `cmd_vel_smoothed`, ...), the one named `cmd_vel` is what the base
+/// receives; of several pose topics that need no `--frame`, each is
+/// offered, the better poses first, each said for what it is.
 fn the_choices(
     path: &Path,
     command_topics: &[String],
     pose_topics: &[String],
     topics: &[shoal_bags::Topic],
 ) -> String {
-    let needs_frame = |name: &String| {
+    let type_of = |name: &String| {
         topics
             .iter()
-            .any(|t| &t.name == name && shoal_bags::ros::holds_named_poses(&t.message_type))
+            .find(|t| &t.name == name)
+            .map_or("", |t| t.message_type.as_str())
     };
-    let poses: Vec<&String> = pose_topics.iter().filter(|t| !needs_frame(t)).collect();
-    let namespace = |topic: &str| topic.rsplit_once('/').map_or("", |(ns, _)| ns).to_owned();
-    let pairs: Vec<(&String, &String)> = match (command_topics, poses.as_slice()) {
-        ([commands], [poses]) => vec![(commands, *poses)],
-        _ => command_topics
-            .iter()
-            .filter_map(|commands| {
-                let ns = namespace(commands);
-                let alone = command_topics.iter().filter(|c| namespace(c) == ns).count() == 1;
-                let mut same: Vec<&&String> = poses.iter().filter(|p| namespace(p) == ns).collect();
-                match (alone, same.pop(), same.is_empty()) {
-                    (true, Some(poses), true) => Some((commands, *poses)),
-                    _ => None,
-                }
-            })
-            .collect(),
-    };
-    let lines: Vec<String> = pairs
+    let poses: Vec<&String> = pose_topics
         .iter()
-        .map(|(commands, poses)| {
-            format!(
-                "  shoal diagnose {} --commands-topic {commands} --poses-topic {poses}",
-                path.display()
-            )
-        })
+        .filter(|t| !shoal_bags::ros::holds_named_poses(type_of(t)))
         .collect();
-    match lines.len() {
-        0 => String::new(),
-        1 => format!("; this bag's are:\n{}", lines[0]),
+    let namespace = |topic: &str| topic.rsplit_once('/').map_or("", |(ns, _)| ns).to_owned();
+    let last = |topic: &str| topic.rsplit('/').next().unwrap_or(topic).to_owned();
+    // One bag-wide pairing where the bag holds one robot's topics; else
+    // each namespace's own.
+    let one_robot = command_topics.len() == 1
+        || command_topics
+            .iter()
+            .all(|c| namespace(c) == namespace(&command_topics[0]));
+    let mut namespaces: Vec<String> = command_topics.iter().map(|c| namespace(c)).collect();
+    namespaces.sort();
+    namespaces.dedup();
+    let mut lines = Vec::new();
+    let mut robots = 0;
+    for ns in namespaces {
+        let commands: Vec<&String> = command_topics
+            .iter()
+            .filter(|c| namespace(c) == ns)
+            .collect();
+        let Some(commands) = (match commands.as_slice() {
+            [one] => Some(*one),
+            several => several.iter().copied().find(|c| last(c) == "cmd_vel"),
+        }) else {
+            continue;
+        };
+        let mut candidates: Vec<&String> = poses
+            .iter()
+            .copied()
+            .filter(|p| one_robot || namespace(p) == ns)
+            .collect();
+        if candidates.is_empty() {
+            continue;
+        }
+        candidates.sort_by_key(|p| pose_source(p, type_of(p)).0);
+        robots += 1;
+        let said = candidates.len() > 1;
+        for poses in candidates {
+            let what = pose_source(poses, type_of(poses)).1;
+            let note = if said && !what.is_empty() {
+                format!("    # {what}")
+            } else {
+                String::new()
+            };
+            lines.push(format!(
+                "  shoal diagnose {} --commands-topic {commands} --poses-topic {poses}{note}",
+                path.display()
+            ));
+        }
+    }
+    match (robots, lines.len()) {
+        (0, _) => String::new(),
+        (1, 1) => format!("; this bag's are:\n{}", lines[0]),
+        (1, _) => format!(
+            "; this bag's robot, with each of its pose topics (the better poses first):\n{}",
+            lines.join("\n")
+        ),
         _ => format!("; its robots, one at a time:\n{}", lines.join("\n")),
     }
 }
@@ -522,12 +594,31 @@ mod tests {
         assert!(swarm.contains("--commands-topic /robot1/cmd_vel --poses-topic /robot1/odom"));
         assert!(swarm.contains("--commands-topic /robot2/cmd_vel --poses-topic /robot2/odom"));
         assert!(!swarm.contains("/robot3"), "{swarm}");
-        // Two pose topics beside one command topic: the user chooses.
+        // Two pose topics beside one command topic: both offered, the
+        // ground truth first, each said for what it is.
         let two = choices(&[
             topic("/cmd_vel", twist),
             topic("/odom", odometry),
             topic("/ground_truth", odometry),
         ]);
-        assert_eq!(two, "");
+        let truth = two.find("--poses-topic /ground_truth    # ground truth");
+        let odom = two.find("--poses-topic /odom    # wheel odometry");
+        assert!(truth.is_some() && odom.is_some() && truth < odom, "{two}");
+        // A navigation stack's chain of velocity topics: the base's is /cmd_vel.
+        let nav2 = choices(&[
+            topic("/cmd_vel_nav", twist),
+            topic("/cmd_vel_smoothed", twist),
+            topic("/cmd_vel", twist),
+            topic("/amcl_pose", "geometry_msgs/msg/PoseWithCovarianceStamped"),
+            topic("/odom", odometry),
+            topic("/tf", tf),
+        ]);
+        assert!(
+            nav2.contains("--commands-topic /cmd_vel --poses-topic /amcl_pose    # a localisation")
+                && nav2
+                    .contains("--commands-topic /cmd_vel --poses-topic /odom    # wheel odometry")
+                && !nav2.contains("cmd_vel_nav --poses"),
+            "{nav2}"
+        );
     }
 }
