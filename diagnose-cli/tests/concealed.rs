@@ -532,6 +532,17 @@ fn a_ros2_bag_is_diagnosed_from_pose_tf_and_odometry_topics() {
         // composed through map -> odom, odom -> base_footprint and
         // /tf_static's base_footprint -> base_link.
         ("tf_chain", &base_link_from("map")[..]),
+        // A navigation stack's bag: the planner's and the base's commands,
+        // motion capture beside the odometry.
+        (
+            "nav2",
+            &[
+                "--commands-topic",
+                "/cmd_vel",
+                "--poses-topic",
+                "/mocap/pose",
+            ][..],
+        ),
     ] {
         let bag = write_bag(&dir, poses_as);
         let d = diagnosed_bag(&bag, topics, poses_as);
@@ -568,6 +579,22 @@ fn a_ros2_bag_is_diagnosed_from_pose_tf_and_odometry_topics() {
             "{poses_as}: {a} from CSV vs {b} from the bag"
         );
     }
+    // Without topics, the navigation stack's bag offers the base's commands
+    // with each pose topic, the motion capture first, each said.
+    let output = diagnose_bag(&dir.join("nav2.mcap"), &[]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success());
+    let mocap =
+        stderr.find("--commands-topic /cmd_vel --poses-topic /mocap/pose    # ground truth");
+    let odom = stderr.find("--commands-topic /cmd_vel --poses-topic /odom    # wheel odometry");
+    assert!(
+        mocap.is_some() && odom.is_some() && mocap < odom,
+        "{stderr}"
+    );
+    assert!(
+        !stderr.contains("--commands-topic /cmd_vel_nav"),
+        "{stderr}"
+    );
     // Without topics, the bag's topics and their types are listed.
     let output = diagnose_bag(&dir.join("tf.mcap"), &[]);
     let stderr = String::from_utf8_lossy(&output.stderr);

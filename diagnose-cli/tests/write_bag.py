@@ -1,7 +1,7 @@
 """Writes a run (commands.csv, poses.csv) as a ROS 2 bag with the official
 Python writer (mcap-ros2-support, which encodes CDR as ROS 2 does).
 
-Usage: write_bag.py RUN_DIR OUT.mcap {pose,tf,tf_chain,amcl,odometry}
+Usage: write_bag.py RUN_DIR OUT.mcap {pose,tf,tf_chain,amcl,odometry,nav2}
 
 Commands go to /cmd_vel as geometry_msgs/msg/Twist (no header: the bag's
 log times). Poses go, by the last argument, to /mocap/pose as
@@ -22,6 +22,9 @@ estimate. Times start at 1.7e9 s, as a wall clock would.
 With odometry, the schemas are registered by their ROS 1 spelling
 (`nav_msgs/Odometry`, `geometry_msgs/Twist`), as mcap-ros2-support's own
 README does: the same layouts, named as many writers outside ROS name them.
+With nav2, the bag holds what a navigation stack's robot with motion
+capture records: the commands on /cmd_vel_nav (the planner's) and /cmd_vel
+(the base's, here the same), the poses on /mocap/pose and /odom.
 """
 
 import csv
@@ -164,6 +167,7 @@ def main(run: str, out: str, poses_as: str) -> None:
     with open(out, "wb") as f:
         writer = Writer(f)
         short = poses_as == "odometry"
+        nav2 = poses_as == "nav2"
         twist = writer.register_msgdef("geometry_msgs/Twist" if short else "geometry_msgs/msg/Twist", TWIST_DEF)
         # Messages are written in time order, as a recorder would.
         messages = []
@@ -173,7 +177,11 @@ def main(run: str, out: str, poses_as: str) -> None:
                 "angular": {"x": 0.0, "y": 0.0, "z": r["omega"]},
             }
             messages.append((r["t"], "/cmd_vel", twist, message))
-        if poses_as == "pose":
+            if nav2:
+                messages.append((r["t"], "/cmd_vel_nav", twist, message))
+        if nav2:
+            odometry_schema = writer.register_msgdef("nav_msgs/msg/Odometry", ODOMETRY_DEF)
+        if poses_as in ("pose", "nav2"):
             schema = writer.register_msgdef("geometry_msgs/msg/PoseStamped", POSE_STAMPED_DEF)
             topic = "/mocap/pose"
         elif poses_as in ("tf", "tf_chain", "amcl"):
@@ -204,8 +212,20 @@ def main(run: str, out: str, poses_as: str) -> None:
                 messages.append((r["t"], topic, schema, message))
                 continue
             header = {"stamp": stamp(r["t"]), "frame_id": "odom"}
-            if poses_as == "pose":
+            zero = [0.0] * 36
+            odometry_message = {
+                "header": header,
+                "child_frame_id": "base_link",
+                "pose": {"pose": {"position": position, "orientation": quaternion(r["theta"])}, "covariance": zero},
+                "twist": {
+                    "twist": {"linear": {"x": 0.0, "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": 0.0}},
+                    "covariance": zero,
+                },
+            }
+            if poses_as in ("pose", "nav2"):
                 message = {"header": header, "pose": {"position": position, "orientation": quaternion(r["theta"])}}
+                if nav2:
+                    messages.append((r["t"], "/odom", odometry_schema, odometry_message))
             elif poses_as == "tf":
                 robot = {
                     "header": header,
@@ -219,16 +239,7 @@ def main(run: str, out: str, poses_as: str) -> None:
                 }
                 message = {"transforms": [camera, robot]}
             else:
-                zero = [0.0] * 36
-                message = {
-                    "header": header,
-                    "child_frame_id": "base_link",
-                    "pose": {"pose": {"position": position, "orientation": quaternion(r["theta"])}, "covariance": zero},
-                    "twist": {
-                        "twist": {"linear": {"x": 0.0, "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": 0.0}},
-                        "covariance": zero,
-                    },
-                }
+                message = odometry_message
             messages.append((r["t"], topic, schema, message))
         messages.sort(key=lambda m: m[0])
         for t, topic, schema, message in messages:
