@@ -316,15 +316,12 @@ fn the_choices(
         .collect();
     let namespace = |topic: &str| topic.rsplit_once('/').map_or("", |(ns, _)| ns).to_owned();
     let last = |topic: &str| topic.rsplit('/').next().unwrap_or(topic).to_owned();
-    // One bag-wide pairing where the bag holds one robot's topics; else
-    // each namespace's own.
-    let one_robot = command_topics.len() == 1
-        || command_topics
-            .iter()
-            .all(|c| namespace(c) == namespace(&command_topics[0]));
     let mut namespaces: Vec<String> = command_topics.iter().map(|c| namespace(c)).collect();
     namespaces.sort();
     namespaces.dedup();
+    // One bag-wide pairing where the bag's commands are one robot's; else
+    // each namespace's own.
+    let one_robot = namespaces.len() == 1;
     let mut lines = Vec::new();
     let mut robots = 0;
     for ns in namespaces {

@@ -106,7 +106,12 @@ fn effect_noun(kind: &str) -> String {
 /// Whether a difference was located in the motion (along, across or
 /// heading), not only in the size of the noise.
 fn motion_differs(d: &Diagnosis) -> bool {
-    d.located.iter().any(|l| l.component != "spread")
+    d.located.iter().any(in_motion)
+}
+
+/// A difference located in the motion, not only in the residuals' spread.
+fn in_motion(l: &Located) -> bool {
+    l.component != "spread"
 }
 
 /// The report's first line, and the JSON's `summary`: what the diagnosis
@@ -188,7 +193,6 @@ pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
     let mut line = |text: String| {
         let _ = writeln!(out, "{text}");
     };
-    let in_motion = |l: &&Located| l.component != "spread";
     let motion_differs = motion_differs(d);
     line(headline(d));
     let pose_chain = notes
@@ -248,19 +252,18 @@ pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
     // A difference in the residuals' spread is about the noise, not the
     // motion: said as such, apart from the differences in the motion.
     let (motion, noise): (Vec<&Located>, Vec<&Located>) =
-        d.located.iter().take(8).partition(in_motion);
+        d.located.iter().take(8).partition(|l| in_motion(l));
     for l in motion {
         line(format!("  differs by {}", located_text(l)));
     }
     // Said before the effects only where nothing else is: beside effects,
     // the noise's size is the least of what a reader came for.
-    let noise_lines = |line: &mut dyn FnMut(String)| {
-        for l in &noise {
-            line(format!("  by {}", located_text(l)));
-        }
-    };
+    let noise_lines: Vec<String> = noise
+        .iter()
+        .map(|l| format!("  by {}", located_text(l)))
+        .collect();
     if nothing_more {
-        noise_lines(&mut line);
+        noise_lines.iter().cloned().for_each(&mut line);
     }
     if motion_differs && d.effects.is_empty() {
         line("The mismatch is significant but no effect of the library explains it.".into());
@@ -276,7 +279,7 @@ pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
     }
     if !nothing_more && !noise.is_empty() {
         line("Where the size of the noise differs (not the motion):".into());
-        noise_lines(&mut line);
+        noise_lines.into_iter().for_each(&mut line);
     }
     line(format!(
         "Held-out position error {:.1} mm -> {:.1} mm, heading {:.2} -> {:.2} deg, NLL {:.2} -> {:.2} per segment.",
