@@ -91,6 +91,10 @@ pub struct Diagnosis {
     pub operating_point: OperatingPoint,
     /// Observed poses set aside as gross outliers (see `Poses::without_outliers`).
     pub pose_outliers: usize,
+    /// Where the poses held positions only: how their headings were taken
+    /// from the track.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub heading_from_track: Option<crate::track::TrackHeadings>,
     /// What was set aside as not the body's own motion before anything was fitted:
     /// jumps and returns, jumps without a return, pose gaps, command stalls.
     pub glitches: Vec<crate::glitches::Glitch>,
@@ -711,6 +715,7 @@ pub fn diagnose(recording: &Recording, given: &UnicycleModel, options: &Options)
         operating_point,
         pose_outliers: prepared.pose_outliers,
         glitches: prepared.glitches.clone(),
+        heading_from_track: prepared.heading_from_track.clone(),
         rejected_heldout,
         not_transferring,
         not_feedback_free,

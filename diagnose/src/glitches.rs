@@ -231,9 +231,11 @@ impl Bounds {
     fn reachable(&self, from: (f64, f64, f64, f64), to: (f64, f64, f64, f64)) -> bool {
         let dt = (to.0 - from.0).abs();
         let moved = (to.1 - from.1).hypot(to.2 - from.2);
+        // Poses of positions only (headings not yet taken from the track)
+        // are judged by where they are.
         let turned = (to.3 - from.3).abs();
         moved <= self.speed * dt + self.position_tolerance
-            && turned <= self.turn_rate * dt + self.heading_tolerance
+            && (turned.is_nan() || turned <= self.turn_rate * dt + self.heading_tolerance)
     }
 }
 

@@ -763,7 +763,8 @@ pub fn commands_csv(text: &str, file: &str) -> Result<Read<Commands>, InputError
 /// (a PoseStamped's or an Odometry's flattened fields) holds its heading as
 /// a quaternion: without a heading column, the yaw of the columns
 /// `orientation.x,orientation.y,orientation.z,orientation.w` (or their
-/// aliases) is read.
+/// aliases) is read. With neither, the file holds positions only (`t,x,y`),
+/// and each heading is left NaN, for `track::headed` to take from the track.
 pub fn poses_csv(text: &str, file: &str) -> Result<Read<Poses>, InputError> {
     let columns = POSE_COLUMNS;
     let quaternion = [
@@ -775,10 +776,32 @@ pub fn poses_csv(text: &str, file: &str) -> Result<Read<Poses>, InputError> {
         "orientation.z",
         "orientation.w",
     ];
-    let names_quaternion = csv_header(text).is_some_and(|header| {
-        column_position(&header, "theta").is_err()
-            && column_position(&header, "orientation.z").is_ok()
-    });
+    let header = csv_header(text);
+    let lacks = |column: &str| {
+        header
+            .as_ref()
+            .is_some_and(|header| column_source(header, column).is_err())
+    };
+    let names_quaternion = lacks("theta") && !lacks("orientation.z");
+    if lacks("theta") && lacks("orientation.z") && !lacks("x") && !lacks("y") {
+        // Positions only (a GPS, a tracked marker): each heading is taken
+        // from the track once the run is cleaned (`track::headed`).
+        return read_rows(
+            text,
+            file,
+            Layout::Csv {
+                columns: &POSE_COLUMNS[..3],
+            },
+            Empty::Dropout,
+        )?
+        .read(file, |rows| {
+            poses_from(
+                rows.into_iter()
+                    .map(|(line, row)| (line, vec![row[0], row[1], row[2], f64::NAN]))
+                    .collect(),
+            )
+        });
+    }
     if !names_quaternion {
         return read_rows(
             text,
@@ -1143,6 +1166,24 @@ mod tests {
         )
         .expect("a quoted name");
         assert_eq!(read.data.v, vec![1.0, 1.0]);
+    }
+
+    #[test]
+    fn a_file_of_positions_only_leaves_each_heading_for_the_track() {
+        // A GPS or a one-marker tracker, exported by name and unit.
+        let read = poses_csv("time,x [mm],y [mm]\n0,1000,0\n0.1,1010,0\n", "gps.csv")
+            .expect("positions only");
+        assert_eq!(read.data.x, vec![1.0, 1.01]);
+        assert!(read.data.theta.iter().all(|theta| theta.is_nan()));
+        // A heading column in degrees is a heading, not a file without one.
+        let read = poses_csv("t,x,y,yaw_deg\n0,0,0,90\n1,1,0,90\n", "p.csv").expect("degrees");
+        assert!((read.data.theta[0] - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+        // Without positions it is still refused by name.
+        let refused = poses_csv("t,x\n0,1\n1,2\n", "p.csv").expect_err("no y");
+        assert!(
+            refused.to_string().contains("missing column `y`"),
+            "{refused}"
+        );
     }
 
     #[test]

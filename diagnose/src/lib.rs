@@ -19,6 +19,7 @@ pub mod replay;
 pub mod segments;
 pub mod selection;
 pub mod timeout;
+pub mod track;
 pub mod zones;
 
 pub use diagnosis::{Diagnosis, Options, diagnose};

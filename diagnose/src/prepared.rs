@@ -91,6 +91,9 @@ pub struct Prepared {
     pub pose_outliers: usize,
     /// Stretches set aside as not the body's own motion (`glitches::set_aside`).
     pub glitches: Vec<crate::glitches::Glitch>,
+    /// Where the poses held positions only: how their headings were taken
+    /// from the track (`track::headed`).
+    pub heading_from_track: Option<crate::track::TrackHeadings>,
     /// The held-out blocks, as ranges of `segments`: one per recording
     /// joined, or `Options::folds` equal stretches of time.
     pub blocks: Vec<std::ops::Range<usize>>,
@@ -101,8 +104,10 @@ pub struct Prepared {
 
 /// The run as diagnosis compares it: what not the body's own motion explains set
 /// aside (`glitches::set_aside`), then gross pose outliers (see
-/// `Poses::without_outliers`), commands on a grid, segments started at the
-/// observed poses.
+/// `Poses::without_outliers`), headings taken from the track where the
+/// poses hold none (`track::headed`: after the cleaning, so that no jump
+/// bends a heading), commands on a grid, segments started at the observed
+/// poses.
 pub fn prepare(recording: &Recording, options: &Options) -> Prepared {
     prepare_cut(recording, options, |recording, grid| {
         segments(recording, grid, options.horizon_s)
@@ -118,6 +123,10 @@ pub fn prepare_cut(
 ) -> Prepared {
     let (recording, glitches) = crate::glitches::set_aside(recording);
     let (recording, pose_outliers) = recording.without_pose_outliers();
+    let (recording, heading_from_track) = match crate::track::headed(&recording) {
+        Some((headed, how)) => (headed, Some(how)),
+        None => (recording, None),
+    };
     let grid = command_grid(&recording, options.grid_dt);
     let segments = cut(&recording, &grid);
     let blocks = blocks(&segments, &recording.joins, options.folds);
@@ -128,6 +137,7 @@ pub fn prepare_cut(
         segments,
         pose_outliers,
         glitches,
+        heading_from_track,
         blocks,
         pose_period_s: intervals.get(intervals.len() / 2).copied().unwrap_or(0.0),
     }

@@ -192,6 +192,10 @@ fn pause(recording: &Recording, k: usize) -> Option<Pause> {
     } else {
         (to.theta - from.theta).abs() / (omega * late)
     };
+    // A turn in place among poses of positions only says nothing.
+    if share.is_nan() {
+        return None;
+    }
     if share > HELD_SHARE {
         return Some(Pause::Held);
     }

@@ -1,0 +1,386 @@
+//! The heading of poses that carry none: a GPS, a tracker that follows one
+//! marker, a file of positions. A wheeled robot drives where it points, so
+//! where it moves fast enough for its direction to be known, the heading is
+//! the direction of its track (turned half round where it was commanded to
+//! drive backwards). Where it stands or turns on the spot its heading is
+//! unknown, and the pose is left out, as a dropout is.
+
+use serde::Serialize;
+use statrs::distribution::{ChiSquared, ContinuousCDF};
+
+use crate::recording::{Poses, Recording};
+
+/// How well a heading taken from the track must be known (its standard
+/// error, radians): about a degree, what a motion-capture rig's own heading
+/// is good to. A looser bar keeps slower poses, whose headings' noise would
+/// be fitted as the robot's.
+pub const HEADING_STANDARD_ERROR_RAD: f64 = 0.02;
+
+/// The shortest window's half-width, in the poses' usual intervals: the
+/// fewest poses (five or six) a quadratic's slope and its residuals'
+/// spread can be taken from.
+const SHORTEST_HALF_WINDOW_INTERVALS: f64 = 2.5;
+
+/// The longest half-width a slow pose's window may grow to (seconds, or the
+/// shortest window where poses come slower): a window of a segment's
+/// length, beyond which the heading is an average over turns.
+const LONGEST_HALF_WINDOW_S: f64 = 0.5;
+
+/// The least position noise assumed (metres): a track without noise (a
+/// simulator's) still bends within a window, which no noise would excuse.
+const NOISE_FLOOR_M: f64 = 1e-4;
+
+/// How surely a window's quadratic must explain its positions: its
+/// residuals may exceed the noise as often as chance would at this level.
+/// Where the robot stops short or starts at once (a kink), the quadratic
+/// smooths over it, and the direction it gives is not where the body
+/// points.
+const QUADRATIC_FITS_LEVEL: f64 = 0.99;
+
+/// What taking headings from the track did.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct TrackHeadings {
+    /// Poses without a heading.
+    pub poses: usize,
+    /// Of them, those whose track gave one.
+    pub headed: usize,
+    /// Of those, the ones turned half round: commanded backwards.
+    pub reversed: usize,
+    /// The windows' half-widths, shortest and longest used, seconds.
+    pub half_window_s: [f64; 2],
+    /// The positions' noise, as the shortest windows' residuals show it, metres.
+    pub position_noise_m: f64,
+}
+
+impl TrackHeadings {
+    /// In words, for the report.
+    pub fn sentence(&self) -> String {
+        format!(
+            "the poses hold positions only; each heading is the direction of the track (a quadratic fitted over ±{:.2}-{:.2} s), kept where it is known within {:.0} mrad: {} of {} poses ({} of them driving backwards). The {} others (standing, turning on the spot, too slow for the {:.1} mm of position noise) are left out as dropouts. A crab angle or a tracked point off the axle turns the track away from where the body points, and is not seen",
+            self.half_window_s[0],
+            self.half_window_s[1],
+            HEADING_STANDARD_ERROR_RAD * 1e3,
+            self.headed,
+            self.poses,
+            self.reversed,
+            self.poses - self.headed,
+            self.position_noise_m * 1e3,
+        )
+    }
+}
+
+/// `recording` with the headings it lacks (NaN) taken from its track, and
+/// what was done; `None` where every pose has its heading.
+pub fn headed(recording: &Recording) -> Option<(Recording, TrackHeadings)> {
+    let poses = &recording.poses;
+    let missing: Vec<usize> = (0..poses.len())
+        .filter(|&i| poses.theta[i].is_nan())
+        .collect();
+    if missing.is_empty() {
+        return None;
+    }
+    let windows = Windows::of(poses);
+    let mut kept = Poses::default();
+    let (mut headed, mut reversed) = (0, 0);
+    let mut used = [f64::INFINITY, 0.0_f64];
+    for i in 0..poses.len() {
+        let theta = if poses.theta[i].is_nan() {
+            let Some((heading, half)) = heading_at(poses, i, &windows) else {
+                continue;
+            };
+            let heading = match driven_way(recording, poses.t[i], windows.longest()) {
+                Some(Way::Forwards) => heading,
+                Some(Way::Backwards) => {
+                    reversed += 1;
+                    heading + std::f64::consts::PI
+                }
+                None => continue,
+            };
+            used = [used[0].min(half), used[1].max(half)];
+            headed += 1;
+            heading
+        } else {
+            poses.theta[i]
+        };
+        kept.push(poses.t[i], poses.x[i], poses.y[i], theta);
+    }
+    if headed == 0 {
+        used = [windows.halves[0], windows.longest()];
+    }
+    Some((
+        Recording {
+            poses: kept,
+            ..recording.clone()
+        },
+        TrackHeadings {
+            poses: missing.len(),
+            headed,
+            reversed,
+            half_window_s: used,
+            position_noise_m: windows.noise_variances[0].sqrt(),
+        },
+    ))
+}
+
+enum Way {
+    Forwards,
+    Backwards,
+}
+
+/// Which way the commands of the `within` seconds up to `t` drove: one
+/// way, or none where they drove both (the robot reversing, or still
+/// moving the way it was told before a delay) or none at all.
+fn driven_way(recording: &Recording, t: f64, within: f64) -> Option<Way> {
+    let c = &recording.commands;
+    let (from, to) = (
+        c.t.partition_point(|&s| s <= t - within),
+        c.t.partition_point(|&s| s <= t),
+    );
+    // The command held at the window's start, and those given in it.
+    let held = &c.v[from.saturating_sub(1)..to];
+    let forwards = held.iter().any(|&v| v > 0.0);
+    let backwards = held.iter().any(|&v| v < 0.0);
+    match (forwards, backwards) {
+        (true, false) => Some(Way::Forwards),
+        (false, true) => Some(Way::Backwards),
+        _ => None,
+    }
+}
+
+/// The windows a heading may be taken over: half-widths from the shortest,
+/// doubling up to the longest, and the residuals' variance usual at each.
+struct Windows {
+    halves: Vec<f64>,
+    /// At each half-width, the median of the quadratics' residual
+    /// variances: the noise as windows of that width see it. A tracker's
+    /// noise is seldom white (a rig's jitter wanders over tenths of a
+    /// second), so a window is judged against windows of its own width.
+    noise_variances: Vec<f64>,
+}
+
+impl Windows {
+    fn of(poses: &Poses) -> Self {
+        let shortest = SHORTEST_HALF_WINDOW_INTERVALS * poses.usual_interval();
+        let longest = LONGEST_HALF_WINDOW_S.max(shortest);
+        let mut halves = vec![shortest];
+        while halves[halves.len() - 1] < longest {
+            halves.push((2.0 * halves[halves.len() - 1]).min(longest));
+        }
+        let noise_variances = halves
+            .iter()
+            .map(|&half| {
+                let mut variances: Vec<f64> = (0..poses.len())
+                    .filter_map(|i| slope_at(poses, i, half))
+                    .map(|fit| fit.residual_variance)
+                    .collect();
+                variances.sort_by(f64::total_cmp);
+                variances
+                    .get(variances.len() / 2)
+                    .copied()
+                    .unwrap_or(0.0)
+                    .max(NOISE_FLOOR_M.powi(2))
+            })
+            .collect();
+        Self {
+            halves,
+            noise_variances,
+        }
+    }
+
+    fn longest(&self) -> f64 {
+        self.halves[self.halves.len() - 1]
+    }
+}
+
+/// Pose `i`'s direction of travel and the half-width it was taken over:
+/// from the shortest window up until the direction is known within
+/// [`HEADING_STANDARD_ERROR_RAD`]; `None` if it never is, or if the first
+/// window that knows it holds a kink.
+fn heading_at(poses: &Poses, i: usize, windows: &Windows) -> Option<(f64, f64)> {
+    for (&half, &noise_variance) in windows.halves.iter().zip(&windows.noise_variances) {
+        let Some(fit) = slope_at(poses, i, half) else {
+            continue;
+        };
+        let speed = fit.velocity[0].hypot(fit.velocity[1]);
+        let standard_error = (noise_variance * fit.slope_variance_factor).sqrt() / speed;
+        if speed > 0.0 && standard_error <= HEADING_STANDARD_ERROR_RAD {
+            // A longer window will not mend a kink this one holds.
+            return fit
+                .explained(noise_variance)
+                .then(|| (fit.velocity[1].atan2(fit.velocity[0]), half));
+        }
+    }
+    None
+}
+
+/// A quadratic in time fitted to the positions within `half` seconds of
+/// pose `i`, on each axis.
+struct Slope {
+    /// Its slope at pose `i`'s time: the velocity, m/s.
+    velocity: [f64; 2],
+    /// The slope's variance per unit of the positions' noise variance.
+    slope_variance_factor: f64,
+    /// The residuals' variance over both axes (the positions' noise, where
+    /// the motion is a quadratic over the window).
+    residual_variance: f64,
+    /// Its degrees of freedom: two axes of poses less three coefficients.
+    degrees_of_freedom: f64,
+}
+
+impl Slope {
+    /// Whether the quadratic explains the window's positions: its residuals
+    /// no larger than noise of `noise_variance` leaves by chance.
+    fn explained(&self, noise_variance: f64) -> bool {
+        let bound = ChiSquared::new(self.degrees_of_freedom)
+            .map(|chi| chi.inverse_cdf(QUADRATIC_FITS_LEVEL))
+            .unwrap_or(f64::INFINITY);
+        self.residual_variance * self.degrees_of_freedom / noise_variance <= bound
+    }
+}
+
+/// The quadratic fit around pose `i`; `None` with fewer than five poses in
+/// the window or where their times cannot fix a quadratic.
+fn slope_at(poses: &Poses, i: usize, half: f64) -> Option<Slope> {
+    let t0 = poses.t[i];
+    let from = poses.t.partition_point(|&t| t < t0 - half);
+    let to = poses.t.partition_point(|&t| t <= t0 + half);
+    let n = to - from;
+    if n < 5 {
+        return None;
+    }
+    // Normal equations in tau = t - t0 (scaled by `half`, so that they are
+    // well conditioned at any window): sums of tau^k.
+    let mut s = [0.0; 5];
+    let mut sx = [0.0; 3];
+    let mut sy = [0.0; 3];
+    for j in from..to {
+        let tau = (poses.t[j] - t0) / half;
+        let (x, y) = (poses.x[j] - poses.x[i], poses.y[j] - poses.y[i]);
+        let mut power = 1.0;
+        for (k, sk) in s.iter_mut().enumerate() {
+            *sk += power;
+            if k < 3 {
+                sx[k] += power * x;
+                sy[k] += power * y;
+            }
+            power *= tau;
+        }
+    }
+    let normal = glam::DMat3::from_cols_array(&[
+        s[0], s[1], s[2], //
+        s[1], s[2], s[3], //
+        s[2], s[3], s[4],
+    ]);
+    if normal.determinant().abs() < 1e-9 * s[0].powi(3) {
+        return None;
+    }
+    let inverse = normal.inverse();
+    let cx = inverse * glam::DVec3::from_array(sx);
+    let cy = inverse * glam::DVec3::from_array(sy);
+    let mut squares = 0.0;
+    for j in from..to {
+        let tau = (poses.t[j] - t0) / half;
+        let (x, y) = (poses.x[j] - poses.x[i], poses.y[j] - poses.y[i]);
+        let at = |c: glam::DVec3| c.x + c.y * tau + c.z * tau * tau;
+        squares += (x - at(cx)).powi(2) + (y - at(cy)).powi(2);
+    }
+    Some(Slope {
+        velocity: [cx.y / half, cy.y / half],
+        slope_variance_factor: inverse.y_axis.y / (half * half),
+        residual_variance: squares / (2 * (n - 3)) as f64,
+        degrees_of_freedom: (2 * (n - 3)) as f64,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::recording::Commands;
+
+    /// A robot driving a circle of radius 1 m at 0.2 m/s for 10 s, backwards
+    /// for the next 5 s, then turning on the spot for 5 s, observed at 100
+    /// Hz with `noise` metres of noise on each axis (a fixed pattern).
+    fn positions_only(noise: f64) -> (Recording, Vec<f64>) {
+        let mut commands = Commands::default();
+        commands.hold(0.0, 0.2, 0.2);
+        commands.hold(10.0, -0.2, 0.0);
+        commands.hold(15.0, 0.0, 0.5);
+        let mut poses = Poses::default();
+        let mut truth = Vec::new();
+        let (mut x, mut y, mut theta) = (0.0, 0.0, 0.3_f64);
+        let dt = 0.01;
+        for k in 0..2000 {
+            let t = k as f64 * dt;
+            let wobble = noise * ((k * 7919 % 101) as f64 / 50.0 - 1.0);
+            let wobble_y = noise * ((k * 104_729 % 97) as f64 / 48.0 - 1.0);
+            poses.push(t, x + wobble, y + wobble_y, f64::NAN);
+            truth.push(theta);
+            let (v, omega) = match t {
+                t if t < 10.0 => (0.2, 0.2),
+                t if t < 15.0 => (-0.2, 0.0),
+                _ => (0.0, 0.5),
+            };
+            x += v * theta.cos() * dt;
+            y += v * theta.sin() * dt;
+            theta += omega * dt;
+        }
+        (Recording::of(commands, poses), truth)
+    }
+
+    #[test]
+    fn the_heading_is_the_tracks_direction_backwards_turned_round_and_unknown_on_the_spot() {
+        let (recording, truth) = positions_only(0.001);
+        let (headed, done) = headed(&recording).expect("the poses lack headings");
+        assert_eq!(done.poses, 2000);
+        // Driving forwards and backwards (15 s less the windows' edges at
+        // the changes), none turning on the spot.
+        assert!(
+            (1400..=1500).contains(&done.headed),
+            "{} poses headed",
+            done.headed
+        );
+        assert!(
+            (400..=500).contains(&done.reversed),
+            "{} reversed",
+            done.reversed
+        );
+        assert!(headed.poses.t.iter().all(|&t| t < 15.2));
+        assert!(
+            (0.0004..0.0015).contains(&done.position_noise_m),
+            "noise {} m",
+            done.position_noise_m
+        );
+        let mut worst = 0.0_f64;
+        for (k, &t) in headed.poses.t.iter().enumerate() {
+            let i = (t / 0.01).round() as usize;
+            let error = shoal_physics::wrap_angle(headed.poses.theta[k] - truth[i]);
+            worst = worst.max(error.abs());
+        }
+        assert!(worst < 0.1, "worst heading error {worst} rad");
+        let typical: f64 = headed
+            .poses
+            .t
+            .iter()
+            .enumerate()
+            .map(|(k, &t)| {
+                let i = (t / 0.01).round() as usize;
+                shoal_physics::wrap_angle(headed.poses.theta[k] - truth[i]).powi(2)
+            })
+            .sum::<f64>()
+            / headed.poses.len() as f64;
+        assert!(
+            typical.sqrt() < HEADING_STANDARD_ERROR_RAD,
+            "RMS {} rad",
+            typical.sqrt()
+        );
+    }
+
+    #[test]
+    fn poses_with_their_headings_are_left_as_they_are() {
+        let mut poses = Poses::default();
+        for k in 0..100 {
+            poses.push(k as f64 * 0.1, 0.01 * k as f64, 0.0, 0.0);
+        }
+        assert!(headed(&Recording::of(Commands::default(), poses)).is_none());
+    }
+}
