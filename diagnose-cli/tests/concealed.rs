@@ -351,6 +351,43 @@ fn a_real_mrclam_robot_shows_a_mismatch_that_the_fit_reduces() {
     assert!(after < 0.85 * before, "{before} -> {after}");
 }
 
+/// A real robot tracked by its position alone (a one-marker tracker, a
+/// GPS): MRCLAM robot 3's files written by pandas as `time,x_mm,y_mm`.
+/// Each heading is taken from the track and said so, and the robot's
+/// physics is what its full poses give (EXPERIMENTS.md 6b: latency 0.31 s
+/// against a lag of 0.25 s, the same turn loss and turn bias).
+#[test]
+fn a_real_robot_tracked_by_position_alone_is_diagnosed_from_its_track() {
+    let dir = scratch("mrclam-positions");
+    python(
+        "write_positions_csv.py",
+        &[mrclam_d6().as_os_str(), "3".as_ref(), dir.as_os_str()],
+    );
+    let d: Value = serde_json::from_slice(&succeed(Command::new(binary()).arg(&dir).arg("--json")))
+        .expect("json");
+    let track = &d["heading_from_track"];
+    let (headed, poses) = (
+        track["headed"].as_u64().expect("headed"),
+        track["poses"].as_u64().expect("poses"),
+    );
+    assert!(poses > 50_000 && headed > poses / 2, "{track}");
+    let named = kinds(&d);
+    assert!(
+        named.iter().any(|k| k == "latency" || k == "actuator_lag"),
+        "{d}"
+    );
+    assert!(named.iter().any(|k| k == "turn_speed_loss"), "{d}");
+    assert!(
+        !named
+            .iter()
+            .any(|k| k == "crab_angle" || k == "turn_centre_offset"),
+        "the track cannot show these: {named:?}"
+    );
+    let before = d["baseline"]["heldout_rmse_pos_m"].as_f64().expect("rmse");
+    let after = d["improved"]["heldout_rmse_pos_m"].as_f64().expect("rmse");
+    assert!(after < 0.85 * before, "{before} -> {after}");
+}
+
 /// A published dataset whose logger wrote a few rows out of time order
 /// (a message stamped before one logged ahead of it): read sorted, said in
 /// the report and the JSON, and diagnosed as the same file in order.

@@ -56,7 +56,7 @@ impl TrackHeadings {
     /// In words, for the report.
     pub fn sentence(&self) -> String {
         format!(
-            "the poses hold positions only; each heading is the direction of the track (a quadratic fitted over ±{:.2}-{:.2} s), kept where it is known within {:.0} mrad: {} of {} poses ({} of them driving backwards). The {} others (standing, turning on the spot, too slow for the {:.1} mm of position noise) are left out as dropouts. A crab angle or a tracked point off the axle turns the track away from where the body points, and is not seen",
+            "the poses hold positions only; each heading is the direction of the track (a quadratic fitted over ±{:.2}-{:.2} s), kept where it is known within {:.0} mrad: {} of {} poses ({} of them driving backwards). The {} others (standing, turning on the spot, stopping or starting at once, or too slow for the {:.1} mm of position noise) are left out as dropouts. A crab angle or a tracked point off the axle turns the track away from where the body points, and is not seen",
             self.half_window_s[0],
             self.half_window_s[1],
             HEADING_STANDARD_ERROR_RAD * 1e3,
@@ -357,6 +357,12 @@ mod tests {
             worst = worst.max(error.abs());
         }
         assert!(worst < 0.1, "worst heading error {worst} rad");
+        let said = done.sentence();
+        assert!(
+            said.starts_with("the poses hold positions only")
+                && said.contains(&format!("{} of 2000 poses", done.headed)),
+            "{said}"
+        );
         let typical: f64 = headed
             .poses
             .t
