@@ -157,7 +157,12 @@ pub fn headline(d: &Diagnosis) -> String {
     }
     if !named.is_empty() {
         let lower = if before > 0.0 {
-            format!(" ({:.0}% lower)", 100.0 * (1.0 - after / before))
+            let change = 100.0 * (1.0 - after / before);
+            if change >= 0.0 {
+                format!(" ({change:.0}% lower)")
+            } else {
+                format!(" ({:.0}% higher)", -change)
+            }
         } else {
             String::new()
         };

@@ -102,6 +102,15 @@ pub struct Prepared {
     pub pose_period_s: f64,
 }
 
+impl Prepared {
+    /// Whether this run can show an effect of `kind`: not one that only
+    /// turns where the body points from where it moves, where headings
+    /// were taken from the track.
+    pub(crate) fn can_show(&self, kind: &str) -> bool {
+        self.heading_from_track.is_none() || !crate::track::UNSEEN_FROM_THE_TRACK.contains(&kind)
+    }
+}
+
 /// The run as diagnosis compares it: what not the body's own motion explains set
 /// aside (`glitches::set_aside`), then gross pose outliers (see
 /// `Poses::without_outliers`), headings taken from the track where the

@@ -812,6 +812,7 @@ pub(crate) fn select(selection: &Selection, located: &[Located], at: OperatingPo
         selection.prepared.pose_period_s,
     )
     .into_iter()
+    .filter(|c| selection.prepared.can_show(c.effect.kind()))
     .partition(|c| !c.effect.only_noise());
     for mut remaining in [mean_candidates, noise_candidates] {
         while out.found.len() < selection.options.max_effects
@@ -1138,6 +1139,7 @@ impl Selection<'_> {
         EFFECT_KINDS
             .iter()
             .filter(|k| **k != "surface_zone" && !named.contains(k) && !tried.contains(k))
+            .filter(|k| self.prepared.can_show(k))
             .filter_map(|k| Effect::identity(k, [0.0; 4]))
             .filter(|e| !e.only_noise())
             .map(|e| whole_run(e, at.speed_m_per_s, self.prepared.pose_period_s))

@@ -26,6 +26,11 @@ const SHORTEST_HALF_WINDOW_INTERVALS: f64 = 2.5;
 /// length, beyond which the heading is an average over turns.
 const LONGEST_HALF_WINDOW_S: f64 = 0.5;
 
+/// The kinds of effect a track cannot show: each turns the direction the
+/// tracked point moves away from where the body points, and a heading taken
+/// from the track follows the point. They are not tried.
+pub const UNSEEN_FROM_THE_TRACK: [&str; 2] = ["crab_angle", "turn_centre_offset"];
+
 /// The least position noise assumed (metres): a track without noise (a
 /// simulator's) still bends within a window, which no noise would excuse.
 const NOISE_FLOOR_M: f64 = 1e-4;
@@ -50,13 +55,27 @@ pub struct TrackHeadings {
     pub half_window_s: [f64; 2],
     /// The positions' noise, as the shortest windows' residuals show it, metres.
     pub position_noise_m: f64,
+    /// How far the tracked point is from the axle, as turns on the spot
+    /// show it (metres; none where the robot never turned on the spot),
+    /// and the sharpest turn (rad per metre driven) whose headings were
+    /// kept for it.
+    pub off_axle_m: Option<f64>,
+    pub sharpest_turn_rad_per_m: Option<f64>,
 }
 
 impl TrackHeadings {
     /// In words, for the report.
     pub fn sentence(&self) -> String {
+        let off_axle = match (self.off_axle_m, self.sharpest_turn_rad_per_m) {
+            (Some(d), Some(sharpest)) => format!(
+                "; its turns on the spot put the tracked point {:.0} mm from the axle, which bends a heading by about that distance times the turn rate over the speed, so only turns gentler than {sharpest:.1} rad a metre are kept",
+                d * 1e3
+            ),
+            (Some(_), None) => "; its turns on the spot put the tracked point on the axle".to_owned(),
+            (None, _) => "; the robot never turned on the spot for long, so how far the tracked point is from the axle is unknown: if it is off it, tight turns bend these headings".to_owned(),
+        };
         format!(
-            "the poses hold positions only; each heading is the direction of the track (a quadratic fitted over ±{:.2}-{:.2} s), kept where it is known within {:.0} mrad: {} of {} poses ({} of them driving backwards). The {} others (standing, turning on the spot, stopping or starting at once, or too slow for the {:.1} mm of position noise) are left out as dropouts. A crab angle or a tracked point off the axle turns the track away from where the body points, and is not seen",
+            "the poses hold positions only; each heading is the direction of the track (a quadratic fitted over ±{:.2}-{:.2} s), kept where it is known within {:.0} mrad: {} of {} poses ({} of them driving backwards). The {} others (standing, turning on the spot or sharply, stopping or starting at once, or too slow for the {:.1} mm of position noise) are left out as dropouts{off_axle}. A crab angle or a point off the axle turns the track from where the body points, so neither is tried",
             self.half_window_s[0],
             self.half_window_s[1],
             HEADING_STANDARD_ERROR_RAD * 1e3,
@@ -80,6 +99,10 @@ pub fn headed(recording: &Recording) -> Option<(Recording, TrackHeadings)> {
         return None;
     }
     let windows = Windows::of(poses);
+    let off_axle_m = off_axle(recording, &windows);
+    // Where the point is off the axle, only turns gentle enough for it to
+    // bend the heading by no more than the heading's own error.
+    let sharpest_turn = off_axle_m.map_or(f64::INFINITY, |d| HEADING_STANDARD_ERROR_RAD / d);
     let mut kept = Poses::default();
     let (mut headed, mut reversed) = (0, 0);
     let mut used = [f64::INFINITY, 0.0_f64];
@@ -88,7 +111,8 @@ pub fn headed(recording: &Recording) -> Option<(Recording, TrackHeadings)> {
             let Some((heading, half)) = heading_at(poses, i, &windows) else {
                 continue;
             };
-            let heading = match driven_way(recording, poses.t[i], windows.longest()) {
+            let heading = match driven_way(recording, poses.t[i], windows.longest(), sharpest_turn)
+            {
                 Some(Way::Forwards) => heading,
                 Some(Way::Backwards) => {
                     reversed += 1;
@@ -118,6 +142,8 @@ pub fn headed(recording: &Recording) -> Option<(Recording, TrackHeadings)> {
             reversed,
             half_window_s: used,
             position_noise_m: windows.noise_variances[0].sqrt(),
+            off_axle_m,
+            sharpest_turn_rad_per_m: sharpest_turn.is_finite().then_some(sharpest_turn),
         },
     ))
 }
@@ -127,17 +153,90 @@ enum Way {
     Backwards,
 }
 
+/// How far the tracked point is from the axle, as turns on the spot show
+/// it: the track's speed over the turn rate (over a window of about half
+/// a second)
+/// where the commands turned the robot without driving it through that
+/// window and one before it (the median over such poses); `None` where fewer than [`FEWEST_TURNS_ON_THE_SPOT`]
+/// poses turned so.
+fn off_axle(recording: &Recording, windows: &Windows) -> Option<f64> {
+    let (c, poses) = (&recording.commands, &recording.poses);
+    // The longest window no longer than a quarter second: turns on the
+    // spot are often short.
+    let level = windows
+        .halves
+        .iter()
+        .rposition(|&h| h <= SPOT_TURN_HALF_WINDOW_S)
+        .unwrap_or(0);
+    let (half, noise_variance) = (windows.halves[level], windows.noise_variances[level]);
+    let mut distances: Vec<f64> = (0..poses.len())
+        .filter_map(|i| {
+            // Turning on the spot through the window, and for a window
+            // before it (a delay, a lag).
+            let t = poses.t[i];
+            let (from, to) = (
+                c.t.partition_point(|&s| s <= t - 2.0 * half),
+                c.t.partition_point(|&s| s <= t + half),
+            );
+            let span = from.checked_sub(1)?..to;
+            let turns = c.v[span.clone()]
+                .iter()
+                .zip(&c.omega[span])
+                .map(|(v, w)| (v.abs() < STANDING_M_PER_S).then_some(w.abs()))
+                .collect::<Option<Vec<f64>>>()?;
+            let slowest = turns.iter().copied().fold(f64::INFINITY, f64::min);
+            if slowest < TURNING_RAD_PER_S {
+                return None;
+            }
+            let fit = slope_at(poses, i, half)?;
+            // The noise's own share of the speed squared taken out.
+            let squared = fit.velocity[0].powi(2) + fit.velocity[1].powi(2)
+                - 2.0 * noise_variance * fit.slope_variance_factor;
+            Some(squared.max(0.0).sqrt() / slowest)
+        })
+        .collect();
+    if distances.len() < FEWEST_TURNS_ON_THE_SPOT {
+        return None;
+    }
+    distances.sort_by(f64::total_cmp);
+    Some(distances[distances.len() / 2])
+}
+
+/// The half-width of the windows a turn on the spot is measured over, at
+/// most (seconds).
+const SPOT_TURN_HALF_WINDOW_S: f64 = 0.25;
+
+/// A command that drives slower than this stands (m/s), and one that turns
+/// faster than this turns (rad/s), for [`off_axle`].
+const STANDING_M_PER_S: f64 = 1e-3;
+const TURNING_RAD_PER_S: f64 = 0.1;
+
+/// The fewest poses turning on the spot that say how far the tracked point
+/// is from the axle.
+const FEWEST_TURNS_ON_THE_SPOT: usize = 20;
+
 /// Which way the commands of the `within` seconds up to `t` drove: one
 /// way, or none where they drove both (the robot reversing, or still
-/// moving the way it was told before a delay) or none at all.
-fn driven_way(recording: &Recording, t: f64, within: f64) -> Option<Way> {
+/// moving the way it was told before a delay), none at all, or turned
+/// more sharply than `sharpest_turn` (rad per metre).
+fn driven_way(recording: &Recording, t: f64, within: f64, sharpest_turn: f64) -> Option<Way> {
     let c = &recording.commands;
     let (from, to) = (
         c.t.partition_point(|&s| s <= t - within),
         c.t.partition_point(|&s| s <= t),
     );
     // The command held at the window's start, and those given in it.
-    let held = &c.v[from.saturating_sub(1)..to];
+    let span = from.saturating_sub(1)..to;
+    let held = &c.v[span.clone()];
+    // A tracked point off the axle moves askew of the body by about its
+    // distance times the turn rate over the speed.
+    if c.omega[span]
+        .iter()
+        .zip(held)
+        .any(|(w, v)| w.abs() > sharpest_turn * v.abs())
+    {
+        return None;
+    }
     let forwards = held.iter().any(|&v| v > 0.0);
     let backwards = held.iter().any(|&v| v < 0.0);
     match (forwards, backwards) {
@@ -300,7 +399,7 @@ mod tests {
     /// A robot driving a circle of radius 1 m at 0.2 m/s for 10 s, backwards
     /// for the next 5 s, then turning on the spot for 5 s, observed at 100
     /// Hz with `noise` metres of noise on each axis (a fixed pattern).
-    fn positions_only(noise: f64) -> (Recording, Vec<f64>) {
+    fn positions_only(noise: f64, ahead: f64) -> (Recording, Vec<f64>) {
         let mut commands = Commands::default();
         commands.hold(0.0, 0.2, 0.2);
         commands.hold(10.0, -0.2, 0.0);
@@ -313,7 +412,13 @@ mod tests {
             let t = k as f64 * dt;
             let wobble = noise * ((k * 7919 % 101) as f64 / 50.0 - 1.0);
             let wobble_y = noise * ((k * 104_729 % 97) as f64 / 48.0 - 1.0);
-            poses.push(t, x + wobble, y + wobble_y, f64::NAN);
+            let (sin, cos) = theta.sin_cos();
+            poses.push(
+                t,
+                x + ahead * cos + wobble,
+                y + ahead * sin + wobble_y,
+                f64::NAN,
+            );
             truth.push(theta);
             let (v, omega) = match t {
                 t if t < 10.0 => (0.2, 0.2),
@@ -329,7 +434,7 @@ mod tests {
 
     #[test]
     fn the_heading_is_the_tracks_direction_backwards_turned_round_and_unknown_on_the_spot() {
-        let (recording, truth) = positions_only(0.001);
+        let (recording, truth) = positions_only(0.001, 0.0);
         let (headed, done) = headed(&recording).expect("the poses lack headings");
         assert_eq!(done.poses, 2000);
         // Driving forwards and backwards (15 s less the windows' edges at
@@ -357,6 +462,7 @@ mod tests {
             worst = worst.max(error.abs());
         }
         assert!(worst < 0.1, "worst heading error {worst} rad");
+        assert!(done.off_axle_m.is_some_and(|d| d < 0.003), "{done:?}");
         let said = done.sentence();
         assert!(
             said.starts_with("the poses hold positions only")
@@ -379,6 +485,24 @@ mod tests {
             "RMS {} rad",
             typical.sqrt()
         );
+    }
+
+    #[test]
+    fn a_point_off_the_axle_is_measured_on_the_spot_and_keeps_only_gentle_turns() {
+        // 5 cm ahead of the axle: on the circle (0.2 rad/s at 0.2 m/s, 1
+        // rad a metre) its track runs 0.05 rad askew of the body.
+        let (recording, _) = positions_only(0.001, 0.05);
+        let (_, done) = headed(&recording).expect("the poses lack headings");
+        let d = done.off_axle_m.expect("it turned on the spot");
+        assert!((0.04..0.06).contains(&d), "{d} m off the axle");
+        // Gentler than 1 rad a metre: the circle's headings are left out,
+        // the straight drive backwards kept.
+        assert!(
+            done.sharpest_turn_rad_per_m.is_some_and(|k| k < 1.0),
+            "{done:?}"
+        );
+        assert!((400..=500).contains(&done.headed), "{} headed", done.headed);
+        assert!(done.sentence().contains("from the axle"));
     }
 
     #[test]
