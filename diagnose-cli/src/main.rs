@@ -12,7 +12,9 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
 use shoal_diagnose::replay::replay;
 use shoal_diagnose::{Options, diagnose};
-use shoal_diagnose_lab::experiment::{Generator, NoiseColour, case_named, run_case, run_settings};
+use shoal_diagnose_lab::experiment::{
+    Generator, NoiseColour, Observed, case_named, run_case, run_settings,
+};
 use shoal_diagnose_lab::generate::generate;
 use shoal_physics::UnicycleModel;
 use shoal_runtime::process_main::{StdoutClosed, print_out};
@@ -398,6 +400,10 @@ struct ExperimentArgs {
     /// on one range of seeds is checked on another.
     #[arg(long, default_value_t = 1000)]
     first_seed: u64,
+    /// Observe positions only (each heading left for diagnosis to take
+    /// from the track), as a GPS or a one-marker tracker does.
+    #[arg(long)]
+    positions_only: bool,
     #[command(flatten)]
     naming: Naming,
     #[arg(long)]
@@ -425,6 +431,11 @@ fn run_experiment(args: &ExperimentArgs) -> Result<()> {
                     args.first_seed..args.first_seed + n,
                     args.duration,
                     &options,
+                    if args.positions_only {
+                        Observed::Positions
+                    } else {
+                        Observed::Poses
+                    },
                 );
                 eprintln!(
                     "{} / {} / {}: detected {:.0}%, runs naming an effect not there {:.0}%, beyond the noise {:.0}%",

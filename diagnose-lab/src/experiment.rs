@@ -689,6 +689,16 @@ pub fn diagnosed_run(
     Ok(diagnose(&run, &UnicycleModel::plain(), &Options::default()))
 }
 
+/// What of each pose the experiment's runs observe.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Observed {
+    /// Position and heading, as a motion-capture rig gives them.
+    Poses,
+    /// Positions only, as a GPS or a one-marker tracker gives them: each
+    /// heading is left for diagnosis to take from the track.
+    Positions,
+}
+
 /// Generates and diagnoses one run of `case`, and compares with the truth.
 fn run_one(
     generator: &Generator,
@@ -697,8 +707,12 @@ fn run_one(
     seed: u64,
     duration_s: f64,
     options: &Options,
+    observed: Observed,
 ) -> RunFindings {
-    let recording = case_run(generator, case, noise, seed, duration_s);
+    let mut recording = case_run(generator, case, noise, seed, duration_s);
+    if observed == Observed::Positions {
+        recording.poses.theta.fill(f64::NAN);
+    }
     let started = std::time::Instant::now();
     let diagnosis = diagnose(&recording, &UnicycleModel::plain(), options);
     let seconds = started.elapsed().as_secs_f64();
@@ -783,11 +797,12 @@ pub fn run_case(
     seeds: std::ops::Range<u64>,
     duration_s: f64,
     options: &Options,
+    observed: Observed,
 ) -> Row {
     use rayon::prelude::*;
     let per_run: Vec<RunFindings> = seeds
         .into_par_iter()
-        .map(|seed| run_one(generator, case, noise, seed, duration_s, options))
+        .map(|seed| run_one(generator, case, noise, seed, duration_s, options, observed))
         .collect();
     let runs = per_run.len();
     let count = |f: fn(&Outcome) -> bool| per_run.iter().filter(|r| f(&r.outcome)).count();
