@@ -6,7 +6,7 @@ use serde::Deserialize;
 use shoal_physics::Pose;
 
 pub const COMMAND_TYPES: [&str; 2] = ["geometry_msgs/msg/Twist", "geometry_msgs/msg/TwistStamped"];
-pub const POSE_TYPES: [&str; 9] = [
+pub const POSE_TYPES: [&str; 11] = [
     "geometry_msgs/msg/PoseStamped",
     // What motion-capture bridges (vicon_bridge) publish per body.
     "geometry_msgs/msg/TransformStamped",
@@ -19,7 +19,16 @@ pub const POSE_TYPES: [&str; 9] = [
     TF_TYPE,
     MODEL_STATES_TYPE,
     LINK_STATES_TYPE,
+    // Positions only: each heading is taken from the track in diagnosis.
+    POINT_TYPE,
+    NAV_SAT_FIX_TYPE,
 ];
+/// A tracked point (a one-marker tracker, a UWB tag): a position, no heading.
+pub const POINT_TYPE: &str = "geometry_msgs/msg/PointStamped";
+/// A GPS fix: latitude and longitude (degrees), no heading. A run's fixes
+/// are put on the floor in metres east and north of its first
+/// (`run::on_the_floor`).
+pub const NAV_SAT_FIX_TYPE: &str = "sensor_msgs/msg/NavSatFix";
 /// A pose without a header.
 pub const POSE_TYPE: &str = "geometry_msgs/msg/Pose";
 /// turtlesim's pose (`/turtle1/pose`), the robot of ROS 2's own tutorials,
@@ -183,6 +192,35 @@ pub fn decode_poses(
                 stamp: None,
                 log_time,
                 value: Pose::new(x, y, theta),
+            }])
+        }
+        POINT_TYPE => {
+            let m = decode::<msg::PointStamped>(data)?;
+            finite(&[("point.x", m.point.x), ("point.y", m.point.y)])?;
+            Ok(vec![Stamped {
+                stamp: m.header.stamp.nanoseconds(),
+                log_time,
+                value: Pose::new(m.point.x, m.point.y, f64::NAN),
+            }])
+        }
+        NAV_SAT_FIX_TYPE => {
+            let m = decode::<msg::NavSatFix>(data)?;
+            // A receiver without a fix (status -1) sends one all the same,
+            // often with NaN in it: no position, as a dropout is none.
+            if m.status.status < 0 || !(m.latitude.is_finite() && m.longitude.is_finite()) {
+                return Ok(Vec::new());
+            }
+            if m.latitude.abs() > 90.0 || m.longitude.abs() > 180.0 {
+                return Err(format!(
+                    "latitude {} and longitude {} are not degrees on the Earth",
+                    m.latitude, m.longitude
+                ));
+            }
+            // Degrees for now; `run::on_the_floor` puts them in metres.
+            Ok(vec![Stamped {
+                stamp: m.header.stamp.nanoseconds(),
+                log_time,
+                value: Pose::new(m.longitude, m.latitude, f64::NAN),
             }])
         }
         named if holds_named_poses(named) => {
@@ -470,6 +508,29 @@ pub mod msg {
     }
 
     /// `turtlesim/msg/Pose`.
+    #[derive(Deserialize, Serialize)]
+    pub struct PointStamped {
+        pub header: Header,
+        pub point: Vector3,
+    }
+
+    #[derive(Deserialize, Serialize)]
+    pub struct NavSatStatus {
+        pub status: i8,
+        pub service: u16,
+    }
+
+    #[derive(Deserialize, Serialize)]
+    pub struct NavSatFix {
+        pub header: Header,
+        pub status: NavSatStatus,
+        pub latitude: f64,
+        pub longitude: f64,
+        pub altitude: f64,
+        pub position_covariance: [f64; 9],
+        pub position_covariance_type: u8,
+    }
+
     #[derive(Deserialize, Serialize)]
     pub struct TurtlesimPose {
         pub x: f32,

@@ -61,6 +61,7 @@ pub fn read_run(
     ];
     let mut commands: Vec<Stamped<(f64, f64)>> = Vec::new();
     let mut poses: Vec<Stamped<Pose>> = Vec::new();
+    let mut without_fix = 0;
     let mut clock: Vec<(i64, i64)> = Vec::new();
     let mut seen = [0_u64; 2];
     // The poses a TF or Gazebo states topic holds, (parent, name) ->
@@ -123,10 +124,12 @@ pub fn read_run(
                     );
                 }
             } else {
-                poses.extend(
+                let decoded =
                     ros::decode_poses(&message_type, &data, log_time_ns, selection.pose_name)
-                        .map_err(at)?,
-                );
+                        .map_err(at)?;
+                // Only a GPS message without a fix holds no pose.
+                without_fix += usize::from(decoded.is_empty());
+                poses.extend(decoded);
             }
             poses_type = message_type;
         }
@@ -158,7 +161,10 @@ pub fn read_run(
     let (choice, map) = crate::clock::choose(&times(&commands), &times(&poses), &clock, preference)
         .map_err(|e| BagError::new(&bag.path, e))?;
     let commands = on_clock(commands, choice.commands, map.as_ref());
-    let poses = on_clock(poses, choice.poses, map.as_ref());
+    let mut poses = on_clock(poses, choice.poses, map.as_ref());
+    if poses_type == ros::NAV_SAT_FIX_TYPE {
+        pose_chain = Some(on_the_floor(&mut poses, without_fix));
+    }
     let origin_ns = commands.first().map_or(0, |c| c.0);
     // Division by 1e9 rounds correctly; a product with 1e-9 (itself
     // inexact) can put a time a hair past the one written.
@@ -177,6 +183,38 @@ pub fn read_run(
         unfinished: read.unfinished,
         pose_chain,
     })
+}
+
+/// GPS fixes (longitude and latitude in degrees, as `ros::decode_poses`
+/// leaves them) put on the floor: metres east and north of the first fix,
+/// on the WGS 84 ellipsoid's radii of curvature there (a plane tangent to
+/// it, good to a millimetre over a few hundred metres); said in words,
+/// with the messages `without_fix` (status -1), left out as dropouts.
+fn on_the_floor(poses: &mut [(i64, Pose)], without_fix: usize) -> String {
+    const EQUATORIAL_RADIUS_M: f64 = 6_378_137.0;
+    const ECCENTRICITY_SQUARED: f64 = 6.694_379_990_14e-3;
+    let Some(&(_, first)) = poses.first() else {
+        return String::new();
+    };
+    let (longitude, latitude) = (first.x, first.y);
+    let sin = latitude.to_radians().sin();
+    let across = 1.0 - ECCENTRICITY_SQUARED * sin * sin;
+    let east_west = EQUATORIAL_RADIUS_M / across.sqrt();
+    let north_south = EQUATORIAL_RADIUS_M * (1.0 - ECCENTRICITY_SQUARED) / across.powf(1.5);
+    for (_, pose) in poses.iter_mut() {
+        *pose = Pose::new(
+            east_west * latitude.to_radians().cos() * (pose.x - longitude).to_radians(),
+            north_south * (pose.y - latitude).to_radians(),
+            pose.theta,
+        );
+    }
+    let dropouts = match without_fix {
+        0 => String::new(),
+        n => format!("; {n} messages without a fix (status -1) left out as dropouts"),
+    };
+    format!(
+        "GPS fixes (NavSatFix) put in metres east (x) and north (y) of the first, at {latitude:.6}, {longitude:.6}{dropouts}"
+    )
 }
 
 /// A robot's poses composed through a TF tree, and how, in words.
@@ -390,4 +428,29 @@ fn on_clock<T>(
         .collect();
     timed.sort_by_key(|m| m.0);
     timed
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gps_fixes_are_put_in_metres_east_and_north_of_the_first() {
+        // A thousandth of a degree at 45 degrees north: 111.13 m of
+        // latitude (the meridian's arc there), 78.85 m of longitude.
+        let mut fixes = vec![
+            (0, Pose::new(7.0, 45.0, f64::NAN)),
+            (1, Pose::new(7.001, 45.001, f64::NAN)),
+        ];
+        let said = on_the_floor(&mut fixes, 3);
+        let (east, north) = (fixes[1].1.x, fixes[1].1.y);
+        assert!((north - 111.13).abs() < 0.01, "{north} m north");
+        assert!((east - 78.85).abs() < 0.01, "{east} m east");
+        assert_eq!((fixes[0].1.x, fixes[0].1.y), (0.0, 0.0));
+        assert!(fixes[1].1.theta.is_nan());
+        assert!(
+            said.contains("at 45.000000, 7.000000; 3 messages without a fix"),
+            "{said}"
+        );
+    }
 }

@@ -260,7 +260,14 @@ fn load_bag(path: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
 fn pose_source(name: &str, message_type: &str) -> (u8, &'static str) {
     let name = name.to_ascii_lowercase();
     let any = |words: &[&str]| words.iter().any(|w| name.contains(w));
-    if any(&[
+    if message_type == shoal_bags::ros::NAV_SAT_FIX_TYPE {
+        (
+            1,
+            "a GPS: positions only, each heading taken from the track",
+        )
+    } else if message_type == shoal_bags::ros::POINT_TYPE {
+        (1, "positions only: each heading taken from the track")
+    } else if any(&[
         "vicon",
         "mocap",
         "optitrack",

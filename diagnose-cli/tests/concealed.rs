@@ -583,6 +583,12 @@ fn a_ros2_bag_is_diagnosed_from_pose_tf_and_odometry_topics() {
                 "/mocap/pose",
             ][..],
         ),
+        // A GPS receiver's fixes: positions only, one message in 200
+        // without a fix.
+        (
+            "gps",
+            &["--commands-topic", "/cmd_vel", "--poses-topic", "/gps/fix"][..],
+        ),
     ] {
         let bag = write_bag(&dir, poses_as);
         let d = diagnosed_bag(&bag, topics, poses_as);
@@ -590,6 +596,26 @@ fn a_ros2_bag_is_diagnosed_from_pose_tf_and_odometry_topics() {
         let clock = &d["input"]["clock"];
         assert_eq!(clock["commands"], "the bag's log times", "{clock}");
         assert_eq!(clock["poses"], "header stamps", "{clock}");
+        if poses_as == "gps" {
+            let chain = clock["pose_chain"].as_str().unwrap_or_default();
+            assert!(
+                chain.contains("GPS fixes (NavSatFix) put in metres east (x) and north (y)")
+                    && chain.contains("messages without a fix (status -1) left out"),
+                "{clock}"
+            );
+            assert!(
+                d["heading_from_track"]["headed"].as_u64() > Some(10_000),
+                "{d}"
+            );
+            // A response delay, named from the track alone: a latency or a
+            // lag (the two differ little in 1 s segments).
+            let named = kinds(&d);
+            assert!(
+                named == ["latency"] || named == ["actuator_lag"],
+                "{named:?}"
+            );
+            continue;
+        }
         if poses_as == "tf_chain" {
             let chain = clock["pose_chain"].as_str().unwrap_or_default();
             assert!(

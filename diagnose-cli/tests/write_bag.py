@@ -1,7 +1,7 @@
 """Writes a run (commands.csv, poses.csv) as a ROS 2 bag with the official
 Python writer (mcap-ros2-support, which encodes CDR as ROS 2 does).
 
-Usage: write_bag.py RUN_DIR OUT.mcap {pose,tf,tf_chain,amcl,odometry,nav2}
+Usage: write_bag.py RUN_DIR OUT.mcap {pose,tf,tf_chain,amcl,odometry,nav2,gps}
 
 Commands go to /cmd_vel as geometry_msgs/msg/Twist (no header: the bag's
 log times). Poses go, by the last argument, to /mocap/pose as
@@ -25,6 +25,10 @@ README does: the same layouts, named as many writers outside ROS name them.
 With nav2, the bag holds what a navigation stack's robot with motion
 capture records: the commands on /cmd_vel_nav (the planner's) and /cmd_vel
 (the base's, here the same), the poses on /mocap/pose and /odom.
+With gps, the poses are a GPS receiver's: sensor_msgs/msg/NavSatFix on
+/gps/fix, the run's x and y as metres east and north of 43.6629 N,
+79.3957 W on the WGS 84 ellipsoid, no heading; one message in 200 has no
+fix (status -1, NaN latitude and longitude), as a receiver sends them.
 """
 
 import csv
@@ -82,6 +86,36 @@ ODOMETRY_DEF = definition(
     ("geometry_msgs/Twist", TWIST),
     ("geometry_msgs/Vector3", VECTOR3),
 )
+
+NAV_SAT_FIX_DEF = definition(
+    "std_msgs/Header header\nNavSatStatus status\nfloat64 latitude\nfloat64 longitude\nfloat64 altitude\n"
+    "float64[9] position_covariance\nuint8 position_covariance_type\n",
+    ("std_msgs/Header", HEADER),
+    ("builtin_interfaces/Time", TIME),
+    ("sensor_msgs/NavSatStatus", "int8 status\nuint16 service\n"),
+)
+
+# Where the gps mode's run lies, and the WGS 84 ellipsoid's radii there.
+ORIGIN = (43.6629, -79.3957)
+_A, _E2 = 6378137.0, 6.69437999014e-3
+_SIN = math.sin(math.radians(ORIGIN[0]))
+NORTH_M_PER_RAD = _A * (1 - _E2) / (1 - _E2 * _SIN**2) ** 1.5
+EAST_M_PER_RAD = _A / math.sqrt(1 - _E2 * _SIN**2) * math.cos(math.radians(ORIGIN[0]))
+
+
+def fix(r: dict, k: int) -> dict:
+    """The gps mode's message for pose row r, the k-th."""
+    lost = k % 200 == 199
+    return {
+        "header": {"stamp": stamp(r["t"]), "frame_id": "gps"},
+        "status": {"status": -1 if lost else 0, "service": 1},
+        "latitude": math.nan if lost else ORIGIN[0] + math.degrees(r["y"] / NORTH_M_PER_RAD),
+        "longitude": math.nan if lost else ORIGIN[1] + math.degrees(r["x"] / EAST_M_PER_RAD),
+        "altitude": 76.0,
+        "position_covariance": [0.0004, 0, 0, 0, 0.0004, 0, 0, 0, 0.0016],
+        "position_covariance_type": 2,
+    }
+
 
 EPOCH_S = 1_700_000_000
 
@@ -181,7 +215,10 @@ def main(run: str, out: str, poses_as: str) -> None:
                 messages.append((r["t"], "/cmd_vel_nav", twist, message))
         if nav2:
             odometry_schema = writer.register_msgdef("nav_msgs/msg/Odometry", ODOMETRY_DEF)
-        if poses_as in ("pose", "nav2"):
+        if poses_as == "gps":
+            schema = writer.register_msgdef("sensor_msgs/msg/NavSatFix", NAV_SAT_FIX_DEF)
+            topic = "/gps/fix"
+        elif poses_as in ("pose", "nav2"):
             schema = writer.register_msgdef("geometry_msgs/msg/PoseStamped", POSE_STAMPED_DEF)
             topic = "/mocap/pose"
         elif poses_as in ("tf", "tf_chain", "amcl"):
@@ -203,7 +240,10 @@ def main(run: str, out: str, poses_as: str) -> None:
                 messages.append((t, "/tf", schema, localisation))
         # A localised robot's poses are only its transforms (above).
         pose_rows = [] if poses_as == "amcl" else rows(f"{run}/poses.csv")
-        for r in pose_rows:
+        for k, r in enumerate(pose_rows):
+            if poses_as == "gps":
+                messages.append((r["t"], topic, schema, fix(r, k)))
+                continue
             position = {"x": r["x"], "y": r["y"], "z": 0.0}
             if poses_as == "tf_chain":
                 truth = (r["x"], r["y"], r["theta"])
