@@ -75,7 +75,7 @@ impl TrackHeadings {
             (None, _) => "; the robot never turned on the spot for long, so how far the tracked point is from the axle is unknown: if it is off it, tight turns bend these headings".to_owned(),
         };
         format!(
-            "the poses hold positions only; each heading is the direction of the track (a quadratic fitted over ±{:.2}-{:.2} s), kept where it is known within {:.0} mrad: {} of {} poses ({} of them driving backwards). The {} others (standing, turning on the spot or sharply, stopping or starting at once, or too slow for the {:.1} mm of position noise) are left out as dropouts{off_axle}. A crab angle or a point off the axle turns the track from where the body points, so neither is tried",
+            "the poses hold positions only; each heading is the direction of the track (a quadratic fitted over ±{:.2}-{:.2} s), kept where it is known within {:.0} mrad: {} of {} poses ({} of them driving backwards). The {} others (standing, turning on the spot or sharply, the commanded turn rate changing within the window, stopping or starting at once, or too slow for the {:.1} mm of position noise) are left out as dropouts{off_axle}. A crab angle or a point off the axle turns the track from where the body points, so neither is tried",
             self.half_window_s[0],
             self.half_window_s[1],
             HEADING_STANDARD_ERROR_RAD * 1e3,
@@ -111,6 +111,9 @@ pub fn headed(recording: &Recording) -> Option<(Recording, TrackHeadings)> {
             let Some((heading, half)) = heading_at(poses, i, &windows) else {
                 continue;
             };
+            if !turn_held(recording, poses.t[i], half) {
+                continue;
+            }
             let heading = match driven_way(recording, poses.t[i], windows.longest(), sharpest_turn)
             {
                 Some(Way::Forwards) => heading,
@@ -151,6 +154,33 @@ pub fn headed(recording: &Recording) -> Option<(Recording, TrackHeadings)> {
 enum Way {
     Forwards,
     Backwards,
+}
+
+/// The longest a command is taken to wait before the robot answers it
+/// (seconds): a window is judged by the commands up to this much before it.
+const LONGEST_DELAY_S: f64 = 0.5;
+
+/// Whether the commanded turn rate held steady enough through the window
+/// of `half` seconds around `t` (and the [`LONGEST_DELAY_S`] before it,
+/// for a robot that answers late): a quadratic smooths a change of turn
+/// rate by about a quarter of the change times the half-width, and that
+/// error is not noise. It falls hardest where the commands turn one way
+/// for a while and another after, so it would read as turns smaller than
+/// commanded (a turn scale) on runs that have none. The change may bend
+/// the heading by half its allowed error, no more.
+fn turn_held(recording: &Recording, t: f64, half: f64) -> bool {
+    let c = &recording.commands;
+    let (from, to) = (
+        c.t.partition_point(|&s| s <= t - half - LONGEST_DELAY_S),
+        c.t.partition_point(|&s| s <= t + half),
+    );
+    let turns = &c.omega[from.saturating_sub(1)..to];
+    let (least, most) = turns
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &w| {
+            (a.min(w), b.max(w))
+        });
+    turns.is_empty() || 0.25 * (most - least) * half <= 0.5 * HEADING_STANDARD_ERROR_RAD
 }
 
 /// How far the tracked point is from the axle, as turns on the spot show
