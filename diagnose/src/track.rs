@@ -2,8 +2,12 @@
 //! marker, a file of positions. A wheeled robot drives where it points, so
 //! where it moves fast enough for its direction to be known, the heading is
 //! the direction of its track (turned half round where it was commanded to
-//! drive backwards). Where it stands or turns on the spot its heading is
-//! unknown, and the pose is left out, as a dropout is.
+//! drive backwards). Where it stands, turns on the spot, or its commanded
+//! turn rate changes within the window (which the fit would smooth into an
+//! error that is not noise), its heading is unknown, and the pose is left
+//! out, as a dropout is. A tracked point off the axle moves askew of the
+//! body in turns: its turns on the spot measure how far, and bound the
+//! turns whose headings are kept.
 
 use serde::Serialize;
 use statrs::distribution::{ChiSquared, ContinuousCDF};
