@@ -1,7 +1,7 @@
 """Writes a run (commands.csv, poses.csv) as a ROS 2 bag with the official
 Python writer (mcap-ros2-support, which encodes CDR as ROS 2 does).
 
-Usage: write_bag.py RUN_DIR OUT.mcap {pose,tf,tf_chain,amcl,odometry,nav2,gps}
+Usage: write_bag.py RUN_DIR OUT.mcap {pose,tf,tf_chain,amcl,odometry,nav2,gps,point}
 
 Commands go to /cmd_vel as geometry_msgs/msg/Twist (no header: the bag's
 log times). Poses go, by the last argument, to /mocap/pose as
@@ -29,6 +29,8 @@ With gps, the poses are a GPS receiver's: sensor_msgs/msg/NavSatFix on
 /gps/fix, the run's x and y as metres east and north of 43.6629 N,
 79.3957 W on the WGS 84 ellipsoid, no heading; one message in 200 has no
 fix (status -1, NaN latitude and longitude), as a receiver sends them.
+With point, the poses are a tracked point's (a UWB tag, one marker):
+geometry_msgs/msg/PointStamped on /tag/position, no heading.
 """
 
 import csv
@@ -87,6 +89,12 @@ ODOMETRY_DEF = definition(
     ("geometry_msgs/Vector3", VECTOR3),
 )
 
+POINT_STAMPED_DEF = definition(
+    "std_msgs/Header header\nPoint point\n",
+    ("std_msgs/Header", HEADER),
+    ("builtin_interfaces/Time", TIME),
+    ("geometry_msgs/Point", POINT),
+)
 NAV_SAT_FIX_DEF = definition(
     "std_msgs/Header header\nNavSatStatus status\nfloat64 latitude\nfloat64 longitude\nfloat64 altitude\n"
     "float64[9] position_covariance\nuint8 position_covariance_type\n",
@@ -218,6 +226,9 @@ def main(run: str, out: str, poses_as: str) -> None:
         if poses_as == "gps":
             schema = writer.register_msgdef("sensor_msgs/msg/NavSatFix", NAV_SAT_FIX_DEF)
             topic = "/gps/fix"
+        elif poses_as == "point":
+            schema = writer.register_msgdef("geometry_msgs/msg/PointStamped", POINT_STAMPED_DEF)
+            topic = "/tag/position"
         elif poses_as in ("pose", "nav2"):
             schema = writer.register_msgdef("geometry_msgs/msg/PoseStamped", POSE_STAMPED_DEF)
             topic = "/mocap/pose"
@@ -245,6 +256,10 @@ def main(run: str, out: str, poses_as: str) -> None:
                 messages.append((r["t"], topic, schema, fix(r, k)))
                 continue
             position = {"x": r["x"], "y": r["y"], "z": 0.0}
+            if poses_as == "point":
+                point = {"header": {"stamp": stamp(r["t"]), "frame_id": "map"}, "point": position}
+                messages.append((r["t"], topic, schema, point))
+                continue
             if poses_as == "tf_chain":
                 truth = (r["x"], r["y"], r["theta"])
                 odometry = compose(inverse(odometry_drift(r["t"])), compose(truth, inverse(FOOTPRINT_TO_LINK)))
