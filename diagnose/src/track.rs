@@ -20,10 +20,10 @@ use crate::recording::{Poses, Recording};
 /// be fitted as the robot's.
 pub const HEADING_STANDARD_ERROR_RAD: f64 = 0.02;
 
-/// The shortest window's half-width, in the poses' usual intervals: the
-/// fewest poses (five or six) a quadratic's slope and its residuals'
-/// spread can be taken from.
-const SHORTEST_HALF_WINDOW_INTERVALS: f64 = 2.5;
+/// The shortest window's half-width, in the poses' usual intervals: eight
+/// or nine poses, from which a cubic's slope and its residuals' spread
+/// (on ten degrees of freedom or so) can be taken.
+const SHORTEST_HALF_WINDOW_INTERVALS: f64 = 4.0;
 
 /// The longest half-width a slow pose's window may grow to (seconds, or the
 /// shortest window where poses come slower): a window of a segment's
@@ -39,11 +39,10 @@ pub const UNSEEN_FROM_THE_TRACK: [&str; 2] = ["crab_angle", "turn_centre_offset"
 /// simulator's) still bends within a window, which no noise would excuse.
 const NOISE_FLOOR_M: f64 = 1e-4;
 
-/// How surely a window's quadratic must explain its positions: its
-/// residuals may exceed the noise as often as chance would at this level.
-/// Where the robot stops short or starts at once (a kink), the quadratic
-/// smooths over it, and the direction it gives is not where the body
-/// points.
+/// How surely a window's cubic must explain its positions: its residuals
+/// may exceed the noise as often as chance would at this level. Where the
+/// robot stops short or starts at once (a kink), the cubic smooths over it,
+/// and the direction it gives is not where the body points.
 const QUADRATIC_FITS_LEVEL: f64 = 0.99;
 
 /// What taking headings from the track did.
@@ -79,7 +78,7 @@ impl TrackHeadings {
             (None, _) => "; the robot never turned on the spot for long, so how far the tracked point is from the axle is unknown: if it is off it, tight turns bend these headings".to_owned(),
         };
         format!(
-            "the poses hold positions only; each heading is the direction of the track (a quadratic fitted over ±{:.2}-{:.2} s), kept where it is known within {:.0} mrad: {} of {} poses ({} of them driving backwards). The {} others (standing, turning on the spot or sharply, the commanded turn rate changing within the window, stopping or starting at once, or too slow for the {:.1} mm of position noise) are left out as dropouts{off_axle}. A crab angle or a point off the axle turns the track from where the body points, so neither is tried",
+            "the poses hold positions only; each heading is the direction of the track (a cubic fitted over ±{:.2}-{:.2} s), kept where it is known within {:.0} mrad: {} of {} poses ({} of them driving backwards). The {} others (standing, turning on the spot or sharply, the commanded turn rate changing within the window, stopping or starting at once, or too slow for the {:.1} mm of position noise) are left out as dropouts{off_axle}. A crab angle or a point off the axle turns the track from where the body points, so neither is tried",
             self.half_window_s[0],
             self.half_window_s[1],
             HEADING_STANDARD_ERROR_RAD * 1e3,
@@ -164,14 +163,21 @@ enum Way {
 /// (seconds): a window is judged by the commands up to this much before it.
 const LONGEST_DELAY_S: f64 = 0.5;
 
+/// How much of a heading's allowed error a change of turn rate within its
+/// window may bend it by. The bend is no noise: it falls the same way at
+/// every change, and a controller that steers back towards its path makes
+/// the changes follow the turns, so over hundreds of segments it reads as
+/// physics that is not there. With half the error allowed, 8 to 18 of 20
+/// null runs of a waypoint follower named a steering play or a turn scale
+/// from their positions; with a tenth, none of 20 (EXPERIMENTS.md 6b).
+const TURN_CHANGE_SHARE: f64 = 0.1;
+
 /// Whether the commanded turn rate held steady enough through the window
 /// of `half` seconds around `t` (and the [`LONGEST_DELAY_S`] before it,
-/// for a robot that answers late): a quadratic smooths a change of turn
-/// rate by about a quarter of the change times the half-width, and that
-/// error is not noise. It falls hardest where the commands turn one way
-/// for a while and another after, so it would read as turns smaller than
-/// commanded (a turn scale) on runs that have none. The change may bend
-/// the heading by half its allowed error, no more.
+/// for a robot that answers late): a cubic follows a turn rate that
+/// changes steadily, but smooths a change of it by about a quarter of the
+/// change times the half-width, which may bend the heading by
+/// [`TURN_CHANGE_SHARE`] of its allowed error, no more.
 fn turn_held(recording: &Recording, t: f64, half: f64) -> bool {
     let c = &recording.commands;
     let (from, to) = (
@@ -184,7 +190,8 @@ fn turn_held(recording: &Recording, t: f64, half: f64) -> bool {
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &w| {
             (a.min(w), b.max(w))
         });
-    turns.is_empty() || 0.25 * (most - least) * half <= 0.5 * HEADING_STANDARD_ERROR_RAD
+    turns.is_empty()
+        || 0.25 * (most - least) * half <= TURN_CHANGE_SHARE * HEADING_STANDARD_ERROR_RAD
 }
 
 /// How far the tracked point is from the axle, as turns on the spot show
@@ -284,7 +291,7 @@ fn driven_way(recording: &Recording, t: f64, within: f64, sharpest_turn: f64) ->
 /// doubling up to the longest, and the residuals' variance usual at each.
 struct Windows {
     halves: Vec<f64>,
-    /// At each half-width, the median of the quadratics' residual
+    /// At each half-width, the median of the cubics' residual
     /// variances: the noise as windows of that width see it. A tracker's
     /// noise is seldom white (a rig's jitter wanders over tenths of a
     /// second), so a window is judged against windows of its own width.
@@ -346,22 +353,24 @@ fn heading_at(poses: &Poses, i: usize, windows: &Windows) -> Option<(f64, f64)> 
     None
 }
 
-/// A quadratic in time fitted to the positions within `half` seconds of
-/// pose `i`, on each axis.
+/// A cubic in time fitted to the positions within `half` seconds of pose
+/// `i`, on each axis: a turn rate that changes steadily (a controller
+/// steering back to its path) bends a quadratic's slope by the change's
+/// rate times a tenth of the window squared, a cubic's not.
 struct Slope {
     /// Its slope at pose `i`'s time: the velocity, m/s.
     velocity: [f64; 2],
     /// The slope's variance per unit of the positions' noise variance.
     slope_variance_factor: f64,
     /// The residuals' variance over both axes (the positions' noise, where
-    /// the motion is a quadratic over the window).
+    /// the motion is a cubic over the window).
     residual_variance: f64,
-    /// Its degrees of freedom: two axes of poses less three coefficients.
+    /// Its degrees of freedom: two axes of poses less four coefficients.
     degrees_of_freedom: f64,
 }
 
 impl Slope {
-    /// Whether the quadratic explains the window's positions: its residuals
+    /// Whether the cubic explains the window's positions: its residuals
     /// no larger than noise of `noise_variance` leaves by chance.
     fn explained(&self, noise_variance: f64) -> bool {
         let bound = ChiSquared::new(self.degrees_of_freedom)
@@ -371,57 +380,60 @@ impl Slope {
     }
 }
 
-/// The quadratic fit around pose `i`; `None` with fewer than five poses in
-/// the window or where their times cannot fix a quadratic.
+/// The cubic fit around pose `i`; `None` with fewer than six poses in the
+/// window or where their times cannot fix a cubic.
 fn slope_at(poses: &Poses, i: usize, half: f64) -> Option<Slope> {
+    const TERMS: usize = 4;
     let t0 = poses.t[i];
     let from = poses.t.partition_point(|&t| t < t0 - half);
     let to = poses.t.partition_point(|&t| t <= t0 + half);
     let n = to - from;
-    if n < 5 {
+    if n < TERMS + 2 {
         return None;
     }
     // Normal equations in tau = t - t0 (scaled by `half`, so that they are
     // well conditioned at any window): sums of tau^k.
-    let mut s = [0.0; 5];
-    let mut sx = [0.0; 3];
-    let mut sy = [0.0; 3];
+    let mut s = [0.0; 2 * TERMS - 1];
+    let mut sx = [0.0; TERMS];
+    let mut sy = [0.0; TERMS];
     for j in from..to {
         let tau = (poses.t[j] - t0) / half;
         let (x, y) = (poses.x[j] - poses.x[i], poses.y[j] - poses.y[i]);
         let mut power = 1.0;
         for (k, sk) in s.iter_mut().enumerate() {
             *sk += power;
-            if k < 3 {
+            if k < TERMS {
                 sx[k] += power * x;
                 sy[k] += power * y;
             }
             power *= tau;
         }
     }
-    let normal = glam::DMat3::from_cols_array(&[
-        s[0], s[1], s[2], //
-        s[1], s[2], s[3], //
-        s[2], s[3], s[4],
+    let normal = glam::DMat4::from_cols_array(&[
+        s[0], s[1], s[2], s[3], //
+        s[1], s[2], s[3], s[4], //
+        s[2], s[3], s[4], s[5], //
+        s[3], s[4], s[5], s[6],
     ]);
-    if normal.determinant().abs() < 1e-9 * s[0].powi(3) {
+    if normal.determinant().abs() < 1e-12 * s[0].powi(4) {
         return None;
     }
     let inverse = normal.inverse();
-    let cx = inverse * glam::DVec3::from_array(sx);
-    let cy = inverse * glam::DVec3::from_array(sy);
+    let cx = inverse * glam::DVec4::from_array(sx);
+    let cy = inverse * glam::DVec4::from_array(sy);
     let mut squares = 0.0;
     for j in from..to {
         let tau = (poses.t[j] - t0) / half;
         let (x, y) = (poses.x[j] - poses.x[i], poses.y[j] - poses.y[i]);
-        let at = |c: glam::DVec3| c.x + c.y * tau + c.z * tau * tau;
+        let at = |c: glam::DVec4| c.x + tau * (c.y + tau * (c.z + tau * c.w));
         squares += (x - at(cx)).powi(2) + (y - at(cy)).powi(2);
     }
+    let degrees_of_freedom = 2 * (n - TERMS);
     Some(Slope {
         velocity: [cx.y / half, cy.y / half],
         slope_variance_factor: inverse.y_axis.y / (half * half),
-        residual_variance: squares / (2 * (n - 3)) as f64,
-        degrees_of_freedom: (2 * (n - 3)) as f64,
+        residual_variance: squares / degrees_of_freedom as f64,
+        degrees_of_freedom: degrees_of_freedom as f64,
     })
 }
 
