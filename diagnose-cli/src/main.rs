@@ -220,6 +220,17 @@ fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
                 c.commands, c.poses, c.reason
             )
         });
+        // Positions only: the poses left without a heading are the likelier
+        // reason, and what they were is said.
+        if let Some(track) = &diagnosis.heading_from_track {
+            bail!(
+                "too little to compare: {} segments of {} s with observed poses at both ends (at least {MIN_SEGMENTS} needed). \
+                 Headings: {}",
+                diagnosis.segments,
+                options.horizon_s,
+                track.sentence()
+            );
+        }
         bail!(
             "too little to compare: {} segments of {} s with observed poses at both ends (at least {MIN_SEGMENTS} needed); \
              do the commands and the poses cover the same stretch of time?{clock}",
