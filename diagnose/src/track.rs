@@ -302,7 +302,8 @@ impl Windows {
     fn of(poses: &Poses) -> Self {
         let shortest = SHORTEST_HALF_WINDOW_INTERVALS * poses.usual_interval();
         let longest = LONGEST_HALF_WINDOW_S.max(shortest);
-        let mut halves = vec![shortest];
+        // Fewer than two poses have no interval: one window, the longest.
+        let mut halves = vec![if shortest > 0.0 { shortest } else { longest }];
         while halves[halves.len() - 1] < longest {
             halves.push((2.0 * halves[halves.len() - 1]).min(longest));
         }
@@ -549,6 +550,15 @@ mod tests {
         );
         assert!((400..=500).contains(&done.headed), "{} headed", done.headed);
         assert!(done.sentence().contains("from the axle"));
+    }
+
+    #[test]
+    fn a_single_pose_without_a_heading_gets_none_and_ends() {
+        let mut poses = Poses::default();
+        poses.push(0.0, 0.0, 0.0, f64::NAN);
+        let (headed, done) =
+            headed(&Recording::of(Commands::default(), poses)).expect("it lacks a heading");
+        assert_eq!((headed.poses.len(), done.headed), (0, 0));
     }
 
     #[test]

@@ -115,9 +115,17 @@ impl Target {
                 input::commands_csv(text, file).map(|_| ())
             }),
             Target::PosesCsv => parse_mutated(rng, &seeds.poses_csv, |text, file| {
-                // The outlier filter runs on whatever parsed.
+                // The outlier filter, and headings from the track where a
+                // mutation left the file without its heading, run on
+                // whatever parsed.
                 input::poses_csv(text, file).map(|poses| {
                     let _ = poses.data.without_outliers();
+                    let mut positions = poses.data;
+                    positions.theta.fill(f64::NAN);
+                    let _ = shoal_diagnose::track::headed(&shoal_diagnose::Recording::of(
+                        shoal_diagnose::recording::Commands::default(),
+                        positions,
+                    ));
                 })
             }),
             Target::PosesTum => parse_mutated(rng, &seeds.poses_tum, |text, file| {
