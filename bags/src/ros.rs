@@ -507,19 +507,21 @@ pub mod msg {
         pub twist: Vec<Twist>,
     }
 
-    /// `turtlesim/msg/Pose`.
+    /// `geometry_msgs/msg/PointStamped`: a tracked point, no heading.
     #[derive(Deserialize, Serialize)]
     pub struct PointStamped {
         pub header: Header,
         pub point: Vector3,
     }
 
+    /// `sensor_msgs/msg/NavSatStatus`: a status below 0 is no fix.
     #[derive(Deserialize, Serialize)]
     pub struct NavSatStatus {
         pub status: i8,
         pub service: u16,
     }
 
+    /// `sensor_msgs/msg/NavSatFix`: latitude and longitude in degrees.
     #[derive(Deserialize, Serialize)]
     pub struct NavSatFix {
         pub header: Header,
@@ -531,6 +533,7 @@ pub mod msg {
         pub position_covariance_type: u8,
     }
 
+    /// `turtlesim/msg/Pose`.
     #[derive(Deserialize, Serialize)]
     pub struct TurtlesimPose {
         pub x: f32,

@@ -78,7 +78,7 @@ impl TrackHeadings {
             (None, _) => "; the robot never turned on the spot for long, so how far the tracked point is from the axle is unknown: if it is off it, tight turns bend these headings".to_owned(),
         };
         format!(
-            "the poses hold positions only; each heading is the direction of the track (a cubic fitted over ±{:.2}-{:.2} s), kept where it is known within {:.0} mrad: {} of {} poses ({} of them driving backwards). The {} others (standing, turning on the spot or sharply, the commanded turn rate changing within the window, stopping or starting at once, or too slow for the {:.1} mm of position noise) are left out as dropouts{off_axle}. A crab angle or a point off the axle turns the track from where the body points, so neither is tried",
+            "the poses hold positions only; each heading is the direction of the track (a cubic fitted over ±{:.2}-{:.2} s), kept where it is known within {:.0} mrad: {} of {} poses ({} of them driving backwards). The other {} (standing, turning on the spot or sharply, the commanded turn rate changing within the window, stopping or starting at once, or too slow for the {:.1} mm of position noise) are left out as dropouts{off_axle}. A crab angle or a point off the axle turns the track from where the body points, so neither is tried",
             self.half_window_s[0],
             self.half_window_s[1],
             HEADING_STANDARD_ERROR_RAD * 1e3,
