@@ -990,6 +990,31 @@ fn gazebo_bags_in_sqlite3_mcap_split_and_compressed_are_diagnosed_on_one_clock()
     let output = diagnose_gazebo(&dir.join("db3"), &["--stamps", "log"]);
     let d: Value = serde_json::from_slice(&output.stdout).expect("JSON");
     assert_eq!(d["input"]["clock"]["poses"], "the bag's log times", "{d}");
+    // A Gazebo GPS plugin's fixes in a `.db3`, serialised by rosbags (whose
+    // CDR pads NavSatFix's int8 and uint16 before its doubles on its own):
+    // stamped in simulation time, put on the floor, headed by the track.
+    // Half-second segments, as positions only leave few whole ones here.
+    let bag = write_gazebo_bag(&dir, "gps", &["poses=gps"]);
+    let output = diagnose_gazebo_poses(&bag, "/gps/fix", &["--horizon", "0.5"]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "gps: {stderr}");
+    let d: Value = serde_json::from_slice(&output.stdout).expect("JSON");
+    let clock = &d["input"]["clock"];
+    assert_eq!(
+        clock["commands"], "log times mapped into simulation time through /clock",
+        "{clock}"
+    );
+    assert_eq!(clock["poses"], "header stamps", "{clock}");
+    assert!(
+        clock["pose_chain"].as_str().is_some_and(
+            |c| c.contains("GPS fixes (NavSatFix)") && c.contains("43.662900, -79.395700")
+        ),
+        "{clock}"
+    );
+    assert!(
+        d["heading_from_track"]["headed"].as_u64() > Some(5_000),
+        "{d}"
+    );
 }
 
 /// Ground truth as Gazebo users record it, without a header: Gazebo

@@ -16,7 +16,7 @@ few milliseconds after it was made. OPTIONS, any of:
   split=N                cut the bag into N files, listed by metadata.yaml
   compression=none|file|message   rosbag2's zstd compression
   version=8|9            rosbag2 metadata version (default 8)
-  poses=odom|vicon|model_states|gz_pose|turtlesim
+  poses=odom|vicon|model_states|gz_pose|turtlesim|gps
                          /odom in simulation time (default), or a motion-
                          capture bridge's /vicon/robot/robot
                          (geometry_msgs/msg/TransformStamped) stamped by a
@@ -30,7 +30,10 @@ few milliseconds after it was made. OPTIONS, any of:
                          turtlesim's /turtle1/pose (turtlesim/msg/Pose:
                          float32 x, y, theta, no header; ROS 2's
                          `ros2 bag record` tutorial bag; wall clock, no
-                         /clock)
+                         /clock), or a Gazebo GPS plugin's /gps/fix
+                         (sensor_msgs/msg/NavSatFix stamped in simulation
+                         time: latitude and longitude about write_bag.py's
+                         origin, no heading)
   command=twist|stamped|stamped-wall
                          /cmd_vel as geometry_msgs/msg/Twist (default) or
                          TwistStamped stamped in simulation time (ROS 2
@@ -55,6 +58,7 @@ from pathlib import Path
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+from write_bag import EAST_M_PER_RAD, NORTH_M_PER_RAD, ORIGIN
 
 WALL_EPOCH_NS = 1_764_000_000 * 1_000_000_000
 # Simulation time at the run's 0 s: Gazebo had been running a little.
@@ -93,6 +97,8 @@ def main(run_dir, out_dir, *options):
         "turtlesim/msg/Pose",
     ))
     TurtlesimPose = typestore.types["turtlesim/msg/Pose"]
+    NavSatFix = typestore.types["sensor_msgs/msg/NavSatFix"]
+    NavSatStatus = typestore.types["sensor_msgs/msg/NavSatStatus"]
     ModelStates = typestore.types["gazebo_msgs/msg/ModelStates"]
     Twist = typestore.types["geometry_msgs/msg/Twist"]
     TwistStamped = typestore.types["geometry_msgs/msg/TwistStamped"]
@@ -116,6 +122,7 @@ def main(run_dir, out_dir, *options):
         "model_states": ("/gazebo/model_states", ModelStates),
         "gz_pose": ("/model/burger/pose", Pose),
         "turtlesim": ("/turtle1/pose", TurtlesimPose),
+        "gps": ("/gps/fix", NavSatFix),
     }[poses_from]
 
     def sim_ns(t):
@@ -158,6 +165,18 @@ def main(run_dir, out_dir, *options):
                 header=Header(stamp=stamp(robot_clock_ns), frame_id="world"),
                 child_frame_id="robot",
                 transform=Transform(translation=Vector3(x=r["x"], y=r["y"], z=0.0), rotation=pose.orientation),
+            )
+            messages.append((wall_ns(r["t"]) + POSE_TRANSPORT_NS, poses_topic, msg))
+            continue
+        if poses_from == "gps":
+            msg = NavSatFix(
+                header=Header(stamp=stamp(sim_ns(r["t"])), frame_id="gps_link"),
+                status=NavSatStatus(status=0, service=1),
+                latitude=ORIGIN[0] + math.degrees(r["y"] / NORTH_M_PER_RAD),
+                longitude=ORIGIN[1] + math.degrees(r["x"] / EAST_M_PER_RAD),
+                altitude=76.0,
+                position_covariance=np.array([0.0004, 0, 0, 0, 0.0004, 0, 0, 0, 0.0016]),
+                position_covariance_type=2,
             )
             messages.append((wall_ns(r["t"]) + POSE_TRANSPORT_NS, poses_topic, msg))
             continue
