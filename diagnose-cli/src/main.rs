@@ -222,18 +222,14 @@ fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
         });
         // Positions only: the poses left without a heading are the likelier
         // reason, and what they were is said.
-        if let Some(track) = &diagnosis.heading_from_track {
-            bail!(
-                "too little to compare: {} segments of {} s with observed poses at both ends (at least {MIN_SEGMENTS} needed). \
-                 Headings: {}",
-                diagnosis.segments,
-                options.horizon_s,
-                track.sentence()
-            );
-        }
+        let why = match &diagnosis.heading_from_track {
+            Some(track) => format!(". Headings: {}", track.sentence()),
+            None => {
+                format!("; do the commands and the poses cover the same stretch of time?{clock}")
+            }
+        };
         bail!(
-            "too little to compare: {} segments of {} s with observed poses at both ends (at least {MIN_SEGMENTS} needed); \
-             do the commands and the poses cover the same stretch of time?{clock}",
+            "too little to compare: {} segments of {} s with observed poses at both ends (at least {MIN_SEGMENTS} needed){why}",
             diagnosis.segments,
             options.horizon_s
         );

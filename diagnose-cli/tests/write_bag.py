@@ -111,14 +111,20 @@ NORTH_M_PER_RAD = _A * (1 - _E2) / (1 - _E2 * _SIN**2) ** 1.5
 EAST_M_PER_RAD = _A / math.sqrt(1 - _E2 * _SIN**2) * math.cos(math.radians(ORIGIN[0]))
 
 
+def latitude_longitude(x: float, y: float) -> tuple:
+    """Degrees at x metres east and y metres north of ORIGIN."""
+    return ORIGIN[0] + math.degrees(y / NORTH_M_PER_RAD), ORIGIN[1] + math.degrees(x / EAST_M_PER_RAD)
+
+
 def fix(r: dict, k: int) -> dict:
     """The gps mode's message for pose row r, the k-th."""
     lost = k % 200 == 199
+    latitude, longitude = (math.nan, math.nan) if lost else latitude_longitude(r["x"], r["y"])
     return {
         "header": {"stamp": stamp(r["t"]), "frame_id": "gps"},
         "status": {"status": -1 if lost else 0, "service": 1},
-        "latitude": math.nan if lost else ORIGIN[0] + math.degrees(r["y"] / NORTH_M_PER_RAD),
-        "longitude": math.nan if lost else ORIGIN[1] + math.degrees(r["x"] / EAST_M_PER_RAD),
+        "latitude": latitude,
+        "longitude": longitude,
         "altitude": 76.0,
         "position_covariance": [0.0004, 0, 0, 0, 0.0004, 0, 0, 0, 0.0016],
         "position_covariance_type": 2,

@@ -58,7 +58,7 @@ from pathlib import Path
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
-from write_bag import EAST_M_PER_RAD, NORTH_M_PER_RAD, ORIGIN
+from write_bag import latitude_longitude
 
 WALL_EPOCH_NS = 1_764_000_000 * 1_000_000_000
 # Simulation time at the run's 0 s: Gazebo had been running a little.
@@ -169,11 +169,12 @@ def main(run_dir, out_dir, *options):
             messages.append((wall_ns(r["t"]) + POSE_TRANSPORT_NS, poses_topic, msg))
             continue
         if poses_from == "gps":
+            latitude, longitude = latitude_longitude(r["x"], r["y"])
             msg = NavSatFix(
                 header=Header(stamp=stamp(sim_ns(r["t"])), frame_id="gps_link"),
                 status=NavSatStatus(status=0, service=1),
-                latitude=ORIGIN[0] + math.degrees(r["y"] / NORTH_M_PER_RAD),
-                longitude=ORIGIN[1] + math.degrees(r["x"] / EAST_M_PER_RAD),
+                latitude=latitude,
+                longitude=longitude,
                 altitude=76.0,
                 position_covariance=np.array([0.0004, 0, 0, 0, 0.0004, 0, 0, 0, 0.0016]),
                 position_covariance_type=2,

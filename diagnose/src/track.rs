@@ -12,7 +12,7 @@
 use serde::Serialize;
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
-use crate::recording::{Poses, Recording};
+use crate::recording::{Commands, Poses, Recording};
 
 /// How well a heading taken from the track must be known (its standard
 /// error, radians): about a degree, what a motion-capture rig's own heading
@@ -95,10 +95,8 @@ impl TrackHeadings {
 /// what was done; `None` where every pose has its heading.
 pub fn headed(recording: &Recording) -> Option<(Recording, TrackHeadings)> {
     let poses = &recording.poses;
-    let missing: Vec<usize> = (0..poses.len())
-        .filter(|&i| poses.theta[i].is_nan())
-        .collect();
-    if missing.is_empty() {
+    let missing = poses.theta.iter().filter(|theta| theta.is_nan()).count();
+    if missing == 0 {
         return None;
     }
     let windows = Windows::of(poses);
@@ -143,7 +141,7 @@ pub fn headed(recording: &Recording) -> Option<(Recording, TrackHeadings)> {
             ..recording.clone()
         },
         TrackHeadings {
-            poses: missing.len(),
+            poses: missing,
             headed,
             reversed,
             half_window_s: used,
@@ -180,11 +178,7 @@ const TURN_CHANGE_SHARE: f64 = 0.1;
 /// [`TURN_CHANGE_SHARE`] of its allowed error, no more.
 fn turn_held(recording: &Recording, t: f64, half: f64) -> bool {
     let c = &recording.commands;
-    let (from, to) = (
-        c.t.partition_point(|&s| s <= t - half - LONGEST_DELAY_S),
-        c.t.partition_point(|&s| s <= t + half),
-    );
-    let turns = &c.omega[from.saturating_sub(1)..to];
+    let turns = &c.omega[held_over(c, t - half - LONGEST_DELAY_S, t + half)];
     let (least, most) = turns
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &w| {
@@ -192,6 +186,13 @@ fn turn_held(recording: &Recording, t: f64, half: f64) -> bool {
         });
     turns.is_empty()
         || 0.25 * (most - least) * half <= TURN_CHANGE_SHARE * HEADING_STANDARD_ERROR_RAD
+}
+
+/// The commands that acted from `from` to `to` seconds: the one held at
+/// `from` (if any was given by then) and those given after it.
+fn held_over(c: &Commands, from: f64, to: f64) -> std::ops::Range<usize> {
+    let given = |t: f64| c.t.partition_point(|&s| s <= t);
+    given(from).saturating_sub(1)..given(to)
 }
 
 /// How far the tracked point is from the axle, as turns on the spot show
@@ -215,11 +216,10 @@ fn off_axle(recording: &Recording, windows: &Windows) -> Option<f64> {
             // Turning on the spot through the window, and for a window
             // before it (a delay, a lag).
             let t = poses.t[i];
-            let (from, to) = (
-                c.t.partition_point(|&s| s <= t - 2.0 * half),
-                c.t.partition_point(|&s| s <= t + half),
-            );
-            let span = from.checked_sub(1)?..to;
+            if c.t.first().is_none_or(|&first| first > t - 2.0 * half) {
+                return None;
+            }
+            let span = held_over(c, t - 2.0 * half, t + half);
             let turns = c.v[span.clone()]
                 .iter()
                 .zip(&c.omega[span])
@@ -262,12 +262,7 @@ const FEWEST_TURNS_ON_THE_SPOT: usize = 20;
 /// more sharply than `sharpest_turn` (rad per metre).
 fn driven_way(recording: &Recording, t: f64, within: f64, sharpest_turn: f64) -> Option<Way> {
     let c = &recording.commands;
-    let (from, to) = (
-        c.t.partition_point(|&s| s <= t - within),
-        c.t.partition_point(|&s| s <= t),
-    );
-    // The command held at the window's start, and those given in it.
-    let span = from.saturating_sub(1)..to;
+    let span = held_over(c, t - within, t);
     let held = &c.v[span.clone()];
     // A tracked point off the axle moves askew of the body by about its
     // distance times the turn rate over the speed.
@@ -441,7 +436,6 @@ fn slope_at(poses: &Poses, i: usize, half: f64) -> Option<Slope> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::recording::Commands;
 
     /// A robot driving a circle of radius 1 m at 0.2 m/s for 10 s, backwards
     /// for the next 5 s, then turning on the spot for 5 s, observed at 100
