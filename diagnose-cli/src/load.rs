@@ -9,8 +9,7 @@ use serde::Serialize;
 use shoal_bags::{Bag, StampsPreference};
 use shoal_diagnose::Recording;
 use shoal_diagnose::input::{
-    Read, commands_csv, commands_unit_notes, mrclam_groundtruth, mrclam_odometry, poses_csv_or_tum,
-    poses_unit_notes,
+    Read, commands_csv, commands_unit_notes, mrclam_groundtruth, mrclam_odometry, poses_file,
 };
 use shoal_diagnose::recording::{Commands, Poses};
 
@@ -75,17 +74,25 @@ impl From<Recording> for Loaded {
     }
 }
 
-pub fn load_commands_and_poses(commands: &Path, poses: &Path) -> Result<Loaded> {
-    let (commands_file, poses_file) = (commands.display().to_string(), poses.display().to_string());
+/// A commands file and a poses file; `body` names the rigid body of a
+/// motion-capture export that holds several.
+pub fn load_commands_and_poses(
+    commands: &Path,
+    poses: &Path,
+    body: Option<&str>,
+) -> Result<Loaded> {
+    let (commands_file, poses_file_name) =
+        (commands.display().to_string(), poses.display().to_string());
     let (commands_text, poses_text) = (read(commands)?, read(poses)?);
+    let (poses, poses_notes) = poses_file(&poses_text, &poses_file_name, body)?;
     let units = [
         commands_unit_notes(&commands_text, &commands_file),
-        poses_unit_notes(&poses_text, &poses_file),
+        poses_notes,
     ]
     .concat();
     Ok(read_files(
         commands_csv(&commands_text, &commands_file)?,
-        poses_csv_or_tum(&poses_text, &poses_file)?,
+        poses,
         units,
     ))
 }
@@ -388,7 +395,7 @@ fn or_none(names: &[String]) -> String {
 /// Reads what the arguments name.
 pub fn load(args: &DiagnoseArgs) -> Result<Loaded> {
     if let (Some(c), Some(p)) = (&args.commands, &args.poses) {
-        return load_commands_and_poses(c, p);
+        return load_commands_and_poses(c, p, args.frame.as_deref());
     }
     if let Some(bag) = &args.bag {
         return load_bag(bag, args);
@@ -461,7 +468,7 @@ fn load_positional(run: &Path, args: &DiagnoseArgs) -> Result<Loaded> {
         _ => poses,
     };
     if run.is_dir() && (commands.is_file() || poses.is_file()) {
-        return load_commands_and_poses(&commands, &poses);
+        return load_commands_and_poses(&commands, &poses, args.frame.as_deref());
     }
     if shoal_bags::looks_like_bag(run) {
         return load_bag(run, args);

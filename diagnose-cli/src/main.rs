@@ -45,8 +45,10 @@ struct DiagnoseArgs {
     /// Commands sent: CSV with header t,v,omega (held until the next row).
     #[arg(long, requires = "poses", conflicts_with_all = ["run", "mrclam"])]
     commands: Option<PathBuf>,
-    /// Observed poses: CSV with header t,x,y,theta, or a TUM trajectory
-    /// (timestamp tx ty tz qx qy qz qw), at any rate.
+    /// Observed poses: CSV with header t,x,y,theta (or t,x,y: positions
+    /// only), a TUM trajectory (timestamp tx ty tz qx qy qz qw), or an
+    /// OptiTrack Motive CSV export (a rigid body's; --frame NAME of several),
+    /// at any rate.
     #[arg(long, requires = "commands")]
     poses: Option<PathBuf>,
     /// An MRCLAM dataset directory (e.g. shared/data/mrclam-d6); with --robot.
@@ -76,8 +78,9 @@ struct DiagnoseArgs {
     #[arg(long, value_enum, default_value_t = load::Stamps::Auto)]
     stamps: load::Stamps,
     /// With a TF poses topic: the robot's frame (the transform's child);
-    /// with Gazebo's model (or link) states: the robot's model (or link).
-    #[arg(long, requires = "poses_topic", value_name = "NAME")]
+    /// with Gazebo's model (or link) states: the robot's model (or link);
+    /// with an OptiTrack Motive export of several rigid bodies: the robot's.
+    #[arg(long, value_name = "NAME")]
     frame: Option<String>,
     /// With a TF poses topic: only transforms from this parent frame;
     /// where none joins it to --frame, the chain of transforms that does

@@ -218,6 +218,11 @@ pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
         .chain(pose_chain)
         .chain(set_aside_text(&d.glitches))
         .chain(
+            d.heading_axis
+                .as_ref()
+                .map(|how| format!("Headings: {}.", how.sentence())),
+        )
+        .chain(
             d.heading_from_track
                 .as_ref()
                 .map(|how| format!("Headings: {}.", how.sentence())),

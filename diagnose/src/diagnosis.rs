@@ -95,6 +95,10 @@ pub struct Diagnosis {
     /// from the track.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub heading_from_track: Option<crate::track::TrackHeadings>,
+    /// Where the poses' headings were turned by quarter turns to the way
+    /// the robot drives (a motion-capture body defined with other axes).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub heading_axis: Option<crate::track::HeadingAxis>,
     /// What was set aside as not the body's own motion before anything was fitted:
     /// jumps and returns, jumps without a return, pose gaps, command stalls.
     pub glitches: Vec<crate::glitches::Glitch>,
@@ -716,6 +720,7 @@ pub fn diagnose(recording: &Recording, given: &UnicycleModel, options: &Options)
         pose_outliers: prepared.pose_outliers,
         glitches: prepared.glitches.clone(),
         heading_from_track: prepared.heading_from_track.clone(),
+        heading_axis: prepared.heading_axis.clone(),
         rejected_heldout,
         not_transferring,
         not_feedback_free,

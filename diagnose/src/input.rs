@@ -23,7 +23,7 @@ enum Layout<'a> {
 
 /// What a row that holds no value in a column (empty, or NaN) is.
 #[derive(Clone, Copy, PartialEq)]
-enum Empty {
+pub(crate) enum Empty {
     /// A sample not taken: a motion capture that lost the body writes its
     /// frame's time with empty cells (OptiTrack's and Vicon's exports,
     /// pandas' NaN). Such a pose is a dropout, left out and said.
@@ -34,8 +34,8 @@ enum Empty {
 
 /// Rows of numbers in the requested column order, with their line numbers,
 /// in time order, and the rows that came out of it.
-struct Rows {
-    rows: Vec<(usize, Vec<f64>)>,
+pub(crate) struct Rows {
+    pub(crate) rows: Vec<(usize, Vec<f64>)>,
     /// Each row that came before a later time in the file: its line and
     /// how far (seconds) behind the latest time before it.
     out_of_order: Vec<(usize, f64)>,
@@ -67,7 +67,7 @@ pub struct Read<T> {
 
 impl Rows {
     /// The rows made into `T` by `make`, with what reading put in order.
-    fn read<T>(
+    pub(crate) fn read<T>(
         self,
         file: &str,
         make: impl FnOnce(Vec<(usize, Vec<f64>)>) -> Result<T, InputError>,
@@ -106,6 +106,22 @@ impl Rows {
 }
 
 fn read_rows(text: &str, file: &str, layout: Layout, empty: Empty) -> Result<Rows, InputError> {
+    let (columns, rows_of_fields) = match layout {
+        Layout::Csv { columns } => (columns, csv_fields(text, file, columns)?),
+        Layout::Whitespace { columns } => (columns, whitespace_fields(text, columns)),
+    };
+    rows_of(text, file, columns, rows_of_fields, empty)
+}
+
+/// The rows of `text`'s fields, read as `columns` (the first the time):
+/// checked, with samples not taken set aside as `empty` says, in time order.
+pub(crate) fn rows_of(
+    text: &str,
+    file: &str,
+    columns: &[&str],
+    rows_of_fields: Vec<(usize, Vec<Field>)>,
+    empty: Empty,
+) -> Result<Rows, InputError> {
     let error = |line: usize, message: String| InputError {
         file: file.to_owned(),
         line: Some(line),
@@ -123,10 +139,6 @@ fn read_rows(text: &str, file: &str, layout: Layout, empty: Empty) -> Result<Row
         } else {
             error(line, message)
         }
-    };
-    let (columns, rows_of_fields) = match layout {
-        Layout::Csv { columns } => (columns, csv_fields(text, file, columns)?),
-        Layout::Whitespace { columns } => (columns, whitespace_fields(text, columns)),
     };
     let mut rows = Vec::new();
     let mut out_of_order = Vec::new();
@@ -175,7 +187,7 @@ fn read_rows(text: &str, file: &str, layout: Layout, empty: Empty) -> Result<Row
 }
 
 /// A field of a row, read as a number, or what is wrong with it.
-type Field = Result<f64, String>;
+pub(crate) type Field = Result<f64, String>;
 
 /// A whitespace-separated file's fields, each row with its line number;
 /// blank lines and `#` comments skipped.
@@ -199,7 +211,7 @@ fn whitespace_fields(text: &str, columns: &[&str]) -> Vec<(usize, Vec<Field>)> {
 /// there (an empty field, or NaN, as pandas and motion-capture exports
 /// write a sample they do not have: [`read_rows`] decides what such a row
 /// is), or what is wrong with it.
-fn number(field: &str, column: &str) -> Field {
+pub(crate) fn number(field: &str, column: &str) -> Field {
     if field.is_empty() || field.eq_ignore_ascii_case("nan") {
         return Ok(f64::NAN);
     }
@@ -259,14 +271,21 @@ fn check_time(name: &str, t: f64, latest: f64, first_time: f64) -> Result<(), St
 /// record's line is found past line ends and comment lines to where the
 /// record's text starts. Records come in order, so counting on from the
 /// previous one keeps this linear in the file's length.
-struct LineFinder<'a> {
+pub(crate) struct LineFinder<'a> {
     bytes: &'a [u8],
     /// Byte counted up to, and the line number there.
     counted: (usize, usize),
 }
 
-impl LineFinder<'_> {
-    fn line_of(&mut self, position: Option<&csv::Position>) -> Option<usize> {
+impl<'a> LineFinder<'a> {
+    pub(crate) fn new(text: &'a str) -> Self {
+        Self {
+            bytes: text.as_bytes(),
+            counted: (0, 1),
+        }
+    }
+
+    pub(crate) fn line_of(&mut self, position: Option<&csv::Position>) -> Option<usize> {
         let bytes = self.bytes;
         position.map(|p| {
             let mut at = (p.byte() as usize).clamp(self.counted.0, bytes.len());
@@ -309,10 +328,7 @@ fn csv_fields(
         message,
     };
     let mut reader = csv_reader(text);
-    let mut lines = LineFinder {
-        bytes: text.as_bytes(),
-        counted: (0, 1),
-    };
+    let mut lines = LineFinder::new(text);
     let mut line_of = |position: Option<&csv::Position>| lines.line_of(position);
     let header = reader
         .headers()
@@ -738,7 +754,7 @@ fn commands_from(rows: Vec<(usize, Vec<f64>)>) -> Result<Commands, InputError> {
     Ok(commands)
 }
 
-fn poses_from(rows: Vec<(usize, Vec<f64>)>) -> Result<Poses, InputError> {
+pub(crate) fn poses_from(rows: Vec<(usize, Vec<f64>)>) -> Result<Poses, InputError> {
     let mut poses = Poses::default();
     for (_, row) in rows {
         poses.observe(row[0], row[1], row[2], row[3]);
@@ -879,6 +895,21 @@ pub fn poses_csv_or_tum(text: &str, file: &str) -> Result<Read<Poses>, InputErro
     } else {
         poses_csv(text, file)
     }
+}
+
+/// Poses from any file `--poses` takes: an OptiTrack Motive export (its
+/// rigid body `body`, or its only one), a TUM trajectory or a CSV file;
+/// with how reading it decided what the columns mean, in words.
+pub fn poses_file(
+    text: &str,
+    file: &str,
+    body: Option<&str>,
+) -> Result<(Read<Poses>, Vec<String>), InputError> {
+    if crate::motive::looks_like_motive(text) {
+        let (read, note) = crate::motive::poses_motive(text, file, body)?;
+        return Ok((read, vec![note]));
+    }
+    Ok((poses_csv_or_tum(text, file)?, poses_unit_notes(text, file)))
 }
 
 /// The header of a CSV file as `csv_fields` reads it, if it has one.

@@ -13,6 +13,7 @@ pub mod heldout;
 pub mod input;
 pub mod likelihood;
 pub mod locate;
+pub mod motive;
 pub mod prepared;
 pub mod recording;
 pub mod replay;

@@ -94,6 +94,9 @@ pub struct Prepared {
     /// Where the poses held positions only: how their headings were taken
     /// from the track (`track::headed`).
     pub heading_from_track: Option<crate::track::TrackHeadings>,
+    /// Where the poses' headings were turned by quarter turns to the way
+    /// the robot drives (`track::driving_axis`).
+    pub heading_axis: Option<crate::track::HeadingAxis>,
     /// The held-out blocks, as ranges of `segments`: one per recording
     /// joined, or `Options::folds` equal stretches of time.
     pub blocks: Vec<std::ops::Range<usize>>,
@@ -132,6 +135,10 @@ pub fn prepare_cut(
 ) -> Prepared {
     let (recording, glitches) = crate::glitches::set_aside(recording);
     let (recording, pose_outliers) = recording.without_pose_outliers();
+    let (recording, heading_axis) = match crate::track::driving_axis(&recording) {
+        Some((turned, how)) => (turned, Some(how)),
+        None => (recording, None),
+    };
     let (recording, heading_from_track) = match crate::track::headed(&recording) {
         Some((headed, how)) => (headed, Some(how)),
         None => (recording, None),
@@ -147,6 +154,7 @@ pub fn prepare_cut(
         pose_outliers,
         glitches,
         heading_from_track,
+        heading_axis,
         blocks,
         pose_period_s: intervals.get(intervals.len() / 2).copied().unwrap_or(0.0),
     }

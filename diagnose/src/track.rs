@@ -157,6 +157,121 @@ enum Way {
     Backwards,
 }
 
+/// Half the time a pose's direction of travel is read over, for the axis
+/// check (seconds): the chord between the poses this far either side.
+/// The chord of a turn of steady rate points where the body did at its
+/// middle.
+const AXIS_CHORD_HALF_S: f64 = 0.5;
+
+/// The shortest chord read (metres): over it a tracker's millimetre of
+/// noise turns the direction by a few degrees, far under the eighth of a
+/// turn the check must tell apart. MRCLAM's robots drive 0.07 m/s.
+const AXIS_CHORD_M: f64 = 0.02;
+
+/// The most poses the axis check reads, spread evenly over the run.
+const AXIS_SAMPLES: usize = 5000;
+
+/// The fewest chords that may turn the headings, and the share of them
+/// that must agree on the quarter turn.
+const AXIS_FEWEST_CHORDS: usize = 50;
+const AXIS_AGREEING_SHARE: f64 = 0.8;
+
+/// Where the poses' headings were turned to the way the robot drives.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct HeadingAxis {
+    /// How far every heading was turned, counterclockwise: a multiple of
+    /// a quarter turn, radians.
+    pub turned_rad: f64,
+    /// Stretches of driving compared, and those whose direction of travel
+    /// lay within an eighth of a turn of the turned heading.
+    pub compared: usize,
+    pub agreeing: usize,
+}
+
+impl HeadingAxis {
+    /// In words, for the report.
+    pub fn sentence(&self) -> String {
+        let degrees = self.turned_rad.to_degrees();
+        format!(
+            "the poses' heading is not the way the robot drives: in {} of {} half-second stretches of driving it moved {:.0}° to the {} of it, as a motion-capture body defined with other axes than the robot's does; every heading is turned by {degrees:+.0}°, and what is left askew is tried as a crab angle",
+            self.agreeing,
+            self.compared,
+            degrees.abs(),
+            if degrees > 0.0 { "left" } else { "right" },
+        )
+    }
+}
+
+/// `recording` with its headings turned by the quarter turns that make
+/// them the way the robot drives, where they are not: a motion-capture
+/// rigid body takes the world's axes when it is defined (OptiTrack's,
+/// Vicon's), so its x axis points wherever the robot's front did not. Only
+/// whole quarter turns: a smaller angle is a crab angle, which diagnosis
+/// names and fits. `None` where the headings need no turn, hold none, or
+/// the robot drove too little, or too unlike one axis, to say.
+pub fn driving_axis(recording: &Recording) -> Option<(Recording, HeadingAxis)> {
+    let poses = &recording.poses;
+    let step = (poses.len() / AXIS_SAMPLES).max(1);
+    let mut quarters = [0usize; 4];
+    for i in (0..poses.len()).step_by(step) {
+        let (t, theta) = (poses.t[i], poses.theta[i]);
+        if !theta.is_finite() {
+            continue;
+        }
+        let from = poses.t.partition_point(|&s| s < t - AXIS_CHORD_HALF_S);
+        let to = poses.t.partition_point(|&s| s <= t + AXIS_CHORD_HALF_S);
+        let Some(to) = to.checked_sub(1).filter(|&to| to > from) else {
+            continue;
+        };
+        // The chord's middle in time must be the pose's: both ends near
+        // their bounds (no gap on one side).
+        if t - poses.t[from] < 0.8 * AXIS_CHORD_HALF_S || poses.t[to] - t < 0.8 * AXIS_CHORD_HALF_S
+        {
+            continue;
+        }
+        let (dx, dy) = (poses.x[to] - poses.x[from], poses.y[to] - poses.y[from]);
+        if dx.hypot(dy) < AXIS_CHORD_M {
+            continue;
+        }
+        let within = poses.t[to] - poses.t[from] + LONGEST_DELAY_S;
+        let travel = match driven_way(recording, poses.t[to], within, f64::INFINITY) {
+            Some(Way::Forwards) => dy.atan2(dx),
+            Some(Way::Backwards) => dy.atan2(dx) + std::f64::consts::PI,
+            None => continue,
+        };
+        let off = shoal_physics::wrap_angle(travel - theta);
+        quarters[(off / std::f64::consts::FRAC_PI_2).round().rem_euclid(4.0) as usize] += 1;
+    }
+    let compared: usize = quarters.iter().sum();
+    tracing::debug!(
+        "axis check: of {compared} stretches of driving, the direction of travel lay ahead of the heading in {}, left of it in {}, behind it in {}, right of it in {}",
+        quarters[0],
+        quarters[1],
+        quarters[2],
+        quarters[3]
+    );
+    let (quarter, &agreeing) = quarters.iter().enumerate().max_by_key(|(_, n)| **n)?;
+    if quarter == 0
+        || compared < AXIS_FEWEST_CHORDS
+        || (agreeing as f64) < AXIS_AGREEING_SHARE * compared as f64
+    {
+        return None;
+    }
+    let turned_rad = shoal_physics::wrap_angle(quarter as f64 * std::f64::consts::FRAC_PI_2);
+    let mut turned = recording.clone();
+    for theta in turned.poses.theta.iter_mut().filter(|t| t.is_finite()) {
+        *theta = shoal_physics::wrap_angle(*theta + turned_rad);
+    }
+    Some((
+        turned,
+        HeadingAxis {
+            turned_rad,
+            compared,
+            agreeing,
+        },
+    ))
+}
+
 /// The longest a command is taken to wait before the robot answers it
 /// (seconds): a window is judged by the commands up to this much before it.
 const LONGEST_DELAY_S: f64 = 0.5;
@@ -471,6 +586,43 @@ mod tests {
             theta += omega * dt;
         }
         (Recording::of(commands, poses), truth)
+    }
+
+    #[test]
+    fn headings_a_quarter_turn_off_the_way_driven_are_turned_and_a_small_angle_is_not() {
+        let (recording, truth) = positions_only(0.001, 0.0);
+        let with_headings = |offset: f64| {
+            let mut r = recording.clone();
+            r.poses.theta = truth
+                .iter()
+                .map(|theta| shoal_physics::wrap_angle(theta + offset))
+                .collect();
+            r
+        };
+        // A body defined with its x axis at the robot's left: turned back
+        // by -90°, forwards and backwards alike.
+        let (turned, how) =
+            driving_axis(&with_headings(std::f64::consts::FRAC_PI_2 + 0.1)).expect("a quarter off");
+        assert!(
+            (how.turned_rad + std::f64::consts::FRAC_PI_2).abs() < 1e-12,
+            "{how:?}"
+        );
+        assert_eq!(how.agreeing, how.compared);
+        assert!(how.compared > 1000, "{how:?}");
+        assert!(shoal_physics::wrap_angle(turned.poses.theta[500] - truth[500] - 0.1).abs() < 1e-9);
+        assert!(
+            how.sentence().contains("90° to the right"),
+            "{}",
+            how.sentence()
+        );
+        // Half round: the same.
+        let (_, how) = driving_axis(&with_headings(std::f64::consts::PI)).expect("half round");
+        assert!((how.turned_rad.abs() - std::f64::consts::PI).abs() < 1e-12);
+        // A crab angle, and the truth, are left to diagnosis.
+        assert!(driving_axis(&with_headings(0.3)).is_none());
+        assert!(driving_axis(&with_headings(0.0)).is_none());
+        // Positions only: nothing to turn.
+        assert!(driving_axis(&recording).is_none());
     }
 
     #[test]

@@ -129,7 +129,7 @@ impl Target {
                 })
             }),
             Target::PosesTum => parse_mutated(rng, &seeds.poses_tum, |text, file| {
-                input::poses_csv_or_tum(text, file).map(|_| ())
+                input::poses_file(text, file, None).map(|_| ())
             }),
             Target::MrclamOdometry => parse_mutated(rng, &seeds.mrclam_odometry, |text, file| {
                 input::mrclam_odometry(text, file).map(|_| ())
