@@ -396,6 +396,80 @@ fn a_real_robot_tracked_by_position_alone_is_diagnosed_from_its_track() {
     assert!(after <= before, "{before} -> {after}");
 }
 
+/// A lab with OptiTrack exports its take from Motive as CSV: Y up,
+/// millimetres, quaternions, two rigid bodies and loose markers, frames
+/// where the robot was lost, and a rigid body defined with the robot
+/// turned (its X axis at the robot's right). Diagnosed as the dataset the
+/// take was written from: the same physics, the same segments, the same
+/// held-out error; what was read and turned is said.
+#[test]
+fn a_motive_export_of_a_real_robot_is_diagnosed_as_the_dataset_it_holds() {
+    let dir = scratch("motive");
+    python(
+        "write_motive_csv.py",
+        &[mrclam_d6().as_os_str(), "3".as_ref(), dir.as_os_str()],
+    );
+    let (commands, take) = (dir.join("commands.csv"), dir.join("take.csv"));
+    let diagnose = |extra: &[&str]| {
+        let mut command = Command::new(binary());
+        command
+            .arg("--commands")
+            .arg(&commands)
+            .arg("--poses")
+            .arg(&take)
+            .args(extra);
+        command.output().expect("start shoal-diagnose")
+    };
+    // Two rigid bodies: which is the robot is asked, naming both.
+    let unnamed = diagnose(&[]);
+    let said = String::from_utf8_lossy(&unnamed.stderr);
+    assert!(
+        !unnamed.status.success() && said.contains("`Dock`, `Robot3`"),
+        "{said}"
+    );
+    let output = diagnose(&["--frame", "Robot3", "--json"]);
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let motive: Value = serde_json::from_slice(&output.stdout).expect("json");
+    let dataset: Value = serde_json::from_slice(&succeed(
+        Command::new(binary()).arg(mrclam_d6()).arg("--json"),
+    ))
+    .expect("json");
+    let turned = motive["heading_axis"]["turned_rad"]
+        .as_f64()
+        .expect("turned");
+    assert!(
+        (turned - std::f64::consts::FRAC_PI_2).abs() < 1e-9,
+        "{}",
+        motive["heading_axis"]
+    );
+    let read = motive["input"]["units"].to_string();
+    assert!(read.contains("Motive") && read.contains("Y up"), "{read}");
+    assert!(
+        motive["input"]["dropouts"].to_string().contains("line 508"),
+        "{}",
+        motive["input"]
+    );
+    assert_eq!(kinds(&motive), kinds(&dataset));
+    let near = |key: &str, part: &str| {
+        let (a, b) = (
+            motive[part][key].as_f64().expect(key),
+            dataset[part][key].as_f64().expect(key),
+        );
+        assert!(
+            (a - b).abs() <= 0.01 * b.abs(),
+            "{part}.{key}: {a} against {b}"
+        );
+    };
+    near("heldout_rmse_pos_m", "baseline");
+    near("heldout_rmse_pos_m", "improved");
+    let segments = |d: &Value| d["segments"].as_f64().expect("segments");
+    assert!((segments(&motive) - segments(&dataset)).abs() <= 0.01 * segments(&dataset));
+}
+
 /// A published dataset whose logger wrote a few rows out of time order
 /// (a message stamped before one logged ahead of it): read sorted, said in
 /// the report and the JSON, and diagnosed as the same file in order.
@@ -1886,25 +1960,40 @@ fn a_motion_capture_body_defined_askew_is_named_as_a_crab_angle_not_as_noise() {
     // 0.04 rad (2.3°) to the left of the robot's: it drives to the right of
     // the heading observed. Before crab angles were a kind, this read as
     // speed-dependent noise, the sideways residual left following speed.
+    // Then a quarter turn further left, as a body defined with the robot
+    // facing another axis is: turned back by the quarter, said, and the
+    // 0.04 rad named as before.
     let poses = std::fs::read_to_string(dir.join("poses.csv")).expect("poses");
-    let askew: Vec<String> = poses
-        .lines()
-        .enumerate()
-        .map(|(i, line)| {
-            let fields: Vec<&str> = line.split(',').collect();
-            match (i, fields.as_slice()) {
-                (0, _) => line.to_owned(),
-                (_, [t, x, y, theta]) => {
-                    let theta: f64 = theta.parse().expect("a heading");
-                    format!("{t},{x},{y},{:.6}", theta + 0.04)
+    for (offset, quarter) in [
+        (0.04, None),
+        (0.04 + std::f64::consts::FRAC_PI_2, Some(-1.0)),
+    ] {
+        let askew: Vec<String> = poses
+            .lines()
+            .enumerate()
+            .map(|(i, line)| {
+                let fields: Vec<&str> = line.split(',').collect();
+                match (i, fields.as_slice()) {
+                    (0, _) => line.to_owned(),
+                    (_, [t, x, y, theta]) => {
+                        let theta: f64 = theta.parse().expect("a heading");
+                        format!("{t},{x},{y},{:.6}", theta + offset)
+                    }
+                    _ => panic!("poses.csv line {}: {line}", i + 1),
                 }
-                _ => panic!("poses.csv line {}: {line}", i + 1),
-            }
-        })
-        .collect();
-    std::fs::write(dir.join("poses.csv"), askew.join("\n") + "\n").expect("write poses");
-    let d = diagnose_dir(&dir, &[]);
-    assert_eq!(kinds(&d), ["crab_angle"], "{}", d["effects"]);
-    let rad = d["effects"][0]["params"]["rad"].as_f64().expect("rad");
-    assert!((rad + 0.04).abs() < 0.005, "crab angle {rad}");
+            })
+            .collect();
+        std::fs::write(dir.join("poses.csv"), askew.join("\n") + "\n").expect("write poses");
+        let d = diagnose_dir(&dir, &[]);
+        assert_eq!(kinds(&d), ["crab_angle"], "{}", d["effects"]);
+        let rad = d["effects"][0]["params"]["rad"].as_f64().expect("rad");
+        assert!((rad + 0.04).abs() < 0.005, "crab angle {rad}");
+        let turned = d["heading_axis"]["turned_rad"].as_f64();
+        assert_eq!(
+            turned.map(|t| (t / std::f64::consts::FRAC_PI_2).round()),
+            quarter,
+            "{}",
+            d["heading_axis"]
+        );
+    }
 }
