@@ -43,6 +43,8 @@ pub enum Target {
     PosesCsv,
     /// `shoal diagnose --poses`: a TUM trajectory (`t x y z qx qy qz qw`).
     PosesTum,
+    /// `shoal diagnose --poses`: an OptiTrack Motive CSV export.
+    PosesMotive,
     /// `shoal diagnose --mrclam`: `RobotN_Odometry.dat`.
     MrclamOdometry,
     /// `shoal diagnose --mrclam`: `RobotN_Groundtruth.dat`.
@@ -66,13 +68,14 @@ pub enum Target {
 }
 
 impl Target {
-    pub const ALL: [Target; 19] = [
+    pub const ALL: [Target; 20] = [
         Target::Scenario,
         Target::MotionModel,
         Target::EffectsModel,
         Target::CommandsCsv,
         Target::PosesCsv,
         Target::PosesTum,
+        Target::PosesMotive,
         Target::MrclamOdometry,
         Target::MrclamGroundtruth,
         Target::Pose,
@@ -130,6 +133,9 @@ impl Target {
             }),
             Target::PosesTum => parse_mutated(rng, &seeds.poses_tum, |text, file| {
                 input::poses_file(text, file, None).map(|_| ())
+            }),
+            Target::PosesMotive => parse_mutated(rng, &seeds.poses_motive, |text, file| {
+                input::poses_file(text, file, Some("robot")).map(|_| ())
             }),
             Target::MrclamOdometry => parse_mutated(rng, &seeds.mrclam_odometry, |text, file| {
                 input::mrclam_odometry(text, file).map(|_| ())
@@ -541,6 +547,7 @@ pub struct Seeds {
     commands_csv: String,
     poses_csv: String,
     poses_tum: String,
+    poses_motive: String,
     mrclam_odometry: String,
     mrclam_groundtruth: String,
     link_pose: Vec<u8>,
@@ -569,6 +576,7 @@ impl Seeds {
             commands_csv: commands,
             poses_csv: poses,
             poses_tum,
+            poses_motive: motive_seed(),
             mrclam_odometry: odometry,
             mrclam_groundtruth: truth,
             link_pose: shoal_link::wire::RemotePose {
@@ -580,6 +588,36 @@ impl Seeds {
                 .context("the host summary seed")?,
         })
     }
+}
+
+/// A Motive export of two rigid bodies and a marker, Y up, millimetres,
+/// with a frame where the robot was lost.
+fn motive_seed() -> String {
+    let mut text = String::from(
+        "Format Version,1.23,Take Name,seed,Capture Frame Rate,120.000000,Rotation Type,Quaternion,Length Units,Millimeters,Coordinate Space,Global\r\n\r\n",
+    );
+    text += ",Type,Rigid Body,Rigid Body,Rigid Body,Rigid Body,Rigid Body,Rigid Body,Rigid Body,Rigid Body,Rigid Body,Rigid Body,Rigid Body,Rigid Body,Rigid Body,Rigid Body,Marker,Marker,Marker\r\n";
+    text += ",Name,dock,dock,dock,dock,dock,dock,dock,robot,robot,robot,robot,robot,robot,robot,m,m,m\r\n";
+    text += ",ID,1,1,1,1,1,1,1,2,2,2,2,2,2,2,3,3,3\r\n";
+    text += ",,Rotation,Rotation,Rotation,Rotation,Position,Position,Position,Rotation,Rotation,Rotation,Rotation,Position,Position,Position,Position,Position,Position\r\n";
+    text += "Frame,Time (Seconds),X,Y,Z,W,X,Y,Z,X,Y,Z,W,X,Y,Z,X,Y,Z\r\n";
+    for frame in 0..40 {
+        let t = f64::from(frame) / 120.0;
+        let half = 0.005 * t;
+        let robot = if frame == 20 {
+            ",,,,,,".to_owned()
+        } else {
+            format!(
+                "0,{:.6},0,{:.6},{:.3},61.5,{:.3}",
+                half.sin(),
+                half.cos(),
+                20.0 * t,
+                -t
+            )
+        };
+        text += &format!("{frame},{t:.6},0,0,0,1,500,60,500,{robot},1,2,3\r\n");
+    }
+    text
 }
 
 /// A scenario with a surface that changes in time.
@@ -789,6 +827,10 @@ mod tests {
         shoal_diagnose::input::commands_csv(&seeds.commands_csv, file).expect("commands");
         shoal_diagnose::input::poses_csv(&seeds.poses_csv, file).expect("poses");
         shoal_diagnose::input::poses_tum(&seeds.poses_tum, file).expect("TUM poses");
+        let (motive, _) =
+            shoal_diagnose::input::poses_file(&seeds.poses_motive, file, Some("robot"))
+                .expect("Motive export");
+        assert_eq!(motive.data.len(), 39);
         shoal_diagnose::input::mrclam_odometry(&seeds.mrclam_odometry, file).expect("odometry");
         shoal_diagnose::input::mrclam_groundtruth(&seeds.mrclam_groundtruth, file).expect("truth");
     }
