@@ -468,6 +468,26 @@ fn a_motive_export_of_a_real_robot_is_diagnosed_as_the_dataset_it_holds() {
     near("heldout_rmse_pos_m", "improved");
     let segments = |d: &Value| d["segments"].as_f64().expect("segments");
     assert!((segments(&motive) - segments(&dataset)).abs() <= 0.01 * segments(&dataset));
+    // Commands logged in Unix time beside a take's seconds from its
+    // start: refused, and the two clocks' spans said.
+    let logged = std::fs::read_to_string(&commands).expect("commands");
+    let unix: Vec<String> = logged
+        .lines()
+        .enumerate()
+        .map(|(i, line)| match line.split_once(',') {
+            Some((t, rest)) if i > 0 => {
+                format!("{:.3},{rest}", t.parse::<f64>().expect("a time") + 1.7e9)
+            }
+            _ => line.to_owned(),
+        })
+        .collect();
+    std::fs::write(&commands, unix.join("\n") + "\n").expect("write commands");
+    let apart = diagnose(&["--frame", "Robot3"]);
+    let said = String::from_utf8_lossy(&apart.stderr);
+    assert!(
+        !apart.status.success() && said.contains("do not overlap") && said.contains("Unix time"),
+        "{said}"
+    );
 }
 
 /// A published dataset whose logger wrote a few rows out of time order
