@@ -37,6 +37,14 @@ pub(crate) const ON_BOUND: f64 = 0.1;
 
 /// Why `scoped`'s fit is not physics, if it ended on an edge of its range.
 pub(crate) fn on_bound(scoped: &ScopedEffect) -> Option<String> {
+    // A noise effect's range is no physics: its upper edge (a share of
+    // 0.99 of the noise growing with speed) says that all of it does, as
+    // it does for a body whose noise comes only while it moves. Said as
+    // "no effect explains a real mismatch", it read as physics to find
+    // (6 of 60 null runs of a waypoint follower seen by positions only).
+    if scoped.effect.only_noise() {
+        return None;
+    }
     let identity = Effect::identity(scoped.effect.kind(), [0.0; 4])?;
     let plain: Vec<f64> = identity.params().into_iter().map(|(_, v)| v).collect();
     let ranges = scoped.effect.ranges();
