@@ -32,7 +32,8 @@ pub struct InputNotes {
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub recordings: Vec<String>,
     /// CSV columns read in another unit than Shoal's (seconds, metres,
-    /// radians), and why.
+    /// radians), and why; how a motion-capture export's body, units and
+    /// axes were read.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub units: Vec<String>,
     /// Rows a file held out of time order, read sorted.
