@@ -897,8 +897,8 @@ pub fn poses_csv_or_tum(text: &str, file: &str) -> Result<Read<Poses>, InputErro
     }
 }
 
-/// Poses from any file `--poses` takes: an OptiTrack Motive export (its
-/// rigid body `body`, or its only one), a TUM trajectory or a CSV file;
+/// Poses from any file `--poses` takes: an OptiTrack Motive or a Vicon
+/// export (its body `body`, or its only one), a TUM trajectory or a CSV file;
 /// with how reading it decided what the columns mean, in words.
 pub fn poses_file(
     text: &str,
@@ -907,6 +907,10 @@ pub fn poses_file(
 ) -> Result<(Read<Poses>, Vec<String>), InputError> {
     if crate::motive::looks_like_motive(text) {
         let (read, note) = crate::motive::poses_motive(text, file, body)?;
+        return Ok((read, vec![note]));
+    }
+    if crate::vicon::looks_like_vicon(text) {
+        let (read, note) = crate::vicon::poses_vicon(text, file, body)?;
         return Ok((read, vec![note]));
     }
     Ok((poses_csv_or_tum(text, file)?, poses_unit_notes(text, file)))

@@ -13,6 +13,7 @@ pub mod heldout;
 pub mod input;
 pub mod likelihood;
 pub mod locate;
+pub mod mocap;
 pub mod motive;
 pub mod prepared;
 pub mod recording;
@@ -21,6 +22,7 @@ pub mod segments;
 pub mod selection;
 pub mod timeout;
 pub mod track;
+pub mod vicon;
 pub mod zones;
 
 pub use diagnosis::{Diagnosis, Options, diagnose};

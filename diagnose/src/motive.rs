@@ -3,66 +3,16 @@
 //! (`Rigid Body`, `Marker`, ...), its body, what it measures (`Rotation`,
 //! `Position`) and its axis, then a frame a row, with empty cells where the
 //! body was not tracked. Motive's world has Y up unless it was exported with
-//! Z up, and a rigid body's axes are the world's when it was defined: the
-//! ground plane and the heading are taken from the data, and said.
+//! Z up: the ground plane is taken from the data (`mocap::on_the_ground`).
 
-use crate::input::{Empty, Field, InputError, LineFinder, Read, number, poses_from, rows_of};
+use crate::input::{Empty, Field, InputError, LineFinder, Read, number, rows_of};
+use crate::mocap::{Rotation, on_the_ground};
 use crate::recording::Poses;
 
 /// Whether `text` is a Motive export: its first line names the format.
 pub fn looks_like_motive(text: &str) -> bool {
     text.trim_start_matches('\u{feff}')
         .starts_with("Format Version,")
-}
-
-/// How the export's rotations are written: Motive's setting `Rotation
-/// Type`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Rotation {
-    /// Columns X, Y, Z, W.
-    Quaternion,
-    /// Columns X, Y, Z in degrees, composed in this order.
-    Euler(glam::EulerRot, [usize; 3]),
-}
-
-impl Rotation {
-    fn named(name: &str) -> Option<Self> {
-        use glam::EulerRot::*;
-        // The angle about each axis, in the order the rotation composes them.
-        let (order, axes) = match name.to_ascii_uppercase().as_str() {
-            "QUATERNION" => return Some(Self::Quaternion),
-            "XYZ" => (XYZ, [0, 1, 2]),
-            "XZY" => (XZY, [0, 2, 1]),
-            "YXZ" => (YXZ, [1, 0, 2]),
-            "YZX" => (YZX, [1, 2, 0]),
-            "ZXY" => (ZXY, [2, 0, 1]),
-            "ZYX" => (ZYX, [2, 1, 0]),
-            _ => return None,
-        };
-        Some(Self::Euler(order, axes))
-    }
-
-    fn columns(self) -> &'static [&'static str] {
-        match self {
-            Self::Quaternion => &["X", "Y", "Z", "W"],
-            Self::Euler(..) => &["X", "Y", "Z"],
-        }
-    }
-
-    /// The rotation of a row's rotation fields, in Motive's world.
-    fn of(self, fields: &[f64]) -> glam::DQuat {
-        match self {
-            Self::Quaternion => {
-                glam::DQuat::from_xyzw(fields[0], fields[1], fields[2], fields[3]).normalize()
-            }
-            Self::Euler(order, [a, b, c]) => glam::DQuat::from_euler(
-                order,
-                fields[a].to_radians(),
-                fields[b].to_radians(),
-                fields[c].to_radians(),
-            ),
-        }
-    }
 }
 
 /// The rigid bodies an export holds, by name, in the order of its columns.
@@ -247,38 +197,8 @@ pub fn poses_motive(
         fields.push((line, row));
     }
     let rows = rows_of(text, file, &names, fields, Empty::Dropout)?;
-    let up = up_axis(&rows.rows);
-    let planar = |row: &Vec<f64>| -> Option<[f64; 3]> {
-        let p = glam::DVec3::new(row[1], row[2], row[3]) * to_metres;
-        let q = rotation.of(&row[4..]);
-        let (a, b) = up.plane();
-        // The rigid body's first axis across the up axis: Motive defines
-        // a body's axes as the world's, so it lies on the ground.
-        let forward =
-            [glam::DVec3::X, glam::DVec3::Y, glam::DVec3::Z][if up.index == 0 { 1 } else { 0 }];
-        let pointing = q * forward;
-        let heading = pointing.dot(b).atan2(pointing.dot(a));
-        (q.is_finite() && heading.is_finite()).then_some([p.dot(a), p.dot(b), heading])
-    };
-    let mut not_rotations = Vec::new();
-    let read = rows.read(file, |rows| {
-        let mut kept = Vec::with_capacity(rows.len());
-        for (line, row) in rows {
-            match planar(&row) {
-                Some([x, y, theta]) => kept.push((line, vec![row[0], x, y, theta])),
-                None => not_rotations.push(line),
-            }
-        }
-        poses_from(kept)
-    })?;
-    if let Some(&line) = not_rotations.first() {
-        return Err(error(
-            Some(line),
-            format!(
-                "the rotation of rigid body `{body}` is not a rotation (a quaternion of zero length)"
-            ),
-        ));
-    }
+    // Motive's world has Y up unless exported otherwise.
+    let (read, up) = on_the_ground(rows, file, rotation, to_metres, 1, &body)?;
     let others = if bodies.len() > 1 {
         format!(" (of {listed})")
     } else {
@@ -288,85 +208,10 @@ pub fn poses_motive(
         read,
         format!(
             "{file}: an OptiTrack Motive export (format {version}), rigid body `{body}`{others}; lengths in {unit}, rotations as {}; {}",
-            match rotation {
-                Rotation::Quaternion => "quaternions".to_owned(),
-                Rotation::Euler(order, _) => format!("Euler angles in degrees ({order:?})"),
-            },
+            rotation.name(),
             up.sentence(),
         ),
     ))
-}
-
-/// Which of Motive's axes is up, and how it was told.
-struct Up {
-    index: usize,
-    /// Its positions' spread against the least of the other two's.
-    spread_share: f64,
-}
-
-/// The axis along which a ground robot moves least: its height. Where no
-/// axis stands out (a robot that hardly moved), Motive's default, Y.
-fn up_axis(rows: &[(usize, Vec<f64>)]) -> Up {
-    let spread = |k: usize| {
-        let n = rows.len().max(1) as f64;
-        let mean = rows.iter().map(|(_, r)| r[k]).sum::<f64>() / n;
-        (rows.iter().map(|(_, r)| (r[k] - mean).powi(2)).sum::<f64>() / n).sqrt()
-    };
-    let spreads = [spread(1), spread(2), spread(3)];
-    let least = (0..3)
-        .min_by(|&a, &b| spreads[a].total_cmp(&spreads[b]))
-        .unwrap_or(1);
-    let next = (0..3)
-        .filter(|&k| k != least)
-        .map(|k| spreads[k])
-        .fold(f64::INFINITY, f64::min);
-    let spread_share = spreads[least] / next;
-    // A height that varies a fifth as much as the floor's extent is no height.
-    if spread_share.is_finite() && spread_share < 0.2 {
-        Up {
-            index: least,
-            spread_share,
-        }
-    } else {
-        Up {
-            index: 1,
-            spread_share: f64::NAN,
-        }
-    }
-}
-
-impl Up {
-    /// The ground plane's x and y axes in Motive's world, right-handed
-    /// about up: with Y up (Motive's default) x is X and y is -Z.
-    fn plane(&self) -> (glam::DVec3, glam::DVec3) {
-        use glam::DVec3;
-        match self.index {
-            0 => (DVec3::Y, DVec3::Z),
-            1 => (DVec3::X, -DVec3::Z),
-            _ => (DVec3::X, DVec3::Y),
-        }
-    }
-
-    fn sentence(&self) -> String {
-        let name = ["X", "Y", "Z"][self.index];
-        let how = if self.spread_share.is_nan() {
-            "no axis held the body's height apart from the floor's extent, so Motive's default"
-                .to_owned()
-        } else {
-            format!(
-                "the axis the body moved least along ({:.1}% of the least other)",
-                100.0 * self.spread_share
-            )
-        };
-        let (x, y, forward) = match self.index {
-            0 => ("Y", "Z", "Y"),
-            1 => ("X", "-Z", "X"),
-            _ => ("X", "Y", "X"),
-        };
-        format!(
-            "{name} up ({how}): x is Motive's {x}, y its {y}, the heading the rigid body's {forward} axis about {name}"
-        )
-    }
 }
 
 #[cfg(test)]
