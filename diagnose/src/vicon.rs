@@ -183,7 +183,7 @@ pub fn poses_vicon(
                     Some(columns_line),
                     format!(
                         "body `{name}` has no column `{label}` (it has {})",
-                        columns[start..end.min(columns.len())].join(", ")
+                        columns.get(start..end.min(columns.len())).unwrap_or_default().join(", ")
                     ),
                 )
             })
@@ -320,5 +320,11 @@ mod tests {
         let bad = poses_vicon(&bad, "trial.csv", Some("Dock")).expect_err("a letter");
         assert_eq!(bad.line, Some(9));
         assert!(bad.message.contains("Dock:Dock TX"), "{bad}");
+        // A body named past the columns' row (the fuzzer's input 57 of
+        // seed 1: it panicked slicing the columns).
+        let short = "Segments\n100\n,,,,,,,,robot\nFrame,Sub Frame\n,,\n1,0\n2,0\n";
+        let short = poses_vicon(short, "trial.csv", None).expect_err("no columns");
+        assert_eq!(short.line, Some(4), "{short}");
+        assert!(short.message.contains("no column `TX`"), "{short}");
     }
 }

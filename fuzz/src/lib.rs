@@ -45,6 +45,8 @@ pub enum Target {
     PosesTum,
     /// `shoal diagnose --poses`: an OptiTrack Motive CSV export.
     PosesMotive,
+    /// `shoal diagnose --poses`: a Vicon CSV export.
+    PosesVicon,
     /// `shoal diagnose --mrclam`: `RobotN_Odometry.dat`.
     MrclamOdometry,
     /// `shoal diagnose --mrclam`: `RobotN_Groundtruth.dat`.
@@ -68,7 +70,7 @@ pub enum Target {
 }
 
 impl Target {
-    pub const ALL: [Target; 20] = [
+    pub const ALL: [Target; 21] = [
         Target::Scenario,
         Target::MotionModel,
         Target::EffectsModel,
@@ -76,6 +78,7 @@ impl Target {
         Target::PosesCsv,
         Target::PosesTum,
         Target::PosesMotive,
+        Target::PosesVicon,
         Target::MrclamOdometry,
         Target::MrclamGroundtruth,
         Target::Pose,
@@ -135,6 +138,9 @@ impl Target {
                 input::poses_file(text, file, None).map(|_| ())
             }),
             Target::PosesMotive => parse_mutated(rng, &seeds.poses_motive, |text, file| {
+                input::poses_file(text, file, Some("robot")).map(|_| ())
+            }),
+            Target::PosesVicon => parse_mutated(rng, &seeds.poses_vicon, |text, file| {
                 input::poses_file(text, file, Some("robot")).map(|_| ())
             }),
             Target::MrclamOdometry => parse_mutated(rng, &seeds.mrclam_odometry, |text, file| {
@@ -548,6 +554,7 @@ pub struct Seeds {
     poses_csv: String,
     poses_tum: String,
     poses_motive: String,
+    poses_vicon: String,
     mrclam_odometry: String,
     mrclam_groundtruth: String,
     link_pose: Vec<u8>,
@@ -577,6 +584,7 @@ impl Seeds {
             poses_csv: poses,
             poses_tum,
             poses_motive: motive_seed(),
+            poses_vicon: vicon_seed(),
             mrclam_odometry: odometry,
             mrclam_groundtruth: truth,
             link_pose: shoal_link::wire::RemotePose {
@@ -618,6 +626,24 @@ fn motive_seed() -> String {
         text += &format!("{frame},{t:.6},0,0,0,1,500,60,500,{robot},1,2,3\r\n");
     }
     text
+}
+
+/// A Vicon export: a `Segments` section of two subjects, with a frame
+/// where the robot was lost, then a `Trajectories` section.
+fn vicon_seed() -> String {
+    let mut text = String::from(
+        "Segments\r\n100\r\n,,dock:dock,,,,,,robot:robot,,,,,\r\nFrame,Sub Frame,RX,RY,RZ,TX,TY,TZ,RX,RY,RZ,TX,TY,TZ\r\n,,deg,deg,deg,mm,mm,mm,deg,deg,deg,mm,mm,mm\r\n",
+    );
+    for frame in 1..=40 {
+        let t = f64::from(frame) / 100.0;
+        let robot = if frame == 20 {
+            ",,,,,".to_owned()
+        } else {
+            format!("0.1,-0.2,{:.3},{:.3},{:.3},85", 10.0 * t, 20.0 * t, 3.0 * t)
+        };
+        text += &format!("{frame},0,0,0,0,500,-400,85,{robot}\r\n");
+    }
+    text + "\r\nTrajectories\r\n100\r\n,,robot:M1,,\r\nFrame,Sub Frame,X,Y,Z\r\n,,mm,mm,mm\r\n1,0,1,2,3\r\n"
 }
 
 /// A scenario with a surface that changes in time.
@@ -831,6 +857,9 @@ mod tests {
             shoal_diagnose::input::poses_file(&seeds.poses_motive, file, Some("robot"))
                 .expect("Motive export");
         assert_eq!(motive.data.len(), 39);
+        let (vicon, _) = shoal_diagnose::input::poses_file(&seeds.poses_vicon, file, Some("robot"))
+            .expect("Vicon export");
+        assert_eq!(vicon.data.len(), 39);
         shoal_diagnose::input::mrclam_odometry(&seeds.mrclam_odometry, file).expect("odometry");
         shoal_diagnose::input::mrclam_groundtruth(&seeds.mrclam_groundtruth, file).expect("truth");
     }
