@@ -47,8 +47,8 @@ struct DiagnoseArgs {
     commands: Option<PathBuf>,
     /// Observed poses: CSV with header t,x,y,theta (or t,x,y: positions
     /// only), a TUM trajectory (timestamp tx ty tz qx qy qz qw), or an
-    /// OptiTrack Motive CSV export (a rigid body's; --frame NAME of several),
-    /// at any rate.
+    /// OptiTrack Motive or Vicon (Nexus, Tracker) CSV export (a body's;
+    /// --frame NAME of several), at any rate.
     #[arg(long, requires = "commands")]
     poses: Option<PathBuf>,
     /// An MRCLAM dataset directory (e.g. shared/data/mrclam-d6); with --robot.
@@ -79,7 +79,7 @@ struct DiagnoseArgs {
     stamps: load::Stamps,
     /// With a TF poses topic: the robot's frame (the transform's child);
     /// with Gazebo's model (or link) states: the robot's model (or link);
-    /// with an OptiTrack Motive export of several rigid bodies: the robot's.
+    /// with a Motive or Vicon export of several bodies: the robot's.
     #[arg(long, value_name = "NAME")]
     frame: Option<String>,
     /// With a TF poses topic: only transforms from this parent frame;
