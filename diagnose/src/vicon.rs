@@ -183,7 +183,10 @@ pub fn poses_vicon(
                     Some(columns_line),
                     format!(
                         "body `{name}` has no column `{label}` (it has {})",
-                        columns.get(start..end.min(columns.len())).unwrap_or_default().join(", ")
+                        columns
+                            .get(start..end.min(columns.len()))
+                            .unwrap_or_default()
+                            .join(", ")
                     ),
                 )
             })
