@@ -29,6 +29,20 @@ def rows(path):
                 yield [float(v) for v in line.split()]
 
 
+def truth_and_commands(source, robot, target):
+    """The robot's ground truth rows, and their first time; its commands
+    written to `commands.csv` in seconds from that time (the capture's
+    clock)."""
+    truth = list(rows(f"{source}/Robot{robot}_Groundtruth.dat"))
+    start = truth[0][0]
+    with open(f"{target}/commands.csv", "w", newline="") as f:
+        out = csv.writer(f)
+        out.writerow(["t", "v", "omega"])
+        for t, v, omega in rows(f"{source}/Robot{robot}_Odometry.dat"):
+            out.writerow([f"{t - start:.3f}", v, omega])
+    return truth, start
+
+
 def quaternion_about_y(angle, roll):
     """A turn of `angle` about Y (up), after a small `roll` about the body's X."""
     cy, sy = math.cos(angle / 2), math.sin(angle / 2)
@@ -39,13 +53,7 @@ def quaternion_about_y(angle, roll):
 
 def main():
     source, robot, target = sys.argv[1], sys.argv[2], sys.argv[3]
-    truth = list(rows(f"{source}/Robot{robot}_Groundtruth.dat"))
-    start = truth[0][0]
-    with open(f"{target}/commands.csv", "w", newline="") as f:
-        out = csv.writer(f)
-        out.writerow(["t", "v", "omega"])
-        for t, v, omega in rows(f"{source}/Robot{robot}_Odometry.dat"):
-            out.writerow([f"{t - start:.3f}", v, omega])
+    truth, start = truth_and_commands(source, robot, target)
 
     body = f"Robot{robot}"
     columns = (

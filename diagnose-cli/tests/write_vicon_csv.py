@@ -24,15 +24,9 @@ import csv
 import math
 import sys
 
+from write_motive_csv import truth_and_commands
+
 RATE = 100
-
-
-def rows(path):
-    with open(path) as f:
-        for line in f:
-            line = line.strip()
-            if line and not line.startswith("#"):
-                yield [float(v) for v in line.split()]
 
 
 def helical(yaw, roll):
@@ -49,13 +43,7 @@ def helical(yaw, roll):
 
 def main():
     source, robot, target = sys.argv[1], sys.argv[2], sys.argv[3]
-    truth = list(rows(f"{source}/Robot{robot}_Groundtruth.dat"))
-    start = truth[0][0]
-    with open(f"{target}/commands.csv", "w", newline="") as f:
-        out = csv.writer(f)
-        out.writerow(["t", "v", "omega"])
-        for t, v, omega in rows(f"{source}/Robot{robot}_Odometry.dat"):
-            out.writerow([f"{t - start:.3f}", v, omega])
+    truth, start = truth_and_commands(source, robot, target)
 
     subject = f"Robot{robot}:Robot{robot}"
     with open(f"{target}/trial.csv", "w", newline="") as f:

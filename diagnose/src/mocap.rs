@@ -5,8 +5,47 @@
 //! so that axis need not be the robot's front: `track::driving_axis` turns
 //! the headings by the quarter turns that make them so.
 
-use crate::input::{InputError, Read, Rows, poses_from};
+use crate::input::{InputError, LineFinder, Read, Rows, poses_from};
 use crate::recording::Poses;
+
+/// An export's CSV records (of any length, fields trimmed), each with the
+/// line it starts on.
+pub(crate) struct Records<'a> {
+    records: csv::StringRecordsIntoIter<&'a [u8]>,
+    lines: LineFinder<'a>,
+    file: &'a str,
+}
+
+impl<'a> Records<'a> {
+    pub(crate) fn of(text: &'a str, file: &'a str) -> Self {
+        let reader = csv::ReaderBuilder::new()
+            .has_headers(false)
+            .flexible(true)
+            .trim(csv::Trim::All)
+            .from_reader(text.as_bytes());
+        Self {
+            records: reader.into_records(),
+            lines: LineFinder::new(text),
+            file,
+        }
+    }
+
+    /// The next record and its line; none at the end.
+    pub(crate) fn next(&mut self) -> Result<Option<(usize, Vec<String>)>, InputError> {
+        match self.records.next() {
+            None => Ok(None),
+            Some(Err(e)) => Err(InputError {
+                file: self.file.to_owned(),
+                line: self.lines.line_of(e.position()),
+                message: format!("not CSV: {e}"),
+            }),
+            Some(Ok(record)) => Ok(Some((
+                self.lines.line_of(record.position()).unwrap_or(0),
+                record.iter().map(str::to_owned).collect(),
+            ))),
+        }
+    }
+}
 
 /// How an export writes a body's rotation.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -7,8 +7,8 @@
 //! `Objects` (Tracker): helical angles and a position. Vicon's world has Z
 //! up; the ground plane is taken from the data (`mocap::on_the_ground`).
 
-use crate::input::{Empty, Field, InputError, LineFinder, Read, number, rows_of};
-use crate::mocap::{Rotation, on_the_ground};
+use crate::input::{Empty, Field, InputError, Read, number, rows_of};
+use crate::mocap::{Records, Rotation, on_the_ground};
 use crate::recording::Poses;
 
 /// The sections that hold a body's pose.
@@ -51,23 +51,8 @@ pub fn poses_vicon(
         message,
     };
     let text = text.trim_start_matches('\u{feff}');
-    let mut reader = csv::ReaderBuilder::new()
-        .has_headers(false)
-        .flexible(true)
-        .trim(csv::Trim::All)
-        .from_reader(text.as_bytes());
-    let mut records = reader.records();
-    let mut lines = LineFinder::new(text);
-    let mut next = || -> Result<Option<(usize, Vec<String>)>, InputError> {
-        match records.next() {
-            None => Ok(None),
-            Some(Err(e)) => Err(error(lines.line_of(e.position()), format!("not CSV: {e}"))),
-            Some(Ok(record)) => Ok(Some((
-                lines.line_of(record.position()).unwrap_or(0),
-                record.iter().map(str::to_owned).collect(),
-            ))),
-        }
-    };
+    let mut records = Records::of(text, file);
+    let mut next = || records.next();
     let is_section = |cells: &[String]| {
         cells.iter().skip(1).all(String::is_empty)
             && cells
