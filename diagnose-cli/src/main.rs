@@ -216,7 +216,7 @@ fn spans(recording: &Recording) -> String {
     };
     let (Some(commands), Some(poses)) = (span(&recording.commands.t), span(&recording.poses.t))
     else {
-        return "Some of them are empty.".to_owned();
+        return "The commands or the poses hold no rows.".to_owned();
     };
     let apart = (commands.0 - poses.1).max(poses.0 - commands.1);
     let overlap = if apart > 0.0 {

@@ -92,7 +92,7 @@ impl Rotation {
         }
     }
 
-    /// The rotation of a row's rotation fields, in Motive's world.
+    /// The rotation of a row's rotation fields, in the capture's world.
     fn of(self, fields: &[f64]) -> glam::DQuat {
         match self {
             Self::Quaternion => {
@@ -113,7 +113,7 @@ impl Rotation {
 
 /// `rows` of a time, a position (X, Y, Z, in units `to_metres` makes
 /// metres) and `rotation`'s fields, as poses on the ground plane, and which
-/// axis was taken for up (`default` where none stands out).
+/// axis was taken for up (`default_up` where none stands out).
 pub(crate) fn on_the_ground(
     rows: Rows,
     file: &str,
