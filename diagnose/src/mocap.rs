@@ -16,8 +16,19 @@ pub(crate) struct Records<'a> {
     file: &'a str,
 }
 
+/// An error of `file`, at a line where one is known.
+pub(crate) fn error_in(file: &str) -> impl Fn(Option<usize>, String) -> InputError + '_ {
+    move |line, message| InputError {
+        file: file.to_owned(),
+        line,
+        message,
+    }
+}
+
 impl<'a> Records<'a> {
+    /// `text`'s records, past a byte-order mark.
     pub(crate) fn of(text: &'a str, file: &'a str) -> Self {
+        let text = text.trim_start_matches('\u{feff}');
         let reader = csv::ReaderBuilder::new()
             .has_headers(false)
             .flexible(true)
@@ -34,11 +45,10 @@ impl<'a> Records<'a> {
     pub(crate) fn next(&mut self) -> Result<Option<(usize, Vec<String>)>, InputError> {
         match self.records.next() {
             None => Ok(None),
-            Some(Err(e)) => Err(InputError {
-                file: self.file.to_owned(),
-                line: self.lines.line_of(e.position()),
-                message: format!("not CSV: {e}"),
-            }),
+            Some(Err(e)) => Err(error_in(self.file)(
+                self.lines.line_of(e.position()),
+                format!("not CSV: {e}"),
+            )),
             Some(Ok(record)) => Ok(Some((
                 self.lines.line_of(record.position()).unwrap_or(0),
                 record.iter().map(str::to_owned).collect(),
@@ -146,13 +156,10 @@ pub(crate) fn on_the_ground(
         poses_from(kept)
     })?;
     if let Some(&line) = not_rotations.first() {
-        return Err(InputError {
-            file: file.to_owned(),
-            line: Some(line),
-            message: format!(
-                "the rotation of `{body}` is not a rotation (a quaternion of zero length)"
-            ),
-        });
+        return Err(error_in(file)(
+            Some(line),
+            format!("the rotation of `{body}` is not a rotation (a quaternion of zero length)"),
+        ));
     }
     Ok((read, up))
 }

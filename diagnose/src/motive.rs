@@ -6,7 +6,7 @@
 //! Z up: the ground plane is taken from the data (`mocap::on_the_ground`).
 
 use crate::input::{Empty, Field, InputError, Read, number, rows_of};
-use crate::mocap::{Records, Rotation, on_the_ground};
+use crate::mocap::{Records, Rotation, error_in, on_the_ground};
 use crate::recording::Poses;
 
 /// Whether `text` is a Motive export: its first line names the format.
@@ -33,12 +33,7 @@ pub fn poses_motive(
     file: &str,
     body: Option<&str>,
 ) -> Result<(Read<Poses>, String), InputError> {
-    let error = |line: Option<usize>, message: String| InputError {
-        file: file.to_owned(),
-        line,
-        message,
-    };
-    let text = text.trim_start_matches('\u{feff}');
+    let error = error_in(file);
     let mut records = Records::of(text, file);
     let mut next = || records.next();
     let Some((_, settings)) = next()? else {

@@ -8,7 +8,7 @@
 //! up; the ground plane is taken from the data (`mocap::on_the_ground`).
 
 use crate::input::{Empty, Field, InputError, Read, number, rows_of};
-use crate::mocap::{Records, Rotation, on_the_ground};
+use crate::mocap::{Records, Rotation, error_in, on_the_ground};
 use crate::recording::Poses;
 
 /// The sections that hold a body's pose.
@@ -45,12 +45,7 @@ pub fn poses_vicon(
     file: &str,
     body: Option<&str>,
 ) -> Result<(Read<Poses>, String), InputError> {
-    let error = |line: Option<usize>, message: String| InputError {
-        file: file.to_owned(),
-        line,
-        message,
-    };
-    let text = text.trim_start_matches('\u{feff}');
+    let error = error_in(file);
     let mut records = Records::of(text, file);
     let mut next = || records.next();
     let is_section = |cells: &[String]| {
