@@ -204,39 +204,6 @@ fn write_out(
     Ok((Some(path), Some(png)))
 }
 
-/// The times the commands and the poses cover, on the files' own clock,
-/// in words: where they do not overlap, how far apart, since two clocks
-/// (a Unix time against seconds from a capture's start) are the usual
-/// reason.
-fn spans(recording: &Recording) -> String {
-    let span = |t: &[f64]| {
-        t.first()
-            .zip(t.last())
-            .map(|(a, b)| (a + recording.t_origin, b + recording.t_origin))
-    };
-    let (Some(commands), Some(poses)) = (span(&recording.commands.t), span(&recording.poses.t))
-    else {
-        return "The commands or the poses hold no rows.".to_owned();
-    };
-    let apart = (commands.0 - poses.1).max(poses.0 - commands.1);
-    let overlap = if apart > 0.0 {
-        format!(
-            ": they do not overlap, {apart:.1} s apart{}",
-            if apart > 1e6 {
-                " (one a Unix time, the other seconds from a recording's start? Put both on one clock)"
-            } else {
-                ""
-            }
-        )
-    } else {
-        String::new()
-    };
-    format!(
-        "The commands cover {:.3}-{:.3} s, the poses {:.3}-{:.3} s{overlap}.",
-        commands.0, commands.1, poses.0, poses.1
-    )
-}
-
 fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
     let load::Loaded { recording, notes } = load::load(args)?;
     let model = match &args.model {
@@ -262,7 +229,7 @@ fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
             Some(track) => format!(". Headings: {}", track.sentence()),
             None => format!(
                 "; do the commands and the poses cover the same stretch of time? {}{clock}",
-                spans(&recording)
+                recording.spans()
             ),
         };
         bail!(

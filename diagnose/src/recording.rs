@@ -214,6 +214,38 @@ impl Poses {
 }
 
 impl Recording {
+    /// The times the commands and the poses cover, on the files' own clock,
+    /// in words: where they do not overlap, how far apart, since two clocks
+    /// (a Unix time against seconds from a capture's start) are the usual
+    /// reason.
+    pub fn spans(&self) -> String {
+        let span = |t: &[f64]| {
+            t.first()
+                .zip(t.last())
+                .map(|(a, b)| (a + self.t_origin, b + self.t_origin))
+        };
+        let (Some(commands), Some(poses)) = (span(&self.commands.t), span(&self.poses.t)) else {
+            return "The commands or the poses hold no rows.".to_owned();
+        };
+        let apart = (commands.0 - poses.1).max(poses.0 - commands.1);
+        let overlap = if apart > 0.0 {
+            format!(
+                ": they do not overlap, {apart:.1} s apart{}",
+                if apart > 1e6 {
+                    " (one a Unix time, the other seconds from a recording's start? Put both on one clock)"
+                } else {
+                    ""
+                }
+            )
+        } else {
+            String::new()
+        };
+        format!(
+            "The commands cover {:.3}-{:.3} s, the poses {:.3}-{:.3} s{overlap}.",
+            commands.0, commands.1, poses.0, poses.1
+        )
+    }
+
     /// One recording of `commands` and `poses`, its times as they are.
     pub fn of(commands: Commands, poses: Poses) -> Self {
         Self {
@@ -397,5 +429,31 @@ mod tests {
         let (kept, dropped) = poses.without_outliers();
         assert_eq!(dropped, 2);
         assert_eq!(kept.len(), 998);
+    }
+
+    /// A command log in Unix time beside an export timed from the capture's
+    /// start: both spans said, on the files' own clocks, and the likely cause.
+    #[test]
+    fn spans_say_where_two_clocks_do_not_meet() {
+        let mut commands = Commands::default();
+        for k in 0..3 {
+            commands.t.push(1.7e9 + k as f64);
+            commands.v.push(0.1);
+            commands.omega.push(0.0);
+        }
+        let recording = Recording::from_absolute(commands, poses_at((0..5).map(f64::from)));
+        let said = recording.spans();
+        assert!(
+            said.contains(
+                "The commands cover 1700000000.000-1700000002.000 s, the poses 0.000-4.000 s"
+            ),
+            "{said}"
+        );
+        assert!(
+            said.contains("do not overlap") && said.contains("Unix time"),
+            "{said}"
+        );
+        let same = Recording::from_absolute(Commands::default(), Poses::default());
+        assert_eq!(same.spans(), "The commands or the poses hold no rows.");
     }
 }
