@@ -11,7 +11,7 @@ use std::process::ExitCode;
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
 use shoal_diagnose::replay::replay;
-use shoal_diagnose::{Options, Recording, diagnose};
+use shoal_diagnose::{Options, diagnose};
 use shoal_diagnose_lab::experiment::{
     Generator, NoiseColour, Observed, case_named, run_case, run_settings,
 };
