@@ -36,8 +36,13 @@ fn effects_text(d: &Diagnosis) -> Vec<String> {
                 String::new()
             };
             line(format!(
-                "    where no command answered the noise (held out on {:.2} s segments): {:+.1} nats, z {:.1} ({:.2} needed; a real effect of its size: about {:+.1}){size}",
-                check.horizon_s, check.gain, check.z, check.z_needed, check.expected_gain
+                "    where no command answered the noise (held out on {:.2} s segments): {:+.1} nats, z {:.1} ({:.2} needed{}; a real effect of its size: about {:+.1}){size}",
+                check.horizon_s,
+                check.gain,
+                check.z,
+                check.z_needed,
+                check.lasting_allowance_words(),
+                check.expected_gain
             ));
         }
         // An effect the data cannot tell from another is one finding with

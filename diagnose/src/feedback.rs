@@ -29,6 +29,7 @@ use std::collections::BTreeMap;
 use serde::Serialize;
 use shoal_physics::{ScopedEffect, UnicycleModel};
 
+use crate::covariates::correlation;
 use crate::fit::all_but;
 use crate::heldout::{on_folds, predict_block, refit_on};
 use crate::likelihood::{estimate_noise, long_run_factor, residuals, segment_nll, standardised};
@@ -92,6 +93,12 @@ pub struct FeedbackFree {
     /// at most the noise's own variance, so a controller's answer to the
     /// noise makes only effects smaller than this bound.
     pub size_in_noise: f64,
+    /// Nats that a controller's answer to noise that lasts could gain at
+    /// this horizon ([`LastingNoise`]): the gain is counted from it (`z` is
+    /// the gain less it, over the standard error). 0 where the commands do
+    /// not answer the pose, the noise does not last past a command, or the
+    /// effect does not respond to command changes.
+    pub lasting_answer: f64,
 }
 
 impl FeedbackFree {
@@ -106,6 +113,19 @@ impl FeedbackFree {
         self.size_in_noise >= MAX_FEEDBACK_SIZE
     }
 
+    /// The allowance for an answer to noise that lasts, in words: empty
+    /// where there is none.
+    pub fn lasting_allowance_words(&self) -> String {
+        if self.lasting_answer > 0.0 {
+            format!(
+                ", counted from the {:.1} nats a controller's answer to noise that lasts past a command could gain",
+                self.lasting_answer
+            )
+        } else {
+            String::new()
+        }
+    }
+
     /// Why an unconfirmed effect was dropped, in words.
     pub fn why_unconfirmed(&self) -> String {
         let what = if self.z_against_expected <= -self.z_needed {
@@ -114,8 +134,13 @@ impl FeedbackFree {
             "is too short to tell it from the controller's answer"
         };
         format!(
-            "held out on {:.2} s segments, where no command answered the noise, it gains {:+.1} nats (z {:.2}, {:.2} needed) where a real effect of its size would gain about {:+.1}: that horizon {what}",
-            self.horizon_s, self.gain, self.z, self.z_needed, self.expected_gain
+            "held out on {:.2} s segments, where no command answered the noise, it gains {:+.1} nats (z {:.2}, {:.2} needed{}) where a real effect of its size would gain about {:+.1}: that horizon {what}",
+            self.horizon_s,
+            self.gain,
+            self.z,
+            self.z_needed,
+            self.lasting_allowance_words(),
+            self.expected_gain
         )
     }
 }
@@ -151,9 +176,25 @@ pub(crate) fn check_each(
         .iter()
         .map(|cut| cut.prepare(recording, options))
         .collect();
-    let runs: Vec<(f64, &Prepared)> = cuts.iter().map(|cut| cut.horizon_s).zip(&shorts).collect();
+    let whole = UnicycleModel::with_effects(fixed.iter().chain(found).cloned().collect());
+    let lasting: Vec<LastingNoise> = shorts
+        .iter()
+        .map(|short| LastingNoise::of(short, &whole))
+        .collect();
+    tracing::debug!(
+        ?lasting,
+        "noise that lasts past a command, and commands that answer it"
+    );
     (0..found.len())
         .map(|k| {
+            let runs: Vec<(f64, &Prepared, f64)> = cuts
+                .iter()
+                .zip(&shorts)
+                .zip(&lasting)
+                .map(|((cut, short), lasting)| {
+                    (cut.horizon_s, short, lasting.answer_per_segment(&found[k]))
+                })
+                .collect();
             let check = if found[k].effect.only_noise() {
                 None
             } else {
@@ -293,11 +334,11 @@ pub fn feedback_free_cuts(
 /// None without a run to score.
 pub fn feedback_free_check(
     long: &Prepared,
-    shorts: &[(f64, &Prepared)],
+    shorts: &[(f64, &Prepared, f64)],
     (fixed, found, k): (&[ScopedEffect], &[ScopedEffect], usize),
     options: &Options,
 ) -> Option<FeedbackFree> {
-    let &(_, first) = shorts.first()?;
+    let &(_, first, _) = shorts.first()?;
     let others = all_but(found, k);
     // Each block is held out from the parameters too: the effects that move
     // the prediction are refitted on the long segments outside it, so that
@@ -338,7 +379,7 @@ pub fn feedback_free_check(
         ));
         shorts
             .iter()
-            .map(|(_, short)| {
+            .map(|(_, short, _)| {
                 let test: Vec<Segment> = short
                     .segments
                     .iter()
@@ -355,10 +396,10 @@ pub fn feedback_free_check(
     let size = size_in_noise(long, &with, &without);
     // Each horizon's gain and z first: the level they must reach depends
     // on all of them (Simes').
-    let scored: Vec<(f64, f64, f64, f64)> = shorts
+    let scored: Vec<(f64, f64, f64, f64, f64)> = shorts
         .iter()
         .enumerate()
-        .map(|(c, &(horizon_s, _))| {
+        .map(|(c, &(horizon_s, _, answer_per_segment))| {
             let blocks = || per_block.iter().map(|b| &b[c]);
             let expected_gain: f64 = blocks().map(|b| b.expected).sum();
             let gains: Vec<f64> = blocks().flat_map(|b| b.gains.iter().copied()).collect();
@@ -368,23 +409,30 @@ pub fn feedback_free_check(
                 gains.iter().sum(),
                 sd_of_sum(&scored, &gains),
                 expected_gain,
+                answer_per_segment * gains.len() as f64,
             )
         })
         .collect();
     let z = |x: f64, sd: f64| if sd > 0.0 { x / sd } else { 0.0 };
-    let zs: Vec<f64> = scored.iter().map(|&(_, gain, sd, _)| z(gain, sd)).collect();
+    let zs: Vec<f64> = scored
+        .iter()
+        .map(|&(_, gain, sd, _, answer)| z(gain - answer, sd))
+        .collect();
     let needed = z_needed(&zs);
     let checks: Vec<FeedbackFree> = scored
         .into_iter()
-        .map(|(horizon_s, gain, sd, expected_gain)| FeedbackFree {
-            horizon_s,
-            gain,
-            z: z(gain, sd),
-            z_needed: needed,
-            expected_gain,
-            z_against_expected: z(gain - expected_gain, sd),
-            size_in_noise: size,
-        })
+        .map(
+            |(horizon_s, gain, sd, expected_gain, answer)| FeedbackFree {
+                horizon_s,
+                gain,
+                z: z(gain - answer, sd),
+                z_needed: needed,
+                expected_gain,
+                z_against_expected: z(gain - expected_gain, sd),
+                size_in_noise: size,
+                lasting_answer: answer,
+            },
+        )
         .collect();
     tracing::debug!(?checks, "feedback-free check on each horizon");
     checks.into_iter().max_by(|a, b| a.z.total_cmp(&b.z))
@@ -475,6 +523,177 @@ fn block_gains(
     }
 }
 
+/// Noise that lasts past a command, and commands that answer the pose: what
+/// the one-period horizon cannot make free of feedback.
+///
+/// A segment one command long holds only noise that came after its command
+/// was chosen, and where the motion noise is white no command can have
+/// answered it. Where the noise lasts (slip that persists, a wheel that
+/// runs fast for a second: a real body's noise is coloured), the segment's
+/// noise continues what the controller saw, its command answers that, and
+/// an effect that damps the response to command changes (a steering play,
+/// a lag, a delay) explains part of the answer at any horizon. Laps of a
+/// course under pure pursuit, each wheel's noise lasting 0.5 s, had a
+/// steering play named in 51 of 66 runs (EXPERIMENTS.md 5c, "Laps"); with
+/// white wheel noise in none. Scoring innovations instead (each residual
+/// less what the ones before predict) made it worse: the controller knows
+/// the pose better than a motion capture's noisy residuals tell it, and the
+/// residuals it answered, brought into the score, carry its answer in.
+///
+/// So the answer is bounded instead. What an answer to the noise can
+/// explain of a segment's residual is the part the noise's past predicts
+/// (per component, the lasting motion noise's share of the residual's
+/// variance times its memory squared, from the autocovariances at lags
+/// 0-2: the seams' observation error, shared by neighbours, reaches lag 1
+/// only), and of that past only what the commands carry (how well the
+/// residual predicts the next command change). Explaining a share `p` of a
+/// unit variance gains at most `p / 2` nats a segment. That allowance
+/// applies where the commands answer the pose, and to effects that respond
+/// to command changes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LastingNoise {
+    /// Per component, the share of the standardised residual's variance
+    /// that its past predicts and the commands carry: what an answer to
+    /// the noise could explain.
+    pub predictable: [f64; 3],
+    /// How strongly the residuals predict the next command change: the
+    /// largest |z| of the correlations of each component with the next
+    /// change of speed and of turn rate.
+    pub answer_z: f64,
+}
+
+/// The |z| of a residual's correlation with the next command change above
+/// which the commands answer the pose: 3.5 (six correlations at about 0.1%
+/// each, Bonferroni's 0.5%); a controller's answer reads z 30 on laps.
+const ANSWERS_Z: f64 = 3.5;
+
+/// The motion noise's memory from one segment to the next is taken as at
+/// most this: noise that never forgets is a mismatch, not noise.
+const MAX_MEMORY: f64 = 0.98;
+
+impl LastingNoise {
+    /// Measured on `short`'s segments, with the residuals of `model`.
+    fn of(short: &Prepared, model: &UnicycleModel) -> Self {
+        let segments = &short.segments;
+        let r = residuals(model, &short.grid, segments);
+        let noise = estimate_noise(model, segments, &r);
+        let z = standardised(model, &noise, segments, &r);
+        let n = segments.len().min(z.len());
+        let joined = |k: usize, lag: usize| {
+            k >= lag && (k + 1 - lag..=k).all(|j| follows(&segments[j - 1], &segments[j]))
+        };
+        let mut sums = [[0.0; 3]; 3];
+        let mut counts = [0usize; 3];
+        for k in 0..n {
+            for lag in 0..3 {
+                if joined(k, lag) {
+                    counts[lag] += 1;
+                    for c in 0..3 {
+                        sums[lag][c] += z[k][c] * z[k - lag][c];
+                    }
+                }
+            }
+        }
+        let gamma = |lag: usize, c: usize| {
+            if counts[lag] > 0 {
+                sums[lag][c] / counts[lag] as f64
+            } else {
+                0.0
+            }
+        };
+        let fitted: [(f64, f64); 3] =
+            std::array::from_fn(|c| fit_memory(gamma(0, c), gamma(1, c), gamma(2, c)));
+        // Each residual against the change of command at its segment's end:
+        // how much of the noise the controller's next command answers.
+        let grid = &short.grid;
+        let change = |s: &Segment, of: &[f64]| -> Option<f64> {
+            Some(of.get(s.to)? - of.get(s.to.checked_sub(1)?)?)
+        };
+        let mut answered = [0.0f64; 3];
+        let mut answer_z: f64 = 0.0;
+        for of in [&grid.v, &grid.omega] {
+            let pairs: Vec<([f64; 3], f64)> = segments
+                .iter()
+                .zip(&z)
+                .filter_map(|(s, z)| Some((*z, change(s, of)?)))
+                .collect();
+            let changes: Vec<f64> = pairs.iter().map(|(_, d)| *d).collect();
+            for c in 0..3 {
+                let component: Vec<f64> = pairs.iter().map(|(z, _)| z[c]).collect();
+                let r = correlation(&component, &changes).unwrap_or(0.0);
+                answered[c] = answered[c].max(r * r);
+                answer_z = answer_z.max(r.abs() * (pairs.len() as f64).sqrt());
+            }
+        }
+        let predictable = std::array::from_fn(|c| {
+            let (memory, motion) = fitted[c];
+            let g0 = gamma(0, c);
+            if g0 <= 0.0 || motion <= 0.0 {
+                return 0.0;
+            }
+            // The lasting noise's share of the residual that its past
+            // predicts, times how much of that past the commands carry: one
+            // command's answer carries r^2 of the residual, r^2 / share of
+            // its motion noise, and the answers of the commands before add
+            // what the memory keeps of theirs (a geometric sum).
+            let lasting = memory * memory * motion / g0;
+            let carried = (answered[c] * g0 / motion / (1.0 - memory * memory)).min(1.0);
+            (lasting * carried).clamp(0.0, 1.0)
+        });
+        Self {
+            predictable,
+            answer_z,
+        }
+    }
+
+    /// Nats a segment that an answer to this noise could make `effect`
+    /// gain: none unless the effect responds to command changes and the
+    /// commands answer the pose.
+    fn answer_per_segment(&self, effect: &ScopedEffect) -> f64 {
+        use shoal_physics::Effect;
+        let responds_to_changes = matches!(
+            effect.effect,
+            Effect::Latency { .. }
+                | Effect::ActuatorLag { .. }
+                | Effect::Hysteresis { .. }
+                | Effect::AccelLimit { .. }
+        );
+        if !responds_to_changes || self.answer_z < ANSWERS_Z {
+            return 0.0;
+        }
+        0.5 * self.predictable.iter().sum::<f64>()
+    }
+}
+
+/// Whether segment `next` starts where `previous` ends.
+fn follows(previous: &Segment, next: &Segment) -> bool {
+    (next.t_start - previous.t_end).abs() < 1e-6
+}
+
+/// The memory and the motion variance whose residual autocovariances best
+/// match `g0`, `g1` and `g2` (lags 0-2), for a residual made of motion
+/// noise that carries over from one segment to the next (an AR(1) with
+/// memory `a`, variance `m`) and the observation errors at its two ends
+/// (variance `o` each, shared with its neighbours): g0 = m + 2o,
+/// g1 = a m - o, g2 = a^2 m. White noise gives (0, g0).
+fn fit_memory(g0: f64, g1: f64, g2: f64) -> (f64, f64) {
+    if g0 <= 0.0 {
+        return (0.0, 0.0);
+    }
+    let mut best = (f64::INFINITY, (0.0, g0));
+    for step in 0..=100 {
+        let a = (step as f64 / 100.0).min(MAX_MEMORY);
+        // Given a, the observation variance that matches lag 1 best.
+        let o = ((a * g0 - g1) / (2.0 * a + 1.0)).clamp(0.0, 0.5 * g0);
+        let m = g0 - 2.0 * o;
+        let miss = (g1 - (a * m - o)).powi(2) + (g2 - a * a * m).powi(2);
+        if miss < best.0 {
+            best = (miss, (a, m));
+        }
+    }
+    best.1
+}
+
 /// The standard error of the sum of `gains`: their spread about their mean,
 /// inflated by their correlation in time (a HAC variance); 0 when flat.
 fn sd_of_sum(segments: &[Segment], gains: &[f64]) -> f64 {
@@ -519,6 +738,7 @@ mod tests {
             expected_gain: 3.5,
             z_against_expected: (z * 3.0 - 3.5) / 3.0,
             size_in_noise,
+            lasting_answer: 0.0,
         }
     }
 
@@ -564,6 +784,43 @@ mod tests {
         let scored = gains(&jittered, MIN_NOISE_SEGMENTS, &plain, &slower);
         assert!(!scored.is_empty() && scored.iter().all(|g| g.is_finite()));
         assert!(scored.iter().sum::<f64>() > 0.0, "{scored:?}");
+    }
+
+    /// The lasting motion noise is told from the seams' observation error by
+    /// its autocovariances: white noise has no memory, and a memory of 0.8
+    /// under observation error that makes neighbours anticorrelated is found.
+    #[test]
+    fn the_noise_memory_is_read_from_three_autocovariances() {
+        assert_eq!(fit_memory(1.0, 0.0, 0.0), (0.0, 1.0));
+        // a 0.8, motion 0.3, observation 0.35 at each end.
+        let (memory, motion) = fit_memory(0.3 + 0.7, 0.8 * 0.3 - 0.35, 0.64 * 0.3);
+        assert!((memory - 0.8).abs() < 0.011, "{memory}");
+        assert!((motion - 0.3).abs() < 0.02, "{motion}");
+        // Observation error alone: the neighbours' -1/2, no memory.
+        let (memory, motion) = fit_memory(1.0, -0.5, 0.0);
+        assert!(memory < 0.011 && motion < 0.02, "{memory} {motion}");
+    }
+
+    /// The allowance is for effects that respond to command changes, where
+    /// the commands answer the pose; never for a scale, never in open loop.
+    #[test]
+    fn an_answer_to_lasting_noise_is_allowed_for_only_where_commands_answer() {
+        use shoal_physics::Effect;
+        let lasting = LastingNoise {
+            predictable: [0.01, 0.0, 0.03],
+            answer_z: 19.0,
+        };
+        let play = ScopedEffect::always(Effect::Hysteresis {
+            play_rad_per_s: 0.01,
+        });
+        let scale = ScopedEffect::always(Effect::TurnScale { factor: 0.9 });
+        assert!((lasting.answer_per_segment(&play) - 0.02).abs() < 1e-12);
+        assert_eq!(lasting.answer_per_segment(&scale), 0.0);
+        let open_loop = LastingNoise {
+            answer_z: 1.0,
+            ..lasting
+        };
+        assert_eq!(open_loop.answer_per_segment(&play), 0.0);
     }
 
     #[test]
