@@ -157,13 +157,43 @@ pub fn estimate_noise(
     } else {
         random_walk
     };
+    // Where the robot also stood still, what its across residual shows
+    // there (the observation's own error) bounds the intercept from below:
+    // a slope held within its range can take the intercept to the floor,
+    // and one standing segment then costs 10^6 nats (laps with pauses,
+    // EXPERIMENTS.md 5c, "Laps"). Half of it, so that the mean of a few
+    // standing segments, itself noisy, does not lift a regression that
+    // holds.
+    let (standing, standing_sum) = segments
+        .iter()
+        .zip(residuals)
+        .filter(|(s, _)| s.distance < STANDING_M)
+        .fold((0usize, 0.0), |(k, sum), (s, r)| {
+            let m = model.noise_multiplier(s.speed, s.t_start);
+            (k + 1, sum + decorrelated(s, r).powi(2) / m)
+        });
+    let at_rest = if standing >= MIN_STANDING {
+        0.5 * standing_sum / standing as f64
+    } else {
+        0.0
+    };
     Noise {
         along: (along / n).max(VARIANCE_FLOOR),
-        across: (y_mean - across_per_m2 * d2_mean).max(VARIANCE_FLOOR),
+        across: (y_mean - across_per_m2 * d2_mean)
+            .max(at_rest)
+            .max(VARIANCE_FLOOR),
         across_per_m2,
         theta,
     }
 }
+
+/// A segment commanded this little distance stands still.
+const STANDING_M: f64 = 1e-4;
+
+/// Standing segments enough to say what the across residual is at rest:
+/// one, since a pause of a few seconds holds only one or two whole 1 s
+/// segments, and without them the floor is 10^-12 m^2.
+const MIN_STANDING: usize = 1;
 
 /// Negative log-likelihood of one segment's residual, by component (along,
 /// across, heading).
@@ -526,5 +556,50 @@ mod tests {
             (noise.across_per_m2 - noise.theta / 4.0).abs() < 1e-12,
             "{noise:?}"
         );
+    }
+
+    /// A robot whose heading noise while driving is large, but whose across
+    /// residual is the motion capture's millimetre everywhere: the slope,
+    /// held at least at what the heading noise gives, takes the intercept
+    /// below zero; the robot's pauses say what it is at rest.
+    #[test]
+    fn the_across_noise_at_rest_is_never_below_what_standing_still_shows() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        let normal = rand_distr::StandardNormal;
+        let mut segments = chain(2000);
+        let residuals: Vec<Residual> = segments
+            .iter_mut()
+            .enumerate()
+            .map(|(i, s)| {
+                let paused = i % 50 == 0;
+                s.distance = if paused { 0.0 } else { 0.3 };
+                let heading = if paused {
+                    0.0
+                } else {
+                    0.02 * rng.sample::<f64, _>(normal)
+                };
+                [
+                    1e-3 * rng.sample::<f64, _>(normal),
+                    1e-3 * rng.sample::<f64, _>(normal) + 0.5 * s.distance * heading,
+                    heading,
+                ]
+            })
+            .collect();
+        let noise = estimate_noise(&UnicycleModel::plain(), &segments, &residuals);
+        assert!(
+            noise.across > 0.3e-6 && noise.across < 1e-6,
+            "at rest the across variance is about half the standing 1e-6 at least: {noise:?}"
+        );
+        // Without the pauses, nothing says what rest is: the regression's.
+        let moving: Vec<usize> = (0..segments.len()).filter(|i| i % 50 != 0).collect();
+        let noise = estimate_noise(
+            &UnicycleModel::plain(),
+            &moving
+                .iter()
+                .map(|&i| segments[i].clone())
+                .collect::<Vec<_>>(),
+            &moving.iter().map(|&i| residuals[i]).collect::<Vec<_>>(),
+        );
+        assert!(noise.across <= 1e-11, "{noise:?}");
     }
 }
