@@ -101,10 +101,16 @@ def main():
                           y + 0.003 * rng.gauss(0, 1), theta + 0.01 * rng.gauss(0, 1)))
             next_pose = max(next_pose + 1 / POSE_HZ, t + step + 1e-9)
 
+    write_run(out, published, poses)
+
+
+def write_run(out, commands, poses):
+    """Writes `commands` (t, v, omega) and `poses` (t, x, y, theta) as the
+    run folder `shoal diagnose` reads: commands.csv and poses.csv."""
     os.makedirs(out, exist_ok=True)
     with open(os.path.join(out, "commands.csv"), "w") as f:
         f.write("t,v,omega\n")
-        f.writelines(f"{t:.3f},{v:.6f},{w:.6f}\n" for t, v, w in published)
+        f.writelines(f"{t:.3f},{v:.6f},{w:.6f}\n" for t, v, w in commands)
     with open(os.path.join(out, "poses.csv"), "w") as f:
         f.write("t,x,y,theta\n")
         f.writelines(f"{t:.4f},{a:.6f},{b:.6f},{c:.6f}\n" for t, a, b, c in poses)

@@ -30,9 +30,10 @@ Usage: python3 write_laps_run.py OUT_FOLDER SEED [key=value ...]
 """
 
 import math
-import os
 import random
 import sys
+
+from write_euler_run import write_run
 
 TRACK_M = 0.2
 STEP_S = 0.002
@@ -207,13 +208,7 @@ def main():
                               my + 0.001 * rng.gauss(0, 1), heading))
             next_pose += POSE_PERIOD_S
 
-    os.makedirs(out, exist_ok=True)
-    with open(os.path.join(out, "commands.csv"), "w") as f:
-        f.write("t,v,omega\n")
-        f.writelines(f"{t:.3f},{v:.6f},{w:.6f}\n" for t, v, w in commands)
-    with open(os.path.join(out, "poses.csv"), "w") as f:
-        f.write("t,x,y,theta\n")
-        f.writelines(f"{t:.4f},{a:.6f},{b:.6f},{c:.6f}\n" for t, a, b, c in poses)
+    write_run(out, commands, poses)
 
 
 if __name__ == "__main__":
