@@ -27,6 +27,8 @@ Usage: python3 write_laps_run.py OUT_FOLDER SEED [key=value ...]
   fast_noise=0.05    each wheel's fast noise, a share of its speed per 10 ms
   steer=closed       closed: the controller steers on where the robot is;
                      open: on where its commands alone would take it
+  pose_phase=random  the first frame's time, s (0: frames at the commands'
+                     times, so that no segment end is interpolated)
 """
 
 import math

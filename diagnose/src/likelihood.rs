@@ -134,6 +134,8 @@ pub fn estimate_noise(
     let n = segments.len().max(1) as f64;
     let (mut along, mut theta) = (0.0, 0.0);
     let (mut d2_sum, mut y_sum, mut d2d2, mut d2y) = (0.0, 0.0, 0.0, 0.0);
+    // The across residual of the segments that stood still.
+    let (mut standing, mut standing_sum) = (0usize, 0.0);
     for (s, r) in segments.iter().zip(residuals) {
         let m = model.noise_multiplier(s.speed, s.t_start);
         along += r[0] * r[0] / m;
@@ -143,6 +145,10 @@ pub fn estimate_noise(
         y_sum += y;
         d2d2 += d2 * d2;
         d2y += d2 * y;
+        if s.distance < STANDING_M {
+            standing += 1;
+            standing_sum += y;
+        }
     }
     let theta = (theta / n).max(VARIANCE_FLOOR);
     let (d2_mean, y_mean) = (d2_sum / n, y_sum / n);
@@ -164,14 +170,6 @@ pub fn estimate_noise(
     // EXPERIMENTS.md 5c, "Laps"). Half of it, so that the mean of a few
     // standing segments, itself noisy, does not lift a regression that
     // holds.
-    let (standing, standing_sum) = segments
-        .iter()
-        .zip(residuals)
-        .filter(|(s, _)| s.distance < STANDING_M)
-        .fold((0usize, 0.0), |(k, sum), (s, r)| {
-            let m = model.noise_multiplier(s.speed, s.t_start);
-            (k + 1, sum + decorrelated(s, r).powi(2) / m)
-        });
     let at_rest = if standing >= MIN_STANDING {
         0.5 * standing_sum / standing as f64
     } else {
@@ -336,6 +334,20 @@ pub fn long_run_factor(segments: &[Segment], series: &[f64]) -> LongRun {
     long_run_around(segments, series, None)
 }
 
+/// The sum of `series[i] * series[i + k]` over segments `k` apart with no
+/// gap between them (back to back on the grid), and how many such pairs.
+pub(crate) fn lagged_products(segments: &[Segment], series: &[f64], k: usize) -> (f64, usize) {
+    let n = series.len().min(segments.len());
+    let (mut sum, mut pairs) = (0.0, 0usize);
+    for i in 0..n.saturating_sub(k) {
+        if segments[i + k].from == segments[i].from + k * (segments[i].to - segments[i].from) {
+            sum += series[i] * series[i + k];
+            pairs += 1;
+        }
+    }
+    (sum, pairs)
+}
+
 /// A long-run variance factor and how it was estimated.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LongRun {
@@ -377,15 +389,7 @@ fn long_run_around(segments: &[Segment], series: &[f64], local_mean: Option<usiz
     // rho_k over pairs k segments apart with no gap between them.
     let rho: Vec<f64> = (1..=max_lag)
         .map(|k| {
-            let (mut sum, mut pairs) = (0.0, 0usize);
-            for i in 0..n - k {
-                if segments[i + k].from
-                    == segments[i].from + k * (segments[i].to - segments[i].from)
-                {
-                    sum += centred[i] * centred[i + k];
-                    pairs += 1;
-                }
-            }
+            let (sum, pairs) = lagged_products(segments, &centred, k);
             if pairs < 10 {
                 0.0
             } else {
