@@ -292,8 +292,8 @@ fn two_hosts_form_drop_and_rejoin(
         (0..10).chain(100..110).all(|id| robots.contains(&id)),
         "host a's recording holds both hosts' robots: {robots:?}"
     );
-    assert_eq!(found["hosts"]["3"], "a", "{}", found["hosts"]);
-    assert_eq!(found["hosts"]["105"], "b", "{}", found["hosts"]);
+    assert_eq!(found["hosts"]["3"], "a", "{}\n{said}", found["hosts"]);
+    assert_eq!(found["hosts"]["105"], "b", "{}\n{said}", found["hosts"]);
     let _ = std::fs::remove_dir_all(dir);
 }
 

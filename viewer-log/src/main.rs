@@ -244,6 +244,30 @@ impl Session {
         )))
     }
 
+    /// Tells the recorder which robots this host's link stands in for, and
+    /// for which hosts. A link report that cannot be read costs the
+    /// recording only its robots' host tags: said once, and the recording
+    /// goes on.
+    fn read_link_report(&mut self) {
+        let link = self
+            .runtime
+            .read_report::<shoal_link::report::LinkReport>()
+            .unwrap_or_else(|e| {
+                if !self.unreadable_link_report_said {
+                    tracing::warn!("robots of other hosts are not tagged with their host: {e}");
+                    self.unreadable_link_report_said = true;
+                }
+                None
+            });
+        self.recorder.set_remote_hosts(link.map(|link| {
+            let remote = link
+                .robots()
+                .map(|(host, r)| (r.id, host.to_owned()))
+                .collect();
+            (link.pid, remote)
+        }));
+    }
+
     /// Reads the bus and logs every tick that is complete.
     fn poll(&mut self) -> Result<()> {
         let (check, recorder, newest_tick) =
@@ -254,6 +278,9 @@ impl Session {
                 recorder.add(sample);
             }
         })?;
+        if self.recorder.hosts_stale() {
+            self.read_link_report();
+        }
         // A lockstep launcher paces its clock to this, so no tick is missed.
         self.progress.publish(&shoal_broker::HelperProgress {
             tick: self.newest_tick,
@@ -270,26 +297,7 @@ impl Session {
     /// Flushes and checks the file and its disk; false once the swarm has
     /// stopped.
     fn each_second(&mut self) -> Result<bool> {
-        // A link report that cannot be read costs the recording only its
-        // robots' host tags: said once, and the recording goes on.
-        let link = self
-            .runtime
-            .read_report::<shoal_link::report::LinkReport>()
-            .unwrap_or_else(|e| {
-                if !self.unreadable_link_report_said {
-                    tracing::warn!("robots of other hosts are not tagged with their host: {e}");
-                    self.unreadable_link_report_said = true;
-                }
-                None
-            });
-        if let Some(link) = link {
-            self.recorder.set_remote_hosts(
-                link.pid,
-                link.robots()
-                    .map(|(host, r)| (r.id, host.to_owned()))
-                    .collect(),
-            );
-        }
+        self.read_link_report();
         self.flush()?;
         if let Some(file) = self.file.clone() {
             let warning = self

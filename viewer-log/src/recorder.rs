@@ -55,6 +55,12 @@ pub struct Recorder {
     link_pid: Option<u32>,
     /// The host last logged for each robot.
     logged_hosts: HashMap<u32, String>,
+    /// The pid each robot had when its host was last looked at: a robot
+    /// seen with another (new, restarted, or now a stand-in) needs the
+    /// link's report read before it is tagged, or a stand-in seen before
+    /// the next periodic read would be tagged with this host.
+    looked_at_pids: HashMap<u32, u32>,
+    hosts_stale: bool,
     /// Streaming to a viewer, which may be closed at any time.
     live: bool,
     pub stats: RecorderStats,
@@ -85,21 +91,36 @@ impl Recorder {
             remote_hosts: HashMap::new(),
             link_pid: None,
             logged_hosts: HashMap::new(),
+            looked_at_pids: HashMap::new(),
+            hosts_stale: false,
             live,
             stats: RecorderStats::default(),
             last_frame: None,
         })
     }
 
-    /// Which robots run on other hosts, and where (from this host's link).
-    pub fn set_remote_hosts(&mut self, link_pid: u32, remote: HashMap<u32, String>) {
-        self.link_pid = Some(link_pid);
-        self.remote_hosts = remote;
+    /// Which robots run on other hosts, and where, from this host's link
+    /// report (`None`: no link runs here).
+    pub fn set_remote_hosts(&mut self, link: Option<(u32, HashMap<u32, String>)>) {
+        self.hosts_stale = false;
+        if let Some((link_pid, remote)) = link {
+            self.link_pid = Some(link_pid);
+            self.remote_hosts = remote;
+        }
+    }
+
+    /// Whether a robot was seen with a pid its host was not looked at for
+    /// since the link's report was last read.
+    pub fn hosts_stale(&self) -> bool {
+        self.hosts_stale
     }
 
     /// Takes one sample that passed the bus checks.
     pub fn add(&mut self, sample: PoseSample) {
         self.stats.samples += 1;
+        if self.looked_at_pids.get(&sample.agent_id) != Some(&sample.pid) {
+            self.hosts_stale = true;
+        }
         self.pending.entry(sample.tick).or_default().push(sample);
     }
 
@@ -260,6 +281,7 @@ impl Recorder {
             // that changes (a robot id restarted on another host).
             // A robot of another host is untagged until the link has named
             // its host.
+            self.looked_at_pids.insert(s.agent_id, s.pid);
             let host = if Some(s.pid) == self.link_pid {
                 self.remote_hosts.get(&s.agent_id)
             } else {
