@@ -278,7 +278,7 @@ fn through_later_stages(
     let mut dropped = Dropped::default();
     let mut dropped_by_feedback = checked_once(selection, recording, &mut selected, &mut dropped);
     for _ in 0..RESELECTIONS {
-        if dropped_by_feedback == 0 || selected.found.is_empty() {
+        if dropped_by_feedback == 0 {
             break;
         }
         let barred: Vec<&'static str> = dropped

@@ -168,6 +168,75 @@ pub fn holm(p: &[f64]) -> Vec<f64> {
     adjusted
 }
 
+/// Visits of a place this far apart in time are taken as independent: the
+/// noise's own memory is seconds (EXPERIMENTS.md 5b's coloured noises last
+/// 2-5 s), and a visit is one pass over a cell.
+const VISIT_GAP_S: f64 = 10.0;
+
+/// Fewest degrees of freedom (visits beyond the first, over every cell)
+/// for the places' own long-run factor ([`visits_factor`]); with fewer the
+/// run's stands in.
+const MIN_VISIT_DOF: usize = 20;
+
+/// A place group's members cut into visits: runs of segments less than
+/// [`VISIT_GAP_S`] apart.
+fn visits(group: &Group, segments: &[Segment]) -> Vec<Vec<usize>> {
+    let mut out: Vec<Vec<usize>> = Vec::new();
+    let mut last_end = f64::NEG_INFINITY;
+    for &i in &group.members {
+        let segment = &segments[i];
+        match out.last_mut() {
+            Some(visit) if segment.t_start - last_end < VISIT_GAP_S => visit.push(i),
+            _ => out.push(vec![i]),
+        }
+        last_end = segment.t_end;
+    }
+    out
+}
+
+/// How much the residuals' correlation in time inflates the variance of a
+/// place's sum, read from how the visits of each place differ about that
+/// place's own mean (pooled over places, over the variance of the values
+/// about those means): `None` with fewer than [`MIN_VISIT_DOF`].
+///
+/// A place visited lap after lap, where the robot always drives the same
+/// way, repeats its mismatch on every visit. The run's long-run factor,
+/// read from the residuals in time, takes that repetition for noise that
+/// lasts: a carpet patch on an oval course raised the along factor to 7,
+/// and the patch was never located. Within a place the repetition is the
+/// mean, and what is left between visits far apart is the noise: the sum
+/// of a visit of `n` segments varies by `factor * variance * n`, whatever
+/// lasts within the visit.
+fn visits_factor(places: &[Vec<Vec<usize>>], values: &[f64]) -> Option<f64> {
+    // Over places visited at least twice: squares of the visits' sums
+    // about the place's mean with what they are worth, squares of the
+    // values about it with theirs, and the visits beyond the first.
+    let (mut between, mut between_weight, mut within, mut within_weight, mut dof) =
+        (0.0, 0.0, 0.0, 0.0, 0usize);
+    for visits in places.iter().filter(|v| v.len() >= 2) {
+        let members = || visits.iter().flatten().map(|&i| values[i]);
+        let n = members().count() as f64;
+        let mean = members().sum::<f64>() / n;
+        within += members().map(|v| (v - mean).powi(2)).sum::<f64>();
+        within_weight += n - 1.0;
+        let mut squared_lengths = 0.0;
+        for visit in visits {
+            let len = visit.len() as f64;
+            between += (visit.iter().map(|&i| values[i]).sum::<f64>() - len * mean).powi(2);
+            squared_lengths += len * len;
+        }
+        // For independent visits the expected sum of squares about the
+        // place's mean is factor * variance * (n - sum of len^2 / n).
+        between_weight += n - squared_lengths / n;
+        dof += visits.len() - 1;
+    }
+    if dof < MIN_VISIT_DOF || between_weight <= 0.0 || within <= 0.0 {
+        return None;
+    }
+    let variance = within / within_weight;
+    Some((between / between_weight / variance).max(1.0))
+}
+
 /// The tests of one group: the mean of each component (along, across,
 /// heading) against its own spread, and the spread against the noise; each
 /// as (component, z, two-sided p), the spread as component 3.
@@ -270,10 +339,29 @@ pub fn locate(
     alpha: f64,
 ) -> Vec<Located> {
     let groups = groups(segments);
+    let places: Vec<Vec<Vec<usize>>> = groups
+        .iter()
+        .filter(|g| g.family == "place")
+        .map(|g| visits(g, segments))
+        .collect();
+    let place_long_run: [f64; 3] = std::array::from_fn(|c| {
+        let series: Vec<f64> = standardised.iter().map(|z| z[c]).collect();
+        visits_factor(&places, &series).unwrap_or(long_run[c])
+    });
+    tracing::debug!(
+        ?long_run,
+        ?place_long_run,
+        "locate: long-run factors in time, and of places' visits"
+    );
     let tests: Vec<(usize, usize, f64, f64)> = groups
         .iter()
         .enumerate()
         .flat_map(|(g, group)| {
+            let long_run = if group.family == "place" {
+                place_long_run
+            } else {
+                long_run
+            };
             group_tests(group, standardised, long_run)
                 .into_iter()
                 .map(move |(c, z, p)| (g, c, z, p))
@@ -323,7 +411,56 @@ pub fn locate(
 
 #[cfg(test)]
 mod tests {
-    use super::holm;
+    use super::{holm, visits_factor};
+
+    /// Ten places of eight visits of five segments each, whose noise lasts
+    /// the whole visit (each visit off by its own amount, cancelling over
+    /// a place's visits) with white noise beside it, and each place off by
+    /// `bias` on every visit.
+    fn lasting_within_visits(bias: f64) -> (Vec<Vec<Vec<usize>>>, Vec<f64>) {
+        let places = (0..10)
+            .map(|p| {
+                (0..8)
+                    .map(|k| (40 * p + 5 * k..40 * p + 5 * k + 5).collect())
+                    .collect()
+            })
+            .collect();
+        let values = (0..400)
+            .map(|i| {
+                let visit = i / 5;
+                let lasting = [0.8, -0.8, 0.4, -0.4][visit % 4];
+                let white = [0.3, -0.2, 0.1, -0.4, 0.2][i % 5];
+                bias + lasting + white
+            })
+            .collect();
+        (places, values)
+    }
+
+    #[test]
+    fn a_place_is_judged_by_how_its_visits_differ() {
+        // Noise that lasts a visit inflates the variance of a visit's sum:
+        // the factor reads it.
+        let (places, values) = lasting_within_visits(0.0);
+        let factor = visits_factor(&places, &values).expect("72 visits beyond the first");
+        assert!(factor > 3.0, "factor {factor}");
+        // A mismatch repeated on every visit of a place is that place's
+        // mean, not noise: the factor is the same (a long-run factor read
+        // from the residuals in time would take it for noise that lasts).
+        let (places, biased) = lasting_within_visits(1.0);
+        let with_bias = visits_factor(&places, &biased).expect("72 visits beyond the first");
+        assert!(
+            (with_bias - factor).abs() < 1e-9,
+            "{with_bias} against {factor}"
+        );
+        // White noise reads about 1, never less.
+        let white: Vec<f64> = (0..400)
+            .map(|i| [0.3, -0.2, 0.1, -0.4, 0.2, 0.5, -0.5][i % 7])
+            .collect();
+        let factor = visits_factor(&places, &white).expect("72 visits beyond the first");
+        assert!((1.0..1.5).contains(&factor), "factor {factor}");
+        // Too few visits to tell: the run's factor stands in.
+        assert_eq!(visits_factor(&places[..2], &values), None);
+    }
 
     #[test]
     fn holm_matches_hand_computed_values() {

@@ -928,10 +928,9 @@ pub(crate) fn reselected(
         evidence,
         ..Selected::default()
     };
-    if out.found.is_empty() {
-        return out;
+    if !out.found.is_empty() {
+        selection.refit_and_prune(&mut out.found, &mut out.evidence);
     }
-    selection.refit_and_prune(&mut out.found, &mut out.evidence);
     selection.completed(&mut out, at, (barred, refused));
     selection.widened(&mut out);
     selection.swap_each(&mut out, at, (barred, refused));
