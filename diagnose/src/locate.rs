@@ -441,13 +441,13 @@ mod tests {
         // Noise that lasts a visit inflates the variance of a visit's sum:
         // the factor reads it.
         let (places, values) = lasting_within_visits(0.0);
-        let factor = visits_factor(&places, &values).expect("72 visits beyond the first");
+        let factor = visits_factor(&places, &values).expect("70 visits beyond the first");
         assert!(factor > 3.0, "factor {factor}");
         // A mismatch repeated on every visit of a place is that place's
         // mean, not noise: the factor is the same (a long-run factor read
         // from the residuals in time would take it for noise that lasts).
         let (places, biased) = lasting_within_visits(1.0);
-        let with_bias = visits_factor(&places, &biased).expect("72 visits beyond the first");
+        let with_bias = visits_factor(&places, &biased).expect("70 visits beyond the first");
         assert!(
             (with_bias - factor).abs() < 1e-9,
             "{with_bias} against {factor}"
@@ -456,7 +456,7 @@ mod tests {
         let white: Vec<f64> = (0..400)
             .map(|i| [0.3, -0.2, 0.1, -0.4, 0.2, 0.5, -0.5][i % 7])
             .collect();
-        let factor = visits_factor(&places, &white).expect("72 visits beyond the first");
+        let factor = visits_factor(&places, &white).expect("70 visits beyond the first");
         assert!((1.0..1.5).contains(&factor), "factor {factor}");
         // Too few visits to tell: the run's factor stands in.
         assert_eq!(visits_factor(&places[..2], &values), None);
