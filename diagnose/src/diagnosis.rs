@@ -266,9 +266,9 @@ struct Dropped {
 /// (`feedback_checked`). An effect admitted beside one the feedback stage
 /// then dropped was judged against a model that is no longer the diagnosis:
 /// the rest are judged again without the dropped kinds
-/// (`selection::reselected`), and what changed faces these stages as the
-/// first choice did, until they drop nothing more (at most `RESELECTIONS`
-/// times).
+/// (`selection::reselected`; from none, where every effect was dropped),
+/// and what changed faces these stages as the first choice did, until they
+/// drop nothing more (at most `RESELECTIONS` times).
 fn through_later_stages(
     selection: &Selection,
     recording: &Recording,

@@ -580,14 +580,16 @@ impl LastingNoise {
         let r = residuals(model, &short.grid, segments);
         let noise = estimate_noise(model, segments, &r);
         let z = standardised(model, &noise, segments, &r);
-        // Autocovariances at lags 0-2 over segments back to back.
-        let gamma = |lag: usize, c: usize| {
+        // Autocovariances at lags 0-2 over segments back to back, per
+        // component.
+        let gammas: [[f64; 3]; 3] = std::array::from_fn(|c| {
             let series: Vec<f64> = z.iter().map(|z| z[c]).collect();
-            match lagged_products(segments, &series, lag) {
+            std::array::from_fn(|lag| match lagged_products(segments, &series, lag) {
                 (_, 0) => 0.0,
                 (sum, pairs) => sum / pairs as f64,
-            }
-        };
+            })
+        });
+        let gamma = |lag: usize, c: usize| gammas[c][lag];
         let fitted: [(f64, f64); 3] =
             std::array::from_fn(|c| fit_memory(gamma(0, c), gamma(1, c), gamma(2, c)));
         // Each residual against the change of command at its segment's end:

@@ -915,7 +915,9 @@ pub(crate) fn select(selection: &Selection, located: &[Located], at: OperatingPo
 /// entered beside an actuator lag, which the feedback stage then dropped,
 /// where the simulator's Euler step would have explained both). They are
 /// pruned against one another, the completion pass runs again with the
-/// dropped kinds barred, and each is taken out in turn (`swap_each`).
+/// dropped kinds barred (from none, where a later stage dropped every
+/// effect: the kinds it did not drop still get their chance), and each is
+/// taken out in turn (`swap_each`).
 pub(crate) fn reselected(
     selection: &Selection,
     found: Vec<ScopedEffect>,
