@@ -133,6 +133,7 @@ fn bench_time_place_and_body() -> Vec<Case> {
             "noise only, no bias",
             always(Effect::SpeedNoise {
                 driving_share: 0.75,
+                exponent: 1.0,
                 at_m_per_s: 0.5,
             }),
         ),

@@ -6,7 +6,7 @@ use argmin::core::{CostFunction, Error, Executor, State};
 use argmin::solver::neldermead::NelderMead;
 use shoal_physics::{CommandGrid, Effect, ScopedEffect, UnicycleModel};
 
-use crate::likelihood::{residuals, score};
+use crate::likelihood::{Residual, residuals, score};
 use crate::segments::Segment;
 
 /// A fit: the free effects with their fitted values, the likelihood reached
@@ -43,6 +43,7 @@ pub fn step_of(effect: &Effect, name: &str) -> f64 {
         (Effect::SurfaceZone { .. }, _) => 0.1,
         (Effect::ExternalFlow { .. }, _) => 0.01,
         (Effect::Hysteresis { .. }, _) => 0.05,
+        (Effect::SpeedNoise { .. }, "exponent") => 0.5,
         (Effect::SpeedNoise { .. }, _) => 0.2,
         (Effect::TurnSpeedLoss { .. }, _) => 0.1,
         (Effect::TurnCentreOffset { .. }, _) => 0.03,
@@ -57,6 +58,9 @@ struct Problem<'a> {
     segments: &'a [Segment],
     fixed: &'a [ScopedEffect],
     free: &'a [ScopedEffect],
+    /// The residuals, when every free effect changes only the noise (they
+    /// are then the same for every parameter tried: computed once).
+    noise_only: Option<&'a [Residual]>,
     /// What an unphysical parameter costs: worse than anything physical.
     out_of_bounds: f64,
 }
@@ -84,8 +88,13 @@ impl Problem<'_> {
             return self.out_of_bounds;
         }
         let model = UnicycleModel::with_effects(self.fixed.iter().cloned().chain(free).collect());
-        let r = residuals(&model, self.grid, self.segments);
-        let nll = score(&model, self.segments, &r, None).nll;
+        let nll = match self.noise_only {
+            Some(r) => score(&model, self.segments, r, None).nll,
+            None => {
+                let r = residuals(&model, self.grid, self.segments);
+                score(&model, self.segments, &r, None).nll
+            }
+        };
         if nll.is_finite() {
             nll
         } else {
@@ -144,11 +153,16 @@ pub fn fit(
             iterations: 0,
         };
     }
+    let noise_only = free.iter().all(|e| e.effect.only_noise()).then(|| {
+        let model = UnicycleModel::with_effects(fixed.iter().chain(free).cloned().collect());
+        residuals(&model, grid, segments)
+    });
     let problem = Problem {
         grid,
         segments,
         fixed,
         free,
+        noise_only: noise_only.as_deref(),
         out_of_bounds: baseline.abs() * 10.0 + 1e12,
     };
     let mut simplex = vec![start.clone()];
@@ -255,7 +269,7 @@ fn invert(mut a: Vec<Vec<f64>>) -> Option<Vec<Vec<f64>>> {
 
 #[cfg(test)]
 mod tests {
-    use shoal_physics::{CommandGrid, Pose};
+    use shoal_physics::{CommandGrid, Effect, Pose, ScopedEffect};
 
     use super::{fit, invert, nll_of};
     use crate::segments::Segment;
@@ -297,6 +311,72 @@ mod tests {
         assert!(fitted.effects.is_empty());
         assert!(fitted.nll.is_finite());
         assert_eq!(fitted.nll, nll_of(&grid, &segments, &[]));
+    }
+
+    /// Segments standing or driven straight at up to 0.4 m/s, each
+    /// ending off the plain model's prediction by noise whose variance is `1 + 3 (v / 0.2)^exponent` times the resting one.
+    fn noise_growing_as(exponent: f64) -> (CommandGrid, Vec<Segment>) {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+        let normal = rand_distr::StandardNormal;
+        let n = 3000;
+        let speeds: Vec<f64> = (0..n).map(|k| 0.05 * f64::from(k % 9)).collect();
+        let t: Vec<f64> = (0..n).map(f64::from).collect();
+        let grid = CommandGrid::from_held(&t, &speeds, &vec![0.0; t.len()], 0.1);
+        let segments = (0..n as usize - 1)
+            .map(|k| {
+                let v = speeds[k];
+                let sd = 1e-3 * (1.0 + 3.0 * (v / 0.2).powf(exponent)).sqrt();
+                let mut noise = || sd * rng.sample::<f64, _>(normal);
+                // Across, a heading error's share on top (as `likelihood`
+                // takes it out), else its growth with distance, which on
+                // 1 s segments is speed itself, takes part of the exponent.
+                let (along, across, heading) = (noise(), noise(), noise());
+                Segment {
+                    from: 10 * k,
+                    to: 10 * (k + 1),
+                    t_start: k as f64,
+                    t_end: (k + 1) as f64,
+                    start: Pose::new(0.0, 0.0, 0.0),
+                    end: Pose::new(v + along, across + 0.5 * v * heading, heading),
+                    speed: v,
+                    turn: 0.0,
+                    distance: v,
+                    mid: [0.5 * v, 0.0],
+                }
+            })
+            .collect();
+        (grid, segments)
+    }
+
+    /// Noise that accrues per metre driven and wheel noise in proportion to
+    /// wheel speed grow the variance as speed and as its square: both are
+    /// told apart by the fitted exponent, and the share at the usual speed
+    /// is the one written (three quarters of the variance at 0.2 m/s).
+    #[test]
+    fn speed_noise_fits_how_fast_the_noise_grows_with_speed() {
+        for truth in [1.0, 2.0] {
+            let (grid, segments) = noise_growing_as(truth);
+            let start = ScopedEffect::always(Effect::SpeedNoise {
+                driving_share: 0.0,
+                exponent: 1.0,
+                at_m_per_s: 0.2,
+            });
+            let fitted = fit(&grid, &segments, &[], &[start], 400);
+            let Effect::SpeedNoise {
+                driving_share,
+                exponent,
+                ..
+            } = fitted.effects[0].effect
+            else {
+                panic!("{:?}", fitted.effects);
+            };
+            assert!((exponent - truth).abs() < 0.25, "{truth}: {exponent}");
+            assert!(
+                (driving_share - 0.75).abs() < 0.05,
+                "{truth}: {driving_share}"
+            );
+        }
     }
 
     #[test]

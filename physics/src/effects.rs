@@ -49,12 +49,20 @@ pub enum Effect {
     Hysteresis { play_rad_per_s: f64 },
     /// Motion noise grows with speed: at `at_m_per_s` (the robot's usual
     /// speed) this share of its variance comes from driving, the rest is
-    /// there standing still. Variance grows linearly with speed, as noise
-    /// that accrues per metre driven does: at rest it is the plain model's,
-    /// at speed v it is `1 + share / (1 - share) * v / at_m_per_s` times
-    /// that. A share in [0, 1) cannot run away as a per-m/s coefficient
-    /// does on a slow robot, and says what it means at the robot's speed.
-    SpeedNoise { driving_share: f64, at_m_per_s: f64 },
+    /// there standing still. At rest the variance is the plain model's, at
+    /// speed v it is `1 + share / (1 - share) * (v / at_m_per_s)^exponent`
+    /// times that. The exponent is fitted, since bodies differ: noise that
+    /// accrues per metre driven (a random walk in distance) grows the
+    /// variance linearly (1), wheel noise in proportion to wheel speed (as
+    /// the odometry models of Thrun et al. assume) with speed squared (2).
+    /// A share in [0, 1) cannot run away as a per-m/s coefficient does on a
+    /// slow robot, and says what it means at the robot's speed.
+    SpeedNoise {
+        driving_share: f64,
+        #[serde(default = "per_metre")]
+        exponent: f64,
+        at_m_per_s: f64,
+    },
     /// Forward speed drops while turning: v (1 - k |omega|). A differential
     /// drive whose wheels scrub, or whose controller slows both wheels to
     /// keep the outer one within its limit, loses speed in every turn.
@@ -100,6 +108,11 @@ pub fn top_speed(pace_s_per_m: f64) -> f64 {
 }
 
 fn unchanged() -> f64 {
+    1.0
+}
+
+/// Speed noise written before its exponent was fitted grew linearly.
+fn per_metre() -> f64 {
     1.0
 }
 
@@ -190,7 +203,11 @@ impl Effect {
             } => vec![("speed_factor", speed_factor), ("turn_factor", turn_factor)],
             Effect::ExternalFlow { vx, vy } => vec![("vx", vx), ("vy", vy)],
             Effect::Hysteresis { play_rad_per_s } => vec![("play_rad_per_s", play_rad_per_s)],
-            Effect::SpeedNoise { driving_share, .. } => vec![("driving_share", driving_share)],
+            Effect::SpeedNoise {
+                driving_share,
+                exponent,
+                ..
+            } => vec![("driving_share", driving_share), ("exponent", exponent)],
             Effect::TurnSpeedLoss { per_rad_per_s } => vec![("per_rad_per_s", per_rad_per_s)],
             Effect::TurnCentreOffset { forward_m, left_m } => {
                 vec![("forward_m", forward_m), ("left_m", left_m)]
@@ -225,6 +242,7 @@ impl Effect {
             },
             Effect::SpeedNoise { at_m_per_s, .. } => Effect::SpeedNoise {
                 driving_share: v(0),
+                exponent: v(1),
                 at_m_per_s,
             },
             Effect::TurnSpeedLoss { .. } => Effect::TurnSpeedLoss {
@@ -267,6 +285,7 @@ impl Effect {
             },
             "speed_noise" => Effect::SpeedNoise {
                 driving_share: 0.0,
+                exponent: per_metre(),
                 at_m_per_s: 1.0,
             },
             "turn_speed_loss" => Effect::TurnSpeedLoss { per_rad_per_s: 0.0 },
@@ -288,10 +307,11 @@ impl Effect {
     /// a speed); every other effect is returned as it is.
     pub fn at_reference_speed(&self, speed_m_per_s: f64) -> Effect {
         match *self {
-            Effect::SpeedNoise { .. } if speed_m_per_s > 0.0 => {
-                let growth = self.noise_growth_per_m_per_s() * speed_m_per_s;
+            Effect::SpeedNoise { exponent, .. } if speed_m_per_s > 0.0 => {
+                let growth = self.noise_growth_at(speed_m_per_s);
                 Effect::SpeedNoise {
                     driving_share: growth / (1.0 + growth),
+                    exponent,
                     at_m_per_s: speed_m_per_s,
                 }
             }
@@ -314,17 +334,18 @@ impl Effect {
         }
     }
 
-    /// How much the motion-noise variance grows per m/s of speed, as a
-    /// multiple of the resting variance: `share / (1 - share) / at_m_per_s`
-    /// for speed noise, 0 for every other effect.
-    pub fn noise_growth_per_m_per_s(&self) -> f64 {
+    /// How much the motion-noise variance has grown at `speed` m/s, as a
+    /// multiple of the resting variance: `share / (1 - share) * (speed /
+    /// at_m_per_s)^exponent` for speed noise, 0 for every other effect.
+    pub fn noise_growth_at(&self, speed: f64) -> f64 {
         match *self {
             Effect::SpeedNoise {
                 driving_share,
+                exponent,
                 at_m_per_s,
             } => {
                 let share = driving_share.clamp(0.0, 0.999);
-                share / (1.0 - share) / at_m_per_s.max(1e-3)
+                share / (1.0 - share) * (speed.abs() / at_m_per_s.max(1e-3)).powf(exponent)
             }
             _ => 0.0,
         }
@@ -351,7 +372,10 @@ impl Effect {
             Effect::Hysteresis { .. } => vec![(0.0, 2.0)],
             // At 0.99, standing still the noise is a hundredth of what it
             // is at the usual speed: anything more is not motion noise.
-            Effect::SpeedNoise { .. } => vec![(0.0, 0.99)],
+            // Below 0.5 the noise would grow faster at a crawl than at
+            // speed; above 3 it is no motion noise but a mismatch that
+            // only fast driving shows.
+            Effect::SpeedNoise { .. } => vec![(0.0, 0.99), (0.5, 3.0)],
             // At 3 per rad/s a robot turning at 0.33 rad/s stops driving.
             Effect::TurnSpeedLoss { .. } => vec![(0.0, 3.0)],
             // Within a robot's body: a point half a metre from the axle is
@@ -408,10 +432,17 @@ impl Effect {
             ),
             Effect::SpeedNoise {
                 driving_share,
+                exponent,
                 at_m_per_s,
             } => format!(
-                "At its usual {at_m_per_s:.2} m/s, {:.0}% of the robot's motion noise variance comes from driving: its noise grows with distance driven, and standing still it is {:.2} times as large as at that speed (speed-dependent noise).",
+                "At its usual {at_m_per_s:.2} m/s, {:.0}% of the robot's motion noise variance comes from driving: that part grows as speed to the power {exponent:.1}{}, and standing still the noise is {:.2} times as large as at that speed (speed-dependent noise).",
                 percent(driving_share),
+                match exponent {
+                    p if (0.75..1.5).contains(&p) =>
+                        ", as noise that accrues per metre driven does",
+                    p if (1.5..2.5).contains(&p) => ", as noise in proportion to wheel speed does",
+                    _ => "",
+                },
                 (1.0 - driving_share).sqrt()
             ),
             Effect::TurnSpeedLoss { per_rad_per_s } => format!(
@@ -558,6 +589,7 @@ mod tests {
     fn speed_noise_is_the_same_physics_at_any_reference_speed() {
         let noise = Effect::SpeedNoise {
             driving_share: 0.75,
+            exponent: 1.0,
             at_m_per_s: 0.5,
         };
         // Three quarters of the variance at 0.5 m/s is from driving.
@@ -573,6 +605,34 @@ mod tests {
             assert!((multiplier(&noise, speed) - multiplier(&slow, speed)).abs() < 1e-9);
         }
         assert!(slow.in_bounds());
+        // Wheel noise in proportion to wheel speed: the growth goes as its
+        // square, whatever speed it is stated at.
+        let wheels = Effect::SpeedNoise {
+            driving_share: 0.75,
+            exponent: 2.0,
+            at_m_per_s: 0.5,
+        };
+        assert!((multiplier(&wheels, 1.0) - 13.0).abs() < 1e-12);
+        let fast = wheels.at_reference_speed(1.0);
+        for speed in [0.0, 0.08, 0.3, 1.2] {
+            assert!((multiplier(&wheels, speed) - multiplier(&fast, speed)).abs() < 1e-9);
+        }
+    }
+
+    /// A model written before the exponent was fitted grew linearly.
+    #[test]
+    fn speed_noise_written_without_an_exponent_grows_linearly() {
+        let read: Effect =
+            toml::from_str("kind = \"speed_noise\"\ndriving_share = 0.5\nat_m_per_s = 0.2")
+                .expect("an older model file");
+        assert_eq!(
+            read,
+            Effect::SpeedNoise {
+                driving_share: 0.5,
+                exponent: 1.0,
+                at_m_per_s: 0.2,
+            }
+        );
     }
 
     /// A body whose slip takes all of its speed stands still

@@ -472,7 +472,7 @@ impl UnicycleModel {
     /// at `speed` m/s.
     pub fn noise_multiplier(&self, speed: f64, run_s: f64) -> f64 {
         self.active(run_s)
-            .map(|e| 1.0 + e.noise_growth_per_m_per_s() * speed.abs())
+            .map(|e| 1.0 + e.noise_growth_at(speed))
             .product()
     }
 }
