@@ -367,3 +367,51 @@ fn health_color(health: u32) -> rerun::Color {
         rerun::Color::from_rgb(60, 200, 120)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A recorder writing to memory, for the bookkeeping alone.
+    fn recorder() -> Recorder {
+        let (rec, _storage) = rerun::RecordingStreamBuilder::new("recorder-test")
+            .memory()
+            .expect("a recording in memory");
+        Recorder::new(rec, &Scenario::default_arena(), None, false).expect("a recorder")
+    }
+
+    /// The link's stand-ins carry the link's pid: a robot first seen with
+    /// one, or seen again with another pid, has the link's report read
+    /// before it is tagged, or it would be tagged with this host (the
+    /// two-hosts test's wrong tag). A robot seen again with its pid needs
+    /// no read.
+    #[test]
+    fn a_robot_seen_with_a_new_pid_has_the_links_report_read_before_it_is_tagged() {
+        let (link_pid, remote) = (500, HashMap::from([(7, "b".to_owned())]));
+        let mut recorder = recorder();
+        assert!(!recorder.hosts_stale());
+        recorder.add(PoseSample::standing(7, link_pid, 1, 0.0, 0.0, 0.0));
+        assert!(recorder.hosts_stale(), "a pid never looked at");
+        recorder.set_remote_hosts(Some((link_pid, remote.clone())));
+        assert!(!recorder.hosts_stale());
+        // Until it is tagged, its pid has not been looked at.
+        recorder.add(PoseSample::standing(7, link_pid, 2, 0.0, 0.0, 0.0));
+        assert!(recorder.hosts_stale(), "tick 1 not yet logged");
+        recorder.set_remote_hosts(Some((link_pid, remote)));
+        recorder.log_complete().expect("logged");
+        assert_eq!(recorder.logged_hosts.get(&7).map(String::as_str), Some("b"));
+        recorder.add(PoseSample::standing(7, link_pid, 3, 0.0, 0.0, 0.0));
+        assert!(!recorder.hosts_stale(), "the same pid, looked at");
+        // Robot 7 restarted here, with its own pid: this host.
+        recorder.add(PoseSample::standing(7, 42, 4, 0.0, 0.0, 0.0));
+        assert!(recorder.hosts_stale(), "a new pid");
+        recorder.set_remote_hosts(None);
+        recorder.add(PoseSample::standing(7, 42, 5, 0.0, 0.0, 0.0));
+        recorder.log_complete().expect("logged");
+        assert_eq!(
+            recorder.logged_hosts.get(&7),
+            Some(&recorder.own_host),
+            "tagged with this host once it runs here"
+        );
+    }
+}
