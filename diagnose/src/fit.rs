@@ -313,8 +313,9 @@ mod tests {
         assert_eq!(fitted.nll, nll_of(&grid, &segments, &[]));
     }
 
-    /// Segments standing or driven straight at up to 0.4 m/s, each
-    /// ending off the plain model's prediction by noise whose variance is `1 + 3 (v / 0.2)^exponent` times the resting one.
+    /// Segments standing or driven straight at up to 0.4 m/s, each ending
+    /// off the plain model's prediction by noise whose variance is
+    /// `1 + 3 (v / 0.2)^exponent` times the resting one.
     fn noise_growing_as(exponent: f64) -> (CommandGrid, Vec<Segment>) {
         use rand::{Rng, SeedableRng};
         let mut rng = rand::rngs::StdRng::seed_from_u64(7);
