@@ -3,7 +3,7 @@
 //! of them all on two threads; then whether the chosen one acts in part of
 //! the run only.
 
-use shoal_physics::effects::EFFECT_KINDS;
+use shoal_physics::effects::{EFFECT_KINDS, SPEED_NOISE_EXPONENTS};
 use shoal_physics::{CommandGrid, Effect, ScopedEffect};
 
 use crate::fit::{Fitted, fit};
@@ -62,6 +62,16 @@ pub(crate) fn candidates(
         .filter_map(|k| Effect::identity(k, [0.0; 4]))
         .map(|e| whole_run(e, usual_speed, pose_period_s))
         .collect();
+    // Speed-dependent noise under each law; the round ranks both and keeps
+    // the better as the kind's best.
+    for exponent in SPEED_NOISE_EXPONENTS.into_iter().filter(|e| *e != 1.0) {
+        let noise = Effect::SpeedNoise {
+            driving_share: 0.0,
+            exponent,
+            at_m_per_s: 1.0,
+        };
+        out.push(whole_run(noise, usual_speed, pose_period_s));
+    }
     let spans = located
         .iter()
         .filter(|l| l.family == "time" && l.t_end - l.t_start < 0.8 * duration)
