@@ -62,9 +62,9 @@ pub(crate) fn candidates(
         .filter_map(|k| Effect::identity(k, [0.0; 4]))
         .map(|e| whole_run(e, usual_speed, pose_period_s))
         .collect();
-    // Speed-dependent noise under each law; the round ranks both and keeps
-    // the better as the kind's best.
-    for exponent in SPEED_NOISE_EXPONENTS.into_iter().filter(|e| *e != 1.0) {
+    // Speed-dependent noise under each law beside the identity's (the
+    // first); the round ranks them all and keeps the best as the kind's.
+    for exponent in SPEED_NOISE_EXPONENTS.into_iter().skip(1) {
         let noise = Effect::SpeedNoise {
             driving_share: 0.0,
             exponent,

@@ -113,9 +113,10 @@ fn unchanged() -> f64 {
     1.0
 }
 
-/// Speed noise written before it had an exponent grew linearly.
+/// Speed noise written before it had an exponent grew linearly: the first
+/// law, the identity's.
 fn per_metre() -> f64 {
-    1.0
+    SPEED_NOISE_EXPONENTS[0]
 }
 
 /// The laws of speed-dependent noise tried: variance growing as speed
@@ -123,7 +124,8 @@ fn per_metre() -> f64 {
 /// speed). A fitted exponent was tried first: on a real robot's stretch
 /// (MRCLAM robot 3, the third of four blocks) it went to 3, the mismatch
 /// still unnamed taken for noise, and the weights it gave the held-out
-/// blocks refused every effect there (EXPERIMENTS.md 5c, "Laps").
+/// blocks refused every effect there (EXPERIMENTS.md 5c, "Laps"). The
+/// first is the law [`Effect::identity`] starts from.
 pub const SPEED_NOISE_EXPONENTS: [f64; 2] = [1.0, 2.0];
 
 /// A simulator stepping slower than 2 Hz is not simulating a robot.
