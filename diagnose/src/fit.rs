@@ -355,9 +355,10 @@ mod tests {
     /// is the one written (three quarters of the variance at 0.2 m/s).
     #[test]
     fn speed_noise_tells_noise_per_metre_from_noise_in_proportion_to_speed() {
-        for truth in shoal_physics::effects::SPEED_NOISE_EXPONENTS {
+        let laws = shoal_physics::effects::SPEED_NOISE_EXPONENTS;
+        for (written, truth) in laws.into_iter().enumerate() {
             let (grid, segments) = noise_growing_as(truth);
-            let fitted = shoal_physics::effects::SPEED_NOISE_EXPONENTS.map(|exponent| {
+            let fitted = laws.map(|exponent| {
                 let start = ScopedEffect::always(Effect::SpeedNoise {
                     driving_share: 0.0,
                     exponent,
@@ -365,11 +366,7 @@ mod tests {
                 });
                 fit(&grid, &segments, &[], &[start], 400)
             });
-            let (right, wrong) = if truth == 1.0 {
-                (&fitted[0], &fitted[1])
-            } else {
-                (&fitted[1], &fitted[0])
-            };
+            let (right, wrong) = (&fitted[written], &fitted[1 - written]);
             assert!(
                 right.nll < wrong.nll - 10.0,
                 "{truth}: {} against {}",

@@ -246,7 +246,28 @@ impl Selection<'_> {
             ranked = ?ranked.iter().map(|(g, c)| (c.effect.kind(), *g)).collect::<Vec<_>>(),
             "round: best of each kind on the screen (ΔBIC)"
         );
-        ranked.into_iter().map(|(_, c)| c).collect()
+        let mut top: Vec<ScopedEffect> = ranked.into_iter().map(|(_, c)| c).collect();
+        // The laws of speed-dependent noise (per metre driven, in
+        // proportion to wheel speed) are different physics, not variants
+        // of one: the screen's subsample may rank the wrong one first (a
+        // weak per-metre noise on the bench lost its entry test so,
+        // EXPERIMENTS.md 5c), so every law of a kept kind is fitted on
+        // every segment, and the round keeps the better.
+        let other_laws: Vec<ScopedEffect> = screened
+            .iter()
+            .map(|f| &f.effects[0])
+            .filter(|law| {
+                top.iter().any(|kept| {
+                    kept.effect.kind() == law.effect.kind()
+                        && kept.during == law.during
+                        && kept.effect.law().is_some()
+                        && kept.effect.law() != law.effect.law()
+                })
+            })
+            .cloned()
+            .collect();
+        top.extend(other_laws);
+        top
     }
 
     /// `top` fitted on every segment beside `base`, zones edge by edge; a

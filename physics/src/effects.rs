@@ -156,6 +156,17 @@ pub const EFFECT_KINDS: [&str; 18] = [
 ];
 
 impl Effect {
+    /// The law an effect follows where its kind has several, different
+    /// physics rather than variants of one (speed-dependent noise: the
+    /// power of speed its variance grows as, [`SPEED_NOISE_EXPONENTS`]);
+    /// none where the kind has one.
+    pub fn law(&self) -> Option<f64> {
+        match *self {
+            Effect::SpeedNoise { exponent, .. } => Some(exponent),
+            _ => None,
+        }
+    }
+
     /// Whether the effect changes only how noisy motion is, not where the
     /// robot is predicted to go.
     pub fn only_noise(&self) -> bool {
