@@ -147,6 +147,14 @@ pub fn headline(d: &Diagnosis) -> String {
             .collect()
     };
     let (named, noise) = (nouns(&moving), nouns(&noise));
+    let undecided = undecided_nouns(d);
+    let undecided_words = || {
+        format!(
+            "{} may explain the motion, but a controller steering on the pose could make {} too, and this recording cannot tell them apart (below)",
+            undecided.join(" or "),
+            if undecided.len() == 1 { "it" } else { "them" }
+        )
+    };
     let and_noise = if noise.is_empty() {
         String::new()
     } else {
@@ -171,14 +179,25 @@ pub fn headline(d: &Diagnosis) -> String {
         } else {
             String::new()
         };
+        let and_undecided = if undecided.is_empty() {
+            String::new()
+        } else {
+            format!("; undecided: {}", undecided_words())
+        };
         return format!(
-            "In short: {} named: {}; with {} the held-out position error goes {before:.1} -> {after:.1} mm{lower}{and_noise}.",
+            "In short: {} named: {}; with {} the held-out position error goes {before:.1} -> {after:.1} mm{lower}{and_noise}{and_undecided}.",
             match named.len() {
                 1 => "one effect".to_owned(),
                 n => format!("{n} effects"),
             },
             named.join("; "),
             if named.len() == 1 { "it" } else { "them" },
+        );
+    }
+    if !undecided.is_empty() {
+        return format!(
+            "In short: no effect confirmed; {}{and_noise}.",
+            undecided_words()
         );
     }
     if !noise.is_empty() && !motion_differs {
@@ -257,7 +276,10 @@ pub fn report_text(d: &Diagnosis, notes: &InputNotes) -> String {
             made.delta_bic
         ));
     }
-    let nothing_more = !motion_differs && d.effects.is_empty() && d.unexplained.is_empty();
+    let nothing_more = !motion_differs
+        && d.effects.is_empty()
+        && d.unexplained.is_empty()
+        && !d.not_feedback_free.iter().any(|n| n.undecided);
     // No mismatch is said by the headline alone.
     if d.mismatch && nothing_more && d.command_timeout.is_some() {
         line(if d.located.is_empty() {
@@ -446,15 +468,35 @@ fn clock_text(notes: &InputNotes) -> Option<String> {
 
 /// What was dropped as a controller's feedback rather than physics.
 fn feedback_text(d: &Diagnosis) -> Vec<String> {
-    d.not_feedback_free
+    let mut out: Vec<String> = d
+        .not_feedback_free
         .iter()
         .map(|n| {
+            let status = if n.undecided {
+                "undecided, it or a controller steering on the pose"
+            } else {
+                "dropped, a controller steering on the pose can make it"
+            };
             format!(
-                "  dropped, a controller steering on the pose can make it: {} ({})",
+                "  {status}: {} ({})",
                 n.sentence.trim_end_matches('.'),
                 n.check.why_unconfirmed()
             )
         })
+        .collect();
+    if d.not_feedback_free.iter().any(|n| n.undecided) {
+        out.push("  To tell them apart, record a stretch driven open loop (commands not chosen from the pose, e.g. a fixed sequence of speeds and turns) and diagnose it.".into());
+    }
+    out
+}
+
+/// The nouns of the effects the feedback stage could not tell from the
+/// controller's answer.
+fn undecided_nouns(d: &Diagnosis) -> Vec<String> {
+    d.not_feedback_free
+        .iter()
+        .filter(|n| n.undecided)
+        .map(|n| effect_noun(n.kind))
         .collect()
 }
 
@@ -530,9 +572,9 @@ pub fn experiment_table(out: &mut dyn std::io::Write, rows: &[Row]) -> std::io::
     writeln!(out)?;
     writeln!(
         out,
-        "| generator | concealed effects named | named or tied | shown by the run (truth passes the entry test) | named where shown | runs naming an effect not there (95% CI) | null runs beyond the noise (95% CI) |"
+        "| generator | concealed effects named | named or tied | shown by the run (truth passes the entry test) | named where shown | runs naming an effect not there (95% CI) | null runs beyond the noise (95% CI) | counted by effect (a run of two counts two) |"
     )?;
-    writeln!(out, "|---|---|---|---|---|---|---|")?;
+    writeln!(out, "|---|---|---|---|---|---|---|---|")?;
     let mut generators: Vec<&str> = rows.iter().map(|r| r.generator.as_str()).collect();
     generators.dedup();
     for generator in generators {
@@ -554,7 +596,7 @@ pub fn experiment_table(out: &mut dyn std::io::Write, rows: &[Row]) -> std::io::
             |k: usize, n: usize| format!("{k} of {n} ({:.0}%)", 100.0 * k as f64 / n.max(1) as f64);
         writeln!(
             out,
-            "| {generator} | {} | {} | {} | {} | {}, {} | {}, {} |",
+            "| {generator} | {} | {} | {} | {} | {}, {} | {}, {} | {} |",
             share(count(&|r| r.detection_rate, false), effect_runs),
             share(count(&|r| r.named_or_tied_rate, false), effect_runs),
             share(shown, effect_runs),
@@ -563,6 +605,10 @@ pub fn experiment_table(out: &mut dyn std::io::Write, rows: &[Row]) -> std::io::
             percent(wilson_interval(false_positive, all_runs)),
             share(beyond, null_runs),
             percent(wilson_interval(beyond, null_runs)),
+            share(
+                of.iter().map(|r| r.effects_named).sum(),
+                of.iter().map(|r| r.effects_concealed).sum()
+            ),
         )?;
     }
     Ok(())

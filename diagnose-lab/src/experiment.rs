@@ -551,6 +551,10 @@ pub struct Row {
     pub seconds_per_run: f64,
     /// How often each kind was named over the runs.
     pub named: std::collections::BTreeMap<String, usize>,
+    /// The true effects over the runs (a run of two counts two), and how
+    /// many of them were named.
+    pub effects_concealed: usize,
+    pub effects_named: usize,
     /// What each run named, seed by seed: a wrong finding can be reproduced.
     pub per_run: Vec<RunFindings>,
 }
@@ -566,6 +570,9 @@ pub struct RunFindings {
     /// limits, as the effect tried and the edge its fit ended on: a null
     /// run that says one counts as beyond the noise, so it is listed.
     pub unexplained: Vec<String>,
+    /// Each effect said undecided from the controller's answer, as `kind
+    /// name=value ...`: a null run that says one counts as beyond the noise.
+    pub undecided: Vec<String>,
     #[serde(skip)]
     outcome: Outcome,
 }
@@ -574,6 +581,8 @@ pub struct RunFindings {
 #[derive(Clone, Debug, Default)]
 struct Outcome {
     detected: bool,
+    /// How many of the true effects were named.
+    true_named: usize,
     shown: bool,
     named_or_tied: bool,
     false_positive: bool,
@@ -640,21 +649,24 @@ pub fn run_settings(
     }))
 }
 
-/// `effect` as `kind name=value ... [during a-b s]`.
+/// `e` as `kind name=value ... [during a-b s]`.
 fn effect_text(e: &FoundEffect) -> String {
-    let params: Vec<String> = e
-        .scoped
+    scoped_text(&e.scoped)
+}
+
+/// `scoped` as `kind name=value ... [during a-b s]`.
+fn scoped_text(scoped: &ScopedEffect) -> String {
+    let params: Vec<String> = scoped
         .effect
         .params()
         .iter()
         .map(|(name, value)| format!("{name}={value:.4}"))
         .collect();
-    let during = e
-        .scoped
+    let during = scoped
         .during
         .map(|[a, b]| format!(" during {a:.0}-{b:.0} s"))
         .unwrap_or_default();
-    format!("{} {}{during}", e.kind, params.join(" "))
+    format!("{} {}{during}", scoped.effect.kind(), params.join(" "))
 }
 
 /// One run of `case` as the experiment generates it: its true effects and
@@ -747,15 +759,22 @@ fn run_one(
     // A located difference is explained when a true effect was named.
     let unexplained_motion = (!located_in_motion.is_empty() || !diagnosis.unexplained.is_empty())
         && !kinds.iter().any(|k| true_kinds.contains(k));
+    // An effect said possible, undecided from the controller's answer, is
+    // a statement beyond the noise where it is not there.
+    let undecided_not_there = diagnosis
+        .not_feedback_free
+        .iter()
+        .any(|n| n.undecided && !is_true(n.kind));
     let outcome = Outcome {
         detected: !true_kinds.is_empty() && true_kinds.iter().all(|k| kinds.contains(k)),
+        true_named: true_kinds.iter().filter(|k| kinds.contains(k)).count(),
         shown,
         named_or_tied: !true_kinds.is_empty()
             && true_kinds
                 .iter()
                 .all(|k| kinds.contains(k) || tied.contains(k)),
         false_positive,
-        beyond_noise: false_positive || unexplained_motion,
+        beyond_noise: false_positive || unexplained_motion || undecided_not_there,
         param_errors: case
             .truth
             .iter()
@@ -784,6 +803,12 @@ fn run_one(
             .unexplained
             .iter()
             .map(|u| format!("{}: {}", u.tried, u.reason))
+            .collect(),
+        undecided: diagnosis
+            .not_feedback_free
+            .iter()
+            .filter(|n| n.undecided)
+            .map(|n| scoped_text(&n.scoped))
             .collect(),
         outcome,
     }
@@ -839,6 +864,8 @@ pub fn run_case(
         heldout_rmse_pos_m_after: mean(|o| o.after),
         seconds_per_run: mean(|o| o.seconds),
         named,
+        effects_concealed: case.truth.len() * runs,
+        effects_named: per_run.iter().map(|r| r.outcome.true_named).sum(),
         per_run,
     }
 }

@@ -438,6 +438,7 @@ impl NotFeedbackFree {
             params: scoped.effect.params().into_iter().collect(),
             sentence: at.sentence(&scoped.effect, duration),
             check,
+            undecided: check.undecided(),
             scoped: scoped.clone(),
         }
     }

@@ -552,19 +552,15 @@ fn diagnose_robot(recording: &Path, robot: u32) -> Result<String> {
         .flatten()
         .filter_map(|e| e["sentence"].as_str())
         .collect();
-    // A difference located only in the residuals' spread is about the
-    // noise, not about where the robot went: said as the diagnosis says it.
-    let only_spread = d["located"]
-        .as_array()
-        .is_some_and(|l| !l.is_empty() && l.iter().all(|l| l["component"] == "spread"));
+    // Without an effect named, the diagnosis's own one-line summary says
+    // what it found (the noise alone, an effect it could not tell from the
+    // controller's answer, a mismatch nothing explains).
     Ok(if sentences.is_empty() {
-        if d["mismatch"] == true && only_spread {
-            "the motion matches the model; only the size of its noise differs".to_owned()
-        } else if d["mismatch"] == true {
-            "a significant mismatch that no effect of the library explains".to_owned()
-        } else {
-            "no significant mismatch".to_owned()
-        }
+        d["summary"]
+            .as_str()
+            .map(|s| s.trim_start_matches("In short: ").trim_end_matches('.'))
+            .unwrap_or("no summary in the diagnosis")
+            .to_owned()
     } else {
         sentences.join(" ")
     })
