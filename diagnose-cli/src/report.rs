@@ -48,10 +48,16 @@ fn effects_text(d: &Diagnosis) -> Vec<String> {
         // An effect the data cannot tell from another is one finding with
         // both fits, never a choice made silently.
         for a in &e.alternatives {
-            line(format!(
-                "    these data explain it about as well (ΔBIC {:.0} against {:.0}) as: {}",
-                a.delta_bic, e.delta_bic, a.sentence
-            ));
+            line(match a.where_no_command_answered {
+                None => format!(
+                    "    these data explain it about as well (ΔBIC {:.0} against {:.0}) as: {}",
+                    a.delta_bic, e.delta_bic, a.sentence
+                ),
+                Some(z) => format!(
+                    "    or, where no command answered the noise, about as well (z {z:.1} for it; ranked ΔBIC {:.0} against {:.0} on segments the controller's answer weighs in): {}",
+                    a.delta_bic, e.delta_bic, a.sentence
+                ),
+            });
         }
     }
     let following: Vec<String> = d

@@ -15,7 +15,7 @@ use shoal_physics::{CommandGrid, Effect, ScopedEffect, UnicycleModel};
 
 use crate::covariates::{self, Covariate};
 pub use crate::entry::EntryTest;
-use crate::feedback::{self, FeedbackFree, NotFeedbackFree};
+use crate::feedback::{self, FeedbackFree, Horizons, NotFeedbackFree};
 use crate::fit::{all_but, fit};
 use crate::heldout::{BlockReport, HeldoutRun, block_reports, heldout, transferable};
 use crate::likelihood::{estimate_noise, long_run_factors_of_noise, residuals, standardised};
@@ -350,35 +350,105 @@ fn feedback_checked(
     evidence: Vec<Evidence>,
     options: &Options,
 ) -> (Vec<ScopedEffect>, Vec<Evidence>, Vec<NotFeedbackFree>) {
-    if found.is_empty() {
+    if found.iter().all(|e| e.effect.only_noise()) {
         return (found, evidence, Vec::new());
     }
-    let checks = feedback::check_each(recording, prepared, options, fixed, &found);
+    let horizons = Horizons::of(recording, options, fixed, &found);
+    let checks = feedback::check_each(&horizons, prepared, options, fixed, &found);
     let (kept, dropped): (Vec<usize>, Vec<usize>) =
         (0..found.len()).partition(|&k| checks[k].is_none_or(|c| c.confirmed()));
-    if dropped.is_empty() {
-        let evidence = evidence
-            .into_iter()
-            .zip(&checks)
-            .map(|(e, check)| Evidence {
-                feedback_free: *check,
-                ..e
-            })
-            .collect();
-        return (found, evidence, Vec::new());
-    }
     let at = OperatingPoint::of(&prepared.segments);
     let duration = recording.duration();
     let not_feedback_free = dropped
         .iter()
         .filter_map(|&k| Some(NotFeedbackFree::of(&found[k], checks[k]?, &at, duration)))
         .collect();
-    let (refitted, mut kept_evidence) =
-        kept_refitted(prepared, fixed, &found, evidence, &kept, options);
+    let (kept_found, mut kept_evidence) = if dropped.is_empty() {
+        (found, evidence)
+    } else {
+        kept_refitted(prepared, fixed, &found, evidence, &kept, options)
+    };
     for (e, &k) in kept_evidence.iter_mut().zip(&kept) {
         e.feedback_free = checks[k];
     }
-    (refitted, kept_evidence, not_feedback_free)
+    let said = Said { at: &at, duration };
+    rivals_at_horizon(
+        &horizons,
+        prepared,
+        fixed,
+        &kept_found,
+        &mut kept_evidence,
+        said,
+        options,
+    );
+    (kept_found, kept_evidence, not_feedback_free)
+}
+
+/// Where an effect's sentence is said: the run's operating point and length.
+#[derive(Clone, Copy)]
+struct Said<'a> {
+    at: &'a OperatingPoint,
+    duration: f64,
+}
+
+/// On a run whose controller answers noise that lasts past a command, each
+/// effect's runners-up from the round that chose it, compared with it where
+/// no command answered the noise: one not shown worse there is said beside
+/// it as an alternative (`feedback::rival_against_chosen`). Elsewhere the
+/// long segments' ranking stands, free of any answer. Each runner-up is
+/// compared once.
+fn rivals_at_horizon(
+    horizons: &Horizons,
+    prepared: &Prepared,
+    fixed: &[ScopedEffect],
+    found: &[ScopedEffect],
+    evidence: &mut [Evidence],
+    said: Said,
+    options: &Options,
+) {
+    if !horizons.answered() {
+        return;
+    }
+    let shorts = horizons.shorts();
+    for (k, chosen) in found.iter().enumerate() {
+        let runners_up = std::mem::take(&mut evidence[k].runners_up);
+        if chosen.effect.only_noise() {
+            continue;
+        }
+        for (delta_bic, rival) in runners_up {
+            let kind = rival.effect.kind();
+            if rival.effect.only_noise()
+                || found.iter().any(|e| e.effect.kind() == kind)
+                || evidence[k].alternatives.iter().any(|a| a.kind == kind)
+            {
+                continue;
+            }
+            let Some(z) = feedback::rival_against_chosen(
+                prepared,
+                &shorts,
+                (fixed, found, k),
+                &rival,
+                options,
+            ) else {
+                continue;
+            };
+            tracing::debug!(
+                chosen = chosen.effect.kind(),
+                rival = kind,
+                z,
+                "feedback: a runner-up in place of the chosen where no command answered the noise"
+            );
+            if z > -feedback::MIN_Z {
+                evidence[k].alternatives.push(Alternative {
+                    kind,
+                    params: rival.effect.params().into_iter().collect(),
+                    delta_bic,
+                    sentence: said.at.sentence(&rival.effect, said.duration),
+                    where_no_command_answered: Some(z),
+                });
+            }
+        }
+    }
 }
 
 /// The mismatches said real but fitted only on the edge of what is
@@ -404,8 +474,9 @@ fn unexplained_checked(
     unexplained
         .into_iter()
         .filter(|u| {
+            let horizons = Horizons::of(recording, options, &base, std::slice::from_ref(&u.scoped));
             let check = feedback::check_each(
-                recording,
+                &horizons,
                 prepared,
                 options,
                 &base,

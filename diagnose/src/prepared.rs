@@ -60,6 +60,11 @@ pub struct Alternative {
     pub params: BTreeMap<&'static str, f64>,
     pub delta_bic: f64,
     pub sentence: String,
+    /// Where it was ranked below the effect named by a controller's answer
+    /// to noise that lasts: the z of its gain over the named effect where
+    /// no command answered the noise (not shown worse there, so said).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub where_no_command_answered: Option<f64>,
 }
 
 /// A mismatch the library could only fit with a parameter on the edge of

@@ -25,6 +25,12 @@ pub(crate) struct Evidence {
     pub(crate) test: EntryTest,
     pub(crate) heldout_gain: f64,
     pub(crate) alternatives: Vec<Alternative>,
+    /// The round's next best of other kinds that lowered BIC alone beside
+    /// the same effects (each with its ΔBIC), not said as alternatives: on
+    /// a run whose controller answers noise that lasts, their ranking
+    /// carries the answer, and the feedback stage compares them where no
+    /// command answered it (`diagnosis::rivals_at_horizon`).
+    pub(crate) runners_up: Vec<(f64, ScopedEffect)>,
     /// How it predicts where no command answered the noise (set by the
     /// feedback stage; none for noise effects).
     pub(crate) feedback_free: Option<crate::feedback::FeedbackFree>,
@@ -63,15 +69,21 @@ pub(crate) fn on_bound(scoped: &ScopedEffect) -> Option<String> {
     None
 }
 
+/// How many of a round's next best of other kinds an effect keeps as
+/// [`Evidence::runners_up`].
+const RUNNERS_UP: usize = 2;
+
 /// What one round of forward selection decided.
 pub(crate) enum Round {
     /// No candidate lowers the calibrated BIC enough: selection ends.
     Done,
     /// The best candidate, and the candidates later rounds may still try.
     Chosen {
-        chosen: Tested,
+        chosen: Box<Tested>,
         /// Rival explanations within 2 of BIC.
         tied: Vec<(f64, ScopedEffect)>,
+        /// [`Evidence::runners_up`].
+        runners_up: Vec<(f64, ScopedEffect)>,
         /// The chosen effect over part of the run, where the run prefers it
         /// by less than a narrower scope must win by and it passes its own
         /// entry test: tried if the whole run fails the held-out check.
@@ -381,6 +393,19 @@ impl Selection<'_> {
         });
         let chosen = scoped;
         let tied_kinds: Vec<&'static str> = tied.iter().map(|(_, c)| c.effect.kind()).collect();
+        let runners_up = judged
+            .iter()
+            .filter(|(g, c)| {
+                let kind = c.effect.kind();
+                *g < 0.0
+                    && kind != chosen.effect.kind()
+                    && !tied_kinds.contains(&kind)
+                    && beside.as_ref().is_none_or(|b| b.1.effect.kind() != kind)
+                    && on_bound(c).is_none()
+            })
+            .take(RUNNERS_UP)
+            .cloned()
+            .collect();
         // Said beside, but free to enter later: it added nothing beside the
         // chosen on its own, and may beside what enters next (a drift over
         // the part of the run a bias does not cover). Named later, it is
@@ -406,12 +431,13 @@ impl Selection<'_> {
             .map(|(c, _)| c.clone())
             .collect();
         Round::Chosen {
-            chosen: Tested {
+            chosen: Box::new(Tested {
                 effect: chosen,
                 delta_bic,
                 test,
-            },
+            }),
             tied,
+            runners_up,
             part,
             remaining,
         }
@@ -853,6 +879,7 @@ pub(crate) fn select(selection: &Selection, located: &[Located], at: OperatingPo
             let Round::Chosen {
                 chosen,
                 tied,
+                runners_up,
                 part,
                 remaining: next,
             } = selection.round(&base, &remaining)
@@ -863,7 +890,7 @@ pub(crate) fn select(selection: &Selection, located: &[Located], at: OperatingPo
             if let Some(reason) = on_bound(&chosen.effect) {
                 let Tested {
                     effect, delta_bic, ..
-                } = chosen;
+                } = *chosen;
                 out.unexplained.push(Unexplained {
                     tried: effect.effect.kind(),
                     params: effect.effect.params().into_iter().collect(),
@@ -882,7 +909,7 @@ pub(crate) fn select(selection: &Selection, located: &[Located], at: OperatingPo
             // own entry test, faces the same held-out check.
             let kind = chosen.effect.effect.kind();
             let heldout = holds_out(selection, &base, &chosen.effect)
-                .map(|gain| (chosen, gain))
+                .map(|gain| (*chosen, gain))
                 .or_else(|| {
                     let part = part.filter(|p| on_bound(&p.effect).is_none())?;
                     holds_out(selection, &base, &part.effect).map(|gain| (*part, gain))
@@ -914,8 +941,10 @@ pub(crate) fn select(selection: &Selection, located: &[Located], at: OperatingPo
                         params: c.effect.params().into_iter().collect(),
                         delta_bic: *g,
                         sentence: at.sentence(&c.effect, selection.duration),
+                        where_no_command_answered: None,
                     })
                     .collect(),
+                runners_up,
             });
             selection.refit_and_prune(&mut out.found, &mut out.evidence);
         }
@@ -1287,6 +1316,7 @@ impl Selection<'_> {
             test,
             heldout_gain,
             alternatives: Vec::new(),
+            runners_up: Vec::new(),
         });
         self.refit_and_prune(&mut out.found, &mut out.evidence);
         CompletionStep::Entered
