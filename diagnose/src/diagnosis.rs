@@ -726,13 +726,21 @@ pub fn diagnose(recording: &Recording, given: &UnicycleModel, options: &Options)
     };
     let mut offset = 0;
     let named: Vec<&'static str> = found.iter().map(|e| e.effect.kind()).collect();
+    // A runner-up said beside an effect for how it predicts where no
+    // command answered the noise is no explanation where that stage found
+    // it the controller's own answer.
+    let answered_kinds: Vec<&'static str> = not_feedback_free.iter().map(|d| d.kind).collect();
     let (integration, effects): (Vec<FoundEffect>, Vec<FoundEffect>) = found
         .iter()
         .zip(evidence)
         .map(|(scoped, mut evidence)| {
             // A kind said beside one effect and named in its own right later
             // (it added something there) is a finding, not an alternative.
-            evidence.alternatives.retain(|a| !named.contains(&a.kind));
+            evidence.alternatives.retain(|a| {
+                let answered =
+                    a.where_no_command_answered.is_some() && answered_kinds.contains(&a.kind);
+                !named.contains(&a.kind) && !answered
+            });
             let count = scoped.effect.params().len();
             let se = &stderr[offset.min(stderr.len())..(offset + count).min(stderr.len())];
             offset += count;
