@@ -534,12 +534,14 @@ fn blocks_compared(
 /// score.
 ///
 /// On a run whose controller answers noise that lasts, the long segments
-/// rank rivals with the answer in them: wheels 6% large on an oval course
-/// (a turn scale) were named a turn bias, ΔBIC -29 against the scale's
-/// -14, because the commands the scale multiplies carry the controller's
-/// answer to the lasting noise, and a constant does not (EXPERIMENTS.md
-/// 5c, "Laps"). Where the short horizon cannot tell them apart, the rival
-/// is said beside the chosen, never left out silently.
+/// rank rivals with the answer in them: laps of an oval behind a 0.15 s
+/// motor lag named a latency of 0.16 s (its runner-up the lag), and on
+/// the short horizon the lag predicts better (z 2.0 for it). Where that
+/// horizon does not show the rival worse, it is said beside the chosen,
+/// never left out silently. That horizon is not wholly free of an answer
+/// to noise lasting longer than a command either: wheels 6% large on the
+/// same oval are named a turn bias over their turn scale on both
+/// horizons (EXPERIMENTS.md 5c, "Laps").
 pub(crate) fn rival_against_chosen(
     long: &Prepared,
     shorts: &[&Prepared],
