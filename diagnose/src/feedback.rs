@@ -238,7 +238,7 @@ impl Horizons {
         self.lasting.iter().any(LastingNoise::answers_lasting_noise)
     }
 
-    /// The short runs, finest first as cut.
+    /// The short runs, one per horizon, in the order cut.
     pub(crate) fn shorts(&self) -> Vec<&Prepared> {
         self.shorts.iter().collect()
     }
