@@ -975,6 +975,36 @@ mod tests {
     /// The lasting motion noise is told from the seams' observation error by
     /// its autocovariances: white noise has no memory, and a memory of 0.8
     /// under observation error that makes neighbours anticorrelated is found.
+    /// A change that reverts to the mean of the commands before it is
+    /// predicted by them in full; what they do not predict is left whole.
+    #[test]
+    fn a_change_is_taken_less_what_the_commands_before_it_predict() {
+        let levels: Vec<[f64; 2]> = (0..200)
+            .map(|i| {
+                [
+                    0.2 + 0.1 * (i as f64 * 0.37).sin(),
+                    0.3 * (i as f64 * 0.11).cos(),
+                ]
+            })
+            .collect();
+        let answer: Vec<f64> = (0..200)
+            .map(|i| if i % 2 == 0 { 0.01 } else { -0.01 })
+            .collect();
+        let change: Vec<f64> = levels
+            .iter()
+            .zip(&answer)
+            .map(|(l, a)| 0.5 * (0.2 - l[0]) - 0.2 * l[1] + a)
+            .collect();
+        let left = unpredicted(&levels, change);
+        let r = correlation(&left, &answer).expect("varies");
+        assert!(r > 0.99, "what the levels do not predict: r {r}");
+        for c in 0..2 {
+            let level: Vec<f64> = levels.iter().map(|l| l[c]).collect();
+            let r = correlation(&left, &level).expect("varies");
+            assert!(r.abs() < 1e-9, "column {c}: r {r}");
+        }
+    }
+
     #[test]
     fn the_noise_memory_is_read_from_three_autocovariances() {
         assert_eq!(fit_memory(1.0, 0.0, 0.0), (0.0, 1.0));
