@@ -27,13 +27,15 @@ fn effects_text(d: &Diagnosis) -> Vec<String> {
             e.delta_bic
         ));
         if let Some(check) = &e.feedback_free {
-            let size = if check.z < check.z_needed {
+            let size = if check.z >= check.z_needed {
+                String::new()
+            } else if check.beyond_feedback() {
                 format!(
                     "; not confirmed there, but it moves the prediction by {:.1} noise standard deviations, more than a controller's answer to the noise can",
                     check.size_in_noise
                 )
             } else {
-                String::new()
+                "; not confirmed there, nor contradicted, and no command answers the pose (the residuals do not predict the next command), so the longer segments' gain holds no controller's answer".to_string()
             };
             line(format!(
                 "    where no command answered the noise (held out on {:.2} s segments): {:+.1} nats, z {:.1} ({:.2} needed{}; a real effect of its size: about {:+.1}){size}",

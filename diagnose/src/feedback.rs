@@ -107,13 +107,30 @@ pub struct FeedbackFree {
     /// pose, the noise lasts past a command and the effect responds to
     /// command changes.
     pub answer_allowance: f64,
+    /// Whether on some horizon the commands answer the pose
+    /// ([`LastingNoise::commands_answer`]): the recording is closed loop.
+    pub commands_answer: bool,
 }
 
 impl FeedbackFree {
     /// Confirmed where no command answered the noise, or too large for any
-    /// controller's answer to the noise.
+    /// controller's answer to the noise, or, where the commands do not
+    /// answer the pose at all, not contradicted there. Open loop, the long
+    /// horizon's gain holds no answer to the noise, and the short horizon,
+    /// with a tenth of its power or less, can only say the effect is not
+    /// what it sees: asked to confirm as well, it dropped small heading
+    /// effects under coloured noise that the long horizon had shown
+    /// (EXPERIMENTS.md 5c, "Open loop").
     pub fn confirmed(&self) -> bool {
-        self.z >= self.z_needed || self.beyond_feedback()
+        self.z >= self.z_needed
+            || self.beyond_feedback()
+            || (!self.commands_answer && !self.contradicted())
+    }
+
+    /// The gain lies so far below what a real effect of the fitted size
+    /// would show that this horizon speaks against it.
+    pub fn contradicted(&self) -> bool {
+        self.z_against_expected <= -self.z_needed
     }
 
     /// Larger than any effect a controller's answer to the noise can make.
@@ -157,7 +174,7 @@ impl FeedbackFree {
 
     /// Why an unconfirmed effect was dropped, in words.
     pub fn why_unconfirmed(&self) -> String {
-        let what = if self.z_against_expected <= -self.z_needed {
+        let what = if self.contradicted() {
             "contradicts it"
         } else if self.undecided() {
             "leans towards the effect, but has not the power to decide"
@@ -238,6 +255,12 @@ impl Horizons {
         self.lasting.iter().any(LastingNoise::answers_lasting_noise)
     }
 
+    /// Whether on some horizon the commands answer the pose, lasting noise
+    /// or not: elsewhere the recording is open loop.
+    pub(crate) fn commands_answer(&self) -> bool {
+        self.lasting.iter().any(LastingNoise::commands_answer)
+    }
+
     /// The short runs, one per horizon, in the order cut.
     pub(crate) fn shorts(&self) -> Vec<&Prepared> {
         self.shorts.iter().collect()
@@ -267,7 +290,13 @@ pub(crate) fn check_each(
             let check = if found[k].effect.only_noise() {
                 None
             } else {
-                feedback_free_check(prepared, &runs, (fixed, found, k), options)
+                feedback_free_check(
+                    prepared,
+                    &runs,
+                    (fixed, found, k),
+                    horizons.commands_answer(),
+                    options,
+                )
             };
             tracing::debug!(effect = ?found[k].effect, ?check, "feedback-free check");
             check
@@ -405,6 +434,7 @@ pub fn feedback_free_check(
     long: &Prepared,
     shorts: &[(f64, &Prepared, f64)],
     (fixed, found, k): (&[ScopedEffect], &[ScopedEffect], usize),
+    commands_answer: bool,
     options: &Options,
 ) -> Option<FeedbackFree> {
     let &(_, first, _) = shorts.first()?;
@@ -455,6 +485,7 @@ pub fn feedback_free_check(
                 size_in_noise: size,
                 lasting_answer: answer,
                 answer_allowance: allowance,
+                commands_answer,
             }
         })
         .collect();
@@ -775,10 +806,16 @@ impl LastingNoise {
         }
     }
 
+    /// Whether the residuals predict the next command change: the
+    /// controller steers on the pose.
+    fn commands_answer(&self) -> bool {
+        self.answer_z >= ANSWERS_Z
+    }
+
     /// Whether the commands answer the pose and some of the noise they
     /// answer lasts past a command.
     fn answers_lasting_noise(&self) -> bool {
-        self.answer_z >= ANSWERS_Z && self.predictable.iter().any(|&p| p > 0.0)
+        self.commands_answer() && self.predictable.iter().any(|&p| p > 0.0)
     }
 
     /// Nats a segment that an answer to this noise could make `effect`
@@ -925,6 +962,7 @@ mod tests {
             size_in_noise,
             lasting_answer: 0.0,
             answer_allowance: 0.0,
+            commands_answer: true,
         }
     }
 
@@ -1050,6 +1088,21 @@ mod tests {
                 .contains("too short to tell")
         );
         assert!(check(-1.0, 0.1).why_unconfirmed().contains("contradicts"));
+    }
+
+    /// A bench heading drift under coloured noise: the short horizon,
+    /// with little power, neither confirms it nor speaks against it.
+    #[test]
+    fn open_loop_an_effect_is_dropped_only_where_the_short_horizon_contradicts_it() {
+        let open_loop = |z: f64| FeedbackFree {
+            commands_answer: false,
+            ..check(z, 0.1)
+        };
+        assert!(!check(0.3, 0.1).confirmed(), "closed loop: unconfirmed");
+        assert!(open_loop(0.3).confirmed(), "open loop: not contradicted");
+        let against = open_loop(-1.0);
+        assert!(against.contradicted() && !against.confirmed());
+        assert!(against.why_unconfirmed().contains("contradicts"));
     }
 
     fn near(a: f64, b: f64) -> bool {
