@@ -457,7 +457,10 @@ fn rivals_at_horizon(
 /// `not_feedback_free`. Said on the round's test alone, where a named
 /// effect must also pass this stage, 2 of 60 open-loop null runs of
 /// `waypoints-open` reported one (a semi-implicit step on the edge of its
-/// range: EXPERIMENTS.md 5c), and neither gains on one command period.
+/// range: EXPERIMENTS.md 5c), and neither gains on one command period. So
+/// such a mismatch must be confirmed there even in open loop, where a
+/// named effect, held out in blocks already, need only not be
+/// contradicted ([`FeedbackFree::confirmed_there`]).
 fn unexplained_checked(
     recording: &Recording,
     prepared: &Prepared,
@@ -486,7 +489,7 @@ fn unexplained_checked(
             .next()
             .flatten();
             match check {
-                Some(check) if !check.confirmed() => {
+                Some(check) if !check.confirmed_there() => {
                     not_feedback_free.push(NotFeedbackFree::of(
                         &u.scoped,
                         check,

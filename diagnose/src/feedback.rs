@@ -122,9 +122,14 @@ impl FeedbackFree {
     /// effects under coloured noise that the long horizon had shown
     /// (EXPERIMENTS.md 5c, "Open loop").
     pub fn confirmed(&self) -> bool {
-        self.z >= self.z_needed
-            || self.beyond_feedback()
-            || (!self.commands_answer && !self.contradicted())
+        self.confirmed_there() || (!self.commands_answer && !self.contradicted())
+    }
+
+    /// Confirmed on this horizon's own evidence, open loop or closed: what
+    /// a mismatch said on a round's test alone, with no held-out blocks
+    /// behind it, must show.
+    pub fn confirmed_there(&self) -> bool {
+        self.z >= self.z_needed || self.beyond_feedback()
     }
 
     /// The gain lies so far below what a real effect of the fitted size
@@ -1100,6 +1105,7 @@ mod tests {
         };
         assert!(!check(0.3, 0.1).confirmed(), "closed loop: unconfirmed");
         assert!(open_loop(0.3).confirmed(), "open loop: not contradicted");
+        assert!(!open_loop(0.3).confirmed_there());
         let against = open_loop(-1.0);
         assert!(against.contradicted() && !against.confirmed());
         assert!(against.why_unconfirmed().contains("contradicts"));
