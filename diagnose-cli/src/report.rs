@@ -2,6 +2,7 @@
 
 use shoal_diagnose::Diagnosis;
 use shoal_diagnose::diagnosis::FoundEffect;
+use shoal_diagnose::feedback::Confirmation;
 use shoal_diagnose::glitches::{Glitch, GlitchKind, seconds_set_aside};
 use shoal_diagnose::locate::Located;
 use shoal_diagnose_lab::experiment::Row;
@@ -27,15 +28,17 @@ fn effects_text(d: &Diagnosis) -> Vec<String> {
             e.delta_bic
         ));
         if let Some(check) = &e.feedback_free {
-            let size = if check.z >= check.z_needed {
-                String::new()
-            } else if check.beyond_feedback() {
-                format!(
+            // An effect named is confirmed (`Diagnosis` keeps no other), so
+            // `None` cannot reach here; it says nothing rather than panic.
+            let size = match check.confirmation() {
+                Some(Confirmation::Shown) | None => String::new(),
+                Some(Confirmation::BeyondFeedback) => format!(
                     "; not confirmed there, but it moves the prediction by {:.1} noise standard deviations, more than a controller's answer to the noise can",
                     check.size_in_noise
-                )
-            } else {
-                "; not confirmed there, nor contradicted, and no command answers the pose (the residuals do not predict the next command), so the longer segments' gain holds no controller's answer".to_string()
+                ),
+                Some(Confirmation::OpenLoopUncontradicted) => {
+                    "; not confirmed there, nor contradicted, and no command answers the pose (the residuals do not predict the next command), so the longer segments' gain holds no controller's answer".to_string()
+                }
             };
             line(format!(
                 "    where no command answered the noise (held out on {:.2} s segments): {:+.1} nats, z {:.1} ({:.2} needed{}; a real effect of its size: about {:+.1}){size}",

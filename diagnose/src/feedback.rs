@@ -70,6 +70,20 @@ pub fn z_needed(zs: &[f64]) -> f64 {
 /// make of noise: all of it (a correlation of 1 with the commands).
 pub const MAX_FEEDBACK_SIZE: f64 = 1.0;
 
+/// Why an effect is kept at the feedback-free horizon
+/// ([`FeedbackFree::confirmation`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Confirmation {
+    /// It predicts better there, at the z needed.
+    Shown,
+    /// It moves the prediction by more than a controller's answer to the
+    /// noise can ([`MAX_FEEDBACK_SIZE`]).
+    BeyondFeedback,
+    /// No command answers the pose (open loop) and the effect builds up
+    /// between command changes: the horizon does not contradict it.
+    OpenLoopUncontradicted,
+}
+
 /// How an effect predicts at the feedback-free horizon.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct FeedbackFree {
@@ -130,15 +144,32 @@ impl FeedbackFree {
     /// stepping every 20 ms, stayed out only so (EXPERIMENTS.md 5c, "Open
     /// loop").
     pub fn confirmed(&self) -> bool {
-        self.confirmed_there()
-            || (!self.commands_answer && !self.acts_at_command_changes && !self.contradicted())
+        self.confirmation().is_some()
+    }
+
+    /// Why the effect is kept at this horizon, or `None` where it is not:
+    /// the one place [`Self::confirmed`]'s three ways are told apart, so
+    /// the report says the one that held.
+    pub fn confirmation(&self) -> Option<Confirmation> {
+        if self.z >= self.z_needed {
+            Some(Confirmation::Shown)
+        } else if self.beyond_feedback() {
+            Some(Confirmation::BeyondFeedback)
+        } else if !self.commands_answer && !self.acts_at_command_changes && !self.contradicted() {
+            Some(Confirmation::OpenLoopUncontradicted)
+        } else {
+            None
+        }
     }
 
     /// Confirmed on this horizon's own evidence, open loop or closed: what
     /// a mismatch said on a round's test alone, with no held-out blocks
     /// behind it, must show.
     pub fn confirmed_there(&self) -> bool {
-        self.z >= self.z_needed || self.beyond_feedback()
+        matches!(
+            self.confirmation(),
+            Some(Confirmation::Shown | Confirmation::BeyondFeedback)
+        )
     }
 
     /// The gain lies so far below what a real effect of the fitted size
