@@ -57,7 +57,9 @@ pub struct FoundEffect {
     /// Held-out (time-blocked) gain in log-likelihood from adding it.
     pub heldout_gain: f64,
     /// How it predicts where no command answered the noise it is scored
-    /// on (`feedback`); none for an effect on the noise alone.
+    /// on (`feedback`), and why it was kept there (`kept_because` in the
+    /// JSON); none for an effect on the noise alone.
+    #[serde(serialize_with = "crate::feedback::serialize_with_confirmation")]
     pub feedback_free: Option<FeedbackFree>,
     #[serde(skip)]
     pub scoped: ScopedEffect,

@@ -72,7 +72,8 @@ pub const MAX_FEEDBACK_SIZE: f64 = 1.0;
 
 /// Why an effect is kept at the feedback-free horizon
 /// ([`FeedbackFree::confirmation`]).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Confirmation {
     /// It predicts better there, at the z needed.
     Shown,
@@ -82,6 +83,28 @@ pub enum Confirmation {
     /// No command answers the pose (open loop) and the effect builds up
     /// between command changes: the horizon does not contradict it.
     OpenLoopUncontradicted,
+}
+
+/// Writes a check with the reason it was kept beside its figures
+/// (`kept_because`), so a reader of the JSON need not re-derive
+/// [`FeedbackFree::confirmation`] from them.
+pub fn serialize_with_confirmation<S: serde::Serializer>(
+    check: &Option<FeedbackFree>,
+    serializer: S,
+) -> Result<S::Ok, S::Error> {
+    #[derive(Serialize)]
+    struct WithConfirmation<'a> {
+        #[serde(flatten)]
+        check: &'a FeedbackFree,
+        kept_because: Option<Confirmation>,
+    }
+    check
+        .as_ref()
+        .map(|check| WithConfirmation {
+            check,
+            kept_because: check.confirmation(),
+        })
+        .serialize(serializer)
 }
 
 /// How an effect predicts at the feedback-free horizon.
