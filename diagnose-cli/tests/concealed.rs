@@ -354,13 +354,13 @@ fn a_real_mrclam_robot_shows_a_mismatch_that_the_fit_reduces() {
     assert_eq!(d["mismatch"], true);
     // A response delay: pure latency or a first-order actuator lag.
     assert!(
-        kinds(&d)
+        kinds(d)
             .iter()
             .any(|k| k == "latency" || k == "actuator_lag"),
         "{d}"
     );
     // Its speed drops in turns, which the plain unicycle leaves out.
-    assert!(kinds(&d).iter().any(|k| k == "turn_speed_loss"), "{d}");
+    assert!(kinds(d).iter().any(|k| k == "turn_speed_loss"), "{d}");
     // The verdict in one line, as the report opens.
     let summary = d["summary"].as_str().unwrap_or_default();
     assert!(

@@ -1,14 +1,15 @@
 //! The candidates of a round: every effect of the library, effects scoped
 //! to the stretches and places where the residuals differ, and the fitting
-//! of them all on two threads; then whether the chosen one acts in part of
+//! of them all in parallel; then whether the chosen one acts in part of
 //! the run only.
 
+use rayon::prelude::*;
 use shoal_physics::effects::{EFFECT_KINDS, SPEED_NOISE_EXPONENTS};
 use shoal_physics::{CommandGrid, Effect, ScopedEffect};
 
 use crate::fit::{Fitted, fit};
 use crate::locate::Located;
-use crate::prepared::{Options, joined};
+use crate::prepared::Options;
 use crate::segments::Segment;
 use crate::zones::{at_least_min_side, region_driven};
 
@@ -126,7 +127,9 @@ pub(crate) fn extra_params(candidate: &ScopedEffect) -> usize {
     candidate.effect.params().len() + zone + span
 }
 
-/// Fits every candidate on two threads; returns them in the same order.
+/// Fits every candidate, in parallel (each fit is independent and
+/// deterministic, so the result does not depend on the threads); returns
+/// them in the same order.
 pub(crate) fn fit_all(
     grid: &CommandGrid,
     segments: &[Segment],
@@ -134,36 +137,18 @@ pub(crate) fn fit_all(
     candidates: &[ScopedEffect],
     max_iters: u64,
 ) -> Vec<Fitted> {
-    let workers = std::thread::available_parallelism()
-        .map_or(1, |n| n.get())
-        .min(candidates.len().max(1));
-    let mut results: Vec<Option<Fitted>> = vec![None; candidates.len()];
-    std::thread::scope(|scope| {
-        let chunks: Vec<_> = results
-            .chunks_mut(candidates.len().div_ceil(workers).max(1))
-            .enumerate()
-            .map(|(w, slots)| {
-                let chunk = candidates.len().div_ceil(workers).max(1);
-                scope.spawn(move || {
-                    for (k, slot) in slots.iter_mut().enumerate() {
-                        let candidate = &candidates[w * chunk + k];
-                        *slot = Some(fit(
-                            grid,
-                            segments,
-                            fixed,
-                            std::slice::from_ref(candidate),
-                            max_iters,
-                        ));
-                    }
-                })
-            })
-            .collect();
-        for handle in chunks {
-            joined(handle.join());
-        }
-    });
-    // Every worker filled its slots, or its panic went on above.
-    results.into_iter().flatten().collect()
+    candidates
+        .par_iter()
+        .map(|candidate| {
+            fit(
+                grid,
+                segments,
+                fixed,
+                std::slice::from_ref(candidate),
+                max_iters,
+            )
+        })
+        .collect()
 }
 
 /// An effect found over the whole run may act only in part of it: tries

@@ -6,12 +6,13 @@
 //! only if no held-out block contradicts it, and the final model must
 //! predict no block worse than the model it started from.
 
+use rayon::prelude::*;
 use serde::Serialize;
 use shoal_physics::{CommandGrid, ScopedEffect, UnicycleModel};
 
 use crate::fit::fit;
 use crate::likelihood::{Noise, Residual, estimate_noise, residuals, rmse, segment_nll};
-use crate::prepared::{Heldout, Options, Prepared, joined};
+use crate::prepared::{Heldout, Options, Prepared};
 use crate::segments::{Segment, subsample};
 
 /// Runs `per_fold(train, test)` with each held-out block as `test` and the
@@ -20,24 +21,18 @@ pub(crate) fn on_folds<T: Send>(
     prepared: &Prepared,
     per_fold: impl Fn(&[Segment], &[Segment]) -> T + Sync,
 ) -> Vec<T> {
-    let per_fold = &per_fold;
-    std::thread::scope(|scope| {
-        let handles: Vec<_> = prepared
-            .blocks
-            .iter()
-            .map(|block| {
-                scope.spawn(move || {
-                    let train: Vec<Segment> = prepared.segments[..block.start]
-                        .iter()
-                        .chain(&prepared.segments[block.end..])
-                        .cloned()
-                        .collect();
-                    per_fold(&train, &prepared.segments[block.clone()])
-                })
-            })
-            .collect();
-        handles.into_iter().map(|h| joined(h.join())).collect()
-    })
+    prepared
+        .blocks
+        .par_iter()
+        .map(|block| {
+            let train: Vec<Segment> = prepared.segments[..block.start]
+                .iter()
+                .chain(&prepared.segments[block.end..])
+                .cloned()
+                .collect();
+            per_fold(&train, &prepared.segments[block.clone()])
+        })
+        .collect()
 }
 
 /// `fixed` plus `free` refitted on part of `train` only: the full-data fit

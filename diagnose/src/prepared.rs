@@ -165,13 +165,6 @@ pub fn prepare_cut(
     }
 }
 
-/// A worker's result, or its panic carried on in this thread: a fit that
-/// panicked is a bug to see, and dropping its result would pair the other
-/// fits with the wrong candidates or folds.
-pub(crate) fn joined<T>(result: std::thread::Result<T>) -> T {
-    result.unwrap_or_else(|panic| std::panic::resume_unwind(panic))
-}
-
 /// Where the robot usually drives: the median commanded speed and turn
 /// rate of the segments in which it moves.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]

@@ -2,6 +2,7 @@
 //! passes the entry test, is physical, and predicts held-out blocks better;
 //! effects that others do as well without are pruned.
 
+use rayon::prelude::*;
 use shoal_physics::effects::EFFECT_KINDS;
 use shoal_physics::{CommandGrid, Effect, ScopedEffect};
 
@@ -1195,19 +1196,28 @@ impl Selection<'_> {
         // Ranked by ΔBIC on the screen, as a round ranks: by the likelihood
         // alone a kind of two parameters outranked the one-parameter kind
         // that explained as much, failed its entry test, and ended the pass.
-        EFFECT_KINDS
+        let candidates: Vec<ScopedEffect> = EFFECT_KINDS
             .iter()
             .filter(|k| **k != "surface_zone" && !named.contains(k) && !tried.contains(k))
             .filter(|k| self.prepared.can_show(k))
             .filter_map(|k| Effect::identity(k, [0.0; 4]))
             .filter(|e| !e.only_noise())
             .map(|e| whole_run(e, at.speed_m_per_s, self.prepared.pose_period_s))
+            .collect();
+        // Each kind is fitted with every named effect free beside it: the
+        // costliest fits of a diagnosis, independent of one another, so in
+        // parallel; the best is then chosen in the library's order.
+        let scored: Vec<(f64, ScopedEffect)> = candidates
+            .into_par_iter()
             .map(|c| {
                 let together: Vec<ScopedEffect> =
                     found.iter().cloned().chain([c.clone()]).collect();
                 let nll = fit(grid, &self.screen, fixed, &together, options.max_iters).nll;
                 (self.screen_delta_bic(nll, screen_without, &c), c)
             })
+            .collect();
+        scored
+            .into_iter()
             .min_by(|a, b| a.0.total_cmp(&b.0))
             .filter(|(gain, _)| *gain < 0.0)
             .map(|(_, c)| c)
