@@ -26,6 +26,7 @@
 
 use std::collections::BTreeMap;
 
+use rayon::prelude::*;
 use serde::Serialize;
 use shoal_physics::{ScopedEffect, UnicycleModel};
 
@@ -296,13 +297,14 @@ impl Horizons {
     ) -> Self {
         let cuts = feedback_free_cuts(recording, options.grid_dt, options.horizon_s);
         tracing::debug!(?cuts, "feedback-free segments");
+        // Each horizon is prepared and measured on its own: in parallel.
         let shorts: Vec<Prepared> = cuts
-            .iter()
+            .par_iter()
             .map(|cut| cut.prepare(recording, options))
             .collect();
         let whole = UnicycleModel::with_effects(fixed.iter().chain(found).cloned().collect());
         let lasting: Vec<LastingNoise> = shorts
-            .iter()
+            .par_iter()
             .map(|short| LastingNoise::of(short, &whole))
             .collect();
         tracing::debug!(
