@@ -3,7 +3,7 @@
 //! noise, and keeps real physics in the same closed loop. Where commands
 //! are held, it also scores within the holds, where a weak drift shows.
 
-use shoal_diagnose::feedback::{Confirmation, MIN_Z};
+use shoal_diagnose::feedback::{Confirmation, FeedbackFree, MIN_Z};
 use shoal_diagnose_lab::experiment::diagnosed_run;
 
 /// Diagnoses the closed-loop waypoint follower's `case` under mixed noise.
@@ -45,18 +45,25 @@ fn a_play_made_by_the_controllers_feedback_is_dropped_and_a_real_one_kept() {
     assert!(check.z > 4.0 * MIN_Z, "{check:?}");
 }
 
+/// The bench's `latency+heading_drift` run under `noise`: the named drift's
+/// check where no command answered the noise, and every kind named.
+fn drift_beside_a_latency(noise: &str, seed: u64) -> (FeedbackFree, Vec<&'static str>) {
+    let run = diagnosed_run("bench", "latency+heading_drift", noise, seed).expect("a known run");
+    let kinds: Vec<&'static str> = run.effects.iter().map(|e| e.kind).collect();
+    let drift = run
+        .effect("heading_drift")
+        .unwrap_or_else(|| panic!("the drift is named: {kinds:?}"));
+    let check = drift.feedback_free.expect("a drift moves the prediction");
+    (check, kinds)
+}
+
 #[test]
 fn a_weak_drift_under_held_commands_is_confirmed_within_the_holds() {
     // The bench's operator holds each command 0.5-3 s and sends it at 50 Hz.
     // Beside a latency, this heading drift gains too little on one command
     // period (0.02 s, z 1.52) to be told from a controller's answer, and was
     // dropped; within the holds (0.98 s) it is confirmed (EXPERIMENTS.md 5c).
-    let run = diagnosed_run("bench", "latency+heading_drift", "white", 1002).expect("a known run");
-    let kinds: Vec<&str> = run.effects.iter().map(|e| e.kind).collect();
-    let drift = run
-        .effect("heading_drift")
-        .unwrap_or_else(|| panic!("the drift is named: {kinds:?}"));
-    let check = drift.feedback_free.expect("a drift moves the prediction");
+    let (check, kinds) = drift_beside_a_latency("white", 1002);
     assert!(check.horizon_s > 0.5, "{check:?}");
     // One period falls short of 5%, so the held horizon alone must reach
     // Simes' 2.5% for the two.
@@ -96,12 +103,7 @@ fn an_open_loop_drift_no_horizon_contradicts_is_kept_and_said_as_such() {
     // contradicts it and no command answers the noise, so the longer
     // segments' gain is physics (EXPERIMENTS.md 5c, "Open loop"). It is
     // kept for that reason, and for no other.
-    let run = diagnosed_run("bench", "latency+heading_drift", "mixed", 1000).expect("a known run");
-    let kinds: Vec<&str> = run.effects.iter().map(|e| e.kind).collect();
-    let drift = run
-        .effect("heading_drift")
-        .unwrap_or_else(|| panic!("the drift is named: {kinds:?}"));
-    let check = drift.feedback_free.expect("a drift moves the prediction");
+    let (check, kinds) = drift_beside_a_latency("mixed", 1000);
     assert_eq!(
         check.confirmation(),
         Some(Confirmation::OpenLoopUncontradicted),
