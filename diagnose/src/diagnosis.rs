@@ -8,6 +8,7 @@
 //! and what they share in `prepared` (options, the prepared run); this one runs
 //! them in order and states the findings.
 
+use std::cell::OnceCell;
 use std::collections::BTreeMap;
 
 use serde::Serialize;
@@ -15,7 +16,7 @@ use shoal_physics::{CommandGrid, Effect, ScopedEffect, UnicycleModel};
 
 use crate::covariates::{self, Covariate};
 pub use crate::entry::EntryTest;
-use crate::feedback::{self, FeedbackFree, Horizons, NotFeedbackFree};
+use crate::feedback::{self, FeedbackFree, Horizons, NotFeedbackFree, ShortRuns};
 use crate::fit::{all_but, fit};
 use crate::heldout::{BlockReport, HeldoutRun, block_reports, heldout, transferable};
 use crate::likelihood::{estimate_noise, long_run_factors_of_noise, residuals, standardised};
@@ -273,12 +274,12 @@ struct Dropped {
 /// drop nothing more (at most `RESELECTIONS` times).
 fn through_later_stages(
     selection: &Selection,
-    recording: &Recording,
+    runs: &FeedbackRuns,
     mut selected: Selected,
     at: OperatingPoint,
 ) -> (Selected, Dropped) {
     let mut dropped = Dropped::default();
-    let mut dropped_by_feedback = checked_once(selection, recording, &mut selected, &mut dropped);
+    let mut dropped_by_feedback = checked_once(selection, runs, &mut selected, &mut dropped);
     for _ in 0..RESELECTIONS {
         if dropped_by_feedback == 0 {
             break;
@@ -307,7 +308,7 @@ fn through_later_stages(
         if selected.found.iter().map(|e| e.effect.kind()).eq(before) {
             break;
         }
-        dropped_by_feedback = checked_once(selection, recording, &mut selected, &mut dropped);
+        dropped_by_feedback = checked_once(selection, runs, &mut selected, &mut dropped);
     }
     (selected, dropped)
 }
@@ -316,7 +317,7 @@ fn through_later_stages(
 /// added to `dropped`; returns how many the feedback stage dropped.
 fn checked_once(
     selection: &Selection,
-    recording: &Recording,
+    runs: &FeedbackRuns,
     selected: &mut Selected,
     dropped: &mut Dropped,
 ) -> usize {
@@ -331,11 +332,38 @@ fn checked_once(
     );
     dropped.not_transferring.extend(more);
     let (kept, kept_evidence, more) =
-        feedback_checked(recording, prepared, fixed, kept, kept_evidence, options);
+        feedback_checked(runs, prepared, fixed, kept, kept_evidence, options);
     let by_feedback = more.len();
     dropped.not_feedback_free.extend(more);
     (selected.found, selected.evidence) = (kept, kept_evidence);
     by_feedback
+}
+
+/// The recording the feedback stage checks each model on, cut at its
+/// feedback-free horizons the first time a check asks ([`ShortRuns`]): the
+/// cut is the same for every model checked, and a run whose effects are
+/// all noise never asks.
+struct FeedbackRuns<'a> {
+    recording: &'a Recording,
+    prepared: &'a Prepared,
+    options: &'a Options,
+    cut: OnceCell<ShortRuns>,
+}
+
+impl<'a> FeedbackRuns<'a> {
+    fn new(recording: &'a Recording, prepared: &'a Prepared, options: &'a Options) -> Self {
+        Self {
+            recording,
+            prepared,
+            options,
+            cut: OnceCell::new(),
+        }
+    }
+
+    fn cut(&self) -> &ShortRuns {
+        self.cut
+            .get_or_init(|| ShortRuns::of(self.recording, self.prepared, self.options))
+    }
 }
 
 /// How many of the residuals' strongest covariates a diagnosis lists.
@@ -345,7 +373,7 @@ const COVARIATES_REPORTED: usize = 5;
 /// refitted together if any was dropped, with their evidence carrying the
 /// check; and the dropped ones.
 fn feedback_checked(
-    recording: &Recording,
+    runs: &FeedbackRuns,
     prepared: &Prepared,
     fixed: &[ScopedEffect],
     found: Vec<ScopedEffect>,
@@ -355,12 +383,12 @@ fn feedback_checked(
     if found.iter().all(|e| e.effect.only_noise()) {
         return (found, evidence, Vec::new());
     }
-    let horizons = Horizons::of(recording, options, fixed, &found);
+    let horizons = Horizons::of(runs.cut(), fixed, &found);
     let checks = feedback::check_each(&horizons, prepared, options, fixed, &found);
     let (kept, dropped): (Vec<usize>, Vec<usize>) =
         (0..found.len()).partition(|&k| checks[k].is_none_or(|c| c.confirmed()));
     let at = OperatingPoint::of(&prepared.segments);
-    let duration = recording.duration();
+    let duration = runs.recording.duration();
     let not_feedback_free = dropped
         .iter()
         .filter_map(|&k| Some(NotFeedbackFree::of(&found[k], checks[k]?, &at, duration)))
@@ -464,7 +492,7 @@ fn rivals_at_horizon(
 /// named effect, held out in blocks already, need only not be
 /// contradicted ([`FeedbackFree::confirmed_there`]).
 fn unexplained_checked(
-    recording: &Recording,
+    runs: &FeedbackRuns,
     prepared: &Prepared,
     (fixed, found): (&[ScopedEffect], &[ScopedEffect]),
     unexplained: Vec<Unexplained>,
@@ -479,7 +507,7 @@ fn unexplained_checked(
     unexplained
         .into_iter()
         .filter(|u| {
-            let horizons = Horizons::of(recording, options, &base, std::slice::from_ref(&u.scoped));
+            let horizons = Horizons::of(runs.cut(), &base, std::slice::from_ref(&u.scoped));
             let check = feedback::check_each(
                 &horizons,
                 prepared,
@@ -496,7 +524,7 @@ fn unexplained_checked(
                         &u.scoped,
                         check,
                         &at,
-                        recording.duration(),
+                        runs.recording.duration(),
                     ));
                     false
                 }
@@ -698,6 +726,7 @@ pub fn diagnose(recording: &Recording, given: &UnicycleModel, options: &Options)
         options,
     };
     let fixed = &selection.fixed;
+    let feedback_runs = FeedbackRuns::new(recording, &prepared, options);
     let (
         Selected {
             found,
@@ -711,12 +740,12 @@ pub fn diagnose(recording: &Recording, given: &UnicycleModel, options: &Options)
         },
     ) = through_later_stages(
         &selection,
-        recording,
+        &feedback_runs,
         select(&selection, &located, operating_point),
         operating_point,
     );
     let unexplained = unexplained_checked(
-        recording,
+        &feedback_runs,
         &prepared,
         (fixed, &found),
         unexplained,

@@ -36,9 +36,9 @@ use crate::heldout::{on_folds, predict_block, refit_on};
 use crate::likelihood::{
     estimate_noise, lagged_products, long_run_factor, residuals, segment_nll, standardised,
 };
-use crate::prepared::{Options, Prepared, prepare, prepare_cut};
+use crate::prepared::{Options, Prepared};
 use crate::recording::Recording;
-use crate::segments::{Segment, command_grid, held_segments, holds, moving};
+use crate::segments::{Segment, command_grid, held_segments, holds, moving, segments};
 
 /// The one-sided z an effect's short-horizon held-out gain must reach on
 /// one horizon: a 5% test. An effect already passed its entry test on the
@@ -278,32 +278,43 @@ pub struct NotFeedbackFree {
     pub scoped: ScopedEffect,
 }
 
-/// The feedback-free runs of a recording (one per horizon), and on each
-/// how the noise lasts past a command and whether the commands answer it.
-pub(crate) struct Horizons {
+/// A recording cut at its feedback-free horizons and prepared, one run per
+/// horizon: the same whatever model is checked on it, so a diagnosis cuts
+/// it once for all its checks.
+pub(crate) struct ShortRuns {
     cuts: Vec<FeedbackFreeCut>,
     shorts: Vec<Prepared>,
+}
+
+impl ShortRuns {
+    /// `recording`, as `prepared` cleaned it, cut at its feedback-free
+    /// horizons.
+    pub(crate) fn of(recording: &Recording, prepared: &Prepared, options: &Options) -> Self {
+        let cuts = feedback_free_cuts(recording, options.grid_dt, options.horizon_s);
+        tracing::debug!(?cuts, "feedback-free segments");
+        // Each horizon is cut on its own: in parallel.
+        let shorts = cuts
+            .par_iter()
+            .map(|cut| cut.prepare(prepared, options))
+            .collect();
+        Self { cuts, shorts }
+    }
+}
+
+/// The feedback-free runs of a recording (one per horizon), and on each
+/// how the noise lasts past a command and whether the commands answer it.
+pub(crate) struct Horizons<'a> {
+    runs: &'a ShortRuns,
     lasting: Vec<LastingNoise>,
 }
 
-impl Horizons {
-    /// `recording` cut at the feedback-free horizons, the lasting noise
-    /// measured with the residuals of `fixed` and `found`.
-    pub(crate) fn of(
-        recording: &Recording,
-        options: &Options,
-        fixed: &[ScopedEffect],
-        found: &[ScopedEffect],
-    ) -> Self {
-        let cuts = feedback_free_cuts(recording, options.grid_dt, options.horizon_s);
-        tracing::debug!(?cuts, "feedback-free segments");
-        // Each horizon is prepared and measured on its own: in parallel.
-        let shorts: Vec<Prepared> = cuts
-            .par_iter()
-            .map(|cut| cut.prepare(recording, options))
-            .collect();
+impl<'a> Horizons<'a> {
+    /// `runs` with the lasting noise measured with the residuals of
+    /// `fixed` and `found`.
+    pub(crate) fn of(runs: &'a ShortRuns, fixed: &[ScopedEffect], found: &[ScopedEffect]) -> Self {
         let whole = UnicycleModel::with_effects(fixed.iter().chain(found).cloned().collect());
-        let lasting: Vec<LastingNoise> = shorts
+        let lasting: Vec<LastingNoise> = runs
+            .shorts
             .par_iter()
             .map(|short| LastingNoise::of(short, &whole))
             .collect();
@@ -311,11 +322,7 @@ impl Horizons {
             ?lasting,
             "noise that lasts past a command, and commands that answer it"
         );
-        Self {
-            cuts,
-            shorts,
-            lasting,
-        }
+        Self { runs, lasting }
     }
 
     /// Whether on some horizon the commands answer noise that lasts past
@@ -333,7 +340,7 @@ impl Horizons {
 
     /// The short runs, one per horizon, in the order cut.
     pub(crate) fn shorts(&self) -> Vec<&Prepared> {
-        self.shorts.iter().collect()
+        self.runs.shorts.iter().collect()
     }
 }
 
@@ -349,9 +356,10 @@ pub(crate) fn check_each(
     (0..found.len())
         .map(|k| {
             let runs: Vec<(f64, &Prepared, f64)> = horizons
+                .runs
                 .cuts
                 .iter()
-                .zip(&horizons.shorts)
+                .zip(&horizons.runs.shorts)
                 .zip(&horizons.lasting)
                 .map(|((cut, short), lasting)| {
                     (cut.horizon_s, short, lasting.answer_per_segment(&found[k]))
@@ -405,19 +413,20 @@ pub struct FeedbackFreeCut {
 }
 
 impl FeedbackFreeCut {
-    /// `recording` prepared into this cut's segments.
-    fn prepare(&self, recording: &Recording, options: &Options) -> Prepared {
+    /// The run of `prepared` cut into this cut's segments.
+    fn prepare(&self, prepared: &Prepared, options: &Options) -> Prepared {
         let options = Options {
             horizon_s: self.horizon_s,
             grid_dt: self.grid_dt,
             ..options.clone()
         };
-        if !self.within_holds {
-            return prepare(recording, &options);
-        }
         let steps = ((self.horizon_s / self.grid_dt).round() as usize).max(1);
-        prepare_cut(recording, &options, |recording, grid| {
-            held_segments(recording, grid, steps)
+        prepared.recut(&options, |recording, grid| {
+            if self.within_holds {
+                held_segments(recording, grid, steps)
+            } else {
+                segments(recording, grid, options.horizon_s)
+            }
         })
     }
 }
@@ -1010,6 +1019,7 @@ fn sd_of_sum(segments: &[Segment], gains: &[f64]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::prepared::prepare;
     use crate::recording::{Commands, Poses};
 
     /// `n` commands `period` apart, each value given by `value(i)`.

@@ -5,6 +5,7 @@
 //! the module that calls it.
 
 use std::collections::BTreeMap;
+use std::sync::Arc;
 
 use serde::Serialize;
 use shoal_physics::{CommandGrid, Effect, ScopedEffect};
@@ -108,6 +109,9 @@ pub struct Prepared {
     /// How often poses come: the median interval between observed poses
     /// (what is left after the cleaning above), seconds.
     pub pose_period_s: f64,
+    /// The run as cleaned above, which another cut of it starts from
+    /// ([`Prepared::recut`]): the cleaning is the same for every cut.
+    cleaned: Arc<Recording>,
 }
 
 impl Prepared {
@@ -148,11 +152,8 @@ pub fn prepare_cut(
         Some((headed, how)) => (headed, Some(how)),
         None => (recording, None),
     };
-    let grid = command_grid(&recording, options.grid_dt);
-    let segments = cut(&recording, &grid);
-    let blocks = blocks(&segments, &recording.joins, options.folds);
-    let mut intervals: Vec<f64> = recording.poses.t.windows(2).map(|w| w[1] - w[0]).collect();
-    intervals.sort_by(f64::total_cmp);
+    let cleaned = Arc::new(recording);
+    let (grid, segments, blocks, pose_period_s) = cut_cleaned(&cleaned, options, cut);
     Prepared {
         grid,
         segments,
@@ -161,8 +162,48 @@ pub fn prepare_cut(
         heading_from_track,
         heading_axis,
         blocks,
-        pose_period_s: intervals.get(intervals.len() / 2).copied().unwrap_or(0.0),
+        pose_period_s,
+        cleaned,
     }
+}
+
+impl Prepared {
+    /// The same cleaned run, its segments cut by `cut` on the grid of
+    /// `options`.
+    pub(crate) fn recut(
+        &self,
+        options: &Options,
+        cut: impl Fn(&Recording, &CommandGrid) -> Vec<Segment>,
+    ) -> Prepared {
+        let (grid, segments, blocks, pose_period_s) = cut_cleaned(&self.cleaned, options, cut);
+        Prepared {
+            grid,
+            segments,
+            pose_outliers: self.pose_outliers,
+            glitches: self.glitches.clone(),
+            heading_from_track: self.heading_from_track.clone(),
+            heading_axis: self.heading_axis.clone(),
+            blocks,
+            pose_period_s,
+            cleaned: Arc::clone(&self.cleaned),
+        }
+    }
+}
+
+/// A cleaned run's grid, its segments cut by `cut`, their held-out blocks
+/// and the poses' median interval.
+fn cut_cleaned(
+    recording: &Recording,
+    options: &Options,
+    cut: impl Fn(&Recording, &CommandGrid) -> Vec<Segment>,
+) -> (CommandGrid, Vec<Segment>, Vec<std::ops::Range<usize>>, f64) {
+    let grid = command_grid(recording, options.grid_dt);
+    let segments = cut(recording, &grid);
+    let blocks = blocks(&segments, &recording.joins, options.folds);
+    let mut intervals: Vec<f64> = recording.poses.t.windows(2).map(|w| w[1] - w[0]).collect();
+    intervals.sort_by(f64::total_cmp);
+    let pose_period_s = intervals.get(intervals.len() / 2).copied().unwrap_or(0.0);
+    (grid, segments, blocks, pose_period_s)
 }
 
 /// Where the robot usually drives: the median commanded speed and turn
