@@ -109,9 +109,5 @@ fn an_open_loop_drift_no_horizon_contradicts_is_kept_and_said_as_such() {
         Some(Confirmation::OpenLoopUncontradicted),
         "{check:?}"
     );
-    assert!(
-        check.z < check.z_needed && !check.commands_answer,
-        "{check:?}"
-    );
     assert!(kinds.contains(&"latency"), "{kinds:?}");
 }
