@@ -66,8 +66,9 @@ fn warmup_steps(model: &UnicycleModel, grid: &CommandGrid) -> usize {
 }
 
 /// Grid steps of prediction a chunk of segments holds at least
-/// ([`residuals`]): enough that one more warm-up per chunk (at most 300
-/// steps, actuators with memory on a 0.01 s grid) costs a few percent.
+/// ([`residuals`]): enough that one more warm-up per chunk (300 steps for
+/// actuators with memory on a 0.01 s grid, 600 on the feedback stage's
+/// finest) costs a few percent.
 const CHUNK_STEPS: usize = 8192;
 
 /// Each segment's residual under `model`. Every fit scores a model this
