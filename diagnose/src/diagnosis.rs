@@ -331,18 +331,17 @@ fn checked_once(
         options,
     );
     dropped.not_transferring.extend(more);
-    let (kept, kept_evidence, more) =
-        feedback_checked(runs, prepared, fixed, kept, kept_evidence, options);
+    let (kept, kept_evidence, more) = feedback_checked(runs, fixed, kept, kept_evidence);
     let by_feedback = more.len();
     dropped.not_feedback_free.extend(more);
     (selected.found, selected.evidence) = (kept, kept_evidence);
     by_feedback
 }
 
-/// The recording the feedback stage checks each model on, cut at its
-/// feedback-free horizons the first time a check asks ([`ShortRuns`]): the
-/// cut is the same for every model checked, and a run whose effects are
-/// all noise never asks.
+/// The recording the feedback stage checks each model on, as prepared for
+/// the diagnosis and cut at its feedback-free horizons the first time a
+/// check asks ([`ShortRuns`]): the cut is the same for every model
+/// checked, and a run whose effects are all noise never asks.
 struct FeedbackRuns<'a> {
     recording: &'a Recording,
     prepared: &'a Prepared,
@@ -374,12 +373,11 @@ const COVARIATES_REPORTED: usize = 5;
 /// check; and the dropped ones.
 fn feedback_checked(
     runs: &FeedbackRuns,
-    prepared: &Prepared,
     fixed: &[ScopedEffect],
     found: Vec<ScopedEffect>,
     evidence: Vec<Evidence>,
-    options: &Options,
 ) -> (Vec<ScopedEffect>, Vec<Evidence>, Vec<NotFeedbackFree>) {
+    let (prepared, options) = (runs.prepared, runs.options);
     if found.iter().all(|e| e.effect.only_noise()) {
         return (found, evidence, Vec::new());
     }
@@ -493,12 +491,11 @@ fn rivals_at_horizon(
 /// contradicted ([`FeedbackFree::confirmed_there`]).
 fn unexplained_checked(
     runs: &FeedbackRuns,
-    prepared: &Prepared,
     (fixed, found): (&[ScopedEffect], &[ScopedEffect]),
     unexplained: Vec<Unexplained>,
     not_feedback_free: &mut Vec<NotFeedbackFree>,
-    options: &Options,
 ) -> Vec<Unexplained> {
+    let (prepared, options) = (runs.prepared, runs.options);
     if unexplained.is_empty() {
         return unexplained;
     }
@@ -746,11 +743,9 @@ pub fn diagnose(recording: &Recording, given: &UnicycleModel, options: &Options)
     );
     let unexplained = unexplained_checked(
         &feedback_runs,
-        &prepared,
         (fixed, &found),
         unexplained,
         &mut not_feedback_free,
-        options,
     );
 
     let stderr = if found.is_empty() {
